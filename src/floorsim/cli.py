@@ -1,0 +1,26 @@
+"""``floorsim`` command line: one subcommand per module in :data:`COMMANDS`.
+
+Each module under ``floorsim.commands`` defines ``add_parser(subparsers)`` and a
+``run(args) -> int`` that is a thin call to a library function.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from floorsim import __version__
+from floorvo.cli import build_parser, run_cli
+
+#: Command modules under ``floorsim.commands``, in the order ``--help`` lists them.
+COMMANDS: list[str] = []
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser(
+        "floorsim", "floorsim.commands", COMMANDS, "Render the floor-camera rig and run the odometry bench.", __version__
+    )
+    return run_cli(parser, argv, "floorsim")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Subcommands of the floorsim CLI (see floorsim.cli)."""

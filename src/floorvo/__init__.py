@@ -1,0 +1,18 @@
+"""floorvo: odometry for downward-looking floor cameras.
+
+Never imports Mitsuba, so it runs on real data. Layers:
+
+* data model: :mod:`floorvo.camera`, :mod:`floorvo.geometry`, :mod:`floorvo.tum`,
+  :mod:`floorvo.sequence`;
+* estimators: :mod:`floorvo.estimators` (one protocol, a registry by name);
+* metrics: :mod:`floorvo.metrics`;
+* CLI: :mod:`floorvo.cli` (thin calls to the functions above).
+
+Units: millimetres and radians in code; TUM files in metres and seconds.
+"""
+
+__version__ = "0.1.0"
+
+from floorvo.errors import FloorbenchError  # noqa: E402
+
+__all__ = ["FloorbenchError", "__version__"]

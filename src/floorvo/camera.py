@@ -1,0 +1,172 @@
+"""Pinhole camera model with optional Brown-Conrady distortion.
+
+Pixel coordinates follow OpenCV: ``(u, v)`` = (column, row), the centre of the top-left
+pixel at (0, 0). ``K`` is the 3x3 intrinsic matrix in pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from floorvo.errors import ConfigError
+
+__all__ = ["CameraModel"]
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics of one camera.
+
+    Attributes
+    ----------
+    width_px, height_px:
+        Image size.
+    fx_px, fy_px, cx_px, cy_px:
+        Focal lengths and principal point, in pixels.
+    distortion:
+        OpenCV coefficients (k1, k2, p1, p2, k3); all zero for an ideal pinhole.
+    """
+
+    width_px: int
+    height_px: int
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+    distortion: tuple[float, ...] = field(default=(0.0, 0.0, 0.0, 0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        if self.width_px <= 0 or self.height_px <= 0:
+            raise ConfigError(f"camera: image size must be positive, got {self.width_px}x{self.height_px}")
+        if self.fx_px <= 0 or self.fy_px <= 0:
+            raise ConfigError(f"camera: focal lengths must be positive, got fx={self.fx_px}, fy={self.fy_px}")
+        object.__setattr__(self, "distortion", tuple(float(d) for d in self.distortion))
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_sensor(
+        cls,
+        width_px: int = 648,
+        height_px: int = 494,
+        pixel_pitch_um: float = 7.4,
+        focal_length_mm: float = 6.0,
+        distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0),
+    ) -> "CameraModel":
+        """Ideal pinhole from the sensor's pixel pitch and the lens focal length.
+
+        The principal point is the image centre, ((w - 1) / 2, (h - 1) / 2).
+        """
+        if pixel_pitch_um <= 0 or focal_length_mm <= 0:
+            raise ConfigError(
+                f"camera: pixel_pitch_um and focal_length_mm must be positive, got {pixel_pitch_um}, {focal_length_mm}"
+            )
+        f_px = focal_length_mm * 1000.0 / pixel_pitch_um
+        return cls(width_px, height_px, f_px, f_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0, tuple(distortion))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CameraModel":
+        """Inverse of :meth:`to_dict` (the ``camera`` block of ``sequence.json``)."""
+        try:
+            K = np.asarray(d["K"], dtype=float)
+            return cls(
+                int(d["width_px"]),
+                int(d["height_px"]),
+                float(K[0, 0]),
+                float(K[1, 1]),
+                float(K[0, 2]),
+                float(K[1, 2]),
+                tuple(d.get("distortion", (0.0,) * 5)),
+            )
+        except (KeyError, IndexError, TypeError, ValueError) as exc:
+            raise ConfigError(f"camera: malformed camera block ({exc!r}); need width_px, height_px, K") from None
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: ``K`` (3x3 list), ``width_px``, ``height_px``, ``distortion``."""
+        return {
+            "model": "pinhole" if not any(self.distortion) else "pinhole-brown-conrady",
+            "width_px": self.width_px,
+            "height_px": self.height_px,
+            "K": self.K.tolist(),
+            "distortion": list(self.distortion),
+            "distortion_model": "opencv (k1, k2, p1, p2, k3)",
+        }
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def K(self) -> np.ndarray:
+        """3x3 intrinsic matrix."""
+        return np.array([[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]])
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width_px, height_px)."""
+        return (self.width_px, self.height_px)
+
+    @property
+    def has_distortion(self) -> bool:
+        return any(d != 0.0 for d in self.distortion)
+
+    def gsd_mm_per_px(self, height_mm: float) -> float:
+        """Ground sample distance at ``height_mm`` above a fronto-parallel floor.
+
+        Eq. (1) of paper 000: 2 d tan(theta) / w, with tan(theta) = (w / 2) / f.
+        """
+        return float(height_mm) / self.fx_px
+
+    def fov_rad(self) -> tuple[float, float]:
+        """Full horizontal and vertical field of view (rad)."""
+        return (2 * np.arctan(self.width_px / 2 / self.fx_px), 2 * np.arctan(self.height_px / 2 / self.fy_px))
+
+    def scaled(self, scale: float) -> "CameraModel":
+        """The same camera at ``scale`` times the resolution (pixel centres kept consistent).
+
+        A pixel of the scaled image covers ``1 / scale`` pixels of the original, so
+        f' = s f and c' = s (c + 0.5) - 0.5.
+        """
+        if scale <= 0:
+            raise ConfigError(f"scale must be > 0, got {scale}")
+        w = max(1, int(round(self.width_px * scale)))
+        h = max(1, int(round(self.height_px * scale)))
+        sx, sy = w / self.width_px, h / self.height_px
+        return CameraModel(
+            w,
+            h,
+            self.fx_px * sx,
+            self.fy_px * sy,
+            (self.cx_px + 0.5) * sx - 0.5,
+            (self.cy_px + 0.5) * sy - 0.5,
+            self.distortion,
+        )
+
+    # ------------------------------------------------------------------ projection
+    def project(self, p_cam: np.ndarray) -> np.ndarray:
+        """Project (N, 3) points in the camera frame (mm) to (N, 2) pixels (u, v)."""
+        p = np.atleast_2d(np.asarray(p_cam, dtype=float))
+        x = p[:, 0] / p[:, 2]
+        y = p[:, 1] / p[:, 2]
+        if self.has_distortion:
+            x, y = self._distort(x, y)
+        return np.stack([self.fx_px * x + self.cx_px, self.fy_px * y + self.cy_px], axis=1)
+
+    def unproject(self, uv_px: np.ndarray, depth_mm: np.ndarray | float = 1.0) -> np.ndarray:
+        """Back-project (N, 2) pixels at depth(s) ``depth_mm`` (along z) to (N, 3) camera points."""
+        uv = np.atleast_2d(np.asarray(uv_px, dtype=float))
+        x = (uv[:, 0] - self.cx_px) / self.fx_px
+        y = (uv[:, 1] - self.cy_px) / self.fy_px
+        if self.has_distortion:
+            import cv2
+
+            pts = cv2.undistortPoints(uv.reshape(-1, 1, 2), self.K, np.asarray(self.distortion)).reshape(-1, 2)
+            x, y = pts[:, 0], pts[:, 1]
+        z = np.broadcast_to(np.asarray(depth_mm, dtype=float), x.shape)
+        return np.stack([x * z, y * z, z], axis=1)
+
+    def _distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        k1, k2, p1, p2, k3 = (tuple(self.distortion) + (0.0,) * 5)[:5]
+        r2 = x * x + y * y
+        radial = 1 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        return xd, yd

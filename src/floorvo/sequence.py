@@ -1,0 +1,308 @@
+"""The sequence on disk: the contract between floorsim, floorvo and other people's tools.
+
+::
+
+    SEQ/
+      sequence.json     schema_version, resolved scene, seeds, package versions, units,
+                        camera intrinsics (K, size, distortion), rig extrinsics, fps
+      cam0/000000.png   mono frames (8- or 16-bit)
+      cam1/000000.png   right camera when the rig is stereo
+      depth/000000.png  16-bit depth in 1/100 mm (or depth/000000.npy, float32 mm)
+      calib/cam0_flatfield.png   flat-field frame (same rig, flat uniform floor), optional
+      groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
+
+Every file is written atomically, so a frame file that exists is complete; a render that
+is interrupted and restarted skips the frames already on disk (:meth:`SequenceWriter.has_frame`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.errors import SequenceError
+from floorvo.io import atomic_write_json, atomic_write_bytes, ensure_writable_dir, read_png, write_png
+from floorvo.tum import read_tum, write_tum
+
+__all__ = ["SCHEMA_VERSION", "Sequence", "SequenceWriter", "frame_name", "DEPTH_PNG_SCALE_PER_MM"]
+
+#: Version of the on-disk format; a reader refuses any other.
+SCHEMA_VERSION = 1
+#: 16-bit depth PNGs store depth in 1/100 mm.
+DEPTH_PNG_SCALE_PER_MM = 100.0
+
+
+def frame_name(index: int, ext: str = "png") -> str:
+    """File name of frame ``index``: six digits, e.g. ``000042.png``."""
+    return f"{index:06d}.{ext}"
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _canonical(obj: Any) -> Any:
+    """JSON round trip, so in-memory metadata compares equal to what is on disk."""
+    return json.loads(json.dumps(obj, default=_json_default))
+
+
+class SequenceWriter:
+    """Writes a sequence folder; resumable.
+
+    Parameters
+    ----------
+    root:
+        Output folder (created).
+    meta:
+        The content of ``sequence.json`` except ``schema_version``, which is added. Must
+        hold ``camera`` (``CameraModel.to_dict()``), ``fps`` and ``frame_count``.
+    resume:
+        If ``root/sequence.json`` exists with the same metadata, keep the frames already
+        written; if it exists with different metadata, refuse (unless ``overwrite``).
+    overwrite:
+        Replace an existing sequence with different metadata (old frames are deleted).
+    """
+
+    def __init__(self, root: str | os.PathLike, meta: dict, *, resume: bool = True, overwrite: bool = False):
+        self.root = Path(root)
+        meta = _canonical({"schema_version": SCHEMA_VERSION, "format": "floorbench-sequence", **meta})
+        for key in ("camera", "fps", "frame_count"):
+            if key not in meta:
+                raise ValueError(f"SequenceWriter: meta lacks {key!r}")
+        self.meta = meta
+        if self.root.exists() and not self.root.is_dir():
+            raise SequenceError(f"{self.root}: output path exists and is not a folder")
+        ensure_writable_dir(self.root)
+        meta_path = self.root / "sequence.json"
+        if meta_path.exists():
+            try:
+                old = json.loads(meta_path.read_text())
+            except (OSError, json.JSONDecodeError):
+                old = None
+            same = old is not None and _strip_volatile(old) == _strip_volatile(meta)
+            if same and resume:
+                self.resumed = True
+                return
+            if not overwrite:
+                raise SequenceError(
+                    f"{self.root}: holds a different sequence (other scene, seed or settings); "
+                    "choose another output folder or pass --overwrite"
+                )
+            for sub in ("cam0", "cam1", "depth", "calib"):
+                d = self.root / sub
+                if d.is_dir():
+                    for f in d.iterdir():
+                        f.unlink()
+            for f in ("groundtruth.txt",):
+                (self.root / f).unlink(missing_ok=True)
+        self.resumed = False
+        atomic_write_json(meta_path, meta)
+
+    # ----------------------------------------------------------------- paths
+    def frame_path(self, index: int, cam: str = "cam0") -> Path:
+        return self.root / cam / frame_name(index)
+
+    def depth_path(self, index: int) -> Path:
+        fmt = (self.meta.get("depth") or {}).get("format", "png16")
+        return self.root / "depth" / frame_name(index, "npy" if fmt == "npy_float32_mm" else "png")
+
+    def required_paths(self, index: int) -> list[Path]:
+        """Every file frame ``index`` must have for the sequence to be complete."""
+        paths = [self.frame_path(index, "cam0")]
+        if self.meta.get("stereo"):
+            paths.append(self.frame_path(index, "cam1"))
+        if self.meta.get("depth"):
+            paths.append(self.depth_path(index))
+        return paths
+
+    def has_frame(self, index: int) -> bool:
+        """True if every file of frame ``index`` is on disk (atomic writes: exists = complete)."""
+        return all(p.is_file() for p in self.required_paths(index))
+
+    def missing_frames(self) -> list[int]:
+        return [i for i in range(int(self.meta["frame_count"])) if not self.has_frame(i)]
+
+    # ----------------------------------------------------------------- writing
+    def write_frame(self, index: int, image: np.ndarray, cam: str = "cam0") -> None:
+        """Write a uint8/uint16 mono image as ``cam/NNNNNN.png`` (atomic)."""
+        write_png(self.frame_path(index, cam), image)
+
+    def write_depth(self, index: int, depth_mm: np.ndarray) -> None:
+        """Write a depth map (H, W) in mm; 0 or NaN = no measurement."""
+        path = self.depth_path(index)
+        d = np.asarray(depth_mm, dtype=np.float64)
+        if path.suffix == ".npy":
+            import io
+
+            buf = io.BytesIO()
+            np.save(buf, np.nan_to_num(d, nan=0.0).astype(np.float32))
+            atomic_write_bytes(path, buf.getvalue())
+        else:
+            q = np.round(np.nan_to_num(d, nan=0.0) * DEPTH_PNG_SCALE_PER_MM)
+            write_png(path, np.clip(q, 0, 65535).astype(np.uint16))
+
+    def write_calib(self, name: str, image: np.ndarray) -> None:
+        """Write a calibration image as ``calib/NAME.png`` (e.g. ``cam0_flatfield``)."""
+        write_png(self.root / "calib" / f"{name}.png", image)
+
+    def write_groundtruth(self, timestamps_s: np.ndarray, T_world_cam: np.ndarray) -> None:
+        """Write ``groundtruth.txt`` (TUM, metres) for cam0."""
+        write_tum(self.root / "groundtruth.txt", timestamps_s, T_world_cam)
+
+
+def _strip_volatile(meta: dict) -> dict:
+    """Metadata without fields that may differ between identical renders (timings)."""
+    return {k: v for k, v in meta.items() if k not in ("render_stats",)}
+
+
+@dataclass
+class Sequence:
+    """A sequence folder, opened for reading.
+
+    Use :meth:`open`; it validates ``sequence.json`` and the schema version. Images are
+    read lazily, one at a time.
+    """
+
+    root: Path
+    meta: dict
+
+    @classmethod
+    def open(cls, root: str | os.PathLike) -> "Sequence":
+        root = Path(root)
+        meta_path = root / "sequence.json"
+        if not root.is_dir():
+            raise SequenceError(f"{root}: sequence folder does not exist")
+        if not meta_path.is_file():
+            raise SequenceError(f"{root}: not a sequence (no sequence.json)")
+        try:
+            meta = json.loads(meta_path.read_text())
+        except json.JSONDecodeError as exc:
+            raise SequenceError(f"{meta_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        version = meta.get("schema_version") if isinstance(meta, dict) else None
+        if version != SCHEMA_VERSION:
+            raise SequenceError(
+                f"{meta_path}: schema_version {version!r} is not supported (this floorvo reads version {SCHEMA_VERSION})"
+            )
+        for key in ("camera", "fps", "frame_count"):
+            if key not in meta:
+                raise SequenceError(f"{meta_path}: missing required key {key!r}")
+        seq = cls(root, meta)
+        seq.camera  # validate the camera block now
+        if seq.frame_count <= 0:
+            raise SequenceError(f"{meta_path}: frame_count must be >= 1, got {seq.frame_count}")
+        return seq
+
+    # ----------------------------------------------------------------- metadata
+    @property
+    def camera(self) -> CameraModel:
+        """Intrinsics of cam0."""
+        return CameraModel.from_dict(self.meta["camera"])
+
+    def camera_model(self, cam: str = "cam0") -> CameraModel:
+        """Intrinsics of ``cam`` (``cam1`` for the right camera of a stereo rig)."""
+        if cam == "cam0":
+            return self.camera
+        block = (self.meta.get("cameras") or {}).get(cam)
+        if block is None:
+            raise SequenceError(f"{self.root}: sequence has no camera {cam!r}")
+        return CameraModel.from_dict(block)
+
+    @property
+    def T_cam0_cam1(self) -> np.ndarray | None:
+        """Pose of the right camera in the left camera's frame (mm), or None if mono."""
+        rig = self.meta.get("rig") or {}
+        T = rig.get("T_cam0_cam1")
+        return None if T is None else np.asarray(T, dtype=float)
+
+    @property
+    def frame_count(self) -> int:
+        return int(self.meta["frame_count"])
+
+    @property
+    def fps(self) -> float:
+        return float(self.meta["fps"])
+
+    @property
+    def timestamps_s(self) -> np.ndarray:
+        return np.arange(self.frame_count) / self.fps
+
+    @property
+    def has_stereo(self) -> bool:
+        return bool(self.meta.get("stereo"))
+
+    @property
+    def has_depth(self) -> bool:
+        return bool(self.meta.get("depth"))
+
+    @property
+    def height_mm(self) -> float | None:
+        """Nominal camera height above the floor (mm), if the sequence states it."""
+        rig = self.meta.get("rig") or {}
+        h = rig.get("height_mm")
+        return None if h is None else float(h)
+
+    # ----------------------------------------------------------------- data
+    def image_path(self, index: int, cam: str = "cam0") -> Path:
+        return self.root / cam / frame_name(index)
+
+    def image(self, index: int, cam: str = "cam0") -> np.ndarray:
+        """Frame ``index`` of ``cam`` as stored (uint8 or uint16, (H, W))."""
+        self._check_index(index)
+        img = read_png(self.image_path(index, cam))
+        if img.ndim == 3:
+            import cv2
+
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        cam_model = self.camera_model(cam)
+        if img.shape != (cam_model.height_px, cam_model.width_px):
+            raise SequenceError(
+                f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}, "
+                f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
+            )
+        return img
+
+    def depth_mm(self, index: int) -> np.ndarray:
+        """Depth of frame ``index`` in mm, float32 (H, W); 0 where there is no measurement."""
+        self._check_index(index)
+        if not self.has_depth:
+            raise SequenceError(f"{self.root}: sequence has no depth (render it with depth enabled)")
+        npy = self.root / "depth" / frame_name(index, "npy")
+        if npy.is_file():
+            try:
+                return np.load(npy).astype(np.float32)
+            except (ValueError, OSError):
+                raise SequenceError(f"{npy}: not a readable .npy depth map") from None
+        raw = read_png(self.root / "depth" / frame_name(index))
+        return raw.astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
+
+    def flatfield(self, cam: str = "cam0") -> np.ndarray | None:
+        """Flat-field calibration frame of ``cam`` as stored, or None if the sequence has none."""
+        p = self.root / "calib" / f"{cam}_flatfield.png"
+        return read_png(p) if p.is_file() else None
+
+    def groundtruth(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(timestamps_s (N,), T_world_cam0 (N, 4, 4) mm)`` or None when there is none."""
+        p = self.root / "groundtruth.txt"
+        return read_tum(p) if p.is_file() else None
+
+    def frames(self, cam: str = "cam0") -> Iterator[tuple[int, float, np.ndarray]]:
+        """Iterate ``(index, timestamp_s, image)`` over all frames of ``cam``."""
+        ts = self.timestamps_s
+        for i in range(self.frame_count):
+            yield i, float(ts[i]), self.image(i, cam)
+
+    def _check_index(self, index: int) -> None:
+        if not 0 <= index < self.frame_count:
+            raise SequenceError(f"{self.root}: frame index {index} out of range 0..{self.frame_count - 1}")

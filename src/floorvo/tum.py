@@ -1,0 +1,76 @@
+"""TUM trajectory files: ``timestamp tx ty tz qx qy qz qw`` per line, metres and seconds.
+
+In memory a trajectory is ``(timestamps_s, T_world_cam)``: an (N,) float array and an
+(N, 4, 4) array of poses with translations in **millimetres**. Conversion to metres
+happens only here, so files are readable by ``evo_ape tum`` as they are.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from floorvo.errors import SequenceError
+from floorvo.geometry import T_from_xyz_quat, xyz_quat_from_T
+from floorvo.io import atomic_write_text
+
+__all__ = ["write_tum", "read_tum", "format_tum"]
+
+
+def format_tum(timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> str:
+    """TUM text of poses (N, 4, 4) in mm at ``timestamps_s`` (N,)."""
+    timestamps_s = np.asarray(timestamps_s, dtype=float)
+    T_world_cam = np.asarray(T_world_cam, dtype=float)
+    if T_world_cam.ndim != 3 or T_world_cam.shape[1:] != (4, 4) or len(T_world_cam) != len(timestamps_s):
+        raise ValueError(
+            f"format_tum: need (N,) timestamps and (N, 4, 4) poses, got {timestamps_s.shape} and {T_world_cam.shape}"
+        )
+    lines = []
+    if header:
+        lines += [f"# {h}" for h in header.splitlines()]
+    for ts, T in zip(timestamps_s, T_world_cam):
+        xyz_mm, q = xyz_quat_from_T(T)
+        xyz = xyz_mm / 1000.0
+        lines.append(
+            f"{ts:.6f} {xyz[0]:.9f} {xyz[1]:.9f} {xyz[2]:.9f} {q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_tum(path: str | os.PathLike, timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> None:
+    """Write a TUM file atomically (translations converted mm -> m)."""
+    atomic_write_text(path, format_tum(timestamps_s, T_world_cam, header))
+
+
+def read_tum(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read a TUM file. Returns ``(timestamps_s (N,), T_world_cam (N, 4, 4) in mm)``.
+
+    Lines starting with ``#`` and blank lines are skipped. A malformed line or an empty
+    file raises :class:`SequenceError` naming the file and line.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SequenceError(f"{path}: trajectory file is missing")
+    ts, Ts = [], []
+    for lineno, line in enumerate(path.read_text().splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.replace(",", " ").split()
+        if len(parts) != 8:
+            raise SequenceError(f"{path}:{lineno}: a TUM line has 8 numbers (t tx ty tz qx qy qz qw), got {len(parts)}")
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            raise SequenceError(f"{path}:{lineno}: not a number in TUM line {line!r}") from None
+        q = np.array(vals[4:8])
+        n = np.linalg.norm(q)
+        if not np.isfinite(vals).all() or n < 1e-9:
+            raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
+        ts.append(vals[0])
+        Ts.append(T_from_xyz_quat(np.array(vals[1:4]) * 1000.0, q / n))
+    if not ts:
+        raise SequenceError(f"{path}: trajectory is empty (no pose lines)")
+    return np.array(ts), np.stack(Ts)

@@ -1,0 +1,136 @@
+"""Camera model, transforms, TUM files and the sequence folder."""
+
+import json
+
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError, SequenceError
+from floorvo.geometry import T_world_cam_down, invert_T, rigid_fit_2d, se2_from_T, rot_z
+from floorvo.sequence import SCHEMA_VERSION, Sequence, SequenceWriter
+from floorvo.tum import read_tum, write_tum
+
+
+def test_paper000_gsd_matches_eq1():
+    cam = CameraModel.from_sensor()  # 648x494, 7.4 um, f = 6 mm
+    # Eq. (1) of paper 000: 2 d tan(theta) / w with tan(theta) = (w/2 * pitch) / f
+    tan_theta = (648 / 2 * 7.4e-3) / 6.0
+    assert cam.gsd_mm_per_px(100.0) == pytest.approx(2 * 100.0 * tan_theta / 648, rel=1e-12)
+    assert cam.gsd_mm_per_px(100.0) == pytest.approx(0.12333, abs=1e-5)
+
+
+def test_scaled_camera_keeps_geometry():
+    cam = CameraModel.from_sensor()
+    q = cam.scaled(0.25)
+    assert (q.width_px, q.height_px) == (162, 124)
+    # A floor point seen by both cameras lands on the same place in units of image size.
+    p = np.array([[3.0, -2.0, 100.0]])
+    uv, uvq = cam.project(p)[0], q.project(p)[0]
+    assert (uvq[0] + 0.5) / q.width_px == pytest.approx((uv[0] + 0.5) / cam.width_px, rel=1e-3)
+    assert q.cx_px == pytest.approx((q.width_px - 1) / 2)
+
+
+def test_project_unproject_round_trip_with_distortion():
+    cam = CameraModel(640, 480, 800.0, 800.0, 320.0, 240.0, (-0.1, 0.02, 0.001, -0.001, 0.0))
+    p = np.array([[5.0, -3.0, 100.0], [-20.0, 15.0, 100.0]])
+    back = cam.unproject(cam.project(p), 100.0)
+    np.testing.assert_allclose(back, p, atol=1e-4)
+
+
+def test_bad_camera_refused():
+    with pytest.raises(ConfigError, match="focal"):
+        CameraModel(10, 10, 0.0, 1.0, 5, 5)
+
+
+def test_camera_moving_plus_x_moves_floor_point_minus_u():
+    cam = CameraModel.from_sensor()
+    p_world = np.array([0.0, 0.0, 0.0, 1.0])
+    uv = []
+    for x in (0.0, 1.0):
+        T = T_world_cam_down(x, 0.0, 100.0)
+        uv.append(cam.project((invert_T(T) @ p_world)[:3])[0])
+    du = uv[1][0] - uv[0][0]
+    assert du == pytest.approx(-1.0 / cam.gsd_mm_per_px(100.0), rel=1e-9)
+    assert uv[1][1] == pytest.approx(uv[0][1])
+
+
+def test_se2_and_rigid_fit():
+    T = T_world_cam_down(3.0, -4.0, 100.0, yaw_rad=0.3)
+    np.testing.assert_allclose(se2_from_T(T), [3.0, -4.0, 0.3], atol=1e-12)
+    rng = np.random.default_rng(0)
+    src = rng.normal(size=(30, 2))
+    R = rot_z(-0.7)[:2, :2]
+    dst = src @ R.T + [1.5, -2.0]
+    R_est, t_est = rigid_fit_2d(src, dst)
+    np.testing.assert_allclose(R_est, R, atol=1e-12)
+    np.testing.assert_allclose(t_est, [1.5, -2.0], atol=1e-12)
+
+
+def test_tum_round_trip_in_metres(tmp_path):
+    Ts = np.stack([T_world_cam_down(4.0 * i, 0.5 * i, 100.0, 0.01 * i) for i in range(5)])
+    ts = np.arange(5) / 30.0
+    write_tum(tmp_path / "t.txt", ts, Ts)
+    first = (tmp_path / "t.txt").read_text().splitlines()[1].split()
+    assert float(first[1]) == pytest.approx(0.004)  # 4 mm written as metres
+    ts2, Ts2 = read_tum(tmp_path / "t.txt")
+    np.testing.assert_allclose(ts2, ts, atol=1e-6)
+    np.testing.assert_allclose(Ts2, Ts, atol=1e-8)
+
+
+def test_tum_errors(tmp_path):
+    (tmp_path / "empty.txt").write_text("# nothing\n")
+    with pytest.raises(SequenceError, match="empty"):
+        read_tum(tmp_path / "empty.txt")
+    (tmp_path / "bad.txt").write_text("0 1 2 3\n")
+    with pytest.raises(SequenceError, match=r"bad.txt:1: a TUM line has 8 numbers"):
+        read_tum(tmp_path / "bad.txt")
+
+
+def _meta(n=3):
+    return {"camera": CameraModel.from_sensor().scaled(0.25).to_dict(), "fps": 10.0, "frame_count": n, "scene": {"a": 1}}
+
+
+def test_sequence_write_read_resume(tmp_path):
+    w = SequenceWriter(tmp_path / "seq", _meta())
+    img = (np.arange(124 * 162) % 251).astype(np.uint8).reshape(124, 162)
+    w.write_frame(0, img)
+    assert w.missing_frames() == [1, 2]
+    # Restarting with the same metadata keeps frame 0.
+    w2 = SequenceWriter(tmp_path / "seq", _meta())
+    assert w2.resumed and w2.has_frame(0)
+    # Different metadata is refused without --overwrite.
+    other = _meta()
+    other["scene"] = {"a": 2}
+    with pytest.raises(SequenceError, match="different sequence"):
+        SequenceWriter(tmp_path / "seq", other)
+    seq = Sequence.open(tmp_path / "seq")
+    np.testing.assert_array_equal(seq.image(0), img)
+    with pytest.raises(SequenceError, match="missing"):
+        seq.image(1)
+
+
+def test_sequence_rejects_other_schema_and_corrupt_png(tmp_path):
+    w = SequenceWriter(tmp_path / "seq", _meta(1))
+    (tmp_path / "seq" / "cam0").mkdir(exist_ok=True)
+    (tmp_path / "seq" / "cam0" / "000000.png").write_bytes(b"\x89PNG garbage")
+    with pytest.raises(SequenceError, match="not a readable PNG"):
+        Sequence.open(tmp_path / "seq").image(0)
+    meta = json.loads((tmp_path / "seq" / "sequence.json").read_text())
+    meta["schema_version"] = SCHEMA_VERSION + 1
+    (tmp_path / "seq" / "sequence.json").write_text(json.dumps(meta))
+    with pytest.raises(SequenceError, match="schema_version"):
+        Sequence.open(tmp_path / "seq")
+    assert w.root.exists()
+
+
+def test_depth_png_round_trip(tmp_path):
+    meta = _meta(1)
+    meta["depth"] = {"format": "png16"}
+    w = SequenceWriter(tmp_path / "seq", meta)
+    d = np.full((124, 162), 100.0)
+    d[0, 0] = 99.994
+    w.write_depth(0, d)
+    got = Sequence.open(tmp_path / "seq").depth_mm(0)
+    assert got[5, 5] == pytest.approx(100.0)
+    assert got[0, 0] == pytest.approx(99.99, abs=1e-4)
