@@ -1,0 +1,548 @@
+"""Scripted rig trajectories with exact, continuous-time ground truth.
+
+A :class:`Trajectory` maps time to the camera pose ``T_world_cam`` (4x4, mm) through
+:meth:`Trajectory.pose_at`, so motion blur can integrate sub-frame poses; the frame poses
+are ``pose_at(i / fps)``. The planar path gives ``(x_mm, y_mm, yaw_rad)``; the height
+(``height_mm`` above the mean floor) and the optional disturbances (height bounce, tilt,
+vibration) complete the 6-DoF pose.
+
+Types (registry :data:`TRAJECTORIES`, parameters validated by name):
+
+* ``uniform``: paper 000 model I, 100 mm along x at 4 mm/frame.
+* ``sigmoid``: paper 000 models II/III, x(f) = D / (1 + exp(-g (f - f0))), D = 10 mm,
+  gains 1.25 and 1.75.
+* ``line``: any length, speed and fps (paper 001: 3 m at 0.3 m/s, 30 fps).
+* ``arc``: constant-curvature SE(2) motion, yaw following the tangent (eq. 2 of paper 000
+  has theta).
+* ``spin``: rotation in place about the optical axis.
+* ``s_curve``: x at constant speed, y = A sin(2 pi x / wavelength), yaw along the tangent.
+* ``lawnmower``: back-and-forth lanes covering a rectangle (mapping, paper 003).
+* ``kidnap``: straight segments joined by teleports; the first frame of each segment after
+  the first is listed in ``events["teleport_frames"]`` (paper 003).
+* ``strip``: the paper-000 capture, a 200 mm strip at 1 mm spacing; see
+  :func:`paper000_subsequences` for the 100 uniform and 190 sigmoid runs drawn from it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from floorsim.params import from_mapping, rule, to_plain
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError
+from floorvo.geometry import R_WORLD_CAM_DOWN, T_world_cam_down
+
+__all__ = [
+    "Trajectory",
+    "Disturbance",
+    "TRAJECTORIES",
+    "TrajectoryType",
+    "build_trajectory",
+    "trajectory_param_fields",
+    "footprint_bounds_mm",
+    "paper000_subsequences",
+]
+
+PathFn = Callable[[np.ndarray], np.ndarray]  # t_s (M,) -> (M, 3): x_mm, y_mm, yaw_rad
+
+
+# ----------------------------------------------------------------------------- disturbances
+@dataclass(frozen=True)
+class Disturbance:
+    """Rig disturbances added to any trajectory (all zero = none).
+
+    Height bounce (suspension): ``bounce_amp_mm * sin(2 pi bounce_freq_hz t)``.
+    Tilt: roll and pitch, each ``tilt_amp_rad * sin(2 pi tilt_freq_hz t + phase)``.
+    Vibration: a seeded sum of sinusoids between ``vibration_band_hz`` with RMS
+    ``vibration_rms_mm`` on x, y and z (continuous in time, so blur integrates it).
+    """
+
+    bounce_amp_mm: float = field(default=0.0, metadata=rule(">=0", "mm", lo=0.0, hi=20.0))
+    bounce_freq_hz: float = field(default=2.0, metadata=rule(">0", "Hz"))
+    tilt_amp_rad: float = field(default=0.0, metadata=rule(">=0", "rad", lo=0.0, hi=0.3))
+    tilt_freq_hz: float = field(default=1.5, metadata=rule(">0", "Hz"))
+    vibration_rms_mm: float = field(default=0.0, metadata=rule(">=0", "mm", lo=0.0, hi=5.0))
+    vibration_band_hz: tuple[float, ...] = (20.0, 80.0)
+
+    def __post_init__(self) -> None:
+        band = self.vibration_band_hz
+        if len(band) != 2 or not 0 < band[0] < band[1]:
+            raise ConfigError(f"trajectory.disturbance.vibration_band_hz = {list(band)}: must be [low, high] with 0 < low < high")
+
+    @property
+    def active(self) -> bool:
+        return self.bounce_amp_mm > 0 or self.tilt_amp_rad > 0 or self.vibration_rms_mm > 0
+
+    def offsets(self, t_s: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(dxyz_mm (M, 3), roll_rad (M,), pitch_rad (M,)) at times ``t_s`` (M,)."""
+        t = np.asarray(t_s, dtype=float)
+        dxyz = np.zeros((len(t), 3))
+        dxyz[:, 2] = self.bounce_amp_mm * np.sin(2 * np.pi * self.bounce_freq_hz * t)
+        roll = self.tilt_amp_rad * np.sin(2 * np.pi * self.tilt_freq_hz * t)
+        pitch = self.tilt_amp_rad * np.sin(2 * np.pi * self.tilt_freq_hz * t + np.pi / 2)
+        if self.vibration_rms_mm > 0:
+            rng = np.random.default_rng([seed, 0x7E1B])
+            k = 8
+            for axis in range(3):
+                freqs = rng.uniform(*self.vibration_band_hz, size=k)
+                phases = rng.uniform(0, 2 * np.pi, size=k)
+                # Each unit sinusoid has RMS 1/sqrt(2); k of them with random phases sum to RMS sqrt(k/2).
+                amp = self.vibration_rms_mm / np.sqrt(k / 2)
+                dxyz[:, axis] += amp * np.sin(2 * np.pi * freqs[None, :] * t[:, None] + phases[None, :]).sum(axis=1)
+        return dxyz, roll, pitch
+
+
+# ----------------------------------------------------------------------------- trajectory
+@dataclass(frozen=True)
+class Trajectory:
+    """A rig trajectory sampled at ``fps``.
+
+    Attributes: ``name`` (type), ``fps``, ``frame_count``, ``height_mm`` (nominal camera
+    height above the mean floor), ``events`` (e.g. ``{"teleport_frames": [...]}``),
+    ``params`` (the resolved type parameters, plain dict).
+    """
+
+    name: str
+    fps: float
+    frame_count: int
+    height_mm: float
+    path: PathFn = field(repr=False)
+    disturbance: Disturbance = field(default_factory=Disturbance)
+    seed: int = 0
+    events: Mapping[str, Any] = field(default_factory=dict)
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def timestamps_s(self) -> np.ndarray:
+        """(N,) frame times in seconds, ``i / fps``."""
+        return np.arange(self.frame_count) / self.fps
+
+    @property
+    def duration_s(self) -> float:
+        return (self.frame_count - 1) / self.fps
+
+    def se2_at(self, t_s: np.ndarray | float) -> np.ndarray:
+        """(M, 3) planar pose ``(x_mm, y_mm, yaw_rad)`` of the undisturbed path."""
+        return self.path(np.atleast_1d(np.asarray(t_s, dtype=float)))
+
+    def pose_at(self, t_s: np.ndarray | float) -> np.ndarray:
+        """(M, 4, 4) camera poses ``T_world_cam`` (mm) at times ``t_s`` (M,)."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        xyyaw = self.path(t)
+        dxyz, roll, pitch = self.disturbance.offsets(t, self.seed)
+        out = np.empty((len(t), 4, 4))
+        for i in range(len(t)):
+            out[i] = T_world_cam_down(
+                xyyaw[i, 0] + dxyz[i, 0],
+                xyyaw[i, 1] + dxyz[i, 1],
+                self.height_mm + dxyz[i, 2],
+                xyyaw[i, 2],
+                roll[i],
+                pitch[i],
+            )
+        return out
+
+    @property
+    def T_world_cam(self) -> np.ndarray:
+        """(N, 4, 4) frame poses."""
+        return self.pose_at(self.timestamps_s)
+
+    def path_length_mm(self) -> float:
+        """Length of the planar path over the frames (teleports excluded)."""
+        xy = self.se2_at(self.timestamps_s)[:, :2]
+        steps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+        for f in self.events.get("teleport_frames", []):
+            if 0 < f < self.frame_count:
+                steps[f - 1] = 0.0
+        return float(steps.sum())
+
+    def to_dict(self) -> dict:
+        return {
+            "type": self.name,
+            **dict(self.params),
+            "disturbance": to_plain(self.disturbance),
+            "frame_count": self.frame_count,
+            "events": dict(self.events),
+        }
+
+
+# ----------------------------------------------------------------------------- parameter sets
+@dataclass(frozen=True)
+class UniformParams:
+    """Paper 000 model I: constant speed along ``direction_rad``."""
+
+    distance_mm: float = field(default=100.0, metadata=rule(">0", "mm"))
+    step_mm: float = field(default=4.0, metadata=rule(">0", "mm"))
+    direction_rad: float = 0.0
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+    yaw_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class SigmoidParams:
+    """Paper 000 models II and III: x(f) = total_mm / (1 + exp(-gain (f - f0)))."""
+
+    total_mm: float = field(default=10.0, metadata=rule(">0", "mm"))
+    gain: float = field(default=1.25, metadata=rule(">0", "1/frame"))
+    frames: int = field(default=20, metadata=rule(">=1", "frames", lo=2))
+    f0: float | None = None
+    direction_rad: float = 0.0
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class LineParams:
+    """Straight line at constant speed (paper 001: 3 m at 0.3 m/s)."""
+
+    length_mm: float = field(default=3000.0, metadata=rule(">0", "mm"))
+    speed_mm_s: float = field(default=300.0, metadata=rule(">0", "mm/s"))
+    direction_rad: float = 0.0
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class ArcParams:
+    """Constant-curvature arc; positive radius turns left (counter-clockwise)."""
+
+    radius_mm: float = field(default=200.0, metadata=rule("any", "mm"))
+    length_mm: float = field(default=100.0, metadata=rule(">0", "mm"))
+    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
+    start_yaw_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        if abs(self.radius_mm) < 1.0:
+            raise ConfigError(f"trajectory.radius_mm = {self.radius_mm} mm: |radius| must be >= 1 mm (use spin for rotation in place)")
+
+
+@dataclass(frozen=True)
+class SpinParams:
+    """Rotation in place about the optical axis."""
+
+    angle_rad: float = field(default=float(np.pi / 2), metadata=rule("any", "rad"))
+    rate_rad_s: float = field(default=1.0, metadata=rule(">0", "rad/s"))
+    x_mm: float = 0.0
+    y_mm: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.angle_rad == 0:
+            raise ConfigError("trajectory.angle_rad = 0: must be non-zero")
+
+
+@dataclass(frozen=True)
+class SCurveParams:
+    """x at constant ground speed, y = amplitude sin(2 pi x / wavelength)."""
+
+    length_mm: float = field(default=300.0, metadata=rule(">0", "mm"))
+    amplitude_mm: float = field(default=20.0, metadata=rule(">=0", "mm"))
+    wavelength_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
+    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
+
+
+@dataclass(frozen=True)
+class LawnmowerParams:
+    """Back-and-forth lanes along x covering ``width_mm`` x ``depth_mm`` from (x0, y0).
+
+    ``heading``: ``fixed`` keeps yaw 0 (a holonomic scan); ``follow`` turns the rig to
+    face its motion (yaw 0 on even lanes, pi on odd lanes, a quarter turn on each step).
+    """
+
+    width_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
+    depth_mm: float = field(default=120.0, metadata=rule(">0", "mm"))
+    lane_spacing_mm: float = field(default=40.0, metadata=rule(">0", "mm"))
+    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+    heading: str = field(default="fixed", metadata=rule(choices=("fixed", "follow")))
+
+
+@dataclass(frozen=True)
+class KidnapParams:
+    """``segments`` straight segments of ``segment_length_mm`` with random start, heading and
+    yaw inside the rectangle [x0, x0+width] x [y0, y0+depth], joined by teleports (seeded)."""
+
+    segments: int = field(default=4, metadata=rule(">=1", "", lo=1, hi=1000))
+    segment_length_mm: float = field(default=40.0, metadata=rule(">0", "mm"))
+    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
+    width_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
+    depth_mm: float = field(default=120.0, metadata=rule(">0", "mm"))
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+    max_yaw_rad: float = field(default=float(np.pi), metadata=rule(">=0", "rad", lo=0.0, hi=float(np.pi)))
+
+
+@dataclass(frozen=True)
+class StripParams:
+    """Paper-000 capture: ``count`` frames at ``spacing_mm`` along x."""
+
+    count: int = field(default=200, metadata=rule(">=1", "frames", lo=2))
+    spacing_mm: float = field(default=1.0, metadata=rule(">0", "mm"))
+    start_x_mm: float = 0.0
+    start_y_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class TrajectoryType:
+    """A registered trajectory type: its parameter class and a builder.
+
+    ``build(params, fps, seed) -> (frame_count, path_fn, events)``.
+    """
+
+    name: str
+    Params: type
+    description: str
+    build: Callable[[Any, float, int], tuple[int, PathFn, dict]]
+
+
+def _n_frames(duration_s: float, fps: float) -> int:
+    return int(np.floor(duration_s * fps + 1e-9)) + 1
+
+
+def _straight(x0: float, y0: float, direction: float, speed: float, yaw: float = 0.0) -> PathFn:
+    c, s = np.cos(direction), np.sin(direction)
+
+    def path(t: np.ndarray) -> np.ndarray:
+        d = speed * t
+        return np.stack([x0 + c * d, y0 + s * d, np.full_like(t, yaw)], axis=1)
+
+    return path
+
+
+def _build_uniform(p: UniformParams, fps: float, seed: int):
+    n = int(round(p.distance_mm / p.step_mm))
+    if abs(n * p.step_mm - p.distance_mm) > 1e-9 * p.distance_mm:
+        raise ConfigError(f"trajectory.distance_mm = {p.distance_mm}: must be a whole multiple of step_mm = {p.step_mm}")
+    return n + 1, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.step_mm * fps, p.yaw_rad), {}
+
+
+def _build_sigmoid(p: SigmoidParams, fps: float, seed: int):
+    f0 = (p.frames - 1) / 2.0 if p.f0 is None else p.f0
+    c, s = np.cos(p.direction_rad), np.sin(p.direction_rad)
+
+    def path(t: np.ndarray) -> np.ndarray:
+        f = t * fps
+        d = p.total_mm / (1.0 + np.exp(-p.gain * (f - f0)))
+        return np.stack([p.start_x_mm + c * d, p.start_y_mm + s * d, np.zeros_like(t)], axis=1)
+
+    return p.frames, path, {}
+
+
+def _build_line(p: LineParams, fps: float, seed: int):
+    n = _n_frames(p.length_mm / p.speed_mm_s, fps)
+    return n, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.speed_mm_s), {}
+
+
+def _build_arc(p: ArcParams, fps: float, seed: int):
+    n = _n_frames(p.length_mm / p.speed_mm_s, fps)
+    r = p.radius_mm
+
+    def path(t: np.ndarray) -> np.ndarray:
+        phi = p.speed_mm_s * t / r  # signed turned angle
+        yaw = p.start_yaw_rad + phi
+        # Centre of the circle is r to the left of the start heading.
+        cx, cy = -r * np.sin(p.start_yaw_rad), r * np.cos(p.start_yaw_rad)
+        x = cx + r * np.sin(yaw)
+        y = cy - r * np.cos(yaw)
+        return np.stack([x, y, yaw], axis=1)
+
+    return n, path, {}
+
+
+def _build_spin(p: SpinParams, fps: float, seed: int):
+    n = _n_frames(abs(p.angle_rad) / p.rate_rad_s, fps)
+    sign = np.sign(p.angle_rad)
+
+    def path(t: np.ndarray) -> np.ndarray:
+        return np.stack([np.full_like(t, p.x_mm), np.full_like(t, p.y_mm), sign * p.rate_rad_s * t], axis=1)
+
+    return n, path, {}
+
+
+def _build_s_curve(p: SCurveParams, fps: float, seed: int):
+    # Arc length of y = A sin(k x) by dense tabulation, so the ground speed is constant.
+    k = 2 * np.pi / p.wavelength_mm
+    xs = np.linspace(0.0, p.length_mm, 20001)
+    ds = np.sqrt(1.0 + (p.amplitude_mm * k * np.cos(k * xs)) ** 2)
+    s = np.concatenate([[0.0], np.cumsum((ds[1:] + ds[:-1]) / 2 * np.diff(xs))])
+    n = _n_frames(s[-1] / p.speed_mm_s, fps)
+
+    def path(t: np.ndarray) -> np.ndarray:
+        x = np.interp(p.speed_mm_s * t, s, xs)
+        y = p.amplitude_mm * np.sin(k * x)
+        yaw = np.arctan(p.amplitude_mm * k * np.cos(k * x))
+        return np.stack([x, y, yaw], axis=1)
+
+    return n, path, {}
+
+
+def _polyline_path(vertices: np.ndarray, yaws: np.ndarray, speed: float) -> tuple[float, PathFn]:
+    seg = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+
+    def path(t: np.ndarray) -> np.ndarray:
+        d = np.clip(speed * t, 0.0, s[-1])
+        x = np.interp(d, s, vertices[:, 0])
+        y = np.interp(d, s, vertices[:, 1])
+        yaw = np.interp(d, s, yaws)
+        return np.stack([x, y, yaw], axis=1)
+
+    return float(s[-1]), path
+
+
+def _build_lawnmower(p: LawnmowerParams, fps: float, seed: int):
+    lanes = int(np.floor(p.depth_mm / p.lane_spacing_mm + 1e-9)) + 1
+    verts, yaws = [], []
+    for i in range(lanes):
+        y = p.start_y_mm + i * p.lane_spacing_mm
+        xa, xb = (p.start_x_mm, p.start_x_mm + p.width_mm) if i % 2 == 0 else (p.start_x_mm + p.width_mm, p.start_x_mm)
+        yaw = 0.0 if (p.heading == "fixed" or i % 2 == 0) else np.pi
+        verts += [(xa, y), (xb, y)]
+        yaws += [yaw, yaw]
+    length, path = _polyline_path(np.array(verts), np.array(yaws), p.speed_mm_s)
+    return _n_frames(length / p.speed_mm_s, fps), path, {"lanes": lanes}
+
+
+def _build_kidnap(p: KidnapParams, fps: float, seed: int):
+    rng = np.random.default_rng([seed, 0x51D])
+    per_seg = _n_frames(p.segment_length_mm / p.speed_mm_s, fps)
+    starts, dirs, yaws = [], [], []
+    for _ in range(p.segments):
+        d = rng.uniform(-np.pi, np.pi)
+        # Keep the whole segment inside the rectangle.
+        dx, dy = p.segment_length_mm * np.cos(d), p.segment_length_mm * np.sin(d)
+        lo_x, hi_x = p.start_x_mm + max(0.0, -dx), p.start_x_mm + p.width_mm - max(0.0, dx)
+        lo_y, hi_y = p.start_y_mm + max(0.0, -dy), p.start_y_mm + p.depth_mm - max(0.0, dy)
+        if lo_x > hi_x or lo_y > hi_y:
+            raise ConfigError(
+                f"trajectory.segment_length_mm = {p.segment_length_mm}: a segment must fit in the {p.width_mm} x {p.depth_mm} mm area"
+            )
+        starts.append((rng.uniform(lo_x, hi_x), rng.uniform(lo_y, hi_y)))
+        dirs.append(d)
+        yaws.append(rng.uniform(-p.max_yaw_rad, p.max_yaw_rad))
+    n = per_seg * p.segments
+    seg_dt = (per_seg - 1) / fps  # motion time within a segment
+    frame_dt = 1.0 / fps
+
+    def path(t: np.ndarray) -> np.ndarray:
+        # Segment k occupies frames [k * per_seg, (k + 1) * per_seg): times [k * per_seg / fps, ...).
+        k = np.clip(np.floor(t * fps / per_seg + 1e-9).astype(int), 0, p.segments - 1)
+        tau = np.clip(t - k * per_seg * frame_dt, 0.0, seg_dt + frame_dt)
+        sx = np.array(starts)[k]
+        d = np.array(dirs)[k]
+        dist = p.speed_mm_s * tau
+        return np.stack([sx[:, 0] + np.cos(d) * dist, sx[:, 1] + np.sin(d) * dist, np.array(yaws)[k]], axis=1)
+
+    events = {"teleport_frames": [k * per_seg for k in range(1, p.segments)], "segment_frames": per_seg}
+    return n, path, events
+
+
+def _build_strip(p: StripParams, fps: float, seed: int):
+    return p.count, _straight(p.start_x_mm, p.start_y_mm, 0.0, p.spacing_mm * fps), {}
+
+
+TRAJECTORIES: dict[str, TrajectoryType] = {
+    t.name: t
+    for t in (
+        TrajectoryType("uniform", UniformParams, "paper 000 model I: 100 mm along x at 4 mm/frame", _build_uniform),
+        TrajectoryType("sigmoid", SigmoidParams, "paper 000 models II/III: 10 mm sigmoid, gain 1.25 or 1.75", _build_sigmoid),
+        TrajectoryType("line", LineParams, "straight line at constant speed (paper 001: 3 m at 0.3 m/s)", _build_line),
+        TrajectoryType("arc", ArcParams, "constant-curvature arc, yaw along the tangent", _build_arc),
+        TrajectoryType("spin", SpinParams, "rotation in place about the optical axis", _build_spin),
+        TrajectoryType("s_curve", SCurveParams, "sinusoidal S-curve at constant ground speed", _build_s_curve),
+        TrajectoryType("lawnmower", LawnmowerParams, "back-and-forth lanes covering a rectangle (mapping)", _build_lawnmower),
+        TrajectoryType("kidnap", KidnapParams, "straight segments joined by teleports (relocalisation)", _build_kidnap),
+        TrajectoryType("strip", StripParams, "paper 000 capture: 200 frames at 1 mm spacing", _build_strip),
+    )
+}
+
+
+def trajectory_param_fields(type_name: str) -> list[str]:
+    """Names of the parameters of trajectory type ``type_name``."""
+    return [f.name for f in dataclasses.fields(_get_type(type_name).Params)]
+
+
+def _get_type(type_name: str) -> TrajectoryType:
+    if type_name not in TRAJECTORIES:
+        raise ConfigError(f"trajectory.type = {type_name!r}: unknown type (known: {', '.join(TRAJECTORIES)})")
+    return TRAJECTORIES[type_name]
+
+
+def build_trajectory(
+    type_name: str,
+    params: Mapping[str, Any] | None = None,
+    *,
+    height_mm: float,
+    fps: float,
+    seed: int = 0,
+    disturbance: Mapping[str, Any] | Disturbance | None = None,
+) -> Trajectory:
+    """Build a trajectory of registered type ``type_name`` from a parameter table.
+
+    ``params`` may not contain ``type`` or ``disturbance`` (pass those separately).
+    Unknown keys, wrong types and impossible values raise :class:`ConfigError`.
+    """
+    ttype = _get_type(type_name)
+    if height_mm <= 0:
+        raise ConfigError(f"camera.height_mm = {height_mm}: must be > 0 (the camera is above the floor)")
+    if fps <= 0:
+        raise ConfigError(f"fps = {fps}: must be > 0")
+    p = from_mapping(ttype.Params, params, "trajectory")
+    dist = disturbance if isinstance(disturbance, Disturbance) else from_mapping(Disturbance, disturbance, "trajectory.disturbance")
+    n, path, events = ttype.build(p, float(fps), int(seed))
+    if n < 1:
+        raise ConfigError(f"trajectory: type {type_name!r} with these parameters has no frames")
+    return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
+
+
+def footprint_bounds_mm(T_world_cam: np.ndarray, camera: CameraModel, margin_mm: float = 0.0) -> tuple[float, float, float, float]:
+    """Bounding box ``(xmin, xmax, ymin, ymax)`` of the floor (z = 0) seen by ``camera`` at poses (N, 4, 4)."""
+    Ts = np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4)
+    w, h = camera.width_px, camera.height_px
+    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+    rays = camera.unproject(corners, 1.0)  # (4, 3) in the camera frame
+    pts = []
+    for T in Ts:
+        d = rays @ T[:3, :3].T
+        o = T[:3, 3]
+        if np.any(d[:, 2] >= 0):
+            raise ConfigError("camera: a corner ray does not hit the floor (tilt too large)")
+        s = -o[2] / d[:, 2]
+        pts.append(o[None, :2] + s[:, None] * d[:, :2])
+    pts = np.concatenate(pts)
+    return (
+        float(pts[:, 0].min() - margin_mm),
+        float(pts[:, 0].max() + margin_mm),
+        float(pts[:, 1].min() - margin_mm),
+        float(pts[:, 1].max() + margin_mm),
+    )
+
+
+def paper000_subsequences(model: str, strip_count: int = 200, spacing_mm: float = 1.0) -> list[np.ndarray]:
+    """Strip frame indices of every run of paper 000's protocol.
+
+    ``model``: ``uniform`` (4 mm/frame over 100 mm: 26 frames per run, one run per start
+    frame that fits: 100 runs on a 200-frame strip at 1 mm), ``sigmoid_g125`` or
+    ``sigmoid_g175`` (10 mm sigmoid sampled at the strip's nearest frame per step: one run
+    per start frame that fits, 190 runs). Ground truth of strip frame i is i * spacing_mm.
+    """
+    if model == "uniform":
+        step = int(round(4.0 / spacing_mm))
+        span = int(round(100.0 / spacing_mm))
+        offsets = np.arange(0, span + 1, step)
+    elif model in ("sigmoid_g125", "sigmoid_g175"):
+        gain = 1.25 if model.endswith("125") else 1.75
+        frames = 20
+        f = np.arange(frames)
+        x_mm = 10.0 / (1.0 + np.exp(-gain * (f - (frames - 1) / 2.0)))
+        offsets = np.round(x_mm / spacing_mm).astype(int)
+        span = int(round(10.0 / spacing_mm))
+    else:
+        raise ConfigError(f"paper-000 model {model!r}: must be uniform, sigmoid_g125 or sigmoid_g175")
+    # The paper draws 100 uniform and 190 sigmoid runs from a 200-frame strip.
+    return [start + offsets for start in range(max(0, strip_count - span))]

@@ -1,0 +1,133 @@
+"""Scripted trajectories: exact poses against hand computation."""
+
+import numpy as np
+import pytest
+
+from floorsim.trajectories import (
+    TRAJECTORIES,
+    build_trajectory,
+    footprint_bounds_mm,
+    paper000_subsequences,
+)
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError
+from floorvo.geometry import se2_from_T
+
+
+def _se2(traj):
+    return np.array([se2_from_T(T) for T in traj.T_world_cam])
+
+
+def test_uniform_is_paper000_model_I():
+    tr = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0)
+    assert tr.frame_count == 26  # 100 mm at 4 mm/frame
+    xy = _se2(tr)
+    np.testing.assert_allclose(np.diff(xy[:, 0]), 4.0, atol=1e-12)
+    np.testing.assert_allclose(xy[:, 1:], 0.0, atol=1e-12)
+    np.testing.assert_allclose(tr.T_world_cam[:, 2, 3], 100.0)
+    assert tr.path_length_mm() == pytest.approx(100.0)
+
+
+@pytest.mark.parametrize("gain", [1.25, 1.75])
+def test_sigmoid_follows_formula(gain):
+    tr = build_trajectory("sigmoid", {"gain": gain, "frames": 20}, height_mm=100.0, fps=10.0)
+    f = np.arange(20)
+    expect = 10.0 / (1 + np.exp(-gain * (f - 9.5)))
+    np.testing.assert_allclose(_se2(tr)[:, 0], expect, atol=1e-12)
+
+
+def test_line_paper001():
+    tr = build_trajectory("line", {}, height_mm=100.0, fps=30.0)
+    assert tr.frame_count == 301  # 3 m at 10 mm/frame
+    assert _se2(tr)[-1, 0] == pytest.approx(3000.0)
+
+
+def test_arc_radius_and_tangent_yaw():
+    tr = build_trajectory("arc", {"radius_mm": 100.0, "length_mm": 50.0, "speed_mm_s": 50.0}, height_mm=100.0, fps=20.0)
+    s = _se2(tr)
+    # All points on the circle of radius 100 centred at (0, 100).
+    np.testing.assert_allclose(np.hypot(s[:, 0], s[:, 1] - 100.0), 100.0, atol=1e-9)
+    # Yaw = travelled arc / radius.
+    np.testing.assert_allclose(s[:, 2], 50.0 * tr.timestamps_s / 100.0, atol=1e-12)
+
+
+def test_spin_in_place():
+    tr = build_trajectory("spin", {"angle_rad": -1.0, "rate_rad_s": 1.0}, height_mm=100.0, fps=10.0)
+    s = _se2(tr)
+    np.testing.assert_allclose(s[:, :2], 0.0, atol=1e-12)
+    assert s[-1, 2] == pytest.approx(-1.0)
+
+
+def test_s_curve_constant_ground_speed():
+    tr = build_trajectory("s_curve", {"length_mm": 200.0, "amplitude_mm": 15.0, "speed_mm_s": 100.0}, height_mm=100.0, fps=50.0)
+    s = _se2(tr)
+    steps = np.linalg.norm(np.diff(s[:, :2], axis=0), axis=1)
+    np.testing.assert_allclose(steps, 2.0, rtol=2e-3)
+
+
+def test_lawnmower_covers_rectangle():
+    tr = build_trajectory("lawnmower", {"width_mm": 100.0, "depth_mm": 60.0, "lane_spacing_mm": 30.0}, height_mm=100.0, fps=30.0)
+    s = _se2(tr)
+    assert s[:, 0].min() == pytest.approx(0.0) and s[:, 0].max() == pytest.approx(100.0, abs=4.0)
+    assert set(np.round(s[:, 1], 6)) >= {0.0, 30.0, 60.0}
+
+
+def test_kidnap_teleports_marked_and_seeded():
+    a = build_trajectory("kidnap", {"segments": 3}, height_mm=100.0, fps=30.0, seed=5)
+    b = build_trajectory("kidnap", {"segments": 3}, height_mm=100.0, fps=30.0, seed=5)
+    c = build_trajectory("kidnap", {"segments": 3}, height_mm=100.0, fps=30.0, seed=6)
+    np.testing.assert_array_equal(a.T_world_cam, b.T_world_cam)
+    assert not np.allclose(a.T_world_cam, c.T_world_cam)
+    tf = a.events["teleport_frames"]
+    assert len(tf) == 2
+    s = _se2(a)
+    steps = np.linalg.norm(np.diff(s[:, :2], axis=0), axis=1)
+    within = np.delete(steps, [f - 1 for f in tf])
+    np.testing.assert_allclose(within, 4.0, atol=1e-9)  # 120 mm/s at 30 fps
+    # Every point stays inside the area.
+    assert s[:, 0].min() >= -1e-9 and s[:, 0].max() <= 200 + 1e-9
+
+
+def test_disturbances_change_height_and_tilt_only_as_asked():
+    base = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0)
+    bounced = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0, disturbance={"bounce_amp_mm": 2.0, "bounce_freq_hz": 3.0})
+    dz = bounced.T_world_cam[:, 2, 3] - 100.0
+    np.testing.assert_allclose(dz, 2.0 * np.sin(2 * np.pi * 3.0 * base.timestamps_s), atol=1e-12)
+    np.testing.assert_allclose(bounced.T_world_cam[:, :2, 3], base.T_world_cam[:, :2, 3], atol=1e-12)
+    vib = build_trajectory("line", {"length_mm": 300.0}, height_mm=100.0, fps=30.0, disturbance={"vibration_rms_mm": 0.1}, seed=1)
+    t = np.linspace(0, 1, 20001)
+    d = vib.pose_at(t)[:, 2, 3] - 100.0
+    assert np.sqrt(np.mean(d**2)) == pytest.approx(0.1, rel=0.25)
+
+
+def test_bad_params_refused_by_name():
+    with pytest.raises(ConfigError, match=r"trajectory.step_mm = -1.0 mm: must be > 0"):
+        build_trajectory("uniform", {"step_mm": -1.0}, height_mm=100.0, fps=30.0)
+    with pytest.raises(ConfigError, match=r"trajectory.speed: unknown key"):
+        build_trajectory("line", {"speed": 3.0}, height_mm=100.0, fps=30.0)
+    with pytest.raises(ConfigError, match=r"trajectory.type = 'zigzag'"):
+        build_trajectory("zigzag", {}, height_mm=100.0, fps=30.0)
+    with pytest.raises(ConfigError, match=r"trajectory.frames = 'ten'"):
+        build_trajectory("sigmoid", {"frames": "ten"}, height_mm=100.0, fps=30.0)
+    with pytest.raises(ConfigError, match="height_mm"):
+        build_trajectory("uniform", {}, height_mm=-5.0, fps=30.0)
+
+
+def test_footprint_of_paper_rig():
+    cam = CameraModel.from_sensor()
+    tr = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0)
+    xmin, xmax, ymin, ymax = footprint_bounds_mm(tr.T_world_cam[:1], cam)
+    assert xmax - xmin == pytest.approx(648 * cam.gsd_mm_per_px(100.0), rel=1e-9)
+    assert ymax - ymin == pytest.approx(494 * cam.gsd_mm_per_px(100.0), rel=1e-9)
+
+
+def test_paper000_protocol_counts():
+    uni = paper000_subsequences("uniform")
+    sig = paper000_subsequences("sigmoid_g125")
+    assert len(uni) == 100 and len(sig) == 190
+    assert uni[0][-1] == 100 and uni[-1][-1] == 199
+    assert sig[0][0] == 0 and sig[0][-1] == 10 and max(r.max() for r in sig) == 199
+
+
+def test_registry_has_the_design_types():
+    assert {"uniform", "sigmoid", "line", "arc", "spin", "s_curve", "lawnmower", "kidnap", "strip"} <= set(TRAJECTORIES)
