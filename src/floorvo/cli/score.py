@@ -1,0 +1,69 @@
+"""``floorvo score RUN --gt SEQ``: score an estimator run against ground truth.
+
+Prints a table and writes ``RUN/score.json`` (see :func:`floorvo.metrics.score_run`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from floorvo.io import atomic_write_json
+from floorvo.metrics import Score, score_run
+
+__all__ = ["add_parser", "run", "format_score_table"]
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "score",
+        help="score a run (trajectory.txt, timing.csv) against a sequence's ground truth",
+        description="Score RUN/trajectory.txt against SEQ/groundtruth.txt: ATE (no/origin/SE(2)/SE(3) alignment), "
+        "RPE per frame and per distance, drift in %% of distance (end point and KITTI segments), tracking loss, "
+        "timing. Prints a table and writes RUN/score.json.",
+    )
+    p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
+    p.add_argument("--gt", metavar="SEQ", type=Path, required=True, help="sequence folder (or a TUM ground-truth file)")
+    p.add_argument("--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)")
+    p.add_argument("-o", "--output", type=Path, default=None, help="where to write score.json (default RUN/score.json)")
+    p.set_defaults(func=run)
+
+
+def _fmt(v: float) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.4g}"
+
+
+def format_score_table(score: Score) -> str:
+    """A plain-text table of the main metrics of ``score``."""
+    lines = [f"estimator: {score.estimator or '?'}   poses: {score.n_matched} matched of {score.n_ref} ground truth"]
+    lines.append(f"{'metric':<34} {'rmse':>10} {'mean':>10} {'max':>10}")
+    for name, a in score.ate.items():
+        t = a["trans_mm"]
+        lines.append(f"{'ATE [mm], alignment ' + name:<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}")
+    for label, r in [("RPE per frame", score.rpe_frame)] + [(f"RPE per {d['delta']:g} mm", d) for d in score.rpe_distance]:
+        t, q = r["trans_mm"], r["rot_deg"]
+        lines.append(f"{label + ' [mm]':<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}")
+        lines.append(f"{label + ' [deg]':<34} {_fmt(q['rmse']):>10} {_fmt(q['mean']):>10} {_fmt(q['max']):>10}")
+    d = score.drift
+    lines.append(f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
+                 f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)")
+    for s in score.segments:
+        lines.append(f"segment {s['length_mm']:>6g} mm: t_err {_fmt(s['t_err_pct'])} %  r_err {_fmt(s['r_err_deg_per_m'])} deg/m  (n={s['count']})")
+    tr = score.tracking
+    lines.append(f"tracking: {tr['lost_frames']} lost frame(s) in {tr['loss_events']} event(s), tracked {100 * tr['tracked_fraction']:.1f} %")
+    if "total_ms" in score.timing:
+        t = score.timing["total_ms"]
+        lines.append(f"timing: total {_fmt(t['mean'])} ms mean, {_fmt(t['p95'])} ms p95 ({_fmt(score.timing.get('fps', float('nan')))} frames/s)")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    score = score_run(args.run_dir, args.gt, max_diff_s=args.max_diff)
+    out = args.output or (args.run_dir / "score.json")
+    atomic_write_json(out, score.to_dict())
+    print(format_score_table(score))
+    print(f"score written to {out}")
+    return 0

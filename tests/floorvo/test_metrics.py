@@ -1,0 +1,244 @@
+"""Trajectory metrics against hand-computed truth and against evo on the same TUM files."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from floorvo import metrics as M
+from floorvo.geometry import T_world_cam_down, make_T, rot_z
+from floorvo.tum import write_tum
+
+
+def line_traj(n=26, step_mm=4.0, scale=1.0, yaw_rate=0.0, height_mm=100.0):
+    """Poses along +x; the estimate variant scales every step and adds a yaw drift per frame."""
+    xs = np.arange(n) * step_mm * scale
+    return np.stack([T_world_cam_down(x, 0.0, height_mm, yaw_rate * i) for i, x in enumerate(xs)])
+
+
+def wiggly_traj(n=60, seed=0):
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(rng.uniform(1.0, 3.0, n))
+    y = np.cumsum(rng.normal(0, 0.5, n))
+    yaw = np.cumsum(rng.normal(0, 0.02, n))
+    z = 100 + rng.normal(0, 0.2, n)
+    return np.stack([T_world_cam_down(x[i], y[i], z[i], yaw[i], rng.normal(0, 0.01), rng.normal(0, 0.01)) for i in range(n)])
+
+
+# ----------------------------------------------------------------------------- association
+def test_associate_pairs_nearest_within_tolerance_and_uses_each_reference_once():
+    t_ref = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    t_est = np.array([0.001, 0.099, 0.102, 0.25, 0.4])
+    i_ref, i_est = M.associate(t_ref, t_est, max_diff_s=0.01)
+    # 0.099 and 0.102 both want ref 0.1: the closer (0.099) wins; 0.25 is 0.05 away from both.
+    assert i_ref.tolist() == [0, 1, 4]
+    assert i_est.tolist() == [0, 1, 4]
+
+
+# ----------------------------------------------------------------------------- alignment / ATE
+def test_umeyama_recovers_known_rigid_motion():
+    rng = np.random.default_rng(1)
+    src = rng.normal(size=(30, 3)) * 50
+    R = make_T(rot_z(0.7), [0, 0, 0])[:3, :3] @ np.array([[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]])
+    t = np.array([5.0, -3.0, 12.0])
+    R_hat, t_hat, s = M.umeyama_alignment(src, src @ R.T + t)
+    np.testing.assert_allclose(R_hat, R, atol=1e-10)
+    np.testing.assert_allclose(t_hat, t, atol=1e-9)
+    assert s == 1.0
+
+
+def test_ate_alignments_remove_exactly_their_gauge_and_keep_inputs():
+    ref = wiggly_traj()
+    G = make_T(rot_z(0.4), [7.0, -2.0, 0.0])  # an SE(2) gauge change
+    est = np.einsum("ij,njk->nik", G, ref)
+    ref0, est0 = ref.copy(), est.copy()
+    assert M.ate(ref, est, "se2")["trans_mm"]["rmse"] < 1e-9
+    assert M.ate(ref, est, "se3")["trans_mm"]["rmse"] < 1e-9
+    assert M.ate(ref, est, "origin")["trans_mm"]["rmse"] < 1e-9  # a rigid copy: its first pose fixes the gauge
+    none = M.ate(ref, est, "none")
+    expected = np.linalg.norm(ref[:, :3, 3] - est[:, :3, 3], axis=1)
+    assert none["trans_mm"]["rmse"] == pytest.approx(np.sqrt(np.mean(expected**2)))
+    assert none["trans_mm"]["max"] == pytest.approx(expected.max())
+    assert none["alignment"] == "none"
+    np.testing.assert_array_equal(ref, ref0)
+    np.testing.assert_array_equal(est, est0)
+    # A height offset is not an SE(2) gauge: se2 keeps it, se3 removes it.
+    up = est.copy()
+    up[:, 2, 3] += 0.5
+    assert M.ate(ref, up, "se2")["trans_mm"]["rmse"] == pytest.approx(0.5, abs=1e-9)
+    assert M.ate(ref, up, "se3")["trans_mm"]["rmse"] < 1e-9
+
+
+def test_origin_alignment_maps_first_pose_onto_reference():
+    ref = wiggly_traj()
+    est = np.einsum("ij,njk->nik", make_T(rot_z(-0.2), [1, 2, 3]), ref)
+    a = M.ate(ref, est, "origin")
+    assert a["trans_mm"]["rmse"] < 1e-9  # a rigid copy becomes the reference exactly
+
+
+# ----------------------------------------------------------------------------- RPE, drift, segments
+def test_rpe_and_drift_of_a_scale_error_are_hand_computable():
+    ref = line_traj(n=26, step_mm=4.0)
+    est = line_traj(n=26, step_mm=4.0, scale=1.01)  # 1 % too long
+    r = M.rpe(ref, est, delta_frames=1)
+    assert r["trans_mm"]["rmse"] == pytest.approx(0.04, rel=1e-9)
+    assert r["rot_deg"]["max"] < 1e-9
+    rd = M.rpe(ref, est, delta_mm=20.0)
+    assert rd["trans_mm"]["mean"] == pytest.approx(0.2, rel=1e-9)
+    assert len(rd["pairs"]) == 26 - 5
+    d = M.end_point_drift(ref, est)
+    assert d["path_length_mm"] == pytest.approx(100.0)
+    assert d["end_error_mm"] == pytest.approx(1.0)
+    assert d["end_drift_pct"] == pytest.approx(1.0)
+    assert d["measured_mm"] == pytest.approx(101.0)
+    assert d["distance_error_pct"] == pytest.approx(1.0)
+    segs = M.segment_errors(ref, est)
+    assert [s["length_mm"] for s in segs] == [10.0, 25.0, 50.0, 100.0]
+    # Segments end on the first pose at or past L: for L = 10 that is 12 mm of path, error 0.12 mm -> 1.2 % of L.
+    s10 = segs[0]
+    assert s10["t_err_pct"] == pytest.approx(1.2, rel=1e-9)
+    assert segs[3]["t_err_pct"] == pytest.approx(1.0, rel=1e-9) and segs[3]["count"] == 1
+    assert all(s["r_err_deg_per_m"] < 1e-6 for s in segs)
+
+
+def test_segment_rotation_error_per_metre():
+    ref = line_traj(n=26, step_mm=4.0)
+    est = line_traj(n=26, step_mm=4.0, yaw_rate=np.radians(0.01))  # 0.01 deg of yaw per 4 mm frame
+    seg100 = [s for s in M.segment_errors(ref, est) if s["length_mm"] == 100.0][0]
+    assert seg100["r_err_deg_per_m"] == pytest.approx(0.25 * 1000 / 100, rel=1e-6)  # 25 frames x 0.01 deg over 0.1 m
+
+
+def test_tracking_stats_count_events_and_frames():
+    st = ["init", "ok", "lost", "lost", "ok", "lost", "ok"]
+    t = M.tracking_stats(st, 7, 4)
+    assert t["lost_frames"] == 3 and t["loss_events"] == 2
+    assert t["tracked_fraction"] == pytest.approx(4 / 7)
+    g = M.tracking_stats(None, 10, 7)
+    assert g["lost_frames"] == 3 and g["source"] == "gaps"
+
+
+def test_timing_stats():
+    timing = {"total_ms": np.array([10.0, 20.0, 30.0, 40.0]), "status": np.array(["ok"] * 4, dtype=object)}
+    s = M.timing_stats(timing)
+    assert s["total_ms"]["mean"] == 25.0 and s["total_ms"]["max"] == 40.0
+    assert s["fps"] == pytest.approx(40.0)
+
+
+# ----------------------------------------------------------------------------- score_run and the CLI
+def _fake_run(tmp_path, *, scale=1.01, lost=(7, 8)):
+    """A sequence folder (ground truth only) and a run folder with a scaled estimate and two lost frames."""
+    seq = tmp_path / "seq"
+    run = tmp_path / "run"
+    n = 26
+    ts = np.arange(n) / 10.0
+    ref = line_traj(n)
+    est = line_traj(n, scale=scale)
+    seq.mkdir()
+    write_tum(seq / "groundtruth.txt", ts, ref)
+    (seq / "sequence.json").write_text(json.dumps({"fps": 10.0}))
+    keep = np.array([i not in lost for i in range(n)])
+    run.mkdir()
+    write_tum(run / "trajectory.txt", ts[keep], est[keep])
+    rows = ["frame,detect_ms,match_ms,estimate_ms,total_ms,status"]
+    for i in range(n):
+        st = "init" if i == 0 else ("lost" if i in lost else "ok")
+        rows.append(f"{i},1.0,2.0,0.5,{3.5 + i % 2},{st}")
+    (run / "timing.csv").write_text("\n".join(rows) + "\n")
+    (run / "result.json").write_text(json.dumps({"estimator": "fake"}))
+    return seq, run
+
+
+def test_score_run_reads_run_folder(tmp_path):
+    seq, run = _fake_run(tmp_path)
+    s = M.score_run(run, seq)
+    assert s.estimator == "fake"
+    assert s.n_matched == 24 and s.tracking["lost_frames"] == 2 and s.tracking["loss_events"] == 1
+    assert s.drift["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert s.timing["total_ms"]["mean"] == pytest.approx(4.0)
+    f = s.flat()
+    assert f["lost_frames"] == 2 and f["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    json.dumps(s.to_dict())  # serialisable
+
+
+def test_floorvo_score_cli_prints_table_and_writes_score_json(tmp_path, capsys):
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path)
+    assert main(["score", str(run), "--gt", str(seq)]) == 0
+    out = capsys.readouterr().out
+    assert "ATE" in out and "end_drift_pct" in out and "score.json" in out
+    data = json.loads((run / "score.json").read_text())
+    assert data["drift"]["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert data["ate"]["se3"]["alignment"] == "se3"
+    assert main(["score", str(run), "--gt", str(tmp_path / "nope")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "groundtruth.txt" in err
+
+
+# ----------------------------------------------------------------------------- agreement with evo
+def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))  # evo writes its settings into the home folder
+    pytest.importorskip("evo")
+    from evo.core import metrics as em
+    from evo.core import sync
+    from evo.tools import file_interface
+
+    n = 80
+    ts = np.arange(n) / 30.0
+    ref = wiggly_traj(n, seed=3)
+    rng = np.random.default_rng(4)
+    noise = np.stack([T_world_cam_down(*rng.normal(0, 0.3, 2), 0.0, rng.normal(0, 0.01)) for _ in range(n)])
+    noise[:, 2, 3] = rng.normal(0, 0.1, n)
+    est = np.einsum("ij,njk->nik", make_T(rot_z(0.3), [4.0, 1.0, 0.5]), ref @ noise)
+    write_tum(tmp_path / "gt.txt", ts, ref)
+    write_tum(tmp_path / "est.txt", ts[::2] + 0.001, est[::2])  # every other frame, 1 ms late
+
+    from floorvo.tum import read_tum
+
+    t_ref, T_ref = read_tum(tmp_path / "gt.txt")
+    t_est, T_est = read_tum(tmp_path / "est.txt")
+    i_ref, i_est = M.associate(t_ref, t_est, 0.01)
+    A, B = T_ref[i_ref], T_est[i_est]
+
+    traj_ref = file_interface.read_tum_trajectory_file(str(tmp_path / "gt.txt"))
+    traj_est = file_interface.read_tum_trajectory_file(str(tmp_path / "est.txt"))
+    traj_ref, traj_est = sync.associate_trajectories(traj_ref, traj_est, max_diff=0.01)
+    assert traj_ref.num_poses == len(A) == n // 2
+
+    def evo_ape(align, align_origin=False):
+        e = traj_est.__class__(poses_se3=traj_est.poses_se3, timestamps=traj_est.timestamps)  # evo aligns in place
+        if align:
+            e.align(traj_ref)
+        if align_origin:
+            e.align_origin(traj_ref)
+        m = em.APE(em.PoseRelation.translation_part)
+        m.process_data((traj_ref, e))
+        return m.get_all_statistics()
+
+    for ours, theirs in ((M.ate(A, B, "none"), evo_ape(False)), (M.ate(A, B, "se3"), evo_ape(True)),
+                         (M.ate(A, B, "origin"), evo_ape(False, True))):
+        for k in ("rmse", "mean", "max", "median"):
+            assert ours["trans_mm"][k] == pytest.approx(theirs[k] * 1000.0, rel=1e-6, abs=1e-6), (ours["alignment"], k)
+
+    for relation, key, unit in ((em.PoseRelation.translation_part, "trans_mm", 1000.0), (em.PoseRelation.rotation_angle_deg, "rot_deg", 1.0)):
+        m = em.RPE(relation, delta=1, delta_unit=em.Unit.frames, all_pairs=False)
+        m.process_data((traj_ref, traj_est))
+        theirs = m.get_all_statistics()
+        ours = M.rpe(A, B, delta_frames=1)[key]
+        for k in ("rmse", "mean", "max"):
+            assert ours[k] == pytest.approx(theirs[k] * unit, rel=1e-6, abs=1e-7), (key, k)
+
+    # And the evo_ape command line on the very same files, SE(3)-aligned.
+    evo_ape_bin = Path(sys.executable).parent / "evo_ape"
+    if evo_ape_bin.exists():
+        res = tmp_path / "ape.zip"
+        out = subprocess.run([str(evo_ape_bin), "tum", str(tmp_path / "gt.txt"), str(tmp_path / "est.txt"), "-a",
+                              "--save_results", str(res), "--no_warnings"], capture_output=True, text=True, env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"})
+        assert out.returncode == 0, out.stderr
+        from evo.tools import file_interface as fi
+
+        stats = fi.load_res_file(str(res)).stats
+        assert M.ate(A, B, "se3")["trans_mm"]["rmse"] == pytest.approx(stats["rmse"] * 1000.0, rel=1e-6)
