@@ -1,0 +1,229 @@
+"""Paper 000's experiment on a rendered strip (Nakashima et al., IEEE Access 2019, Sec. III).
+
+The paper captured 200 floor images 1 mm apart along x and drew from them, from every
+start frame, 100 runs of a uniform model (100 mm at 4 mm per frame) and 190 runs of each
+sigmoid model (10 mm, gains 1.25 and 1.75) (:func:`floorsim.trajectories.paper000_subsequences`).
+For each run this module feeds the strip frames of the run to an estimator, chains its
+frame-to-frame motions from the first ground-truth pose and records the measured
+distance per frame against the ground truth (the paper's Fig. 8) and the time the
+estimator spent matching (``timing_ms["match"]``, the paper's Fig. 9).
+
+An estimator whose config has a field with the choices ``guided`` and a brute-force
+option (a name containing ``brute``) is run once per matching mode, so guided matching
+(the paper's proposal) and brute-force matching (its baseline) are compared on the same
+runs. Outputs under ``OUT/``: ``runs.csv`` (one row per estimator x mode x model x start
+frame) and ``summary.csv``; the plots and the table go into the bench report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence as SequenceT
+
+import numpy as np
+
+from floorsim.trajectories import paper000_subsequences
+
+log = logging.getLogger(__name__)
+
+__all__ = ["MODELS", "Paper000Result", "matching_modes", "run_subsequence", "run_paper000"]
+
+#: The paper's three motion models, in its order (I, II, III).
+MODELS = ("uniform", "sigmoid_g125", "sigmoid_g175")
+
+
+def matching_modes(estimator: str) -> tuple[str | None, list[str]]:
+    """``(config field, [guided mode, brute-force mode])`` of an estimator, or ``(None, [])``."""
+    from floorvo.estimators import get_estimator
+
+    cls = get_estimator(estimator)
+    Config = getattr(cls, "Config", None)
+    if Config is None or not dataclasses.is_dataclass(Config):
+        return None, []
+    for f in dataclasses.fields(Config):
+        choices = tuple((f.metadata or {}).get("choices") or ())
+        if "guided" in choices:
+            brute = [c for c in choices if "brute" in str(c)]
+            if brute:
+                return f.name, ["guided", brute[0]]
+    return None, []
+
+
+def run_subsequence(seq, estimator: str, indices: SequenceT[int], overrides: Mapping[str, str] | None = None,
+                    images: dict[int, np.ndarray] | None = None) -> dict[str, Any]:
+    """Run ``estimator`` over the strip frames ``indices`` (in order; repeats allowed).
+
+    Returns ``measured_mm`` (K,) (distance from the run's first pose, per frame),
+    ``true_mm`` (K,), ``match_ms`` (K,) and ``lost`` (count). The run's frame k gets
+    timestamp ``k / fps``; a lost step keeps the previous pose.
+    """
+    from floorvo.estimators import get_estimator, make_config
+    from floorvo.estimators.base import Frame
+
+    cls = get_estimator(estimator)
+    cfg = make_config(estimator, dict(overrides or {}))
+    est = cls(cfg, seq.camera, height_mm=seq.height_mm or 100.0, flatfield=seq.flatfield())
+    state = est.start()
+    gt = seq.groundtruth()
+    T_gt = gt[1]
+    T = T_gt[indices[0]].copy()
+    p0 = T[:3, 3].copy()
+    measured, match_ms, lost = [], [], 0
+    for k, idx in enumerate(indices):
+        img = images[idx] if images is not None and idx in images else seq.image(int(idx))
+        res = est.step(state, Frame(index=k, timestamp_s=k / seq.fps, image=img, image_right=None, depth_mm=None))
+        if res.status == "lost" or res.T_prev_cur is None:
+            if k > 0:
+                lost += 1
+        else:
+            T = T @ np.asarray(res.T_prev_cur, dtype=float)
+        measured.append(float(np.linalg.norm(T[:3, 3] - p0)))
+        match_ms.append(float((res.timing_ms or {}).get("match", float("nan"))))
+    true = [float(np.linalg.norm(T_gt[i][:3, 3] - T_gt[indices[0]][:3, 3])) for i in indices]
+    return {"measured_mm": np.array(measured), "true_mm": np.array(true), "match_ms": np.array(match_ms), "lost": lost}
+
+
+@dataclass
+class Paper000Result:
+    """Rows of runs.csv and summary.csv, and a report section (a callable ``f(report)``)."""
+
+    runs: list[dict[str, Any]]
+    summary: list[dict[str, Any]]
+    curves: dict
+    out_dir: Path
+
+    def report_section(self, rep) -> None:
+        _report(self, rep)
+
+
+def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir: str | os.PathLike, *,
+                 max_runs: int | None = None, estimator_overrides: Mapping[str, Mapping[str, str]] | None = None,
+                 on_run: Callable[[int, int], None] | None = None) -> Paper000Result:
+    """Run the paper-000 protocol on the strip sequence ``seq_dir`` (see the module doc).
+
+    ``max_runs`` keeps at most that many runs per model, spread evenly over the start
+    frames (None: 100 uniform and 190 per sigmoid model on a 200-frame strip).
+    """
+    from floorvo.sequence import Sequence
+
+    from floorsim.bench.bench import write_results_csv
+
+    seq = Sequence.open(seq_dir)
+    gt = seq.groundtruth()
+    if gt is None:
+        from floorvo.errors import SequenceError
+
+        raise SequenceError(f"{seq_dir}: the paper-000 protocol needs ground truth (groundtruth.txt)")
+    xs = gt[1][:, 0, 3]
+    spacing = float(np.median(np.diff(xs))) if len(xs) > 1 else 1.0
+    out_dir = Path(out_dir)
+    images = {i: seq.image(i) for i in range(seq.frame_count)}
+    runs: list[dict[str, Any]] = []
+    curves: dict = {}
+    plans = []
+    for model in MODELS:
+        subs = paper000_subsequences(model, seq.frame_count, spacing)
+        if max_runs is not None and len(subs) > max_runs:
+            pick = np.unique(np.linspace(0, len(subs) - 1, max_runs).round().astype(int))
+            subs = [subs[i] for i in pick]
+        plans.append((model, subs))
+    total = sum(len(s) for _, s in plans) * sum(max(1, len(matching_modes(e)[1])) for e in estimators)
+    done = 0
+    for name in estimators:
+        field, modes = matching_modes(name)
+        for mode in modes or [None]:
+            over = dict((estimator_overrides or {}).get(name, {}))
+            if field is not None:
+                over[field] = mode
+            label = name if mode is None else f"{name} ({mode})"
+            for model, subs in plans:
+                measured, true, times = [], [], []
+                for sub in subs:
+                    r = run_subsequence(seq, name, [int(i) for i in sub], over, images)
+                    measured.append(r["measured_mm"])
+                    true.append(r["true_mm"])
+                    times.append(np.nanmean(r["match_ms"][1:]) if len(r["match_ms"]) > 1 else float("nan"))
+                    runs.append({"scene": seq.root.name, "estimator": name, "mode": mode or "", "model": model,
+                                 "start_frame": int(sub[0]), "frames": len(sub), "true_mm": r["true_mm"][-1],
+                                 "measured_mm": r["measured_mm"][-1], "error_mm": r["measured_mm"][-1] - r["true_mm"][-1],
+                                 "match_ms_mean": times[-1], "lost": r["lost"]})
+                    done += 1
+                    if on_run:
+                        on_run(done, total)
+                curves[(label, model)] = {"measured": np.array(measured), "true": np.array(true), "match_ms": np.array(times)}
+    summary = []
+    for (label, model), c in curves.items():
+        err = c["measured"][:, -1] - c["true"][:, -1]
+        true_end = float(np.mean(c["true"][:, -1]))
+        summary.append({"estimator": label, "model": model, "runs": len(err), "true_mm": true_end,
+                        "measured_mm_mean": float(np.mean(c["measured"][:, -1])),
+                        "measured_mm_std": float(np.std(c["measured"][:, -1])),
+                        "error_mm_mean": float(np.mean(err)), "error_mm_rmse": float(np.sqrt(np.mean(err**2))),
+                        "error_pct": 100.0 * float(np.mean(np.abs(err))) / true_end if true_end > 0 else float("nan"),
+                        "match_ms_mean": float(np.nanmean(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan"),
+                        "match_ms_std": float(np.nanstd(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan")})
+    write_results_csv(out_dir / "runs.csv", runs)
+    write_results_csv(out_dir / "summary.csv", summary)
+    return Paper000Result(runs, summary, curves, out_dir)
+
+
+def _report(res: Paper000Result, rep) -> None:
+    from floorsim.bench.report import _plt
+
+    plt = _plt()
+    rep.heading("Paper 000 reproduction: the 200-frame strip")
+    rep.text("Nakashima et al. (IEEE Access 2019) ran 100 uniform runs (100 mm at 4 mm/frame) and 190 runs of each "
+             "sigmoid model (10 mm, gains 1.25 and 1.75) from every start frame of a strip of 200 frames 1 mm apart. "
+             "Fig. 8 there: measured distance against ground truth; Fig. 9: matching time of guided against "
+             "brute-force matching. The same protocol on the rendered strip:")
+    rep.table(res.summary, [("estimator", "estimator"), ("model", "model"), ("runs", "runs"), ("true_mm", "true mm"),
+                            ("measured_mm_mean", "measured mm"), ("measured_mm_std", "std mm"),
+                            ("error_mm_rmse", "error rmse mm"), ("error_pct", "|error| %"),
+                            ("match_ms_mean", "match ms"), ("match_ms_std", "match std ms")])
+    labels = sorted({k[0] for k in res.curves})
+    models = [m for m in MODELS if any((l, m) in res.curves for l in labels)]
+    if not models:
+        return
+    fig, axes = plt.subplots(1, len(models), figsize=(4.5 * len(models), 3.6))
+    for ax, model in zip(np.atleast_1d(axes), models):
+        first, n_runs = True, 0
+        for label in labels:
+            c = res.curves.get((label, model))
+            if c is None:
+                continue
+            f = np.arange(c["measured"].shape[1])
+            if first:
+                ax.plot(f, c["true"].mean(0), "k-", lw=2.5, alpha=0.5, label="ground truth")
+                first = False
+            n_runs = c["measured"].shape[0]
+            m, s = c["measured"].mean(0), c["measured"].std(0)
+            ax.plot(f, m, ".-", ms=3, lw=1, label=label)
+            ax.fill_between(f, m - s, m + s, alpha=0.2)
+        ax.set_title(f"{model} ({n_runs} runs)", fontsize=10)
+        ax.set_xlabel("frame of the run")
+        ax.set_ylabel("distance [mm]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    rep.figure(fig, "paper 000 Fig. 8: measured distance (mean and +-1 std over the runs) against ground truth")
+    timed = [r for r in res.summary if isinstance(r["match_ms_mean"], float) and math.isfinite(r["match_ms_mean"])]
+    if timed:
+        fig, ax = plt.subplots(figsize=(7, 3.6))
+        width = 0.8 / max(1, len(labels))
+        for j, label in enumerate(labels):
+            vals = [next((r for r in timed if r["estimator"] == label and r["model"] == m), None) for m in models]
+            x = np.arange(len(models)) + j * width
+            ax.bar(x, [v["match_ms_mean"] if v else np.nan for v in vals], width,
+                   yerr=[v["match_ms_std"] if v else 0 for v in vals], capsize=3, label=label)
+        ax.set_xticks(np.arange(len(models)) + width * (len(labels) - 1) / 2, models)
+        ax.set_ylabel("matching time per frame [ms]")
+        ax.grid(alpha=0.3, axis="y")
+        ax.legend(fontsize=7)
+        rep.figure(fig, "paper 000 Fig. 9: mean matching time per frame (+-1 std over the runs)")
+    else:
+        rep.text("No estimator reported a matching time (timing_ms['match']); Fig. 9 is skipped.")

@@ -1,0 +1,326 @@
+"""The bench report: one self-contained HTML page and a Markdown summary.
+
+The HTML embeds every plot as a base64 PNG (matplotlib, Agg backend), so the file opens
+from disk with no server and no other file. The Markdown summary holds the same tables
+and links the PNGs written next to it under ``plots/``.
+
+Plots: estimated against true trajectory (per scene), translation error against distance
+travelled (per scene), timing box plots (per estimator and stage), a few frames with the
+estimator's matched keypoints when the run folder holds them (``RUN/matches/NNNNNN.npz``
+with ``xy_prev_px`` and ``xy_cur_px`` (K, 2)); when no run does, the report says so.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence as SequenceT
+
+import numpy as np
+
+from floorvo.io import atomic_write_bytes, atomic_write_text
+
+__all__ = ["Report", "RunRecord", "SUMMARY_COLUMNS", "build_bench_report", "format_table"]
+
+#: (column, header) of the summary table, in order.
+SUMMARY_COLUMNS: list[tuple[str, str]] = [
+    ("scene", "scene"),
+    ("estimator", "estimator"),
+    ("repetition", "rep"),
+    ("status", "status"),
+    ("ate_none_rmse_mm", "ATE mm (no align)"),
+    ("ate_se2_rmse_mm", "ATE mm (SE2)"),
+    ("rpe_frame_trans_rmse_mm", "RPE mm/frame"),
+    ("end_drift_pct", "end drift %"),
+    ("seg_mean_t_err_pct", "segment err %"),
+    ("lost_frames", "lost"),
+    ("time_total_ms_mean", "ms/frame"),
+]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, (float, np.floating)):
+        if not math.isfinite(v):
+            return "-"
+        return f"{v:.4g}"
+    if isinstance(v, str):
+        try:
+            f = float(v)
+        except ValueError:
+            return v
+        return _fmt(f) if ("." in v or "e" in v.lower() or v.lower() == "nan") else v
+    return str(v)
+
+
+def format_table(rows: SequenceT[Mapping[str, Any]], columns: SequenceT[tuple[str, str]] = SUMMARY_COLUMNS) -> str:
+    """Plain-text table (fixed-width columns) of ``rows``."""
+    cells = [[h for _, h in columns]] + [[_fmt(r.get(c)) for c, _ in columns] for r in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+@dataclass
+class RunRecord:
+    """Where one scored run lives (for plots that read the trajectories)."""
+
+    scene: str
+    estimator: str
+    repetition: int
+    seq_dir: Path
+    run_dir: Path
+
+
+@dataclass
+class Report:
+    """Collects sections, then writes ``report.html`` (self-contained) and ``report.md``."""
+
+    title: str
+    out_dir: Path
+    stem: str = "report"
+    _html: list[str] = field(default_factory=list)
+    _md: list[str] = field(default_factory=list)
+    n_figures: int = 0
+
+    def heading(self, text: str, level: int = 2) -> None:
+        self._html.append(f"<h{level}>{html.escape(text)}</h{level}>")
+        self._md.append(f"{'#' * level} {text}\n")
+
+    def text(self, text: str) -> None:
+        self._html.append(f"<p>{html.escape(text)}</p>")
+        self._md.append(f"{text}\n")
+
+    def table(self, rows: SequenceT[Mapping[str, Any]], columns: SequenceT[tuple[str, str]]) -> None:
+        head = "".join(f"<th>{html.escape(h)}</th>" for _, h in columns)
+        body = "".join(
+            "<tr>" + "".join(f"<td>{html.escape(_fmt(r.get(c)))}</td>" for c, _ in columns) + "</tr>" for r in rows
+        )
+        self._html.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+        md = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
+        md += ["| " + " | ".join(_fmt(r.get(c)) for c, _ in columns) + " |" for r in rows]
+        self._md.append("\n".join(md) + "\n")
+
+    def figure(self, fig, caption: str) -> None:
+        """Embed a matplotlib figure (base64 PNG in the HTML, a file under plots/ for the Markdown)."""
+        plt = _plt()
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+        plt.close(fig)
+        png = buf.getvalue()
+        self.n_figures += 1
+        name = f"plots/{self.stem}-fig{self.n_figures:02d}.png"
+        atomic_write_bytes(self.out_dir / name, png)
+        b64 = base64.b64encode(png).decode("ascii")
+        self._html.append(
+            f'<figure><img class="plot" alt="{html.escape(caption)}" src="data:image/png;base64,{b64}">'
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+        )
+        self._md.append(f"![{caption}]({name})\n")
+
+    def write(self) -> tuple[Path, Path]:
+        """Write ``STEM.html`` and ``STEM.md`` (default ``report``) in ``out_dir``; returns both paths."""
+        style = (
+            "body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
+            "table{border-collapse:collapse;font-size:13px;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 6px;text-align:right}"
+            "th{background:#eee}td:first-child,td:nth-child(2){text-align:left}img.plot{max-width:100%}"
+            "figure{margin:1em 0}figcaption{font-size:13px;color:#555}"
+        )
+        page = (
+            f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+            f"<style>{style}</style></head><body><h1>{html.escape(self.title)}</h1>" + "\n".join(self._html) + "</body></html>\n"
+        )
+        html_path = self.out_dir / f"{self.stem}.html"
+        md_path = self.out_dir / f"{self.stem}.md"
+        atomic_write_text(html_path, page)
+        atomic_write_text(md_path, f"# {self.title}\n\n" + "\n".join(self._md))
+        return html_path, md_path
+
+
+# ----------------------------------------------------------------------------- plots
+def _load_pair(rec: RunRecord):
+    from floorvo.metrics import associate
+    from floorvo.tum import read_tum
+
+    try:
+        t_ref, T_ref = read_tum(rec.seq_dir / "groundtruth.txt")
+        t_est, T_est = read_tum(rec.run_dir / "trajectory.txt")
+    except Exception:  # a failed run has no trajectory: nothing to plot
+        return None
+    i_ref, i_est = associate(t_ref, t_est)
+    return T_ref, T_est, i_ref, i_est
+
+
+def _trajectory_figure(scene: str, recs: list[RunRecord]):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    drawn = False
+    for k, rec in enumerate(recs):
+        pair = _load_pair(rec)
+        if pair is None:
+            continue
+        T_ref, T_est, _, _ = pair
+        if not drawn:
+            ax.plot(T_ref[:, 0, 3], T_ref[:, 1, 3], "k-", lw=2.5, alpha=0.5, label="ground truth")
+            drawn = True
+        ax.plot(T_est[:, 0, 3], T_est[:, 1, 3], ".-", ms=3, lw=1, label=rec.estimator)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title(f"{scene}: estimated against true trajectory (no alignment)")
+    ax.axis("equal")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig if drawn else (plt.close(fig) or None)
+
+
+def _error_figure(scene: str, recs: list[RunRecord]):
+    from floorvo.metrics import translation_error_along_path
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    drawn = False
+    for rec in recs:
+        pair = _load_pair(rec)
+        if pair is None or len(pair[2]) < 2:
+            continue
+        T_ref, T_est, i_ref, i_est = pair
+        d, e = translation_error_along_path(T_ref[i_ref], T_est[i_est], "none")
+        ax.plot(d, e, ".-", ms=3, lw=1, label=rec.estimator)
+        drawn = True
+    ax.set_xlabel("distance travelled [mm]")
+    ax.set_ylabel("translation error [mm]")
+    ax.set_title(f"{scene}: error against distance (no alignment)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig if drawn else (plt.close(fig) or None)
+
+
+def _timing_figure(recs: list[RunRecord]):
+    from floorvo.metrics import read_timing_csv
+
+    plt = _plt()
+    stages = ("detect_ms", "match_ms", "estimate_ms", "total_ms")
+    per_est: dict[str, dict[str, list[float]]] = {}
+    for rec in recs:
+        t = read_timing_csv(rec.run_dir / "timing.csv")
+        if not t:
+            continue
+        d = per_est.setdefault(rec.estimator, {s: [] for s in stages})
+        for s in stages:
+            if s in t:
+                v = np.asarray(t[s], dtype=float)
+                d[s] += v[np.isfinite(v)].tolist()
+    if not per_est:
+        return None
+    names = sorted(per_est)
+    fig, axes = plt.subplots(1, len(stages), figsize=(3 * len(stages), 3.2), sharey=False)
+    for ax, s in zip(axes, stages):
+        data = [per_est[n][s] or [np.nan] for n in names]
+        ax.boxplot(data, showfliers=True)
+        ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right", fontsize=8)
+        ax.set_title(s.replace("_ms", "") + " [ms]", fontsize=10)
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle("time per frame")
+    fig.tight_layout()
+    return fig
+
+
+def _keypoint_figure(recs: list[RunRecord], max_frames: int = 3):
+    """Frames with matched keypoints from ``RUN/matches/*.npz``; None when no run has any."""
+    from floorvo.sequence import Sequence
+
+    plt = _plt()
+    for rec in recs:
+        mdir = rec.run_dir / "matches"
+        files = sorted(mdir.glob("*.npz")) if mdir.is_dir() else []
+        if not files:
+            continue
+        picks = [files[int(i)] for i in np.linspace(0, len(files) - 1, min(max_frames, len(files)))]
+        seq = Sequence.open(rec.seq_dir)
+        fig, axes = plt.subplots(1, len(picks), figsize=(4 * len(picks), 3.4))
+        for ax, f in zip(np.atleast_1d(axes), picks):
+            idx = int(f.stem)
+            data = np.load(f)
+            img = seq.image(idx)
+            ax.imshow(img, cmap="gray")
+            a, b = np.asarray(data["xy_prev_px"]), np.asarray(data["xy_cur_px"])
+            if len(a):
+                ax.plot(b[:, 0], b[:, 1], "o", ms=3, mfc="none", mec="lime")
+                for p, q in zip(a, b):
+                    ax.plot([q[0], p[0]], [q[1], p[1]], "-", color="yellow", lw=0.8)
+            ax.set_title(f"{rec.estimator}: frame {idx}, {len(a)} matches", fontsize=9)
+            ax.axis("off")
+        fig.tight_layout()
+        return fig, rec
+    return None
+
+
+# ----------------------------------------------------------------------------- the bench report
+def build_bench_report(
+    out_dir: str | os.PathLike,
+    rows: SequenceT[Mapping[str, Any]],
+    records: SequenceT[RunRecord],
+    *,
+    title: str = "floorbench report",
+    gate_summary: str | None = None,
+    extra_sections: Iterable = (),
+) -> tuple[Path, Path]:
+    """Write the bench report; returns ``(report.html, report.md)``.
+
+    ``extra_sections``: callables ``f(report)`` that add their own sections (the paper
+    reproductions).
+    """
+    out_dir = Path(out_dir)
+    rep = Report(title, out_dir)
+    rep.heading("Scores")
+    rep.text("One row per scene x estimator x repetition. ATE in mm without alignment (the estimate starts at the "
+             "first ground-truth pose) and after the best SE(2) fit; drift in % of the distance travelled.")
+    rep.table(rows, SUMMARY_COLUMNS)
+    if gate_summary:
+        rep.heading("Regression gate")
+        rep.text(gate_summary)
+    for section in extra_sections:
+        section(rep)
+    by_scene: dict[str, list[RunRecord]] = {}
+    for r in records:
+        if r.repetition == 0:
+            by_scene.setdefault(r.scene, []).append(r)
+    for scene, recs in by_scene.items():
+        rep.heading(f"Scene {scene}")
+        fig = _trajectory_figure(scene, recs)
+        if fig is not None:
+            rep.figure(fig, f"{scene}: estimated (dots) against true trajectory, seen from above")
+        fig = _error_figure(scene, recs)
+        if fig is not None:
+            rep.figure(fig, f"{scene}: translation error against distance travelled")
+        if fig is None:
+            rep.text("No estimator produced a trajectory on this scene.")
+    rep.heading("Timing")
+    fig = _timing_figure(list(records))
+    if fig is not None:
+        rep.figure(fig, "time per frame by stage, all runs")
+    else:
+        rep.text("No timing.csv found.")
+    rep.heading("Matched keypoints")
+    kp = _keypoint_figure([r for r in records if r.repetition == 0])
+    if kp is None:
+        rep.text("No run wrote matched keypoints (RUN/matches/*.npz), so this plot is skipped.")
+    else:
+        rep.figure(kp[0], f"{kp[1].scene} / {kp[1].estimator}: matched keypoints (circles: current frame, lines to the previous position)")
+    return rep.write()

@@ -1,0 +1,95 @@
+"""``floorsim bench SCENES... [--estimators A,B] -o DIR``: render, run, score, report, gate.
+
+Thin call to :func:`floorsim.bench.run_bench`; prints the score table and the report's
+path. With ``--baseline FILE`` it prints what got worse and exits 1 if anything did.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from floorvo.cli.common import parse_set_args
+from floorvo.errors import ConfigError
+
+__all__ = ["add_parser", "run", "parse_estimator_sets"]
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "bench",
+        help="render scenes, run estimators, score them, write results.csv and a report; gate regressions",
+        description="Render each scene (reusing a sequence already rendered with the same resolved scene, seed and "
+        "settings), run each estimator, score it, and write DIR/results.csv (one row per scene x estimator x "
+        "repetition), DIR/report.html (self-contained) and DIR/report.md. With --baseline, exit 1 when a metric "
+        "got worse than the baseline's tolerance allows.",
+    )
+    p.add_argument("scenes", metavar="SCENE", nargs="+", type=Path, help="scene TOML files")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
+    p.add_argument("--estimators", default=None,
+                   help="comma-separated estimator names (default: every registered estimator the sequence supports)")
+    p.add_argument("--repeat", type=int, default=1, help="repetitions per scene, seeds scene seed + k (default 1)")
+    p.add_argument("--set", dest="scene_set", action="append", metavar="KEY=VALUE", help="override a scene key, e.g. lights.height_mm=5")
+    p.add_argument("--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key")
+    p.add_argument("--frames", type=int, default=None, help="render only the first N frames")
+    p.add_argument("--scale", type=float, default=None, help="render at this fraction of the camera resolution")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel")
+    p.add_argument("--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)")
+    p.add_argument("--baseline", type=Path, default=None, help="compare with this baseline; exit 1 if anything got worse")
+    p.add_argument("--save-baseline", type=Path, default=None, metavar="FILE", help="write the results as a baseline")
+    p.add_argument("--paper000-runs", type=int, default=None, help="at most N runs per paper-000 model (default: all)")
+    p.add_argument("--no-report", action="store_true", help="skip the HTML/Markdown report")
+    p.set_defaults(func=run)
+
+
+def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
+    """``NAME.KEY=VALUE`` items into ``{NAME: {KEY: VALUE}}``."""
+    out: dict[str, dict[str, str]] = {}
+    for key, value in parse_set_args(items).items():
+        if "." not in key:
+            raise ConfigError(f"--est-set {key}={value}: expected NAME.KEY=VALUE (e.g. akaze.threshold=0.001)")
+        name, k = key.split(".", 1)
+        out.setdefault(name, {})[k] = value
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from floorsim.bench import run_bench
+    from floorsim.bench.report import format_table
+
+    estimators = [e.strip() for e in args.estimators.split(",") if e.strip()] if args.estimators else None
+    bars: dict[str, object] = {}
+
+    def on_frame(scene: str, i: int, n: int) -> None:
+        if not sys.stderr.isatty():
+            return
+        bar = bars.get(scene)
+        if bar is None:
+            from tqdm import tqdm
+
+            bar = bars[scene] = tqdm(total=n, desc=f"render {scene}", unit="frame", leave=False)
+        bar.update(1)
+
+    res = run_bench(
+        args.scenes, estimators, args.output, repetitions=args.repeat,
+        scene_overrides=parse_set_args(args.scene_set), estimator_overrides=parse_estimator_sets(args.est_set),
+        frames=args.frames, scale=args.scale, spp=args.spp, cache_dir=args.cache, baseline=args.baseline,
+        save_baseline_to=args.save_baseline, report=not args.no_report, paper000_runs=args.paper000_runs,
+        on_frame=on_frame,
+    )
+    for bar in bars.values():
+        bar.close()
+    for note in res.notes:
+        print(note)
+    print(format_table(res.rows))
+    print(f"results: {res.results_csv}")
+    if res.report_html is not None:
+        print(f"report: {res.report_html} (summary: {res.report_md})")
+    if res.baseline_saved is not None:
+        print(f"baseline written to {res.baseline_saved}")
+    if res.gate is not None:
+        print(res.gate.summary())
+        if not res.gate.ok:
+            return 1
+    return 0

@@ -1,0 +1,58 @@
+"""``floorsim sweep SWEEP.toml -o DIR``: run a robustness sweep (locally or on Dask).
+
+Thin call to :func:`floorsim.sweep.run_sweep`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "sweep",
+        help="run a grid of scene variations x estimators; plot drift and tracking loss against each parameter",
+        description="Run every combination of the [vary] values of a sweep file, each rendered once and scored with "
+        "every estimator. Rows stream into DIR/results.csv as jobs finish; running the same command again skips "
+        "the jobs already there. Robustness curves go to DIR/sweep.html and DIR/sweep.md.",
+    )
+    p.add_argument("sweep", metavar="SWEEP", type=Path, help="sweep TOML file (see scenes/sweeps/)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None, help="send the jobs to this Dask scheduler")
+    where.add_argument("--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N workers")
+    where.add_argument("--jobs", type=int, default=1, metavar="N", help="local worker processes when not on Dask (default 1)")
+    p.add_argument("--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from floorsim.sweep import run_sweep
+
+    bar = None
+
+    def on_job(i: int, n: int) -> None:
+        nonlocal bar
+        if not sys.stderr.isatty():
+            return
+        if bar is None:
+            from tqdm import tqdm
+
+            bar = tqdm(total=n, desc="sweep", unit="job", leave=False)
+        bar.update(1)
+
+    res = run_sweep(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers, jobs=args.jobs,
+                    cache_dir=args.cache, on_job=on_job)
+    if bar is not None:
+        bar.close()
+    print(f"sweep: {res.ran} job(s) run, {res.skipped} already done; {len(res.rows)} row(s) in {res.results_csv}")
+    for e in res.errors:
+        print(f"job failed: {e}")
+    if res.report_html is not None:
+        print(f"report: {res.report_html} (summary: {res.report_md})")
+    return 1 if res.errors else 0
