@@ -206,7 +206,8 @@ def run_sweep(sweep_path: str | os.PathLike, out_dir: str | os.PathLike, schedul
     spec = load_sweep(sweep_path)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    cache = str(Path(cache_dir) if cache_dir is not None else out_dir / "sequences")
+    # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
+    cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
     results_csv = out_dir / "results.csv"
     rows = read_results_csv(results_csv)
     done = {r.get("job") for r in rows}
@@ -229,7 +230,7 @@ def run_sweep(sweep_path: str | os.PathLike, out_dir: str | os.PathLike, schedul
             on_job(finished, len(todo))
 
     if todo:
-        args = (spec, str(out_dir), cache, render)
+        args = (spec, str(out_dir.resolve()), cache, render)
         if scheduler is not None or workers is not None:
             _run_dask(todo, args, collect, scheduler, workers, processes)
         else:
