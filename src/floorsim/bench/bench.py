@@ -109,9 +109,9 @@ def render_cached(scene, cache_dir: str | os.PathLike, *, seed: int | None = Non
 
 # ----------------------------------------------------------------------------- estimators
 def _registry_names() -> list[str]:
-    from floorvo import estimators as E
+    from floorvo.estimators import list_estimators
 
-    names = E.list_estimators()
+    names = list_estimators()
     return [n if isinstance(n, str) else n.name for n in names]
 
 

@@ -131,7 +131,10 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
         if max_runs is not None and len(subs) > max_runs:
             pick = np.unique(np.linspace(0, len(subs) - 1, max_runs).round().astype(int))
             subs = [subs[i] for i in pick]
-        plans.append((model, subs))
+        if subs:
+            plans.append((model, subs))
+        else:
+            log.warning("paper 000: the strip of %d frames is too short for any %s run", seq.frame_count, model)
     total = sum(len(s) for _, s in plans) * sum(max(1, len(matching_modes(e)[1])) for e in estimators)
     done = 0
     for name in estimators:

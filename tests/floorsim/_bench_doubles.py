@@ -1,0 +1,119 @@
+"""Test doubles for the bench's collaborators: a scene loader, a renderer and estimators.
+
+The bench's own work (cache, results.csv, scoring, report, gates, sweeps) is tested with
+these; the doubles have known errors so the scores can be checked against hand values:
+estimator ``scaled`` measures every step ``1 + scale_error`` too long, where
+``scale_error = 0.001 * lights.height_mm`` (so a sweep over the LED height gives a known
+drift curve) unless ``--est-set scaled.scale=S`` fixes it; ``lossy`` loses two frames;
+``needs_depth`` requires depth and must be skipped on mono sequences.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tomllib
+import types
+from dataclasses import dataclass
+from pathlib import Path
+
+from _bench_data import write_run, write_sequence
+
+SCENE_TOML = """name = "{name}"
+seed = {seed}
+frames = {frames}
+
+[lights]
+height_mm = {height}
+power = 1.0
+"""
+
+
+def write_scene(path: Path, name: str = "tiny", seed: int = 7, frames: int = 12, height: float = 3.0) -> Path:
+    path.write_text(SCENE_TOML.format(name=name, seed=seed, frames=frames, height=height))
+    return path
+
+
+@dataclass(frozen=True)
+class FakeScene:
+    data: dict
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    @property
+    def seed(self) -> int:
+        return int(self.data["seed"])
+
+    def to_dict(self) -> dict:
+        return json.loads(json.dumps(self.data))
+
+
+def load_scene(path, overrides=None) -> FakeScene:
+    d = tomllib.loads(Path(path).read_text())
+    for k, v in (overrides or {}).items():
+        sec, key = k.split(".")
+        d.setdefault(sec, {})[key] = float(v)
+    return FakeScene(d)
+
+
+RENDER_CALLS: list[str] = []
+
+
+def render(scene, out, *, frames=None, scale=None, spp=None, seed=None, on_frame=None, overwrite=False):
+    RENDER_CALLS.append(str(out))
+    n = frames or int(scene.data["frames"])
+    write_sequence(Path(out), n=n)
+    meta_path = Path(out) / "sequence.json"
+    meta = json.loads(meta_path.read_text())
+    meta["scene"] = scene.to_dict()
+    meta_path.write_text(json.dumps(meta))
+    for i in range(n):
+        if on_frame:
+            on_frame(i, n)
+    return Path(out)
+
+
+class _Est:
+    requires: set = set()
+
+
+class _DepthEst:
+    requires = {"depth"}
+
+
+ESTIMATORS = {"scaled": _Est, "lossy": _Est, "needs_depth": _DepthEst}
+
+
+def run_estimator(seq, name, out_dir, overrides=None, frames=None):
+    meta = json.loads((Path(seq) / "sequence.json").read_text())
+    height = float(meta["scene"]["lights"]["height_mm"])
+    if name == "scaled":
+        scale = float((overrides or {}).get("scale", 1.0 + 0.001 * height))
+        write_run(Path(out_dir), Path(seq), scale=scale, estimator=name)
+    elif name == "lossy":
+        write_run(Path(out_dir), Path(seq), scale=1.0, lost=(3, 4), estimator=name)
+    else:
+        raise AssertionError(f"{name} must not run on a mono sequence")
+
+
+def install(monkeypatch) -> None:
+    """Put the doubles where the bench imports its collaborators from."""
+    import floorsim
+    import floorvo
+
+    RENDER_CALLS.clear()
+    scene = types.ModuleType("floorsim.scene")
+    scene.load_scene = load_scene
+    simulate = types.ModuleType("floorsim.simulate")
+    simulate.render_sequence = render
+    run = types.ModuleType("floorvo.run")
+    run.run_estimator = run_estimator
+    est = types.ModuleType("floorvo.estimators")
+    est.list_estimators = lambda: list(ESTIMATORS)
+    est.get_estimator = lambda n: ESTIMATORS[n]
+    for name, mod, parent in (("floorsim.scene", scene, floorsim), ("floorsim.simulate", simulate, floorsim),
+                              ("floorvo.run", run, floorvo), ("floorvo.estimators", est, floorvo)):
+        monkeypatch.setitem(sys.modules, name, mod)
+        monkeypatch.setattr(parent, name.split(".")[1], mod, raising=False)

@@ -1,0 +1,84 @@
+"""The bench's bookkeeping with test doubles for the renderer and the estimators:
+render cache, results.csv, skipping unsupported estimators, the CLI and its gate."""
+
+import json
+import math
+
+import pytest
+
+import _bench_doubles as D
+from floorsim.bench import run_bench
+from floorsim.bench.bench import read_results_csv, scene_cache_key
+
+
+@pytest.fixture
+def doubles(monkeypatch):
+    D.install(monkeypatch)
+    return D
+
+
+def test_bench_scores_every_supported_estimator_and_reuses_renders(tmp_path, doubles):
+    scene = D.write_scene(tmp_path / "tiny.toml", height=3.0)
+    out = tmp_path / "out"
+    res = run_bench([scene], None, out, repetitions=2)
+    rows = read_results_csv(out / "results.csv")
+    # mono sequence: the depth estimator is skipped, and the report says why
+    assert sorted({r["estimator"] for r in rows}) == ["lossy", "scaled"]
+    assert len(rows) == 2 * 2 and {r["repetition"] for r in rows} == {0, 1}
+    assert any("needs_depth skipped (needs depth" in n for n in res.notes)
+    assert "needs_depth skipped" in res.report_html.read_text()
+    scaled = [r for r in rows if r["estimator"] == "scaled"]
+    # steps 0.3 % too long (0.001 x 3 mm LED height): drift 0.3 % of the distance
+    assert all(r["end_drift_pct"] == pytest.approx(0.3, rel=1e-4) for r in scaled)
+    lossy = [r for r in rows if r["estimator"] == "lossy"]
+    assert all(r["lost_frames"] == 2 and r["loss_events"] == 1 for r in lossy)
+    # repetition k renders with seed + k: two sequences, each rendered once
+    assert len(D.RENDER_CALLS) == 2 and {r["seed"] for r in rows} == {7, 8}
+    assert json.loads((out / "runs" / "tiny" / "scaled" / "rep1" / "score.json").read_text())["estimator"] == "scaled"
+    # a second bench on the same scene reuses both sequences
+    run_bench([scene], ["scaled"], tmp_path / "out2", repetitions=2, cache_dir=out / "sequences")
+    assert len(D.RENDER_CALLS) == 2
+    # another resolved scene renders anew
+    run_bench([scene], ["scaled"], tmp_path / "out3", cache_dir=out / "sequences", scene_overrides={"lights.height_mm": "5"})
+    assert len(D.RENDER_CALLS) == 3
+
+
+def test_cache_key_follows_scene_seed_and_settings():
+    s = {"name": "a", "lights": {"height_mm": 3.0}}
+    k = scene_cache_key(s, seed=1, frames=None, scale=None, spp=None)
+    assert k == scene_cache_key(json.loads(json.dumps(s)), seed=1, frames=None, scale=None, spp=None)
+    assert k != scene_cache_key(s, seed=2, frames=None, scale=None, spp=None)
+    assert k != scene_cache_key({**s, "lights": {"height_mm": 3.5}}, seed=1, frames=None, scale=None, spp=None)
+    assert k != scene_cache_key(s, seed=1, frames=None, scale=0.5, spp=None)
+
+
+def test_paper001_scene_is_compared_with_0783_percent(tmp_path, doubles):
+    scene = D.write_scene(tmp_path / "p1.toml", name="paper001_line", height=3.0)
+    res = run_bench([scene], ["scaled"], tmp_path / "out")
+    assert res.rows[0]["paper_ref_error_pct"] == 0.783
+    page = res.report_html.read_text()
+    assert "Paper 001 reproduction" in page and "0.783" in page
+
+
+def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
+    from floorsim.cli import main
+
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    base = tmp_path / "baseline.json"
+    assert main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "a"), "--save-baseline", str(base)]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[-2].startswith("report: ") and out[-2].split()[1].endswith("report.html")
+    assert any(line.split()[:2] == ["tiny", "scaled"] for line in out)
+    assert base.is_file()
+    # the same estimator again: passes
+    assert main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "b"), "--baseline", str(base)]) == 0
+    assert "regression gate passed" in capsys.readouterr().out
+    # a deliberately worse configuration: 2 % scale error instead of 0.3 %
+    rc = main(["bench", str(scene), "--estimators", "scaled", "--est-set", "scaled.scale=1.02", "-o", str(tmp_path / "c"),
+               "--baseline", str(base)])
+    text = capsys.readouterr().out
+    assert rc == 1 and "end_drift_pct got worse" in text and "FAILED" in text
+    # an unknown estimator is one line on stderr, exit 1
+    assert main(["bench", str(scene), "--estimators", "nope", "-o", str(tmp_path / "d")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "nope" in err
