@@ -1,0 +1,250 @@
+"""Procedural, seeded floor materials defined in world coordinates.
+
+A material maps world coordinates (mm) to a height field ``height_mm`` (relief above the
+mean floor plane, tens of micrometres) and an ``albedo`` in [0, 1]. Every value is a pure
+function of ``(x_mm, y_mm, seed, params)``: noise comes from hashing integer lattice
+coordinates, never from a random stream, so any tile of the unbounded floor is
+reproducible and the same floor point looks the same from every pose and tile.
+
+Registry: :data:`MATERIALS` (name -> :class:`Material`). A material declares a frozen
+parameter dataclass (validated like scene sections) and a ``sample`` function::
+
+    sample(x_mm: (W,) array, y_mm: (H,) array, seed: int, params) -> (height_mm (H, W), albedo (H, W))
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from floorsim.params import from_mapping, rule
+from floorvo.errors import ConfigError
+
+__all__ = ["Material", "MATERIALS", "register_material", "get_material", "sample_material", "value_noise", "fbm", "hash01"]
+
+_M1 = np.uint64(0x9E3779B97F4A7C15)
+_M2 = np.uint64(0xC2B2AE3D27D4EB4F)
+_M3 = np.uint64(0x165667B19E3779F9)
+_F1 = np.uint64(0xFF51AFD7ED558CCD)
+_F2 = np.uint64(0xC4CEB9FE1A85EC53)
+
+
+def hash01(ix: np.ndarray, iy: np.ndarray, seed: int, channel: int = 0) -> np.ndarray:
+    """Uniform [0, 1) value per integer lattice point (ix, iy), a pure function of its inputs."""
+    with np.errstate(over="ignore"):
+        s = np.uint64((int(seed) * 0x2545F4914F6CDD1D + int(channel) * 0x632BE59BD9B4E019) & 0xFFFFFFFFFFFFFFFF)
+        ix, iy = np.broadcast_arrays(np.asarray(ix, dtype=np.int64), np.asarray(iy, dtype=np.int64))
+        h = ix.astype(np.uint64) * _M1
+        h ^= iy.astype(np.uint64) * _M2
+        h ^= s * _M3 + s
+        h ^= h >> np.uint64(33)
+        h *= _F1
+        h ^= h >> np.uint64(33)
+        h *= _F2
+        h ^= h >> np.uint64(33)
+    return (h >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def _lattice(ix: np.ndarray, iy: np.ndarray, seed: int, channel: int):
+    """A function (dx, dy) -> hash01(ix + dx, iy + dy), via a table over the lattice range.
+
+    Hashing only the lattice nodes that the points touch (then gathering) is far cheaper
+    than hashing every point when the cells are larger than the sample spacing.
+    """
+    x0, x1 = int(ix.min()), int(ix.max()) + 2
+    y0, y1 = int(iy.min()), int(iy.max()) + 2
+    n_points = np.broadcast(ix, iy).size
+    if (x1 - x0) * (y1 - y0) > 2 * n_points:  # scattered points: hash directly
+        return lambda dx, dy: hash01(ix + dx, iy + dy, seed, channel)
+    table = hash01(np.arange(x0, x1)[None, :], np.arange(y0, y1)[:, None], seed, channel)
+    jx, jy = ix - x0, iy - y0
+    return lambda dx, dy: table[jy + dy, jx + dx]
+
+
+def value_noise(x_mm: np.ndarray, y_mm: np.ndarray, cell_mm: float, seed: int, channel: int = 0) -> np.ndarray:
+    """Smooth value noise in [-1, 1] with lattice spacing ``cell_mm``; x, y broadcast together."""
+    gx = np.asarray(x_mm, dtype=np.float64) / cell_mm
+    gy = np.asarray(y_mm, dtype=np.float64) / cell_mm
+    ix, iy = np.floor(gx), np.floor(gy)
+    fx, fy = gx - ix, gy - iy
+    fx = fx * fx * fx * (fx * (fx * 6 - 15) + 10)  # quintic fade
+    fy = fy * fy * fy * (fy * (fy * 6 - 15) + 10)
+    lat = _lattice(ix.astype(np.int64), iy.astype(np.int64), seed, channel)
+    v00, v10, v01, v11 = lat(0, 0), lat(1, 0), lat(0, 1), lat(1, 1)
+    a = v00 + (v10 - v00) * fx
+    b = v01 + (v11 - v01) * fx
+    return 2.0 * (a + (b - a) * fy) - 1.0
+
+
+def fbm(x_mm, y_mm, cell_mm: float, seed: int, octaves: int = 4, gain: float = 0.5, channel: int = 0) -> np.ndarray:
+    """Fractal sum of value noise, roughly in [-1, 1]; finest cell = cell_mm / 2**(octaves-1)."""
+    total = 0.0
+    amp, norm = 1.0, 0.0
+    cell = cell_mm
+    for o in range(octaves):
+        total = total + amp * value_noise(x_mm, y_mm, cell, seed, channel * 97 + o)
+        norm += amp
+        amp *= gain
+        cell *= 0.5
+    return total / norm
+
+
+def _segments_distance(X, Y, cell_mm, seed, channel, per_cell, length_range, max_len):
+    """Distance (mm) from each point to the nearest of a seeded set of line segments.
+
+    Segments are hashed per ``cell_mm`` cell (``per_cell`` candidates, each present with
+    probability 0.5) and shorter than ``cell_mm``, so the 3x3 neighbourhood of cells covers
+    every segment that can reach a point: the result is tile-independent.
+    """
+    cx0 = np.floor(X / cell_mm).astype(np.int64)
+    cy0 = np.floor(Y / cell_mm).astype(np.int64)
+    best = np.full(np.broadcast(X, Y).shape, np.inf)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            cx, cy = cx0 + dx, cy0 + dy
+            for k in range(per_cell):
+                ch = channel * 131 + k * 7
+                hv = [_lattice(cx, cy, seed, ch + j)(0, 0) for j in range(5)]
+                present = hv[0] < 0.5
+                px = (cx + hv[1]) * cell_mm
+                py = (cy + hv[2]) * cell_mm
+                ang = hv[3] * np.pi
+                ln = length_range[0] + (length_range[1] - length_range[0]) * hv[4]
+                ln = np.minimum(ln, max_len)
+                ux, uy = np.cos(ang), np.sin(ang)
+                rx, ry = X - px, Y - py
+                tproj = np.clip(rx * ux + ry * uy, -ln / 2, ln / 2)
+                d = np.hypot(rx - tproj * ux, ry - tproj * uy)
+                best = np.where(present, np.minimum(best, d), best)
+    return best
+
+
+def _spots(X, Y, cell_mm, seed, channel, probability, radius_range):
+    """(depth-profile in [0, 1], 1 inside a spot) of seeded round spots, one candidate per cell."""
+    cx0 = np.floor(X / cell_mm).astype(np.int64)
+    cy0 = np.floor(Y / cell_mm).astype(np.int64)
+    out = np.zeros(np.broadcast(X, Y).shape)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            cx, cy = cx0 + dx, cy0 + dy
+            hv = [_lattice(cx, cy, seed, channel + j)(0, 0) for j in range(4)]
+            present = hv[0] < probability
+            px = (cx + hv[1]) * cell_mm
+            py = (cy + hv[2]) * cell_mm
+            r = radius_range[0] + (radius_range[1] - radius_range[0]) * hv[3]
+            d = np.hypot(X - px, Y - py) / r
+            prof = np.clip(1.0 - d * d, 0.0, 1.0)
+            out = np.maximum(out, np.where(present, prof, 0.0))
+    return out
+
+
+@dataclass(frozen=True)
+class Material:
+    """A registered floor material: ``Params`` (frozen dataclass) and ``sample``."""
+
+    name: str
+    description: str
+    Params: type
+    sample: Callable[[np.ndarray, np.ndarray, int, Any], tuple[np.ndarray, np.ndarray]]
+
+
+MATERIALS: dict[str, Material] = {}
+
+
+def register_material(name: str, description: str, Params: type):
+    """Decorator registering ``sample(x_mm, y_mm, seed, params)`` under ``name``."""
+
+    def deco(fn):
+        MATERIALS[name] = Material(name, description, Params, fn)
+        return fn
+
+    return deco
+
+
+def get_material(name: str) -> Material:
+    if name not in MATERIALS:
+        raise ConfigError(f"floor.material = {name!r}: unknown material (known: {', '.join(sorted(MATERIALS))})")
+    return MATERIALS[name]
+
+
+def sample_material(
+    name: str, x_mm: np.ndarray, y_mm: np.ndarray, seed: int, params: Mapping[str, Any] | Any | None = None, relief_scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Height (mm) and albedo grids (H, W) of material ``name`` at x (W,) and y (H,)."""
+    mat = get_material(name)
+    p = params if isinstance(params, mat.Params) else from_mapping(mat.Params, params, f"floor.{name}")
+    X = np.asarray(x_mm, dtype=np.float64)[None, :]
+    Y = np.asarray(y_mm, dtype=np.float64)[:, None]
+    h, a = mat.sample(X, Y, int(seed), p)
+    h = np.broadcast_to(h, (len(y_mm), len(x_mm))) * relief_scale
+    a = np.clip(np.broadcast_to(a, (len(y_mm), len(x_mm))), 0.0, 1.0)
+    return h.astype(np.float32), a.astype(np.float32)
+
+
+# ----------------------------------------------------------------------------- vinyl (paper 000)
+@dataclass(frozen=True)
+class VinylParams:
+    """Vinyl tile: micro-bumps, veins, scratches, stains and mottling."""
+
+    base_albedo: float = field(default=0.55, metadata=rule("[0,1]"))
+    bump_amplitude_mm: float = field(default=0.03, metadata=rule(">=0", "mm", hi=1.0))
+    bump_cell_mm: float = field(default=0.6, metadata=rule(">0", "mm"))
+    vein_contrast: float = field(default=0.25, metadata=rule("[0,1]"))
+    vein_cell_mm: float = field(default=8.0, metadata=rule(">0", "mm"))
+    scratch_density: float = field(default=1.0, metadata=rule(">=0", "", hi=4.0))
+    scratch_depth_mm: float = field(default=0.010, metadata=rule(">=0", "mm", hi=1.0))
+    stain_contrast: float = field(default=0.12, metadata=rule("[0,1]"))
+
+
+@register_material("vinyl", "vinyl tile of paper 000: micro-bumps, veins, scratches, stains", VinylParams)
+def _vinyl(X, Y, seed, p: VinylParams):
+    # Micro-bumps: fractal relief from 0.6 mm down to ~0.08 mm.
+    h = p.bump_amplitude_mm * fbm(X, Y, p.bump_cell_mm, seed, octaves=4, gain=0.6, channel=1)
+    # Veins: ridged, domain-warped low-frequency noise; slightly raised and darker.
+    wx = X + 2.0 * value_noise(X, Y, p.vein_cell_mm, seed, 21)
+    wy = Y + 2.0 * value_noise(X, Y, p.vein_cell_mm, seed, 22)
+    ridge = 1.0 - np.abs(fbm(wx, wy, p.vein_cell_mm, seed, octaves=3, channel=2))
+    vein = ridge**12
+    h = h + 0.004 * vein
+    albedo = p.base_albedo * (1.0 - p.vein_contrast * vein)
+    # Mottling and stains: albedo only.
+    albedo = albedo * (1.0 + 0.06 * fbm(X, Y, 0.5, seed, octaves=3, channel=3))
+    albedo = albedo * (1.0 - p.stain_contrast * np.clip(fbm(X, Y, 12.0, seed, octaves=2, channel=4), 0.0, 1.0))
+    # Scratches: thin grooves with V profile, 5 mm cells.
+    if p.scratch_density > 0 and p.scratch_depth_mm > 0:
+        per_cell = max(1, int(np.ceil(p.scratch_density)))
+        d = _segments_distance(X, Y, 5.0, seed, 5, per_cell, (1.0, 4.5), 4.9)
+        width = 0.04
+        groove = np.clip(1.0 - d / width, 0.0, 1.0)
+        h = h - p.scratch_depth_mm * groove
+        albedo = albedo * (1.0 - 0.15 * groove)
+    return h, albedo
+
+
+# ----------------------------------------------------------------------------- concrete
+@dataclass(frozen=True)
+class ConcreteParams:
+    """Concrete: cement matrix, exposed aggregate, pores."""
+
+    base_albedo: float = field(default=0.45, metadata=rule("[0,1]"))
+    roughness_mm: float = field(default=0.02, metadata=rule(">=0", "mm", hi=1.0))
+    aggregate_cell_mm: float = field(default=1.5, metadata=rule(">0", "mm"))
+    aggregate_height_mm: float = field(default=0.03, metadata=rule(">=0", "mm", hi=1.0))
+    pore_probability: float = field(default=0.25, metadata=rule("[0,1]"))
+    pore_depth_mm: float = field(default=0.05, metadata=rule(">=0", "mm", hi=1.0))
+
+
+@register_material("concrete", "concrete: rough cement, exposed aggregate, pores", ConcreteParams)
+def _concrete(X, Y, seed, p: ConcreteParams):
+    h = p.roughness_mm * fbm(X, Y, 0.8, seed, octaves=4, gain=0.55, channel=11)
+    agg_field = value_noise(X, Y, p.aggregate_cell_mm, seed, 12) + 0.3 * value_noise(X, Y, p.aggregate_cell_mm / 3, seed, 13)
+    stone = np.clip((agg_field - 0.35) * 4.0, 0.0, 1.0)
+    h = h + p.aggregate_height_mm * stone
+    tone = value_noise(X, Y, p.aggregate_cell_mm, seed, 14)
+    albedo = p.base_albedo * (1.0 + 0.25 * stone * tone) * (1.0 + 0.08 * fbm(X, Y, 0.4, seed, octaves=3, channel=15))
+    pores = _spots(X, Y, 0.8, seed, 16, p.pore_probability, (0.04, 0.15))
+    h = h - p.pore_depth_mm * pores
+    albedo = albedo * (1.0 - 0.35 * pores)
+    return h, albedo

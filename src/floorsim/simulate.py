@@ -1,0 +1,254 @@
+"""Render a scene into a floorvo sequence folder (resumable, tiled, deterministic).
+
+Floor tiles: the frames are grouped so that the floor seen by each group fits in a tile
+of at most ``floor.tile_length_mm`` along its longer side; each tile's mesh is built
+once, used for its frames and released before the next, so memory stays flat however
+long the trajectory (a 3 m line never holds a 3 m mesh).
+
+Seeds: the scene seed (or ``--seed``) drives the floor (unless ``floor.seed`` is set),
+the pixel jitter of frame i (``[seed, i]``) and the sensor noise of frame i, so any
+frame can be re-rendered alone and comes out bit-identical.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import gc
+import json
+import logging
+import os
+import platform
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+import floorsim
+import floorvo
+from floorsim.materials import sample_material
+from floorsim.scene import Scene, scene_T_world_leds
+from floorsim.sensor import SensorModel, exposure_gain
+from floorsim.trajectories import Trajectory, footprint_bounds_mm
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError
+from floorvo.io import atomic_write_json
+from floorvo.sequence import SequenceWriter
+
+__all__ = ["render_sequence", "prepare_scene", "plan_tiles", "LED_INTENSITY_UNIT"]
+
+log = logging.getLogger(__name__)
+
+#: Radiant intensity of a bar of power 1 (arbitrary units; exposure normalises it).
+LED_INTENSITY_UNIT = 1000.0
+
+
+def prepare_scene(scene: Scene, *, frames: int | None = None, scale: float | None = None, spp: int | None = None, seed: int | None = None) -> Scene:
+    """Apply the command-line knobs to a scene (validated like the file)."""
+    if frames is not None and frames < 1:
+        raise ConfigError(f"--frames = {frames}: must be >= 1")
+    if scale is not None and not 0 < scale <= 4:
+        raise ConfigError(f"--scale = {scale}: must be within (0, 4]")
+    if spp is not None and spp < 1:
+        raise ConfigError(f"--spp = {spp}: must be >= 1")
+    if seed is not None and seed < 0:
+        raise ConfigError(f"--seed = {seed}: must be >= 0")
+    cam = scene.camera
+    if scale is not None and scale != 1.0:
+        w, h = max(8, int(round(cam.width_px * scale))), max(8, int(round(cam.height_px * scale)))
+        # Keep the field of view: the pixel pitch grows as the resolution shrinks.
+        cam = dataclasses.replace(cam, width_px=w, height_px=h, pixel_pitch_um=cam.pixel_pitch_um * cam.width_px / w)
+    render = scene.render if spp is None else dataclasses.replace(scene.render, spp=spp)
+    out = dataclasses.replace(scene, camera=cam, render=render, seed=scene.seed if seed is None else seed)
+    if frames is not None:
+        out = dataclasses.replace(out, trajectory={**out.trajectory, "max_frames": frames})
+    return out
+
+
+def _trajectory_of(scene: Scene) -> Trajectory:
+    t = dict(scene.trajectory)
+    max_frames = t.pop("max_frames", None)
+    traj = dataclasses.replace(scene, trajectory=t).build_trajectory()
+    if max_frames is not None and max_frames < traj.frame_count:
+        traj = dataclasses.replace(traj, frame_count=int(max_frames))
+    return traj
+
+
+def plan_tiles(T_world_cam: np.ndarray, camera: CameraModel, tile_length_mm: float, margin_mm: float) -> list[tuple[list[int], tuple[float, float, float, float]]]:
+    """Group frame indices into floor tiles: ``[(frame_indices, (xmin, xmax, ymin, ymax)), ...]``.
+
+    Consecutive frames join a tile while the union of their footprints (plus margin)
+    stays within ``tile_length_mm`` on its longer side (a single frame always fits).
+    """
+    tiles: list = []
+    cur: list[int] = []
+    box = None
+    for i, T in enumerate(T_world_cam):
+        b = footprint_bounds_mm(T[None], camera, margin_mm)
+        if box is None:
+            cur, box = [i], b
+            continue
+        nb = (min(box[0], b[0]), max(box[1], b[1]), min(box[2], b[2]), max(box[3], b[3]))
+        if max(nb[1] - nb[0], nb[3] - nb[2]) <= tile_length_mm:
+            cur.append(i)
+            box = nb
+        else:
+            tiles.append((cur, box))
+            cur, box = [i], b
+    if cur:
+        tiles.append((cur, box))
+    return tiles
+
+
+def _leds(scene: Scene, T_world_cam: np.ndarray):
+    from floorsim.render import LedArray
+
+    pos, aim = scene_T_world_leds(scene, T_world_cam)
+    n_per_bar = scene.lights.count
+    inten = np.full(len(pos), scene.lights.power * LED_INTENSITY_UNIT / n_per_bar)
+    return LedArray(pos, aim, inten, scene.lights.lobe_exponent)
+
+
+def _versions() -> dict:
+    v = {"floorsim": floorsim.__version__, "floorvo": floorvo.__version__, "numpy": np.__version__, "python": platform.python_version()}
+    try:
+        from floorsim.render import backend_info
+
+        v.update(backend_info())
+    except Exception as exc:  # noqa: BLE001 - informational only
+        v["backend"] = f"unavailable: {exc}"
+    return v
+
+
+def _load_tile(renderer, scene: Scene, box, spacing: float) -> None:
+    xmin, xmax, ymin, ymax = box
+    # Snap the grid to multiples of the spacing in world coordinates: every tile samples
+    # the same floor points.
+    i0, i1 = int(np.floor(xmin / spacing)), int(np.ceil(xmax / spacing))
+    j0, j1 = int(np.floor(ymin / spacing)), int(np.ceil(ymax / spacing))
+    xs = np.arange(i0, i1 + 1) * spacing
+    ys = np.arange(j0, j1 + 1) * spacing
+    h, a = sample_material(scene.floor.material, xs, ys, scene.floor_seed, scene.floor.params, scene.floor.relief_scale)
+    renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
+
+
+def render_sequence(
+    scene: Scene,
+    out_dir: str | os.PathLike,
+    *,
+    frames: int | None = None,
+    scale: float | None = None,
+    spp: int | None = None,
+    seed: int | None = None,
+    overwrite: bool = False,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> Path:
+    """Render ``scene`` into the sequence folder ``out_dir`` and return its path.
+
+    Frames already on disk from an interrupted render of the same resolved scene are
+    kept; only missing frames are rendered. ``on_frame(done, total)`` reports progress.
+    """
+    from floorsim.render import FloorRenderer
+
+    scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)
+    traj = _trajectory_of(scene)
+    cam = scene.camera_model()
+    T_all = traj.T_world_cam
+    ts = traj.timestamps_s
+    spacing = scene.floor_spacing_mm()
+    meta = {
+        "name": scene.name,
+        "fps": scene.fps,
+        "frame_count": traj.frame_count,
+        "bit_depth": scene.sensor.bit_depth,
+        "camera": cam.to_dict(),
+        "rig": {
+            "height_mm": scene.camera.height_mm,
+            "gsd_mm_per_px": cam.gsd_mm_per_px(scene.camera.height_mm),
+            "led_positions_cam_mm": scene.led_positions_cam()[0].tolist(),
+            "led_height_mm": scene.lights.height_mm,
+        },
+        "stereo": False,
+        "seeds": {"scene": scene.seed, "floor": scene.floor_seed, "pixel_jitter": scene.seed, "sensor_noise": scene.seed},
+        "units": {"length": "mm (sequence.json); m (groundtruth.txt)", "angle": "rad", "time": "s", "frames": "DN"},
+        "floor_spacing_mm": spacing,
+        "events": dict(traj.events),
+        "trajectory": traj.to_dict(),
+        "scene": scene.to_dict(),
+        "calib": {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 16} if scene.render.flatfield else None,
+        "versions": _versions(),
+    }
+    writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
+    root = writer.root
+    writer.write_groundtruth(ts, T_all)
+    missing = writer.missing_frames()
+    flat_path = root / "calib" / "cam0_flatfield.png"
+    need_flat = scene.render.flatfield and not flat_path.is_file()
+    total = traj.frame_count
+    if on_frame:
+        on_frame(total - len(missing), total)
+    if not missing and not need_flat:
+        return root
+
+    renderer = FloorRenderer(cam)
+    sensor_path = root / "calib" / "sensor.json"
+    gain = scene.sensor.exposure_gain
+    if gain <= 0 and sensor_path.is_file():
+        gain = float(json.loads(sensor_path.read_text())["gain_e_per_unit"])
+    margin = 2.0 + 2 * spacing
+    tiles = plan_tiles(T_all, cam, scene.floor.tile_length_mm, margin)
+    if gain <= 0:
+        # Exposure from the first frame's radiance (rendered again here if it is on disk).
+        first_box = next(b for idx, b in tiles if 0 in idx)
+        _load_tile(renderer, scene, footprint_bounds_mm(T_all[:1], cam, margin), spacing)
+        rad0 = renderer.render(T_all[0], _leds(scene, T_all[0]), scene.render.spp, seed=_frame_seed(scene.seed, 0))
+        gain = exposure_gain(rad0, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
+        if gain <= 0:
+            raise ConfigError(f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly")
+        del first_box
+    atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
+    sensor = SensorModel(gain, scene.sensor.full_well_e, scene.sensor.read_noise_e, scene.sensor.shot_noise, scene.sensor.bit_depth)
+
+    done = total - len(missing)
+    missing_set = set(missing)
+    t0 = time.perf_counter()
+    for idx, box in tiles:
+        todo = [i for i in idx if i in missing_set]
+        if not todo:
+            continue
+        _load_tile(renderer, scene, box, spacing)
+        for i in todo:
+            rad = renderer.render(T_all[i], _leds(scene, T_all[i]), scene.render.spp, seed=_frame_seed(scene.seed, i))
+            writer.write_frame(i, sensor.capture(rad, scene.seed, i, noise=scene.sensor.noise))
+            done += 1
+            if on_frame:
+                on_frame(done, total)
+        renderer.scene = None
+        gc.collect()
+    if need_flat:
+        render_flatfield(renderer, scene, T_all[0], sensor, writer)
+    log.info("rendered %d frames in %.1f s into %s", len(missing), time.perf_counter() - t0, root)
+    return root
+
+
+def _frame_seed(seed: int, index: int) -> int:
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
+def render_flatfield(renderer, scene: Scene, T_world_cam: np.ndarray, sensor: SensorModel, writer: SequenceWriter) -> np.ndarray:
+    """Render and write ``calib/cam0_flatfield.png``: the rig over a flat floor of uniform albedo.
+
+    Same exposure as the sequence, no noise, 16-bit (DN x 257 for 8-bit sequences), so
+    estimators can divide a frame by it to remove the LED falloff.
+    """
+    cam = renderer.camera
+    box = footprint_bounds_mm(T_world_cam[None], cam, 5.0)
+    renderer.load_flat(*box, albedo=scene.render.flatfield_albedo)
+    rad = renderer.render(T_world_cam, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0)
+    renderer.scene = None
+    flat16 = SensorModel(sensor.gain_e_per_unit, sensor.full_well_e, 0.0, False, 16).capture(rad, 0, 0, noise=False)
+    writer.write_calib("cam0_flatfield", flat16)
+    return flat16
+
+
+
