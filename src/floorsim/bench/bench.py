@@ -12,8 +12,8 @@
 3. score each run (:func:`floorvo.metrics.score_run`, written to ``RUN/score.json``) and
    append one row to ``DIR/results.csv`` (atomically rewritten after every row).
 
-Repetition ``k`` renders the scene with seed ``scene seed + k`` (another noise and
-sampling realisation of the same scene). Then the report is written
+Repetition ``k`` renders the scene with seed ``scene seed + k``: another realisation of
+the same scene (floor texture unless ``floor.seed`` fixes it, sensor noise, sampling). Then the report is written
 (:mod:`floorsim.bench.report`) and, when asked, the rows are compared with a baseline
 (:mod:`floorsim.bench.gates`) or saved as one.
 
@@ -250,7 +250,7 @@ def run_bench(
 
     ``estimators``: names, or None for every registered estimator each sequence supports.
     ``paper000_runs`` limits the number of runs per paper-000 model (None: all of them).
-    ``on_frame(scene_name, i, n)`` reports render progress. ``render`` replaces the
+    ``on_frame(scene_name, done, n)`` reports render progress (frames done of n). ``render`` replaces the
     renderer (same signature as ``floorsim.simulate.render_sequence``).
     """
     from floorsim.scene import load_scene

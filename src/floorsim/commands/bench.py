@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
             from tqdm import tqdm
 
             bar = bars[scene] = tqdm(total=n, desc=f"render {scene}", unit="frame", leave=False)
-        bar.update(1)
+        bar.update(max(0, i - bar.n))  # i frames of n are done
 
     res = run_bench(
         args.scenes, estimators, args.output, repetitions=args.repeat,
