@@ -69,3 +69,21 @@ def test_sweep_file_errors_name_the_key(tmp_path):
     p.write_text('base = "missing.toml"\n[vary]\n"a.b" = [1]\n')
     with pytest.raises(ConfigError, match="does not exist"):
         load_sweep(p)
+
+
+def test_shipped_sweep_files_vary_only_keys_the_scene_has():
+    from floorsim.scene import load_scene
+    from floorsim.sweep import _as_override
+
+    files = sorted((Path(__file__).resolve().parents[2] / "scenes" / "sweeps").glob("*.toml"))
+    assert files
+    for f in files:
+        spec = load_sweep(f)
+        for job in sweep_jobs(spec):
+            scene = load_scene(spec.base, {**spec.fixed, **{k: _as_override(v) for k, v in job["params"].items()}})
+            d = scene.to_dict()
+            for key, value in job["params"].items():
+                node = d
+                for part in key.split("."):
+                    node = node[part]
+                assert node == value, (f.name, key)
