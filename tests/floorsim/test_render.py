@@ -1,0 +1,193 @@
+"""Rendered pictures against ground truth and physics (tiny 162x124 renders)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from skimage.registration import phase_cross_correlation
+
+from floorsim.materials import sample_material
+from floorsim.simulate import render_sequence
+from floorvo.geometry import invert_T, yaw_of_R
+from floorvo.sequence import Sequence
+
+from _tiny import tiny_scene
+
+pytestmark = pytest.mark.render
+
+
+def _corrected(seq: Sequence, i: int) -> np.ndarray:
+    """Frame i divided by the flat-field frame (LED falloff removed)."""
+    img = seq.image(i).astype(np.float64)
+    flat = seq.flatfield().astype(np.float64)
+    return img / np.maximum(flat, 1.0)
+
+
+def _interior(img: np.ndarray, frac: float = 0.7) -> np.ndarray:
+    h, w = img.shape
+    dh, dw = int(h * (1 - frac) / 2), int(w * (1 - frac) / 2)
+    return img[dh : h - dh, dw : w - dw]
+
+
+def _hann(img: np.ndarray) -> np.ndarray:
+    win = np.outer(np.hanning(img.shape[0]), np.hanning(img.shape[1]))
+    return (img - img.mean()) * win
+
+
+@pytest.mark.parametrize(
+    "k, direction_rad, tol_px",
+    [
+        (3, 0.0, 0.05),
+        (7, 0.0, 0.05),
+        # Oblique travel moves the rig along the LED bars too: the discrete LEDs' shadow
+        # directions on each floor point change with the move, which the picture shows.
+        (7, 0.6, 0.2),
+    ],
+)
+def test_translation_of_k_gsd_shifts_image_by_k_pixels(tmp_path, k, direction_rad, tol_px):
+    gsd = tiny_scene().camera_model().gsd_mm_per_px(100.0)
+    scene = tiny_scene(**{"trajectory.distance_mm": k * gsd, "trajectory.step_mm": k * gsd, "trajectory.direction_rad": direction_rad})
+    seq = Sequence.open(render_sequence(scene, tmp_path / "seq"))
+    # Expected motion from groundtruth.txt and the intrinsics in sequence.json alone.
+    _, T = seq.groundtruth()
+    T_0_1 = invert_T(T[0]) @ T[1]
+    cam = seq.camera
+    depth = T[0][2, 3]  # camera height above the mean floor plane (mm)
+    expect_du = -T_0_1[0, 3] * cam.fx_px / depth  # floor content moves opposite to the camera
+    expect_dv = -T_0_1[1, 3] * cam.fy_px / depth
+    assert np.hypot(expect_du, expect_dv) == pytest.approx(k, rel=1e-3)
+    a, b = _interior(_corrected(seq, 0)), _interior(_corrected(seq, 1))
+    shift, _, _ = phase_cross_correlation(_hann(a), _hann(b), upsample_factor=100)
+    # shift registers frame 1 onto frame 0: minus the content displacement.
+    assert -shift[1] == pytest.approx(expect_du, abs=tol_px)
+    assert -shift[0] == pytest.approx(expect_dv, abs=tol_px)
+
+
+def test_yaw_rotates_image_about_principal_point(tmp_path):
+    yaw = 0.08  # rad, spin in place
+    scene = tiny_scene(**{"trajectory": {"type": "spin", "angle_rad": yaw, "rate_rad_s": yaw * 30.0}})
+    seq = Sequence.open(render_sequence(scene, tmp_path / "seq"))
+    _, T = seq.groundtruth()
+    d_yaw = yaw_of_R(T[1][:3, :3]) - yaw_of_R(T[0][:3, :3])
+    cam = seq.camera
+    a, b = _corrected(seq, 0), _corrected(seq, 1)
+    centre = (cam.cx_px, cam.cy_px)
+
+    def ncc(angle_deg: float) -> float:
+        M = cv2.getRotationMatrix2D(centre, angle_deg, 1.0)
+        back = cv2.warpAffine(b, M, (cam.width_px, cam.height_px), flags=cv2.INTER_CUBIC)
+        x, y = _interior(a, 0.6), _interior(back, 0.6)
+        x, y = x - x.mean(), y - y.mean()
+        return float((x * y).sum() / np.sqrt((x * x).sum() * (y * y).sum()))
+
+    # Search the rotation that maps frame 1 back onto frame 0, about the principal point.
+    angles = np.linspace(-8, 8, 161)
+    scores = np.array([ncc(t) for t in angles])
+    i = int(scores.argmax())
+    y0, y1, y2 = scores[i - 1], scores[i], scores[i + 1]
+    best = angles[i] + 0.1 * 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
+    # The camera yaws counter-clockwise seen from above; with its y axis pointing to world -y
+    # the image content turns by +yaw in OpenCV's (clockwise-positive on screen) angle convention.
+    assert best == pytest.approx(np.degrees(d_yaw), abs=0.1)
+    # The LEDs turn with the rig, so the shading of the relief changes too: a clear but imperfect match.
+    assert scores.max() > 0.5 and scores.max() - np.median(scores) > 0.3
+    # About the principal point: after de-rotation no translation remains.
+    M = cv2.getRotationMatrix2D(centre, best, 1.0)
+    back = cv2.warpAffine(b, M, (cam.width_px, cam.height_px), flags=cv2.INTER_CUBIC)
+    shift, _, _ = phase_cross_correlation(_hann(_interior(a, 0.6)), _hann(_interior(back, 0.6)), upsample_factor=20)
+    assert np.hypot(*shift) < 0.2
+
+
+def _relief_gradient_x(seq: Sequence, i: int) -> np.ndarray:
+    """dh/dx of the floor at each pixel centre of frame i (straight-down camera)."""
+    scene = seq.meta["scene"]
+    _, T = seq.groundtruth()
+    cam = seq.camera
+    gsd = cam.gsd_mm_per_px(T[i][2, 3])
+    x = T[i][0, 3] + (np.arange(cam.width_px) - cam.cx_px) * gsd
+    y = T[i][1, 3] - (np.arange(cam.height_px) - cam.cy_px) * gsd
+    h, _ = sample_material(scene["floor"]["material"], x, y, seq.meta["seeds"]["floor"], scene["floor"]["params"])
+    return np.gradient(h.astype(np.float64), gsd, axis=1)
+
+
+@pytest.mark.parametrize("side, sign", [("left", 1.0), ("right", -1.0)])
+def test_one_led_lights_faces_towards_it(tmp_path, side, sign):
+    """Left LED only: faces rising towards +x (normals towards the left LED) are bright."""
+    scene = tiny_scene(**{"lights.side": side, "trajectory.distance_mm": 4.0})
+    seq = Sequence.open(render_sequence(scene, tmp_path / side))
+    img = _interior(_corrected(seq, 0))
+    gx = _interior(_relief_gradient_x(seq, 0))
+    r = np.corrcoef(img.ravel(), gx.ravel())[0, 1]
+    assert sign * r > 0.3, f"{side}: correlation of brightness with dh/dx is {r:.2f}"
+
+
+def test_brightness_linear_in_led_power_until_saturation(tmp_path):
+    base = {"trajectory.distance_mm": 4.0}
+    first = render_sequence(tiny_scene(**base), tmp_path / "auto")
+    # Fix the exposure at a quarter of the automatic one, then vary the power.
+    base["sensor.exposure_gain"] = 0.25 * json.loads((first / "calib" / "sensor.json").read_text())["gain_e_per_unit"]
+    imgs = {}
+    for p in (1.0, 2.0, 200.0):
+        seq = Sequence.open(render_sequence(tiny_scene(**base, **{"lights.power": p}), tmp_path / f"p{p}"))
+        imgs[p] = seq.image(0).astype(np.float64)
+    ok = (imgs[1.0] > 15) & (imgs[1.0] < 100)
+    assert ok.sum() > 1000
+    ratio = imgs[2.0][ok] / imgs[1.0][ok]
+    assert np.median(ratio) == pytest.approx(2.0, abs=0.03)
+    assert (imgs[200.0] == 255).mean() > 0.95  # saturated, and not wrapped around
+    assert imgs[200.0].min() >= imgs[2.0].min()
+
+
+def test_higher_leds_lower_relief_contrast(tmp_path):
+    contrast = {}
+    for h in (3.0, 30.0):
+        seq = Sequence.open(render_sequence(tiny_scene(**{"lights.height_mm": h, "trajectory.distance_mm": 4.0}), tmp_path / f"h{h}"))
+        c = _interior(_corrected(seq, 0))
+        contrast[h] = c.std() / c.mean()
+    assert contrast[3.0] > 1.5 * contrast[30.0]
+
+
+def test_same_seed_same_bytes_other_seed_differs(tmp_path):
+    scene = tiny_scene(**{"sensor.noise": True})
+    a = render_sequence(scene, tmp_path / "a")
+    b = render_sequence(scene, tmp_path / "b")
+    c = render_sequence(scene, tmp_path / "c", seed=4)
+    for i in (0, 1):
+        name = f"cam0/{i:06d}.png"
+        assert (a / name).read_bytes() == (b / name).read_bytes()
+        assert (a / name).read_bytes() != (c / name).read_bytes()
+
+
+def test_resume_keeps_written_frames(tmp_path):
+    scene = tiny_scene(**{"sensor.noise": True, "trajectory.distance_mm": 8.0})
+    root = render_sequence(scene, tmp_path / "seq")
+    frames = sorted((root / "cam0").glob("*.png"))
+    assert len(frames) == 3
+    original = [f.read_bytes() for f in frames]
+    stat_before = [f.stat().st_mtime_ns for f in frames]
+    frames[1].unlink()  # an interrupted render lost frame 1
+    render_sequence(scene, root)
+    assert [f.read_bytes() for f in frames] == original
+    assert frames[0].stat().st_mtime_ns == stat_before[0] and frames[2].stat().st_mtime_ns == stat_before[2]
+
+
+def test_cli_render_unwritable_and_summary(tmp_path):
+    ro = tmp_path / "ro"
+    ro.write_text("a file, not a folder")
+    r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", "demo", "-o", str(ro / "x"), "--frames", "1"], capture_output=True, text=True)
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "not writable" in r.stderr.strip().splitlines()[-1]
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "-q", "render", "demo", "-o", str(tmp_path / "d"), "--frames", "2", "--scale", "0.5"],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    assert "2 frames 162x124" in r.stdout
+    seq = Sequence.open(tmp_path / "d")
+    assert seq.camera.fx_px == pytest.approx(810.81 / 4, rel=1e-3)  # demo is half size; --scale 0.5 halves again
