@@ -1,0 +1,19 @@
+"""Odometry estimators behind one interface (:mod:`floorvo.estimators.base`).
+
+Importing this package registers the built-in estimators; :func:`list_estimators` names
+them and :func:`get_estimator` returns a class by name.
+"""
+
+from floorvo.estimators.base import (
+    REGISTRY,
+    Estimator,
+    Frame,
+    StepResult,
+    get_estimator,
+    list_estimators,
+    make_config,
+    register,
+)
+from floorvo.estimators import phase_corr  # noqa: F401  (registers phase-corr)
+
+__all__ = ["REGISTRY", "Estimator", "Frame", "StepResult", "get_estimator", "list_estimators", "make_config", "register"]

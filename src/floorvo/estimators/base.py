@@ -1,0 +1,200 @@
+"""The estimator interface shared by every odometry method.
+
+An estimator is built from a validated, frozen ``Config`` and the sequence's camera
+model; per-sequence state lives in an explicit object returned by :meth:`start`, so one
+instance can run several sequences::
+
+    est = AkazeGuided(AkazeGuided.Config(), camera, height_mm=100.0)
+    state = est.start()
+    for frame in frames:
+        res = est.step(state, frame)   # StepResult: motion since the previous frame, or "lost"
+
+Motion convention: ``StepResult.T_prev_cur`` is the 4x4 pose (mm) of the current camera
+in the previous camera's frame, so ``T_world_cur = T_world_prev @ T_prev_cur``. The first
+frame returns status ``"init"`` and no motion; a frame that cannot be tracked returns
+``"lost"`` with a reason (never an exception) and the next frame is matched against the
+last good one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Mapping, Protocol
+
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError
+
+__all__ = [
+    "Frame",
+    "StepResult",
+    "Estimator",
+    "REGISTRY",
+    "register",
+    "get_estimator",
+    "list_estimators",
+    "make_config",
+    "validate_config",
+    "floor_rigid_to_T",
+    "pixels_to_floor_mm",
+]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of a sequence. ``image``: (H, W) uint8/uint16 left (or only) camera;
+    ``image_right``: the right camera of a stereo rig; ``depth_mm``: (H, W) float32, 0 = none."""
+
+    index: int
+    timestamp_s: float
+    image: np.ndarray
+    image_right: np.ndarray | None = None
+    depth_mm: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one frame. ``T_prev_cur`` is None unless ``status == "ok"``.
+
+    ``matches_px``: optional (N, 4) array of inlier matches (u_prev, v_prev, u_cur, v_cur)
+    for reports; ``timing_ms``: detect, match, estimate, total.
+    """
+
+    status: str
+    T_prev_cur: np.ndarray | None = None
+    reason: str = ""
+    n_keypoints: int = 0
+    n_matches: int = 0
+    n_inliers: int = 0
+    timing_ms: Mapping[str, float] = field(default_factory=dict)
+    matches_px: np.ndarray | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+class Estimator(Protocol):
+    """What every estimator provides (see the module docstring)."""
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+    Config: ClassVar[type]
+    requires: ClassVar[frozenset[str]]
+
+    def __init__(self, config: Any, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig: Any): ...
+
+    def start(self) -> Any: ...
+
+    def step(self, state: Any, frame: Frame) -> StepResult: ...
+
+
+REGISTRY: dict[str, type] = {}
+
+
+def register(cls: type) -> type:
+    """Class decorator: add an estimator to :data:`REGISTRY` under ``cls.name``."""
+    for attr in ("name", "description", "Config", "requires"):
+        if not hasattr(cls, attr):
+            raise TypeError(f"estimator {cls.__name__} lacks {attr!r}")
+    REGISTRY[cls.name] = cls
+    return cls
+
+
+def get_estimator(name: str) -> type:
+    from floorvo import estimators  # noqa: F401  (registers the built-in estimators)
+
+    if name not in REGISTRY:
+        raise ConfigError(f"estimator {name!r}: unknown (known: {', '.join(sorted(REGISTRY))})")
+    return REGISTRY[name]
+
+
+def list_estimators() -> list[str]:
+    from floorvo import estimators  # noqa: F401
+
+    return sorted(REGISTRY)
+
+
+def _convert(value: str, tp: Any, key: str) -> Any:
+    origin = typing.get_origin(tp)
+    if origin is typing.Union or str(origin) == "types.UnionType":
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value.lower() in ("none", "null"):
+            return None
+        tp = args[0]
+    try:
+        if tp is bool:
+            if value.lower() in ("1", "true", "yes", "on"):
+                return True
+            if value.lower() in ("0", "false", "no", "off"):
+                return False
+            raise ValueError
+        if tp is int:
+            return int(value)
+        if tp is float:
+            return float(value)
+        return value
+    except ValueError:
+        raise ConfigError(f"{key} = {value!r}: must be {tp.__name__}") from None
+
+
+def validate_config(cfg: Any, prefix: str) -> None:
+    """Check each field against its metadata ``{"min": .., "max": .., "choices": ..}``."""
+    for f in dataclasses.fields(cfg):
+        v = getattr(cfg, f.name)
+        m = f.metadata
+        key = f"{prefix}.{f.name}"
+        if v is None:
+            continue
+        if "choices" in m and v not in m["choices"]:
+            raise ConfigError(f"{key} = {v!r}: must be one of {', '.join(map(repr, m['choices']))}")
+        if "min" in m and v < m["min"]:
+            raise ConfigError(f"{key} = {v}: must be >= {m['min']}")
+        if "gt" in m and v <= m["gt"]:
+            raise ConfigError(f"{key} = {v}: must be > {m['gt']}")
+        if "max" in m and v > m["max"]:
+            raise ConfigError(f"{key} = {v}: must be <= {m['max']}")
+
+
+def make_config(name: str, overrides: Mapping[str, str] | None = None) -> Any:
+    """The estimator's Config with ``{"field": "value"}`` string overrides applied and validated."""
+    cls = get_estimator(name)
+    hints = typing.get_type_hints(cls.Config)
+    names = {f.name for f in dataclasses.fields(cls.Config)}
+    kwargs = {}
+    for key, value in (overrides or {}).items():
+        if key not in names:
+            raise ConfigError(f"{name}.{key}: unknown config key (known: {', '.join(sorted(names))})")
+        kwargs[key] = _convert(str(value), hints[key], f"{name}.{key}") if isinstance(value, str) else value
+    cfg = cls.Config(**kwargs)
+    validate_config(cfg, name)
+    return cfg
+
+
+def pixels_to_floor_mm(uv_px: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
+    """(N, 2) pixels -> (N, 2) floor coordinates (mm) in the camera's x-y axes.
+
+    Eq. (1) of paper 000 generalised to the full camera model: the ray through the pixel
+    meets the floor at depth ``height_mm`` (camera looking straight down).
+    """
+    return camera.unproject(np.asarray(uv_px, dtype=float).reshape(-1, 2), height_mm)[:, :2]
+
+
+def floor_rigid_to_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
+    """Camera motion from a rigid map of floor points between frames.
+
+    ``R2, t2_mm`` map a floor point's camera-x/y coordinates (mm) in the previous frame to
+    those in the current frame: ``q_cur = R2 q_prev + t2``. That is the planar part of
+    ``T_cur_prev``; the result is its inverse ``T_prev_cur`` (4x4, mm).
+    """
+    T_cur_prev = np.eye(4)
+    T_cur_prev[:2, :2] = R2
+    T_cur_prev[:2, 3] = t2_mm
+    R = T_cur_prev[:3, :3]
+    T = np.eye(4)
+    T[:3, :3] = R.T
+    T[:3, 3] = -R.T @ T_cur_prev[:3, 3]
+    return T

@@ -1,0 +1,219 @@
+"""``phase-corr``: dense odometry by windowed phase correlation (ours, not from a paper).
+
+Per frame:
+
+1. Divide out the LED falloff (flat-field frame, or a blur estimate without one).
+2. Resample the current frame into the previous frame's coordinates through the
+   predicted rigid motion (constant velocity: the last measured motion), so the
+   residual to measure is small and the window does not bias it.
+3. Split a central crop into ``grid x grid`` blocks; in each, phase correlation
+   ``ifft(B A* / |B A*|)`` gives the integer shift, and a weighted least-squares fit of
+   the cross-power spectrum's phase slope over the low frequencies gives the sub-pixel
+   part (for b(x) = a(x - d): B A* = |A|^2 exp(-2 pi i k.d / N)).
+4. A rigid 2D fit (rotation + translation, least squares) of the block centres and
+   their shifts updates the motion (this measures yaw); repeat 2-4 ``iterations`` times.
+5. Pixels to floor millimetres with the camera model at the camera height (eq. (1) of
+   paper 000 generalised), then to the camera motion ``T_prev_cur``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T, register
+from floorvo.estimators.preprocess import illumination_corrected
+from floorvo.geometry import rigid_fit_2d
+
+__all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
+
+
+@dataclass(frozen=True)
+class PhaseCorrConfig:
+    """``crop_fraction``: side of the central square crop as a fraction of the shorter image side;
+    ``grid``: blocks per side; ``iterations``: warp-and-measure rounds; ``min_peak``: lowest
+    phase-correlation peak (0..1) accepted; ``max_residual_px``: largest block disagreement
+    with the rigid fit; ``low_freq_fraction``: frequencies used for the sub-pixel phase fit."""
+
+    crop_fraction: float = field(default=0.8, metadata={"gt": 0.0, "max": 1.0})
+    grid: int = field(default=2, metadata={"min": 2, "max": 8})
+    iterations: int = field(default=2, metadata={"min": 1, "max": 10})
+    min_peak: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
+    max_residual_px: float = field(default=1.5, metadata={"gt": 0.0})
+    low_freq_fraction: float = field(default=0.15, metadata={"gt": 0.0, "max": 0.5})
+    use_flatfield: bool = True
+    predict: bool = True
+
+
+def _hann2(h: int, w: int) -> np.ndarray:
+    return np.outer(np.hanning(h), np.hanning(w)).astype(np.float32)
+
+
+class _Spectral:
+    """Per-block-size constants: window, frequency grids, low-frequency mask."""
+
+    def __init__(self, n: int, low_frac: float):
+        self.n = n
+        self.win = _hann2(n, n)
+        ky = np.fft.fftfreq(n)[:, None] * np.ones((1, n // 2 + 1))
+        kx = np.fft.rfftfreq(n)[None, :] * np.ones((n, 1))
+        self.kx, self.ky = kx, ky
+        low = (np.abs(kx) <= low_frac) & (np.abs(ky) <= low_frac)
+        low[0, 0] = False
+        self.low = low
+
+    def spectrum(self, block: np.ndarray) -> np.ndarray:
+        b = block - block.mean()
+        return np.fft.rfft2(b * self.win)
+
+
+def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarray, float]:
+    """Content displacement ``d = (dx, dy)`` px of block b relative to a, and the peak height.
+
+    ``Fa``, ``Fb``: rfft2 spectra of the windowed blocks (size sp.n).
+    """
+    cross = Fb * np.conj(Fa)
+    mag = np.abs(cross)
+    R = cross / np.maximum(mag, 1e-12)
+    corr = np.fft.irfft2(R, s=(sp.n, sp.n))
+    iy, ix = np.unravel_index(int(np.argmax(corr)), corr.shape)
+    peak = float(corr[iy, ix])
+    n = sp.n
+    dy0 = iy - n if iy > n // 2 else iy
+    dx0 = ix - n if ix > n // 2 else ix
+    # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy).
+    Q = R * np.exp(2j * np.pi * (sp.kx * dx0 + sp.ky * dy0))
+    m = sp.low
+    phi = np.angle(Q[m])
+    w = mag[m]
+    A = np.stack([-2 * np.pi * sp.kx[m], -2 * np.pi * sp.ky[m]], axis=1)
+    Aw = A * w[:, None]
+    sol, *_ = np.linalg.lstsq(Aw.T @ A, Aw.T @ phi, rcond=None)
+    d = np.array([dx0 + sol[0], dy0 + sol[1]])
+    return d, peak
+
+
+@dataclass
+class _State:
+    prev: np.ndarray | None = None  # corrected previous frame, float32
+    prev_blocks: list | None = None  # spectra of the previous frame's blocks
+    M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
+
+
+@register
+class PhaseCorr:
+    """Windowed phase correlation with sub-pixel phase-slope fit and block-wise yaw."""
+
+    name = "phase-corr"
+    description = "dense: flat-field corrected, windowed phase correlation, sub-pixel phase fit, block-wise yaw (ours)"
+    Config = PhaseCorrConfig
+    requires = frozenset()
+
+    def __init__(self, config: PhaseCorrConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+        self.config = config
+        self.camera = camera
+        self.height_mm = float(height_mm)
+        self.flatfield = flatfield if config.use_flatfield else None
+        side = min(camera.width_px, camera.height_px)
+        g = config.grid
+        bs = int(side * config.crop_fraction) // g
+        bs -= bs % 2
+        if bs < 16:
+            from floorvo.errors import ConfigError
+
+            raise ConfigError(f"phase-corr: image {camera.width_px}x{camera.height_px} too small for a {g}x{g} grid of blocks")
+        self.block = bs
+        self.crop = bs * g
+        self.x0 = int(round(camera.cx_px - self.crop / 2 + 0.5))
+        self.y0 = int(round(camera.cy_px - self.crop / 2 + 0.5))
+        self.sp = _Spectral(bs, config.low_freq_fraction)
+        self.sp_crop = _Spectral(self.crop, config.low_freq_fraction)
+        c = (np.arange(g) + 0.5) * bs
+        cx, cy = np.meshgrid(c + self.x0 - camera.cx_px, c + self.y0 - camera.cy_px)
+        self.block_centres = np.stack([cx.ravel(), cy.ravel()], axis=1)  # prev-centred px
+        self.mm_per_px = self.height_mm / camera.fx_px
+
+    def start(self) -> _State:
+        return _State()
+
+    # ------------------------------------------------------------------ helpers
+    def _blocks(self, img: np.ndarray) -> list:
+        bs, g = self.block, self.config.grid
+        return [self.sp.spectrum(img[j * bs : (j + 1) * bs, i * bs : (i + 1) * bs]) for j in range(g) for i in range(g)]
+
+    def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray) -> np.ndarray:
+        """cur sampled at M(p) for p on the previous frame's crop grid."""
+        c = np.array([[1, 0, self.camera.cx_px], [0, 1, self.camera.cy_px], [0, 0, 1.0]])
+        c_inv = np.array([[1, 0, -self.camera.cx_px], [0, 1, -self.camera.cy_px], [0, 0, 1.0]])
+        o = np.array([[1, 0, self.x0], [0, 1, self.y0], [0, 0, 1.0]])
+        A = (c @ M @ c_inv @ o)[:2]
+        return cv2.warpAffine(cur, A, (self.crop, self.crop), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT)
+
+    # ------------------------------------------------------------------ step
+    def step(self, state: _State, frame: Frame) -> StepResult:
+        t0 = time.perf_counter()
+        img = np.asarray(frame.image)
+        if img.size == 0 or float(img.std()) == 0.0:
+            return StepResult("lost", reason="empty frame (no texture)", timing_ms={"detect": 0.0, "match": 0.0, "estimate": 0.0, "total": 0.0})
+        cur = illumination_corrected(img, self.flatfield)
+        t1 = time.perf_counter()
+        if state.prev is None:
+            state.prev = cur
+            crop = cur[self.y0 : self.y0 + self.crop, self.x0 : self.x0 + self.crop]
+            state.prev_blocks = self._blocks(crop)
+            state.prev_crop_spec = self.sp_crop.spectrum(crop)
+            return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+        M = state.M_pred.copy() if self.config.predict else np.eye(3)
+        peaks = []
+        if not self.config.predict or np.allclose(M, np.eye(3)):
+            # No prediction: a whole-crop translation first, for large motions.
+            w = self._warp_into_prev(cur, M)
+            d, pk = block_shift(state.prev_crop_spec, self.sp_crop.spectrum(w), self.sp_crop)
+            M = M @ _translation(d)
+        resid = np.inf
+        for _ in range(self.config.iterations):
+            w = self._warp_into_prev(cur, M)
+            shifts, peaks = [], []
+            for Fa, Fb in zip(state.prev_blocks, self._blocks(w)):
+                d, pk = block_shift(Fa, Fb, self.sp)
+                shifts.append(d)
+                peaks.append(pk)
+            shifts = np.array(shifts)
+            # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
+            R2, t2 = rigid_fit_2d(self.block_centres, self.block_centres + shifts)
+            E = np.eye(3)
+            E[:2, :2], E[:2, 2] = R2, t2
+            resid = float(np.abs(self.block_centres @ R2.T + t2 - self.block_centres - shifts).max())
+            M = M @ E
+        t2_ = time.perf_counter()
+        min_peak = float(min(peaks)) if peaks else 0.0
+        new_blocks = None
+        crop = cur[self.y0 : self.y0 + self.crop, self.x0 : self.x0 + self.crop]
+        new_blocks = self._blocks(crop)
+        new_crop_spec = self.sp_crop.spectrum(crop)
+        if min_peak < self.config.min_peak or resid > self.config.max_residual_px:
+            state.M_pred = np.eye(3)
+            state.prev, state.prev_blocks, state.prev_crop_spec = cur, new_blocks, new_crop_spec
+            why = f"weak correlation peak {min_peak:.3f}" if min_peak < self.config.min_peak else f"blocks disagree by {resid:.2f} px"
+            return StepResult("lost", reason=why, n_matches=len(peaks), timing_ms=_timing(t0, t1, t2_, time.perf_counter()))
+        # M maps prev-centred px to cur-centred px: the floor's motion in the image.
+        R_px, t_px = M[:2, :2], M[:2, 2]
+        T = floor_rigid_to_T(R_px, t_px * self.mm_per_px)
+        state.M_pred = M
+        state.prev, state.prev_blocks, state.prev_crop_spec = cur, new_blocks, new_crop_spec
+        t3 = time.perf_counter()
+        return StepResult("ok", T, n_matches=len(peaks), n_inliers=len(peaks), timing_ms=_timing(t0, t1, t2_, t3))
+
+
+def _translation(d: np.ndarray) -> np.ndarray:
+    T = np.eye(3)
+    T[:2, 2] = d
+    return T
+
+
+def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
+    return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}

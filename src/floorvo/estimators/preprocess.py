@@ -1,0 +1,49 @@
+"""Frame normalisation for grazing-LED floor images.
+
+Real frames are bright at the edges near the LEDs and dark in the middle; the pattern
+moves with the camera, so it must be removed before matching (a plain correlation of
+two raw frames is pulled toward zero shift). With a flat-field frame of the rig (same
+LEDs over a flat uniform floor) the correction is exact: ``image / flatfield``. Without
+one, the illumination is estimated by a wide Gaussian blur of the frame itself.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = ["illumination_corrected", "to_uint8_contrast"]
+
+
+def illumination_corrected(image: np.ndarray, flatfield: np.ndarray | None = None, blur_sigma_px: float | None = None) -> np.ndarray:
+    """float32 (H, W) image with the LED falloff divided out, mean ~1 where lit.
+
+    ``flatfield``: (H, W) frame of the rig over a flat uniform floor (any bit depth);
+    pixels where it is below 0.5 % of its maximum are treated as unlit (value 0).
+    """
+    img = np.asarray(image, dtype=np.float32)
+    if flatfield is not None:
+        flat = np.asarray(flatfield, dtype=np.float32)
+        if flat.shape != img.shape:
+            raise ValueError(f"flatfield shape {flat.shape} differs from image shape {img.shape}")
+        scale = float(flat.max()) or 1.0
+        flat = flat / scale
+        valid = flat > 0.005
+        out = np.zeros_like(img)
+        np.divide(img, flat, out=out, where=valid)
+        m = float(out[valid].mean()) if valid.any() else 0.0
+        return out / m if m > 0 else out
+    sigma = blur_sigma_px or max(img.shape) / 16.0
+    illum = cv2.GaussianBlur(img, (0, 0), sigma)
+    out = np.zeros_like(img)
+    np.divide(img, illum, out=out, where=illum > 1e-3 * max(float(illum.max()), 1e-12))
+    return out
+
+
+def to_uint8_contrast(corrected: np.ndarray, gain_sigma: float = 3.0) -> np.ndarray:
+    """Map a corrected image to uint8 with mean 128 and ``gain_sigma`` std devs to the rails."""
+    c = np.asarray(corrected, dtype=np.float32)
+    mean, std = float(c.mean()), float(c.std())
+    if std <= 0:
+        return np.full(c.shape, 128, dtype=np.uint8)
+    return np.clip(128.0 + (c - mean) * (127.0 / (gain_sigma * std)), 0, 255).astype(np.uint8)
