@@ -14,6 +14,6 @@ from floorvo.estimators.base import (
     make_config,
     register,
 )
-from floorvo.estimators import phase_corr  # noqa: F401  (registers phase-corr)
+from floorvo.estimators import akaze, phase_corr  # noqa: F401  (registers them)
 
 __all__ = ["REGISTRY", "Estimator", "Frame", "StepResult", "get_estimator", "list_estimators", "make_config", "register"]
