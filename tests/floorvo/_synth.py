@@ -1,0 +1,74 @@
+"""Synthetic floor frames made in code: a relief lit from the side, warped by a known motion.
+
+The motion is applied exactly: both frames are resampled from one large texture, the
+current one through the rigid map that the camera motion ``T_prev_cur`` induces on a
+flat floor at ``height_mm`` (camera looking straight down). A rig-fixed LED falloff and
+sensor noise are applied to both, as in a real grazing-light frame.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.geometry import invert_T
+
+
+def floor_texture(size_px: int, seed: int) -> np.ndarray:
+    """(size, size) float32 texture: a bumpy relief shaded by a light from -x, plus albedo blobs."""
+    rng = np.random.default_rng(seed)
+    h = np.zeros((size_px, size_px), np.float32)
+    for sigma, amp in ((1.0, 1.0), (2.5, 1.5), (6.0, 2.0), (20.0, 3.0)):
+        h += amp * cv2.GaussianBlur(rng.standard_normal((size_px, size_px)).astype(np.float32), (0, 0), sigma)
+    shade = np.gradient(h, axis=1)  # faces towards -x lit (light from -x)
+    albedo = 1.0 + 0.3 * cv2.GaussianBlur(rng.standard_normal((size_px, size_px)).astype(np.float32), (0, 0), 8.0)
+    tex = albedo * (1.0 + 2.0 * shade / (shade.std() + 1e-6) * 0.25)
+    return np.clip(tex, 0.05, None).astype(np.float32)
+
+
+def falloff(camera: CameraModel) -> np.ndarray:
+    """Rig-fixed LED falloff: bright at the left and right edges, dark in the middle."""
+    u = np.arange(camera.width_px, dtype=np.float32)[None, :]
+    v = np.arange(camera.height_px, dtype=np.float32)[:, None]
+    w = camera.width_px
+    left = 1.0 / (1.0 + (u / (0.25 * w)) ** 2)
+    right = 1.0 / (1.0 + ((w - 1 - u) / (0.25 * w)) ** 2)
+    return ((left + right) * (1.0 - 0.2 * ((v - camera.cy_px) / camera.height_px) ** 2)).astype(np.float32)
+
+
+def view(texture: np.ndarray, camera: CameraModel, M_cur_from_prev: np.ndarray) -> np.ndarray:
+    """The camera image whose centred pixel p shows texture at centre + M^-1 p."""
+    size = texture.shape[0]
+    c_tex = np.array([(size - 1) / 2, (size - 1) / 2])
+    Minv = np.linalg.inv(M_cur_from_prev)
+    A = np.eye(3)
+    A[:2, 2] = c_tex
+    B = np.eye(3)
+    B[:2, 2] = [-camera.cx_px, -camera.cy_px]
+    full = (A @ Minv @ B)[:2]
+    return cv2.warpAffine(texture, full, (camera.width_px, camera.height_px), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP)
+
+
+def pixel_motion(T_prev_cur: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
+    """3x3 map of centred pixels prev -> cur induced on the floor by camera motion T_prev_cur."""
+    T_cur_prev = invert_T(T_prev_cur)
+    M = np.eye(3)
+    M[:2, :2] = T_cur_prev[:2, :2]
+    M[:2, 2] = T_cur_prev[:2, 3] * camera.fx_px / height_mm
+    return M
+
+
+def frame_pair(camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0):
+    """(prev uint8, cur uint8, flatfield uint16) for camera motion ``T_prev_cur`` (mm)."""
+    size = int(2.2 * max(camera.width_px, camera.height_px))
+    tex = floor_texture(size, seed)
+    fall = falloff(camera)
+    rng = np.random.default_rng(seed + 1)
+    out = []
+    for M in (np.eye(3), pixel_motion(T_prev_cur, camera, height_mm)):
+        img = view(tex, camera, M) * fall
+        img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
+        out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
+    flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
+    return out[0], out[1], flat
