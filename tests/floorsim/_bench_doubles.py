@@ -17,7 +17,10 @@ import types
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from _bench_data import write_run, write_sequence
+from floorvo.estimators.base import Frame, StepResult
 
 SCENE_TOML = """name = "{name}"
 seed = {seed}
@@ -98,6 +101,29 @@ def run_estimator(seq, name, out_dir, overrides=None, frames=None):
         raise AssertionError(f"{name} must not run on a mono sequence")
 
 
+class _Stepper:
+    """What ``build_estimator`` gives for the keypoint samples: ``scaled`` exposes 5 matches, 2 px apart."""
+
+    requires: set = set()
+
+    def __init__(self, name):
+        self.name = name
+
+    def start(self):
+        return {"n": 0}
+
+    def step(self, state, frame):
+        state["n"] += 1
+        if state["n"] == 1:
+            return StepResult("init")
+        m = np.array([[20.0 + 5 * k, 30.0, 18.0 + 5 * k, 30.0] for k in range(5)]) if self.name == "scaled" else None
+        return StepResult("ok", np.eye(4), matches_px=m)
+
+
+def build_estimator(seq, name, overrides=None):
+    return _Stepper(name), None
+
+
 def install(monkeypatch) -> None:
     """Put the doubles where the bench imports its collaborators from."""
     import floorsim
@@ -110,9 +136,13 @@ def install(monkeypatch) -> None:
     simulate.render_sequence = render
     run = types.ModuleType("floorvo.run")
     run.run_estimator = run_estimator
+    run.build_estimator = build_estimator
     est = types.ModuleType("floorvo.estimators")
     est.list_estimators = lambda: list(ESTIMATORS)
     est.get_estimator = lambda n: ESTIMATORS[n]
+    base = types.ModuleType("floorvo.estimators.base")
+    base.Frame, base.StepResult = Frame, StepResult
+    monkeypatch.setitem(sys.modules, "floorvo.estimators.base", base)
     for name, mod, parent in (("floorsim.scene", scene, floorsim), ("floorsim.simulate", simulate, floorsim),
                               ("floorvo.run", run, floorvo), ("floorvo.estimators", est, floorvo)):
         monkeypatch.setitem(sys.modules, name, mod)

@@ -35,6 +35,10 @@ def test_bench_scores_every_supported_estimator_and_reuses_renders(tmp_path, dou
     # repetition k renders with seed + k: two sequences, each rendered once
     assert len(D.RENDER_CALLS) == 2 and {r["seed"] for r in rows} == {7, 8}
     assert json.loads((out / "runs" / "tiny" / "scaled" / "rep1" / "score.json").read_text())["estimator"] == "scaled"
+    # matched keypoints sampled for the report from the estimator that exposes them (repetition 0 only)
+    assert len(list((out / "runs" / "tiny" / "scaled" / "rep0" / "matches").glob("*.npz"))) == 3
+    assert not (out / "runs" / "tiny" / "lossy" / "rep0" / "matches").exists()
+    assert "matched keypoints (circles" in res.report_html.read_text()
     # a second bench on the same scene reuses both sequences
     run_bench([scene], ["scaled"], tmp_path / "out2", repetitions=2, cache_dir=out / "sequences")
     assert len(D.RENDER_CALLS) == 2

@@ -222,6 +222,48 @@ def run_one(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str
     return score.flat()
 
 
+def write_match_samples(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None,
+                        count: int = 3) -> int:
+    """Save the matched keypoints of ``count`` frame pairs as ``RUN/matches/NNNNNN.npz`` for the report.
+
+    Runs the estimator afresh on each pair (previous, current) and keeps
+    ``StepResult.matches_px`` ((N, 4): u_prev, v_prev, u_cur, v_cur) as ``xy_prev_px`` and
+    ``xy_cur_px`` (N, 2). Returns how many pairs had matches (0 when the estimator does not
+    expose them).
+    """
+    import io as _io
+
+    import numpy as np
+
+    from floorvo.estimators.base import Frame
+    from floorvo.io import atomic_write_bytes
+    from floorvo.run import build_estimator
+    from floorvo.sequence import Sequence
+
+    seq = Sequence.open(seq_dir)
+    if seq.frame_count < 2:
+        return 0
+    est, _ = build_estimator(seq, estimator, overrides)
+    picks = sorted({int(i) for i in np.linspace(1, seq.frame_count - 1, min(count, seq.frame_count - 1)).round()})
+    written = 0
+    for i in picks:
+        state = est.start()
+        res = None
+        for j in (i - 1, i):
+            res = est.step(state, Frame(index=j, timestamp_s=float(seq.timestamps_s[j]), image=seq.image(j),
+                                        image_right=seq.image(j, "cam1") if "stereo" in est.requires else None,
+                                        depth_mm=seq.depth_mm(j) if "depth" in est.requires else None))
+        m = getattr(res, "matches_px", None)
+        if m is None or len(m) == 0:
+            continue
+        m = np.asarray(m, dtype=float).reshape(-1, 4)
+        buf = _io.BytesIO()
+        np.savez(buf, xy_prev_px=m[:, :2], xy_cur_px=m[:, 2:])
+        atomic_write_bytes(run_dir / "matches" / f"{i:06d}.npz", buf.getvalue())
+        written += 1
+    return written
+
+
 def _trajectory_type(scene) -> str | None:
     traj = scene.to_dict().get("trajectory") or {}
     return traj.get("type")
@@ -298,6 +340,8 @@ def run_bench(
                     metrics = run_one(seq_dir, name, run_dir, est_over.get(name))
                     row["status"] = "ok"
                     row.update(metrics)
+                    if report and rep == 0:
+                        write_match_samples(seq_dir, name, run_dir, est_over.get(name))
                 except FloorbenchError as exc:
                     row["status"] = f"failed: {exc}"
                     log.warning("scene %s, estimator %s: %s", label, name, exc)

@@ -181,9 +181,15 @@ def _trajectory_figure(scene: str, recs: list[RunRecord]):
             drawn = True
         ax.plot(T_est[:, 0, 3], T_est[:, 1, 3], ".-", ms=3, lw=1, label=rec.estimator)
     ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
     ax.set_title(f"{scene}: estimated against true trajectory (no alignment)")
-    ax.axis("equal")
+    if drawn:
+        ext = np.ptp(T_ref[:, :2, 3], axis=0)
+        if ext.min() < 0.05 * max(ext.max(), 1e-9):
+            # a straight path: equal axes would flatten the lateral error to nothing
+            ax.set_ylabel("y [mm] (magnified)" if ext[1] <= ext[0] else "y [mm]")
+        else:
+            ax.set_ylabel("y [mm]")
+            ax.axis("equal")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return fig if drawn else (plt.close(fig) or None)
