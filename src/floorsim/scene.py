@@ -30,6 +30,10 @@ A scene file (``scenes/NAME.toml``)::
 
     [render]
     spp = 4
+    depth = false       # depth/NNNNNN.png (1/100 mm) or .npy (float32 mm)
+
+    [stereo]
+    enabled = false     # cam1, baseline_mm along cam0's x axis
 
     [trajectory]
     type = "uniform"    # plus that type's parameters
@@ -65,6 +69,7 @@ __all__ = [
     "LightsSpec",
     "SensorSpec",
     "RenderSpec",
+    "StereoSpec",
     "load_scene",
     "scene_from_dict",
     "apply_overrides",
@@ -139,11 +144,23 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class RenderSpec:
-    """Render quality: samples per pixel (stratified) and the flat-field calibration frame."""
+    """Render quality: samples per pixel (stratified), the flat-field calibration frame,
+    and the depth output (exact depth along the optical axis at each pixel centre)."""
 
     spp: int = field(default=4, metadata=rule(">=1", "", hi=4096))
     flatfield: bool = True
     flatfield_albedo: float = field(default=0.5, metadata=rule("[0,1]"))
+    depth: bool = False
+    depth_format: str = field(default="png16", metadata=rule(choices=("png16", "npy_float32_mm")))
+
+
+@dataclass(frozen=True)
+class StereoSpec:
+    """A second camera (cam1) under the same hood, ``baseline_mm`` along cam0's +x axis,
+    same intrinsics and orientation (a rectified pair)."""
+
+    enabled: bool = False
+    baseline_mm: float = field(default=20.0, metadata=rule(">0", "mm", hi=200.0))
 
 
 @dataclass(frozen=True)
@@ -160,6 +177,7 @@ class Scene:
     lights: LightsSpec = field(default_factory=LightsSpec)
     sensor: SensorSpec = field(default_factory=SensorSpec)
     render: RenderSpec = field(default_factory=RenderSpec)
+    stereo: StereoSpec = field(default_factory=StereoSpec)
     trajectory: dict = field(default_factory=lambda: {"type": "uniform"})
 
     # ------------------------------------------------------------------ derived
@@ -201,6 +219,14 @@ class Scene:
                 side.append(s)
         return np.array(pos, dtype=float).reshape(-1, 3), np.array(side)
 
+    def T_cam0_cam1(self) -> np.ndarray | None:
+        """Pose of the right camera in the left camera's frame (mm), or None when mono."""
+        if not self.stereo.enabled:
+            return None
+        T = np.eye(4)
+        T[0, 3] = self.stereo.baseline_mm
+        return T
+
     def to_dict(self) -> dict:
         """The resolved scene as plain data (written into sequence.json)."""
         return to_plain(self)
@@ -227,7 +253,7 @@ def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:
     """Build and validate a :class:`Scene` from a plain dict (a parsed TOML file)."""
     d = dict(d)
     d.setdefault("name", default_name)
-    nested = {"camera": CameraSpec, "floor": FloorSpec, "lights": LightsSpec, "sensor": SensorSpec, "render": RenderSpec}
+    nested = {"camera": CameraSpec, "floor": FloorSpec, "lights": LightsSpec, "sensor": SensorSpec, "render": RenderSpec, "stereo": StereoSpec}
     if "trajectory" in d and not isinstance(d["trajectory"], Mapping):
         raise ConfigError(f"trajectory: must be a table, got {d['trajectory']!r}")
     floor = d.get("floor")

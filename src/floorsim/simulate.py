@@ -156,6 +156,8 @@ def render_sequence(
     T_all = traj.T_world_cam
     ts = traj.timestamps_s
     spacing = scene.floor_spacing_mm()
+    T_01 = scene.T_cam0_cam1()
+    T_all_cam1 = None if T_01 is None else np.einsum("nij,jk->nik", T_all, T_01)
     meta = {
         "name": scene.name,
         "fps": scene.fps,
@@ -167,8 +169,13 @@ def render_sequence(
             "gsd_mm_per_px": cam.gsd_mm_per_px(scene.camera.height_mm),
             "led_positions_cam_mm": scene.led_positions_cam()[0].tolist(),
             "led_height_mm": scene.lights.height_mm,
+            "T_cam0_cam1": None if T_01 is None else T_01.tolist(),
         },
-        "stereo": False,
+        "stereo": T_01 is not None,
+        "cameras": {"cam1": cam.to_dict()} if T_01 is not None else {},
+        "depth": {"format": scene.render.depth_format, "scale_per_mm": 100.0, "content": "depth along the optical axis, mm"}
+        if scene.render.depth
+        else None,
         "seeds": {"scene": scene.seed, "floor": scene.floor_seed, "pixel_jitter": scene.seed, "sensor_noise": scene.seed},
         "units": {"length": "mm (sequence.json); m (groundtruth.txt)", "angle": "rad", "time": "s", "frames": "DN"},
         "floor_spacing_mm": spacing,
@@ -196,7 +203,8 @@ def render_sequence(
     if gain <= 0 and sensor_path.is_file():
         gain = float(json.loads(sensor_path.read_text())["gain_e_per_unit"])
     margin = 2.0 + 2 * spacing
-    tiles = plan_tiles(T_all, cam, scene.floor.tile_length_mm, margin)
+    # The tile must hold what both cameras see: widen the margin by the baseline.
+    tiles = plan_tiles(T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm))
     if gain <= 0:
         # Exposure from the first frame's radiance (rendered again here if it is on disk).
         first_box = next(b for idx, b in tiles if 0 in idx)
@@ -218,7 +226,14 @@ def render_sequence(
             continue
         _load_tile(renderer, scene, box, spacing)
         for i in todo:
-            rad = renderer.render(T_all[i], _leds(scene, T_all[i]), scene.render.spp, seed=_frame_seed(scene.seed, i))
+            leds = _leds(scene, T_all[i])
+            rad = renderer.render(T_all[i], leds, scene.render.spp, seed=_frame_seed(scene.seed, i))
+            if T_all_cam1 is not None:
+                rad1 = renderer.render(T_all_cam1[i], leds, scene.render.spp, seed=_frame_seed(scene.seed + 1, i))
+                writer.write_frame(i, sensor.capture(rad1, scene.seed + 1, i, noise=scene.sensor.noise), "cam1")
+            if scene.render.depth:
+                writer.write_depth(i, renderer.depth(T_all[i]))
+            # cam0 last: its frame on disk marks the whole frame as done for a resume.
             writer.write_frame(i, sensor.capture(rad, scene.seed, i, noise=scene.sensor.noise))
             done += 1
             if on_frame:
@@ -227,6 +242,8 @@ def render_sequence(
         gc.collect()
     if need_flat:
         render_flatfield(renderer, scene, T_all[0], sensor, writer)
+        if T_all_cam1 is not None:
+            render_flatfield(renderer, scene, T_all[0], sensor, writer, cam_pose=T_all_cam1[0], name="cam1_flatfield")
     log.info("rendered %d frames in %.1f s into %s", len(missing), time.perf_counter() - t0, root)
     return root
 
@@ -235,19 +252,24 @@ def _frame_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
 
 
-def render_flatfield(renderer, scene: Scene, T_world_cam: np.ndarray, sensor: SensorModel, writer: SequenceWriter) -> np.ndarray:
-    """Render and write ``calib/cam0_flatfield.png``: the rig over a flat floor of uniform albedo.
+def render_flatfield(
+    renderer, scene: Scene, T_world_cam: np.ndarray, sensor: SensorModel, writer: SequenceWriter, *, cam_pose: np.ndarray | None = None, name: str = "cam0_flatfield"
+) -> np.ndarray:
+    """Render and write ``calib/NAME.png``: the rig over a flat floor of uniform albedo.
 
-    Same exposure as the sequence, no noise, 16-bit (DN x 257 for 8-bit sequences), so
-    estimators can divide a frame by it to remove the LED falloff.
+    Same exposure as the sequence, no noise, 16-bit (the full-well scale of a 16-bit
+    sensor), so estimators can divide a frame by it to remove the LED falloff. The LEDs
+    are placed for the rig pose ``T_world_cam`` (cam0); ``cam_pose`` is the pose of the
+    camera that sees it (cam1 of a stereo rig), cam0 by default.
     """
     cam = renderer.camera
-    box = footprint_bounds_mm(T_world_cam[None], cam, 5.0)
+    pose = T_world_cam if cam_pose is None else cam_pose
+    box = footprint_bounds_mm(pose[None], cam, 5.0)
     renderer.load_flat(*box, albedo=scene.render.flatfield_albedo)
-    rad = renderer.render(T_world_cam, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0)
+    rad = renderer.render(pose, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0)
     renderer.scene = None
     flat16 = SensorModel(sensor.gain_e_per_unit, sensor.full_well_e, 0.0, False, 16).capture(rad, 0, 0, noise=False)
-    writer.write_calib("cam0_flatfield", flat16)
+    writer.write_calib(name, flat16)
     return flat16
 
 
