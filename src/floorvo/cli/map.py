@@ -1,0 +1,31 @@
+"""``floorvo map SEQ -o MAP``: build a keyframe global map from a sequence (paper 003)."""
+
+from __future__ import annotations
+
+from floorvo.cli.common import parse_set_args, progress_callback
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "map",
+        help="build a keyframe global map of the floor from a sequence (paper 003)",
+        description="Extract keyframes by content-based similarity (50 %% of the maximum over the next 50 frames), "
+        "chain their poses (eq. 24 of paper 003) and write MAP/map.json and MAP/keyframes.npz. The map's world frame "
+        "is the sequence's: the first keyframe takes its first ground-truth pose when there is one.",
+    )
+    p.add_argument("sequence", help="mapping sequence folder")
+    p.add_argument("-o", "--out", required=True, help="map folder to write")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="parameter, e.g. keyframes.window=50, keyframes.ratio=0.5, similarity.block_px=12, vocab_words=512")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from floorvo.mapping.map import MapConfig, build_map, save_map
+
+    cfg = MapConfig.from_overrides(parse_set_args(args.set))
+    with progress_callback("map") as cb:
+        m = build_map(args.sequence, cfg, on_progress=cb)
+    out = save_map(m, args.out)
+    print(f"map: {m.n_keyframes} keyframes of {m.n_mapping_frames} frames ({100 * m.keyframe_fraction:.1f} %) -> {out}")
+    return 0

@@ -1,0 +1,126 @@
+"""``map-fused``: odometry corrected by keyframe-map fixes (paper 003), so drift is bounded.
+
+Each frame runs an odometry estimator (``odometry``, default ``phase-corr``; ``none`` for
+pure relocalisation) and, every ``fix_every`` frames, localises the frame against the map
+(:class:`floorvo.mapping.localize.Localizer`, which uses no earlier pose). The believed
+pose ``T_world_cur`` is the map fix when there is one, the last belief composed with the
+odometry step otherwise; a frame with neither is ``lost``. The drift is thus reset at
+every fix, and a kidnapped rig is placed again by the first fix after landing.
+
+``StepResult.T_prev_cur`` is the motion from the previous belief to the new one, so the
+generic runner (:func:`floorvo.run.run_estimator`), which chains those motions from the
+sequence's first ground-truth pose, reproduces the map poses up to the error of the first
+frame's fix. :func:`floorvo.mapping.localize_run.localize_sequence` writes the absolute
+map poses themselves.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError
+from floorvo.estimators.base import Frame, StepResult, get_estimator, make_config, register
+from floorvo.geometry import invert_T
+
+__all__ = ["MapFused", "MapFusedConfig"]
+
+
+@dataclass(frozen=True)
+class MapFusedConfig:
+    """``map``: map folder (``floorvo map``); ``odometry``: estimator between fixes (``none``:
+    fixes only); ``odometry_set``: its overrides as ``key=value;key=value``; ``fix_every``:
+    localise every N-th frame; the rest tune the localiser (:class:`LocalizeConfig`)."""
+
+    map: str = ""
+    odometry: str = "phase-corr"
+    odometry_set: str = ""
+    fix_every: int = field(default=1, metadata={"min": 1})
+    n_candidates: int = field(default=5, metadata={"min": 1, "max": 1000})
+    n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
+    min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
+    min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
+
+
+@dataclass
+class _State:
+    odo_state: object = None
+    T_world: np.ndarray | None = None  # belief of the last good frame
+    last_fix: object = None  # floorvo.mapping.localize.Localization
+
+
+@register
+class MapFused:
+    """Odometry between keyframe-map fixes (paper 003 relocalisation)."""
+
+    name = "map-fused"
+    description = "keyframe-map relocalisation (paper 003) fused with an odometry estimator; needs --est-set map=MAP"
+    Config = MapFusedConfig
+    requires = frozenset()
+
+    def __init__(self, config: MapFusedConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+        from floorvo.mapping.localize import LocalizeConfig, Localizer  # here: floorvo.estimators imports this module
+        from floorvo.mapping.map import load_map
+
+        if not config.map:
+            raise ConfigError("map-fused.map = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`")
+        self.config = config
+        self.map = load_map(config.map)
+        if self.map.camera.size != camera.size:
+            raise ConfigError(f"map-fused.map: the map's camera is {self.map.camera.size}, the sequence's {camera.size}")
+        if abs(self.map.height_mm - float(height_mm)) > 0.01 * self.map.height_mm:
+            raise ConfigError(f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm")
+        loc_cfg = LocalizeConfig(n_candidates=config.n_candidates, n_verify=config.n_verify,
+                                 min_block_fraction=config.min_block_fraction, min_corr=config.min_corr)
+        self.localizer = Localizer(self.map, loc_cfg, flatfield=flatfield)
+        self.odometry = None
+        if config.odometry != "none":
+            if config.odometry == self.name:
+                raise ConfigError("map-fused.odometry = 'map-fused': must be another estimator or 'none'")
+            overrides = dict(kv.split("=", 1) for kv in config.odometry_set.split(";") if kv.strip()) if config.odometry_set else {}
+            odo_cfg = make_config(config.odometry, overrides)
+            self.odometry = get_estimator(config.odometry)(odo_cfg, camera, height_mm=height_mm, flatfield=flatfield, **rig)
+
+    def start(self) -> _State:
+        return _State(odo_state=self.odometry.start() if self.odometry else None)
+
+    def step(self, state: _State, frame: Frame) -> StepResult:
+        t0 = time.perf_counter()
+        odo = self.odometry.step(state.odo_state, frame) if self.odometry else None
+        t1 = time.perf_counter()
+        fix = None
+        if frame.index % self.config.fix_every == 0:
+            fix = self.localizer.localize(frame.image)
+        t2 = time.perf_counter()
+        timing = {"detect": 1e3 * (t1 - t0), "match": 0.0, "estimate": 1e3 * (t2 - t1), "total": 1e3 * (t2 - t0)}
+        counts = dict(n_keypoints=fix.n_keypoints if fix else 0, n_matches=fix.n_matches if fix else 0,
+                      n_inliers=fix.n_inliers if fix else 0, timing_ms=timing)
+        prev = state.T_world
+        if fix is not None and fix.ok:
+            new = fix.T_world_cam
+            state.last_fix = fix
+        elif prev is not None and odo is not None and odo.ok:
+            new = prev @ odo.T_prev_cur
+        else:
+            new = None
+        if prev is None:
+            # First frame (or no pose yet): anchor at the fix, or wait for one.
+            if new is None and odo is not None and odo.status == "init" and fix is None:
+                new = np.eye(4)
+            if new is None:
+                why = fix.reason if fix is not None else "no map fix yet"
+                return StepResult("lost", reason=f"not localised: {why}", **counts)
+            state.T_world = new
+            return StepResult("init", reason="first pose" + (" from the map" if fix is not None and fix.ok else ""), **counts)
+        if new is None:
+            parts = []
+            if fix is not None:
+                parts.append(f"map: {fix.reason}")
+            if odo is not None:
+                parts.append(f"odometry: {odo.reason or odo.status}")
+            return StepResult("lost", reason="; ".join(parts) or "no fix and no odometry", **counts)
+        state.T_world = new
+        return StepResult("ok", invert_T(prev) @ new, reason="map fix" if fix is not None and fix.ok else "odometry", **counts)

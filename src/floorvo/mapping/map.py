@@ -1,0 +1,275 @@
+"""The keyframe global map (paper 003, section 3.2): build, save, load.
+
+A map holds the keyframes (prepared images at the similarity scale, ORB keypoints and
+descriptors), their global poses ``T_world_kf`` (mm, eq. 24), the bag-of-words vocabulary
+for retrieval, the camera model, the camera height and every parameter used.
+
+On disk a map is a folder::
+
+    MAP/map.json        schema_version, format, camera, height_mm, parameters, keyframe
+                        frame indices, timestamps and poses (T_world_kf, mm), sha256 of:
+    MAP/keyframes.npz   images (K, h, w) uint8, kp_xy_px (M, 2) float32, kp_desc (M, 32)
+                        uint8, kp_offsets (K + 1,) int64, vocab_words (V, 32) uint8,
+                        vocab_idf (V,) float32, T_world_kf (K, 4, 4) float64
+
+Both files are written atomically, the arrays first; ``map.json`` names the arrays'
+checksum, so a map whose files do not belong together is refused on loading.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+import os
+from collections import OrderedDict
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError
+from floorvo.geometry import T_world_cam_down
+from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir
+from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
+from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex
+from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
+
+__all__ = ["MAP_SCHEMA_VERSION", "MapConfig", "GlobalMap", "build_map", "build_map_from_images", "load_map", "save_map"]
+
+log = logging.getLogger(__name__)
+
+#: Version of the map folder format; :func:`load_map` refuses any other.
+MAP_SCHEMA_VERSION = 1
+MAP_FORMAT = "floorbench-keyframe-map"
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """All map parameters: similarity (section 3.1), keyframes (3.2), vocabulary size."""
+
+    similarity: SimilarityConfig = field(default_factory=SimilarityConfig)
+    keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
+    vocab_words: int = 512
+    seed: int = 0
+
+    @classmethod
+    def from_overrides(cls, overrides: dict[str, str] | None) -> "MapConfig":
+        """Build from ``{"similarity.block_px": "12", "keyframes.window": "50", "vocab_words": "512"}``."""
+        sim, kf, top = {}, {}, {}
+        sim_fields = {f: type(getattr(SimilarityConfig(), f)) for f in asdict(SimilarityConfig())}
+        kf_fields = {f: type(getattr(KeyframeConfig(), f)) for f in asdict(KeyframeConfig())}
+        for key, value in (overrides or {}).items():
+            group, _, name = key.rpartition(".")
+            table = {"similarity": (sim, sim_fields), "keyframes": (kf, kf_fields), "": (top, {"vocab_words": int, "seed": int})}
+            if group not in table or name not in table[group][1]:
+                raise ConfigError(f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed)")
+            dest, types = table[group]
+            try:
+                dest[name] = types[name](value)
+            except ValueError:
+                raise ConfigError(f"map --set {key}={value!r}: must be {types[name].__name__}") from None
+        cfg = cls(SimilarityConfig(**sim), KeyframeConfig(**kf), **top)
+        if cfg.vocab_words < 2:
+            raise ConfigError(f"map vocab_words = {cfg.vocab_words}: must be >= 2")
+        return cfg
+
+    def to_dict(self) -> dict:
+        return {"similarity": asdict(self.similarity), "keyframes": asdict(self.keyframes), "vocab_words": self.vocab_words, "seed": self.seed}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MapConfig":
+        return cls(SimilarityConfig(**d["similarity"]), KeyframeConfig(**d["keyframes"]), int(d["vocab_words"]), int(d.get("seed", 0)))
+
+
+@dataclass
+class GlobalMap:
+    """Keyframes and their global poses. ``T_world_kf`` (K, 4, 4) mm; ``images`` (K, h, w)
+    uint8 prepared frames at ``config.similarity.sim_scale``; ``features`` K keypoint sets
+    in full-resolution pixels; ``frame_indices`` / ``timestamps_s`` of the keyframes in the
+    mapping sequence."""
+
+    camera: CameraModel
+    height_mm: float
+    config: MapConfig
+    frame_indices: list[int]
+    timestamps_s: np.ndarray
+    T_world_kf: np.ndarray
+    images: np.ndarray
+    features: list[Features]
+    vocab: BinaryVocabulary
+    n_mapping_frames: int = 0
+    source: str = ""
+    _index: KeyframeIndex | None = field(default=None, repr=False)
+
+    @property
+    def n_keyframes(self) -> int:
+        return len(self.frame_indices)
+
+    @property
+    def index(self) -> KeyframeIndex:
+        if self._index is None:
+            self._index = KeyframeIndex(self.vocab, [f.desc for f in self.features])
+        return self._index
+
+    @property
+    def keyframe_fraction(self) -> float:
+        return self.n_keyframes / self.n_mapping_frames if self.n_mapping_frames else float("nan")
+
+
+def build_map_from_images(
+    get_image: Callable[[int], np.ndarray],
+    n_frames: int,
+    camera: CameraModel,
+    height_mm: float,
+    *,
+    timestamps_s: np.ndarray | None = None,
+    T_world_first: np.ndarray | None = None,
+    flatfield: np.ndarray | None = None,
+    config: MapConfig | None = None,
+    source: str = "",
+    on_progress: Callable[[int, int], None] | None = None,
+) -> GlobalMap:
+    """Build a map from frames ``get_image(0 .. n_frames - 1)`` (raw (H, W) images).
+
+    ``T_world_first``: pose of frame 0 (the map's world frame; default: downward camera at
+    the origin with yaw 0 at ``height_mm``).
+    """
+    cfg = config or MapConfig()
+    sc = cfg.similarity
+    cache: OrderedDict[int, tuple[np.ndarray, Features]] = OrderedDict()
+    cap = cfg.keyframes.window + 4
+
+    def prepared(i: int) -> tuple[np.ndarray, Features]:
+        if i in cache:
+            cache.move_to_end(i)
+            return cache[i]
+        img = get_image(i)
+        if img.shape != (camera.height_px, camera.width_px):
+            raise SequenceError(f"frame {i}: size {img.shape[1]}x{img.shape[0]} differs from the camera's {camera.width_px}x{camera.height_px}")
+        p = prepare_image(img, flatfield)
+        val = (downscale(p, sc.sim_scale), detect_features(p, sc))
+        cache[i] = val
+        while len(cache) > cap:
+            cache.popitem(last=False)
+        return val
+
+    res = extract_keyframes(lambda i: prepared(i)[0], lambda i: prepared(i)[1], n_frames, camera, height_mm, sc,
+                            cfg.keyframes, rng=np.random.default_rng(cfg.seed), on_progress=on_progress)
+    T0 = T_world_cam_down(0.0, 0.0, height_mm) if T_world_first is None else np.asarray(T_world_first, float)
+    T_world_kf = chain_poses(T0, res.T_kf_prev_kf)  # Eq. (24)
+    images = np.stack([prepared(i)[0] for i in res.indices])
+    feats = [prepared(i)[1] for i in res.indices]
+    vocab = BinaryVocabulary.train([f.desc for f in feats], n_words=cfg.vocab_words, seed=cfg.seed)
+    ts = np.asarray(timestamps_s, float)[res.indices] if timestamps_s is not None else np.asarray(res.indices, float)
+    log.info("map: %d keyframes of %d frames (%.1f %%)", len(res.indices), n_frames, 100.0 * len(res.indices) / n_frames)
+    return GlobalMap(camera, float(height_mm), cfg, list(map(int, res.indices)), ts, T_world_kf, images, feats, vocab,
+                     n_mapping_frames=int(n_frames), source=source)
+
+
+def build_map(seq_path: str | os.PathLike, config: MapConfig | None = None, *,
+              on_progress: Callable[[int, int], None] | None = None) -> GlobalMap:
+    """Build a map from a sequence folder. The first keyframe takes the sequence's first
+    ground-truth pose when it has one (so map and ground truth share the world frame)."""
+    from floorvo.sequence import Sequence
+
+    seq = Sequence.open(seq_path)
+    if seq.height_mm is None:
+        raise SequenceError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
+    gt = seq.groundtruth()
+    T0 = gt[1][0] if gt is not None and len(gt[1]) else None
+    return build_map_from_images(seq.image, seq.frame_count, seq.camera, seq.height_mm, timestamps_s=seq.timestamps_s,
+                                 T_world_first=T0, flatfield=seq.flatfield(), config=config, source=str(seq.root),
+                                 on_progress=on_progress)
+
+
+# --------------------------------------------------------------------------- disk
+def save_map(m: GlobalMap, out_dir: str | os.PathLike) -> Path:
+    """Write ``out_dir/keyframes.npz`` then ``out_dir/map.json`` (both atomic)."""
+    out = ensure_writable_dir(out_dir)
+    offsets = np.concatenate([[0], np.cumsum([len(f) for f in m.features])]).astype(np.int64)
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf,
+        images=m.images.astype(np.uint8),
+        kp_xy_px=np.concatenate([f.xy_px for f in m.features]).astype(np.float32),
+        kp_desc=np.concatenate([f.desc for f in m.features]).astype(np.uint8),
+        kp_offsets=offsets,
+        vocab_words=m.vocab.words,
+        vocab_idf=m.vocab.idf,
+        T_world_kf=m.T_world_kf,
+    )
+    data = buf.getvalue()
+    atomic_write_bytes(out / "keyframes.npz", data)
+    meta = {
+        "schema_version": MAP_SCHEMA_VERSION,
+        "format": MAP_FORMAT,
+        "units": {"translation": "mm", "angle": "rad"},
+        "camera": m.camera.to_dict(),
+        "height_mm": m.height_mm,
+        "parameters": m.config.to_dict(),
+        "source": m.source,
+        "n_mapping_frames": m.n_mapping_frames,
+        "n_keyframes": m.n_keyframes,
+        "keyframes": [
+            {"frame": int(f), "timestamp_s": float(t), "T_world_kf": T.tolist()}
+            for f, t, T in zip(m.frame_indices, m.timestamps_s, m.T_world_kf)
+        ],
+        "arrays": {"file": "keyframes.npz", "sha256": hashlib.sha256(data).hexdigest()},
+    }
+    atomic_write_json(out / "map.json", meta)
+    return out
+
+
+def load_map(path: str | os.PathLike) -> GlobalMap:
+    """Read and validate a map folder written by :func:`save_map`."""
+    root = Path(path)
+    mj = root / "map.json"
+    if not mj.is_file():
+        raise FloorbenchError(f"{root}: not a map folder (map.json is missing); build one with `floorvo map SEQ -o MAP`")
+    try:
+        meta = json.loads(mj.read_text())
+    except json.JSONDecodeError as exc:
+        raise FloorbenchError(f"{mj}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    if meta.get("format") != MAP_FORMAT:
+        raise FloorbenchError(f"{mj}: format {meta.get('format')!r} is not {MAP_FORMAT!r}")
+    if meta.get("schema_version") != MAP_SCHEMA_VERSION:
+        raise FloorbenchError(f"{mj}: schema_version {meta.get('schema_version')!r} is not {MAP_SCHEMA_VERSION} (rebuild the map)")
+    npz = root / meta.get("arrays", {}).get("file", "keyframes.npz")
+    if not npz.is_file():
+        raise FloorbenchError(f"{npz}: keyframe arrays are missing")
+    data = npz.read_bytes()
+    if hashlib.sha256(data).hexdigest() != meta["arrays"].get("sha256"):
+        raise FloorbenchError(f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)")
+    try:
+        with np.load(io.BytesIO(data)) as z:
+            arr = {k: z[k] for k in z.files}
+        cfg = MapConfig.from_dict(meta["parameters"])
+        camera = CameraModel.from_dict(meta["camera"])
+        kfs = meta["keyframes"]
+    except (KeyError, ValueError, TypeError) as exc:
+        raise FloorbenchError(f"{root}: malformed map ({exc!r})") from None
+    K = len(kfs)
+    off = arr["kp_offsets"]
+    T = np.array([k["T_world_kf"] for k in kfs], dtype=float).reshape(-1, 4, 4)
+    problems = []
+    if arr["images"].ndim != 3 or len(arr["images"]) != K:
+        problems.append(f"images {arr['images'].shape} for {K} keyframes")
+    if len(off) != K + 1 or off[-1] != len(arr["kp_xy_px"]) or len(arr["kp_xy_px"]) != len(arr["kp_desc"]):
+        problems.append("keypoint offsets do not match the keypoints")
+    if arr["kp_desc"].ndim != 2 or arr["kp_desc"].shape[1] != arr["vocab_words"].shape[1]:
+        problems.append("descriptor width differs from the vocabulary's")
+    if not np.allclose(T, arr["T_world_kf"]):
+        problems.append("keyframe poses in map.json differ from keyframes.npz")
+    if K == 0:
+        problems.append("no keyframes")
+    if problems:
+        raise FloorbenchError(f"{root}: inconsistent map: {problems[0]}")
+    feats = [Features(arr["kp_xy_px"][off[k]:off[k + 1]], arr["kp_desc"][off[k]:off[k + 1]]) for k in range(K)]
+    return GlobalMap(camera, float(meta["height_mm"]), cfg, [int(k["frame"]) for k in kfs],
+                     np.array([k["timestamp_s"] for k in kfs], float), T, arr["images"], feats,
+                     BinaryVocabulary(arr["vocab_words"], arr["vocab_idf"]),
+                     n_mapping_frames=int(meta.get("n_mapping_frames", 0)), source=str(meta.get("source", "")))

@@ -1,0 +1,104 @@
+"""Candidate keyframe retrieval: a bag of binary words over ORB descriptors.
+
+The paper compares a live frame with every keyframe by content similarity; with thousands
+of keyframes that is too slow, so a retrieval step first ranks the keyframes and only the
+best few are verified. Words are binary centres found by k-majority clustering (k-means
+under Hamming distance: assign each descriptor to the nearest centre, then set each bit of
+a centre to the majority bit of its members). A frame is a tf-idf weighted, L2-normalised
+histogram of its words; keyframes are ranked by the cosine score against an inverted
+(sparse) index, so a query costs O(words per frame) plus a sparse product.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import sparse
+
+__all__ = ["BinaryVocabulary", "KeyframeIndex"]
+
+_BF = cv2.BFMatcher(cv2.NORM_HAMMING)
+
+
+@dataclass(frozen=True)
+class BinaryVocabulary:
+    """``words`` (V, 32) uint8 binary centres; ``idf`` (V,) float32 inverse document frequency."""
+
+    words: np.ndarray
+    idf: np.ndarray
+
+    @classmethod
+    def train(cls, descriptors: list[np.ndarray], n_words: int = 512, iterations: int = 4,
+              max_samples: int = 40000, seed: int = 0) -> "BinaryVocabulary":
+        """k-majority clustering of the descriptors of the documents (one array per keyframe);
+        the idf is computed over those documents."""
+        rng = np.random.default_rng(seed)
+        allx = np.concatenate([d for d in descriptors if len(d)]) if descriptors else np.zeros((0, 32), np.uint8)
+        if len(allx) == 0:
+            raise ValueError("BinaryVocabulary.train: no descriptors")
+        if len(allx) > max_samples:
+            allx = allx[rng.choice(len(allx), max_samples, replace=False)]
+        k = int(min(n_words, max(1, len(allx) // 8)))
+        centres = allx[rng.choice(len(allx), k, replace=False)].copy()
+        bits = np.unpackbits(allx, axis=1)
+        for _ in range(iterations):
+            lab = _assign(allx, centres)
+            counts = np.bincount(lab, minlength=k)
+            sums = np.zeros((k, bits.shape[1]), np.int64)
+            np.add.at(sums, lab, bits)
+            new = np.packbits((2 * sums > counts[:, None]).astype(np.uint8), axis=1)
+            empty = counts == 0
+            if empty.any():
+                new[empty] = allx[rng.choice(len(allx), int(empty.sum()), replace=False)]
+            centres = new
+        vocab = cls(centres, np.ones(k, np.float32))
+        df = np.zeros(k, np.int64)
+        for d in descriptors:
+            if len(d):
+                df[np.unique(_assign(d, centres))] += 1
+        idf = np.log((len(descriptors) + 1) / (df + 1)).astype(np.float32) + 1e-3
+        return cls(centres, idf)
+
+    @property
+    def size(self) -> int:
+        return int(len(self.words))
+
+    def vector(self, desc: np.ndarray) -> np.ndarray:
+        """tf-idf vector (V,) float32, L2-normalised (zeros for no descriptors)."""
+        v = np.zeros(self.size, np.float32)
+        if len(desc) == 0:
+            return v
+        np.add.at(v, _assign(desc, self.words), 1.0)
+        v *= self.idf / max(len(desc), 1)
+        n = float(np.linalg.norm(v))
+        return v / n if n > 0 else v
+
+
+def _assign(desc: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    m = _BF.match(np.ascontiguousarray(desc), np.ascontiguousarray(centres))
+    lab = np.empty(len(desc), np.int64)
+    for x in m:
+        lab[x.queryIdx] = x.trainIdx
+    return lab
+
+
+class KeyframeIndex:
+    """Inverted index of keyframe word vectors; :meth:`query` returns the best keyframes."""
+
+    def __init__(self, vocab: BinaryVocabulary, keyframe_desc: list[np.ndarray]):
+        self.vocab = vocab
+        rows = [sparse.csr_matrix(vocab.vector(d)) for d in keyframe_desc]
+        self.matrix = sparse.vstack(rows).tocsr() if rows else sparse.csr_matrix((0, vocab.size), dtype=np.float32)
+
+    def query(self, desc: np.ndarray, top_k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(keyframe ids (k,), scores (k,))``, best first (cosine of tf-idf vectors)."""
+        q = self.vocab.vector(desc)
+        scores = np.asarray(self.matrix @ q).ravel()
+        k = min(top_k, len(scores))
+        if k == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.float32)
+        idx = np.argpartition(-scores, k - 1)[:k]
+        idx = idx[np.argsort(-scores[idx])]
+        return idx, scores[idx]
