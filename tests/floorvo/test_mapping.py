@@ -1,0 +1,221 @@
+"""Keyframe global map and relocalisation (paper 003) on a procedural floor, no renderer.
+
+Views are exact affine crops of a seeded texture at known poses
+(:mod:`floorvo.mapping.synthetic`), so every pose has an exact truth.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.errors import FloorbenchError
+from floorvo.geometry import T_world_cam_down, invert_T, se2_from_T
+from floorvo.mapping import synthetic as syn
+from floorvo.mapping.keyframes import KeyframeConfig, fit_to_T_i_j
+from floorvo.mapping.localize import Localizer
+from floorvo.mapping.map import MapConfig, build_map_from_images, load_map, save_map
+from floorvo.mapping.similarity import (
+    SimilarityConfig,
+    detect_features,
+    downscale,
+    fit_features,
+    frame_similarity,
+    prepare_image,
+)
+
+H_MM = 100.0
+CAM = CameraModel.from_sensor()  # 648 x 494, 0.1233 mm/px at 100 mm
+GSD = CAM.gsd_mm_per_px(H_MM)
+W_MM = CAM.width_px * GSD
+
+
+@pytest.fixture(scope="module")
+def texture():
+    return syn.floor_texture(2600, seed=11)
+
+
+@pytest.fixture(scope="module")
+def other_texture():
+    return syn.floor_texture(1200, seed=12345)
+
+
+def _view(tex, x, y, yaw=0.0, seed=0):
+    return syn.view(tex, CAM, T_world_cam_down(x, y, H_MM, yaw), H_MM, noise_std=1.5, rng=np.random.default_rng(seed))
+
+
+def _prep(img, cfg):
+    p = prepare_image(img)
+    return downscale(p, cfg.sim_scale), detect_features(p, cfg)
+
+
+def _se2_err(T_est, T_true):
+    d = se2_from_T(T_est) - se2_from_T(T_true)
+    return float(np.hypot(d[0], d[1])), float(abs((d[2] + np.pi) % (2 * np.pi) - np.pi))
+
+
+# --------------------------------------------------------------------------- similarity
+def test_similarity_higher_for_overlapping_than_for_disjoint(texture, other_texture):
+    cfg = SimilarityConfig()
+    a = _prep(_view(texture, 0, 0, 0.0, 1), cfg)
+    near = _prep(_view(texture, 12, -5, 0.3, 2), cfg)  # large overlap, rotated
+    far = _prep(_view(texture, 12, -5, 0.0, 3), cfg)
+    half = _prep(_view(texture, 40, 0, 0.0, 4), cfg)  # about half overlap
+    disjoint = _prep(_view(texture, 120, 60, 0.0, 5), cfg)  # same floor, no overlap
+    foreign = _prep(_view(other_texture, 0, 0, 0.0, 6), cfg)  # another floor
+    s_near = frame_similarity(*a, *near, cfg)
+    s_far = frame_similarity(*a, *far, cfg)
+    s_half = frame_similarity(*a, *half, cfg)
+    s_dis = frame_similarity(*a, *disjoint, cfg)
+    s_for = frame_similarity(*a, *foreign, cfg)
+    assert s_near.value > 0 and s_half.value > 0
+    assert s_near.corr > 0.9 and s_near.block_fraction > 0.9
+    # Eq. (23) grows with the overlap: about half the sub-blocks at half the overlap.
+    assert 0.3 < s_half.value / s_far.value < 0.7
+    assert s_dis.value < 0.05 * s_half.value and s_for.value < 0.05 * s_half.value
+
+
+def test_rigid_fit_gives_the_true_relative_pose(texture):
+    cfg = SimilarityConfig()
+    Ti = T_world_cam_down(3.0, -2.0, H_MM, 0.4)
+    Tj = T_world_cam_down(17.5, 6.25, H_MM, 0.9)
+    pi, fi = _prep(syn.view(texture, CAM, Ti, H_MM), cfg)
+    pj, fj = _prep(syn.view(texture, CAM, Tj, H_MM), cfg)
+    fit = fit_features(fi, fj, cfg)
+    assert fit.ok, fit.reason
+    from floorvo.mapping.similarity import content_similarity
+
+    refined = content_similarity(pi, pj, fit, cfg).fit
+    truth = invert_T(Ti) @ Tj
+    for f in (fit, refined):
+        T = fit_to_T_i_j(f, CAM, H_MM)
+        assert np.linalg.norm(T[:2, 3] - truth[:2, 3]) < 0.05  # mm
+        assert abs(np.arctan2(T[1, 0], T[0, 0]) - np.arctan2(truth[1, 0], truth[0, 0])) < 1e-3
+
+
+# --------------------------------------------------------------------------- keyframes
+def test_keyframes_on_a_straight_line_follow_the_half_similarity_rule(texture):
+    step_mm = 2.0
+    poses = [T_world_cam_down(-60.0 + step_mm * i, 0.0, H_MM) for i in range(52)]
+    imgs = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(i)) for i, T in enumerate(poses)]
+    cfg = MapConfig(keyframes=KeyframeConfig(window=30, ratio=0.5))
+    m = build_map_from_images(imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0], config=cfg)
+    # Independent expectation: the similarity is proportional to the overlap (width W - d),
+    # the maximum is at the next frame (d = step), so the next keyframe is the first frame
+    # with W - d <= 0.5 (W - step): d >= (W + step) / 2.
+    expect = int(np.ceil((W_MM + step_mm) / 2 / step_mm))
+    gaps = np.diff(m.frame_indices)
+    assert len(m.frame_indices) >= 3
+    assert np.all(np.abs(gaps[:-1] - expect) <= 2), (gaps, expect)
+    for k, i in enumerate(m.frame_indices):  # eq. (24) chaining keeps the true poses
+        d, a = _se2_err(m.T_world_kf[k], poses[i])
+        assert d < 0.1 and a < 1e-3
+
+
+# --------------------------------------------------------------------------- localisation
+@pytest.fixture(scope="module")
+def lane(texture):
+    """A mapped lane along x (4 mm per frame), its poses and its map."""
+    poses = [T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(28)]
+    imgs = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(100 + i)) for i, T in enumerate(poses)]
+    m = build_map_from_images(imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0],
+                              timestamps_s=np.arange(len(imgs)) / 30.0)
+    return poses, imgs, m
+
+
+def test_frame_at_a_random_pose_in_the_map_is_localised(texture, lane):
+    _, _, m = lane
+    assert 2 <= m.n_keyframes < 10
+    loc = Localizer(m)
+    rng = np.random.default_rng(7)
+    for trial in range(4):
+        T = T_world_cam_down(rng.uniform(-45, 55), rng.uniform(-10, 10), H_MM, rng.uniform(-np.pi, np.pi))
+        r = loc.localize(syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=rng))
+        assert r.ok, r.reason
+        d, a = _se2_err(r.T_world_cam, T)
+        assert d < 0.2 and a < 2e-3, (trial, d, a)
+        assert abs(r.T_world_cam[2, 3] - H_MM) < 1e-6
+
+
+def test_frame_from_outside_the_map_is_not_localised(texture, other_texture, lane):
+    _, _, m = lane
+    loc = Localizer(m)
+    for k, (x, y) in enumerate([(0.0, 0.0), (30.0, -20.0)]):
+        r = loc.localize(_view(other_texture, x, y, 0.5 * k, 50 + k))
+        assert not r.ok and r.T_world_cam is None and r.reason
+    # Same floor, but far from the mapped lane.
+    r = loc.localize(_view(texture, 0.0, 120.0, 0.0, 60))
+    assert not r.ok and r.reason
+
+
+# --------------------------------------------------------------------------- map on disk
+def test_map_round_trip_and_refusals(tmp_path, lane):
+    _, imgs, m = lane
+    save_map(m, tmp_path / "map")
+    m2 = load_map(tmp_path / "map")
+    assert m2.frame_indices == m.frame_indices and m2.n_mapping_frames == len(imgs)
+    np.testing.assert_allclose(m2.T_world_kf, m.T_world_kf)
+    np.testing.assert_array_equal(m2.images, m.images)
+    assert all(np.array_equal(a.desc, b.desc) for a, b in zip(m.features, m2.features))
+    assert m2.config == m.config and m2.camera == m.camera
+    meta = json.loads((tmp_path / "map" / "map.json").read_text())
+    assert meta["schema_version"] == 1 and meta["units"]["translation"] == "mm"
+    # A damaged array file, another schema version, a missing folder: one-line refusals.
+    npz = tmp_path / "map" / "keyframes.npz"
+    data = npz.read_bytes()
+    npz.write_bytes(data[:-10] + b"0123456789")
+    with pytest.raises(FloorbenchError, match="checksum"):
+        load_map(tmp_path / "map")
+    npz.write_bytes(data)
+    meta["schema_version"] = 99
+    (tmp_path / "map" / "map.json").write_text(json.dumps(meta))
+    with pytest.raises(FloorbenchError, match="schema_version"):
+        load_map(tmp_path / "map")
+    with pytest.raises(FloorbenchError, match="map.json is missing"):
+        load_map(tmp_path / "nothing")
+
+
+# --------------------------------------------------------------------------- CLI, estimator
+def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_texture, lane):
+    from floorvo.cli import main
+    from floorvo.run import run_estimator
+    from floorvo.sequence import SequenceWriter
+    from floorvo.tum import read_tum
+
+    poses, imgs, _ = lane
+
+    def write_seq(root, frames, Ts):
+        w = SequenceWriter(root, {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": len(frames), "rig": {"height_mm": H_MM}})
+        for i, f in enumerate(frames):
+            w.write_frame(i, f)
+        w.write_groundtruth(np.arange(len(frames)) / 30.0, np.stack(Ts))
+
+    write_seq(tmp_path / "mapseq", imgs, poses)
+    assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "map")]) == 0
+    # A live sequence: two segments over the lane joined by a teleport, then a foreign frame.
+    live_T = [T_world_cam_down(-30.0 + 3 * i, 5.0, H_MM, 1.0) for i in range(3)]
+    live_T += [T_world_cam_down(40.0 - 3 * i, -6.0, H_MM, -2.0) for i in range(3)]
+    live = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(200 + i)) for i, T in enumerate(live_T)]
+    live.append(_view(other_texture, 0, 0, 0, 300))
+    live_T.append(live_T[-1])
+    write_seq(tmp_path / "live", live, live_T)
+    assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "map"), "-o", str(tmp_path / "run")]) == 0
+    ts, T_est = read_tum(tmp_path / "run" / "trajectory.txt")
+    assert len(ts) == 6  # the foreign frame is left out
+    for T, Tt in zip(T_est, live_T[:6]):
+        d, a = _se2_err(T, Tt)
+        assert d < 0.2 and a < 2e-3
+    res = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert [x["frame"] for x in res["lost_frames"]] == [6] and res["lost_frames"][0]["reason"]
+    assert (tmp_path / "run" / "timing.csv").read_text().count("\n") == 8
+    # The registered estimator under the generic runner (fixes only).
+    r = run_estimator(tmp_path / "live", "map-fused", tmp_path / "run2", {"map": str(tmp_path / "map"), "odometry": "none"})
+    assert r.lost == 1 and r.ok == 5
+    ts2, T2 = read_tum(tmp_path / "run2" / "trajectory.txt")
+    assert np.max(np.abs(T2[:, :3, 3] - T_est[:, :3, 3])) < 0.3  # runner anchors at GT frame 0
+    # Errors are one line: a missing map, an unknown key.
+    assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "nomap"), "-o", str(tmp_path / "r3")]) == 1
+    assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1
