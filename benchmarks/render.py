@@ -1,0 +1,99 @@
+"""Render benchmark: frames per second, PSNR against a high-spp reference, peak memory.
+
+    .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--ref-spp 1024]
+
+Renders ``--frames`` full-size frames of the scene at its default quality and reports:
+
+* frames/s of the steady per-frame render (camera and LEDs move, the floor tile stays),
+  and the one-off cost of building the floor tile (materials + mesh + BVH);
+* PSNR of the central 80 % of frame 0 (radiance before sensor noise, in the sequence's
+  8-bit DN scale, peak 255) against a ``--ref-spp`` render of the same frame (accumulated
+  in batches of 16 spp with independent jitter);
+* peak resident memory of the process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import resource
+import time
+
+import numpy as np
+
+from floorsim.render import FloorRenderer, backend_info
+from floorsim.scene import load_scene
+from floorsim.sensor import exposure_gain
+from floorsim.simulate import _frame_seed, _leds, _load_tile, _trajectory_of, plan_tiles
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default="paper000_uniform")
+    ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--spp", type=int, default=None, help="default: the scene's render.spp")
+    ap.add_argument("--ref-spp", type=int, default=1024)
+    ap.add_argument("--json", help="also write the figures to this file")
+    args = ap.parse_args()
+
+    scene = load_scene(args.scene)
+    spp = args.spp or scene.render.spp
+    traj = _trajectory_of(scene)
+    cam = scene.camera_model()
+    T = traj.T_world_cam
+    n = min(args.frames, traj.frame_count)
+    renderer = FloorRenderer(cam)
+    spacing = scene.floor_spacing_mm()
+    tiles = plan_tiles(T[:n], cam, scene.floor.tile_length_mm, 2.0 + 2 * spacing)
+    t0 = time.perf_counter()
+    _load_tile(renderer, scene, tiles[0][1], spacing)
+    t_tile = time.perf_counter() - t0
+    renderer.render(T[0], _leds(scene, T[0]), spp, seed=0)  # warm-up: JIT compilation
+    times = []
+    rad0 = None
+    for i in tiles[0][0][:n]:
+        t = time.perf_counter()
+        rad = renderer.render(T[i], _leds(scene, T[i]), spp, seed=_frame_seed(scene.seed, i))
+        times.append(time.perf_counter() - t)
+        if rad0 is None:
+            rad0 = rad
+    # Reference: accumulate ref_spp samples in batches of 16 with independent jitter.
+    batch = 16
+    acc = np.zeros_like(rad0, dtype=np.float64)
+    t = time.perf_counter()
+    for b in range(args.ref_spp // batch):
+        acc += renderer.render(T[0], _leds(scene, T[0]), batch, seed=10_000 + b)
+    ref = acc / (args.ref_spp // batch)
+    t_ref = time.perf_counter() - t
+    gain = exposure_gain(ref, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
+    to_dn = gain / scene.sensor.full_well_e * 255.0
+    h, w = ref.shape
+    sl = (slice(int(0.1 * h), int(0.9 * h)), slice(int(0.1 * w), int(0.9 * w)))
+    mse = float(np.mean(((rad0[sl] - ref[sl]) * to_dn) ** 2))
+    psnr = 10 * np.log10(255.0**2 / mse)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    out = {
+        "scene": scene.name,
+        "size": f"{cam.width_px}x{cam.height_px}",
+        "spp": spp,
+        "leds": int(len(_leds(scene, T[0]).positions_mm)),
+        "floor_tile_build_s": round(t_tile, 2),
+        "tile_vertices_mm_spacing": spacing,
+        "frame_s_median": round(float(np.median(times)), 3),
+        "frames_per_s": round(1.0 / float(np.median(times)), 2),
+        "psnr_db_central80": round(float(psnr), 2),
+        "ref_spp": args.ref_spp,
+        "ref_render_s": round(t_ref, 1),
+        "peak_rss_mb": round(peak_mb),
+        "machine": f"{platform.machine()}, {__import__('os').cpu_count()} cores",
+        "backend": backend_info(),
+    }
+    print(json.dumps(out, indent=2))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
