@@ -1,0 +1,104 @@
+"""Estimator benchmark: time per frame on one core, matching time, drift in % of distance.
+
+    .venv/bin/python benchmarks/estimators.py [--scale 1.0] [--line-scale 0.5] [--out out/bench-estimators]
+
+Renders (or reuses) ``paper000_uniform`` and the paper-001 3 m line with depth
+(``paper001_line3m_rgbd``), runs every registered estimator each sequence supports with
+OpenCV and drjit held to one thread, and prints a table: median ms per frame (total and
+matching), frames per second, end-point drift and distance error in % of the distance
+travelled. The guided/brute-force matching-time ratio (paper 000's claim) is measured
+in the same run on the same frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import platform
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from floorsim.scene import load_scene  # noqa: E402
+from floorsim.simulate import render_sequence  # noqa: E402
+from floorvo.estimators import REGISTRY, list_estimators  # noqa: E402
+from floorvo.metrics import score_run  # noqa: E402
+from floorvo.run import run_estimator  # noqa: E402
+from floorvo.sequence import Sequence  # noqa: E402
+
+
+def _timing(run: Path) -> dict:
+    rows = [r for r in csv.DictReader(open(run / "timing.csv")) if r["status"] == "ok"]
+    return {
+        "total_ms": float(np.median([float(r["total_ms"]) for r in rows])) if rows else float("nan"),
+        "match_ms": float(np.median([float(r["match_ms"]) for r in rows])) if rows else float("nan"),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scale", type=float, default=1.0, help="resolution scale of paper000_uniform (1 = 648x494)")
+    ap.add_argument("--line-scale", type=float, default=0.5, help="resolution scale of the 3 m line")
+    ap.add_argument("--line-frames", type=int, default=None, help="render only the first N frames of the line")
+    ap.add_argument("--estimators", nargs="*", default=None)
+    ap.add_argument("--out", default="out/bench-estimators")
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    out = Path(args.out)
+    seqs = {
+        "paper000_uniform": render_sequence(load_scene("paper000_uniform"), out / "seq" / "paper000_uniform", scale=args.scale),
+        "paper001_line3m_rgbd": render_sequence(
+            load_scene("paper001_line3m_rgbd"), out / "seq" / "paper001_line3m_rgbd", scale=args.line_scale, frames=args.line_frames
+        ),
+    }
+    names = args.estimators or [n for n in list_estimators() if n != "map-fused"]
+    rows = []
+    for sname, sdir in seqs.items():
+        seq = Sequence.open(sdir)
+        for name in names:
+            req = set(REGISTRY[name].requires)
+            if ("depth" in req and not seq.has_depth) or ("stereo" in req and not seq.has_stereo):
+                continue
+            run = out / "runs" / sname / name
+            run_estimator(seq, name, run)
+            sc = score_run(run, sdir).flat()
+            t = _timing(run)
+            rows.append(
+                {
+                    "sequence": sname,
+                    "size": f"{seq.camera.width_px}x{seq.camera.height_px}",
+                    "frames": seq.frame_count,
+                    "estimator": name,
+                    "ms_per_frame": round(t["total_ms"], 2),
+                    "match_ms": round(t["match_ms"], 3),
+                    "frames_per_s": round(1000.0 / t["total_ms"], 1) if t["total_ms"] > 0 else None,
+                    "end_drift_pct": round(sc["end_drift_pct"], 4),
+                    "distance_error_pct": round(sc["distance_error_pct"], 4),
+                    "lost": int(sc.get("lost_frames", 0) or 0),
+                }
+            )
+            print(json.dumps(rows[-1]))
+    ratios = {}
+    for sname in seqs:
+        g = next((r for r in rows if r["sequence"] == sname and r["estimator"] == "akaze-guided"), None)
+        b = next((r for r in rows if r["sequence"] == sname and r["estimator"] == "akaze-bruteforce"), None)
+        if g and b and g["match_ms"] > 0:
+            ratios[sname] = round(b["match_ms"] / g["match_ms"], 2)
+    print()
+    cols = ["sequence", "size", "estimator", "ms_per_frame", "match_ms", "frames_per_s", "end_drift_pct", "distance_error_pct", "lost"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    for r in rows:
+        print("| " + " | ".join(str(r[c]) for c in cols) + " |")
+    print(f"\nmatching-time ratio brute-force / guided (same run): {ratios}")
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
+    (out / "estimators.json").write_text(json.dumps({"rows": rows, "match_ratio": ratios}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
