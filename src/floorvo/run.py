@@ -58,7 +58,7 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
         raise FloorbenchError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
     rig = {}
     if seq.has_stereo:
-        rig = {"camera_right": seq.camera_model("cam1"), "T_cam0_cam1": seq.T_cam0_cam1}
+        rig = {"camera_right": seq.camera_model("cam1"), "T_cam0_cam1": seq.T_cam0_cam1, "flatfield_right": seq.flatfield("cam1")}
     flat = seq.flatfield()
     return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
 

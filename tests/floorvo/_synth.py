@@ -72,3 +72,30 @@ def frame_pair(camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 1
         out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
     flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
     return out[0], out[1], flat
+
+
+def flat_floor_depth(camera: CameraModel, height_mm: float = 100.0) -> np.ndarray:
+    """Depth (mm, along the optical axis) of a flat floor under a downward camera: constant."""
+    return np.full((camera.height_px, camera.width_px), np.float32(height_mm))
+
+
+def stereo_pairs(camera: CameraModel, T_prev_cur: np.ndarray, baseline_mm: float, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0):
+    """Left and right frames at prev and cur for a rig with cam1 ``baseline_mm`` along cam0's +x.
+
+    Returns ``((L0, R0), (L1, R1), flatfield uint16, T_cam0_cam1)``; each camera is a
+    downward camera over the same flat textured floor with its own LED falloff.
+    """
+    size = int(2.2 * max(camera.width_px, camera.height_px)) + int(baseline_mm * camera.fx_px / height_mm)
+    tex = floor_texture(size, seed)
+    fall = falloff(camera)
+    rng = np.random.default_rng(seed + 1)
+    T01 = np.eye(4)
+    T01[0, 3] = baseline_mm
+    imgs = []
+    for T in (np.eye(4), T01, T_prev_cur, T_prev_cur @ T01):
+        img = view(tex, camera, pixel_motion(T, camera, height_mm)) * fall
+        imgs.append(img)
+    scale = 230.0 / np.percentile(imgs[0], 99.5)
+    out = [np.clip(np.round(i * scale + rng.normal(0, noise_dn, i.shape)), 0, 255).astype(np.uint8) for i in imgs]
+    flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
+    return (out[0], out[1]), (out[2], out[3]), flat, T01

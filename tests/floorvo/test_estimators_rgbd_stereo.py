@@ -1,0 +1,139 @@
+"""orb-icp (paper 001, depth) and stereo-sift (paper 002, stereo) against known motions made in code."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.estimators import Frame, get_estimator, make_config
+from floorvo.estimators.orb_icp import homogenise_keypoints
+from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
+
+from _synth import flat_floor_depth, frame_pair, stereo_pairs
+
+CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
+# Per-estimator tolerance on a synthetic pair: translation (mm), yaw (deg).
+TOL = {"orb-icp": (0.03, 0.05), "stereo-sift": (0.05, 0.05)}
+
+
+def _motion(dx_mm, dy_mm, yaw_deg):
+    return invert_T(T_world_cam_down(0.0, 0.0, 100.0)) @ T_world_cam_down(dx_mm, -dy_mm, 100.0, np.radians(yaw_deg))
+
+
+def _check(r, T_true, name):
+    assert r.status == "ok", r.reason
+    t_tol, yaw_tol = TOL[name]
+    np.testing.assert_allclose(r.T_prev_cur[:3, 3], T_true[:3, 3], atol=t_tol)
+    assert np.degrees(yaw_of_R(r.T_prev_cur[:3, :3] @ T_true[:3, :3].T)) == pytest.approx(0.0, abs=yaw_tol)
+
+
+@pytest.mark.parametrize("dx, dy, yaw", [(4.0, 0.0, 0.0), (2.5, -1.2, 1.5)])
+def test_orb_icp_recovers_motion_from_depth(dx, dy, yaw):
+    T_true = _motion(dx, dy, yaw)
+    prev, cur, flat = frame_pair(CAM, T_true)
+    depth = flat_floor_depth(CAM)
+    est = get_estimator("orb-icp")(make_config("orb-icp"), CAM, height_mm=100.0, flatfield=flat)
+    st = est.start()
+    assert est.step(st, Frame(0, 0.0, prev, depth_mm=depth)).status == "init"
+    _check(est.step(st, Frame(1, 0.1, cur, depth_mm=depth)), T_true, "orb-icp")
+
+
+@pytest.mark.parametrize("dx, dy, yaw", [(4.0, 0.0, 0.0), (2.5, -1.2, 1.5)])
+def test_stereo_sift_recovers_motion_from_triangulation(dx, dy, yaw):
+    T_true = _motion(dx, dy, yaw)
+    (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
+    est = get_estimator("stereo-sift")(
+        make_config("stereo-sift"), CAM, height_mm=100.0, flatfield=flat, camera_right=CAM, T_cam0_cam1=T01, flatfield_right=flat
+    )
+    st = est.start()
+    assert est.step(st, Frame(0, 0.0, L0, image_right=R0)).status == "init"
+    _check(est.step(st, Frame(1, 0.1, L1, image_right=R1)), T_true, "stereo-sift")
+
+
+def test_stereo_sift_paper_mean_update_translation_only():
+    """Algorithm 1's DP_L = P_3dL1 - P_3dL2 recovers a pure translation."""
+    T_true = _motion(3.0, 1.0, 0.0)
+    (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0, seed=3)
+    est = get_estimator("stereo-sift")(
+        make_config("stereo-sift", {"update": "mean"}), CAM, height_mm=100.0, flatfield=flat, camera_right=CAM, T_cam0_cam1=T01, flatfield_right=flat
+    )
+    st = est.start()
+    est.step(st, Frame(0, 0.0, L0, image_right=R0))
+    r = est.step(st, Frame(1, 0.1, L1, image_right=R1))
+    assert r.ok, r.reason
+    np.testing.assert_allclose(r.T_prev_cur[:3, 3], T_true[:3, 3], atol=0.05)
+    np.testing.assert_allclose(r.T_prev_cur[:3, :3], np.eye(3))
+
+
+def test_lost_frames_give_status_and_the_run_goes_on():
+    T_true = _motion(2.0, 0.0, 0.0)
+    prev, cur, flat = frame_pair(CAM, T_true)
+    depth = flat_floor_depth(CAM)
+    est = get_estimator("orb-icp")(make_config("orb-icp"), CAM, height_mm=100.0, flatfield=flat)
+    st = est.start()
+    est.step(st, Frame(0, 0.0, prev, depth_mm=depth))
+    r = est.step(st, Frame(1, 0.1, np.zeros_like(prev), depth_mm=depth))
+    assert r.status == "lost" and "empty" in r.reason and r.T_prev_cur is None
+    r = est.step(st, Frame(2, 0.2, cur, depth_mm=np.zeros_like(depth)))  # no depth measured anywhere
+    assert r.status == "lost" and "depth" in r.reason
+    r = est.step(st, Frame(3, 0.3, cur, depth_mm=depth))  # matched against the last good frame
+    _check(r, T_true, "orb-icp")
+    # A frame with an unrelated texture: no consistent matches -> lost, with a reason.
+    other, _, _ = frame_pair(CAM, T_true, seed=9)
+    r = est.step(st, Frame(4, 0.4, other, depth_mm=depth))
+    assert r.status == "lost" and r.reason
+
+    (L0, R0), (L1, R1), flat2, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
+    ss = get_estimator("stereo-sift")(make_config("stereo-sift"), CAM, height_mm=100.0, camera_right=CAM, T_cam0_cam1=T01)
+    st = ss.start()
+    ss.step(st, Frame(0, 0.0, L0, image_right=R0))
+    r = ss.step(st, Frame(1, 0.1, L1, image_right=np.zeros_like(R1)))
+    assert r.status == "lost" and "empty" in r.reason
+
+
+def test_homogenised_keypoints_capped_per_cell():
+    import cv2
+
+    kps = [cv2.KeyPoint(float(x), float(y), 7, -1, float(r)) for x, y, r in [(1, 1, 5), (2, 2, 9), (3, 3, 1), (90, 90, 2)]]
+    kept = homogenise_keypoints(kps, (100, 100), 2, 2, 2)
+    assert sorted(k.response for k in kept) == [2, 5, 9]
+
+
+def test_bad_config_refused():
+    with pytest.raises(ConfigError, match=r"orb-icp.ratio = 1.5: must be <= 1.0"):
+        make_config("orb-icp", {"ratio": "1.5"})
+    with pytest.raises(ConfigError, match=r"stereo-sift.update = 'median': must be one of 'rigid', 'mean'"):
+        make_config("stereo-sift", {"update": "median"})
+    with pytest.raises(ConfigError, match="stereo-sift: needs camera_right"):
+        get_estimator("stereo-sift")(make_config("stereo-sift"), CAM, height_mm=100.0)
+
+
+def _mono_sequence(root, n=2, depth=False):
+    from floorvo.sequence import SequenceWriter
+
+    meta = {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+    if depth:
+        meta["depth"] = {"format": "npy_float32_mm"}
+    w = SequenceWriter(root, meta)
+    prev, cur, _ = frame_pair(CAM, _motion(1.0, 0, 0))
+    for i, im in enumerate([prev, cur][:n]):
+        w.write_frame(i, im)
+    return root
+
+
+def test_missing_depth_or_stereo_refused_before_any_frame(tmp_path, monkeypatch):
+    from floorvo.estimators import REGISTRY
+    from floorvo.run import run_estimator
+
+    seq = _mono_sequence(tmp_path / "seq")
+    calls = []
+    for name in ("orb-icp", "stereo-sift"):
+        monkeypatch.setattr(REGISTRY[name], "step", lambda self, st, fr: calls.append(fr) or None)
+    with pytest.raises(FloorbenchError, match="orb-icp needs depth images"):
+        run_estimator(seq, "orb-icp", tmp_path / "run1")
+    with pytest.raises(FloorbenchError, match="stereo-sift needs a stereo sequence"):
+        run_estimator(seq, "stereo-sift", tmp_path / "run2")
+    assert calls == []
+    assert not (tmp_path / "run1" / "result.json").exists()
