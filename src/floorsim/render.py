@@ -114,13 +114,15 @@ class LedArray:
 
     ``positions_mm`` (N, 3), ``aim`` (N, 3) unit emission axes, ``intensity`` (N,)
     radiant intensity on the axis (arbitrary units), ``lobe_exponent`` m of the
-    cos^m emission profile.
+    cos^m emission profile, ``bar`` (N,) optional bar index of each LED (LEDs of one bar
+    share a shadow ray per sample); by default the side of the camera's x axis.
     """
 
     positions_mm: np.ndarray
     aim: np.ndarray
     intensity: np.ndarray
     lobe_exponent: float = 1.0
+    bar: np.ndarray | None = None
 
 
 class FloorRenderer:
@@ -137,7 +139,8 @@ class FloorRenderer:
         self.dr = dr
         self.camera = camera
         self.scene = None
-        self._ray_cache: dict = {}
+        self._samplers: dict = {}
+        self.smooth_normals = True
 
     # --------------------------------------------------------------------- geometry
     def load_heightfield(self, x0_mm: float, y0_mm: float, spacing_mm: float, height_mm: np.ndarray, albedo: np.ndarray) -> None:
@@ -172,77 +175,136 @@ class FloorRenderer:
     def _set_mesh(self, V, F, albedo, n_vertices, n_faces) -> None:
         mi = self.mi
         self.scene = None
-        mesh = mi.Mesh("floor", n_vertices, n_faces, has_vertex_normals=False, has_vertex_texcoords=False)
+        mesh = mi.Mesh("floor", n_vertices, n_faces, has_vertex_normals=True, has_vertex_texcoords=False)
         params = mi.traverse(mesh)
         params["vertex_positions"] = mi.Float(V)
         params["faces"] = mi.UInt32(F)
         params.update()
+        mesh.recompute_vertex_normals()
         mesh.add_attribute("vertex_albedo", 1, mi.Float(albedo))
         self.scene = mi.load_dict({"type": "scene", "floor": mesh})
 
     # --------------------------------------------------------------------- rays
-    def _pixel_rays_cam(self, spp: int, rng: np.random.Generator) -> np.ndarray:
-        """(spp * H * W, 3) unit ray directions in the camera frame, sample-major order.
+    def _sampler(self, spp: int):
+        """A cached stratified Mitsuba sampler: ``ldsampler`` for 4^k spp, ``multijitter`` otherwise
+        (which rounds ``spp`` up to an a x b grid, e.g. 5 -> 6; see :meth:`effective_spp`)."""
+        spp = int(spp)
+        if spp < 1:
+            raise ValueError(f"spp = {spp}: must be >= 1")
+        s = self._samplers.get(spp)
+        if s is None:
+            square_pow2 = spp >= 1 and (spp & (spp - 1)) == 0 and (spp.bit_length() - 1) % 2 == 0
+            s = self.mi.load_dict({"type": "ldsampler" if square_pow2 else "multijitter", "sample_count": spp})
+            self._samplers[spp] = s
+        return s
 
-        Stratified: the pixel is split into ceil(sqrt(spp))^2 strata; ``spp`` of them
-        are used with a seeded jitter inside each.
-        """
-        cam = self.camera
-        w, h = cam.width_px, cam.height_px
-        s = int(np.ceil(np.sqrt(spp)))
-        strata = [(i, j) for j in range(s) for i in range(s)]
-        if spp < len(strata):
-            idx = rng.permutation(len(strata))[:spp]
-            strata = [strata[k] for k in sorted(idx)]
-        u0 = np.arange(w, dtype=np.float64)[None, :]
-        v0 = np.arange(h, dtype=np.float64)[:, None]
-        uv = np.empty((len(strata), h, w, 2))
-        for k, (i, j) in enumerate(strata):
-            jit = rng.random((2, h, w))
-            uv[k, :, :, 0] = u0 - 0.5 + (i + jit[0]) / s
-            uv[k, :, :, 1] = v0 - 0.5 + (j + jit[1]) / s
-        d = cam.unproject(uv.reshape(-1, 2), 1.0)
-        return d / np.linalg.norm(d, axis=1, keepdims=True)
+    def effective_spp(self, spp: int) -> int:
+        """The number of samples per pixel a render with ``spp`` really takes."""
+        return int(self._sampler(spp).sample_count())
 
-    def render(self, T_world_cam: np.ndarray, leds: LedArray, spp: int = 4, seed: int = 0) -> np.ndarray:
+    def _opaque(self, values) -> list:
+        """Scalars as opaque 1-lane JIT variables: changing them between frames reuses the compiled kernel."""
+        return [self.dr.opaque(self.mi.Float, float(v)) for v in values]
+
+    def render(self, T_world_cam: np.ndarray, leds: LedArray, spp: int = 4, seed: int = 0, every_led: bool = False) -> np.ndarray:
         """Radiance image (H, W) float32 of the loaded floor from pose ``T_world_cam`` (mm).
 
-        Deterministic for the same inputs (the pixel jitter comes from ``seed``).
+        ``spp`` stratified primary samples per pixel (``ldsampler`` when spp is a power of
+        4, ``multijitter`` otherwise). Direct light of the LEDs, per primary sample:
+
+        - ``every_led=False`` (default): the unshadowed contribution ``f_k`` of every LED is
+          evaluated exactly; one shadow ray per bar goes to an LED chosen with probability
+          ``f_k / F_bar`` (stratified across the pixel's samples) and the sample adds
+          ``F_bar * V``. Unbiased (E[F_bar V_k*] = sum_k f_k V_k) and exact wherever the
+          whole bar is visible or hidden; noise remains only in penumbrae.
+        - ``every_led=True``: a shadow ray to every LED (the reference estimator).
+
+        Deterministic for the same inputs (all samples derive from ``seed``).
         """
         if self.scene is None:
             raise RuntimeError("FloorRenderer.render: no floor loaded")
         mi, dr = self.mi, self.dr
         cam = self.camera
-        rng = np.random.default_rng([int(seed), 0x5EED])
-        d_cam = self._pixel_rays_cam(int(spp), rng)
+        w, h = cam.width_px, cam.height_px
+        sampler = self._sampler(spp)
+        spp = sampler.sample_count()  # multijitter rounds up to an a x b grid
+        n = w * h * spp
+        sampler.set_samples_per_wavefront(spp)
+        sampler.seed(int(seed) & 0xFFFFFFFF, n)
+        pix = dr.arange(mi.UInt32, n) // spp  # pixel-major: the spp lanes of a pixel are adjacent
+        pos = sampler.next_2d()
+        u = mi.Float(pix % w) - 0.5 + pos.x
+        v = mi.Float(pix // w) - 0.5 + pos.y
+        if cam.has_distortion:
+            uv = np.stack([u.numpy(), v.numpy()], axis=1).astype(np.float64)
+            d_np = cam.unproject(uv, 1.0)
+            x, y = mi.Float(d_np[:, 0].astype(np.float32)), mi.Float(d_np[:, 1].astype(np.float32))
+        else:
+            x = (u - float(cam.cx_px)) * (1.0 / float(cam.fx_px))
+            y = (v - float(cam.cy_px)) * (1.0 / float(cam.fy_px))
         T = np.asarray(T_world_cam, dtype=np.float64)
-        d_world = (d_cam @ T[:3, :3].T).astype(np.float32)
-        o = T[:3, 3]
-        ray = mi.Ray3f(mi.Point3f(*[float(v) for v in o]), mi.Vector3f(d_world[:, 0], d_world[:, 1], d_world[:, 2]))
+        R = self._opaque(T[:3, :3].ravel())
+        o = mi.Point3f(*self._opaque(T[:3, 3]))
+        d = mi.Vector3f(R[0] * x + R[1] * y + R[2], R[3] * x + R[4] * y + R[5], R[6] * x + R[7] * y + R[8])
+        ray = mi.Ray3f(o, dr.normalize(d))
         si = self.scene.ray_intersect(ray)
         valid = si.is_valid()
-        albedo = si.shape.eval_attribute_1("vertex_albedo", si)
-        n = si.n
+        albedo = si.shape.eval_attribute_1("vertex_albedo", si, valid)
         # Face normals may point down if the winding flips: orient them towards the camera.
-        n = dr.select(dr.dot(n, -ray.d) < 0, -n, n)
-        L = mi.Float(0.0)
+        n_shade = si.sh_frame.n if self.smooth_normals else si.n
+        nrm = dr.select(dr.dot(n_shade, -ray.d) < 0, -n_shade, n_shade)
         m = float(leds.lobe_exponent)
-        for p, a, inten in zip(leds.positions_mm, leds.aim, leds.intensity):
+
+        led_terms = []  # (bar, position, unshadowed contribution f_k)
+        bars = self._bars(T, leds)
+        for k, (p, a, inten) in enumerate(zip(leds.positions_mm, leds.aim, leds.intensity)):
             if inten <= 0:
                 continue
-            lp = mi.Point3f(float(p[0]), float(p[1]), float(p[2]))
+            px, py, pz, ax, ay, az, ik = self._opaque([*p, *a, inten])
+            lp = mi.Point3f(px, py, pz)
             dl = lp - si.p
             r2 = dr.squared_norm(dl)
             wl = dl * dr.rsqrt(r2)
-            cos_surf = dr.maximum(dr.dot(n, wl), 0.0)
-            cos_led = dr.maximum(-(wl.x * float(a[0]) + wl.y * float(a[1]) + wl.z * float(a[2])), 0.0)
+            cos_surf = dr.maximum(dr.dot(nrm, wl), 0.0)
+            cos_led = dr.maximum(-(wl.x * ax + wl.y * ay + wl.z * az), 0.0)  # emission profile cos^m
             lobe = cos_led if m == 1.0 else dr.power(cos_led, m)
-            lit = valid & (cos_surf > 0) & (cos_led > 0)
-            occluded = self.scene.ray_test(si.spawn_ray_to(lp), lit)
-            L += dr.select(lit & ~occluded, float(inten) * lobe * cos_surf / r2, 0.0)
+            f = dr.select(valid, ik * lobe * cos_surf / r2, 0.0)
+            led_terms.append((int(bars[k]), lp, f))
+
+        L = mi.Float(0.0)
+        if every_led:
+            for _, lp, f in led_terms:
+                occluded = self.scene.ray_test(si.spawn_ray_to(lp), f > 0)
+                L += dr.select(occluded, 0.0, f)
+        else:
+            for bar in sorted({b for b, _, _ in led_terms}):
+                terms = [(lp, f) for b, lp, f in led_terms if b == bar]
+                F = mi.Float(0.0)
+                for _, f in terms:
+                    F += f
+                target = sampler.next_1d() * F
+                acc = mi.Float(0.0)
+                chosen = mi.Point3f(terms[-1][0])
+                found = mi.Bool(False)
+                for lp, f in terms:
+                    acc += f
+                    pick = ~found & (acc > target)
+                    chosen = dr.select(pick, lp, chosen)
+                    found |= pick
+                occluded = self.scene.ray_test(si.spawn_ray_to(chosen), F > 0)
+                L += dr.select(occluded, 0.0, F)
         L = L * albedo * (1.0 / np.pi)
-        img = np.asarray(L.numpy(), dtype=np.float64).reshape(-1, cam.height_px, cam.width_px).mean(axis=0)
-        return img.astype(np.float32)
+        img = dr.block_sum(L, spp) * (1.0 / spp)
+        return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
+
+    @staticmethod
+    def _bars(T_world_cam: np.ndarray, leds: LedArray) -> np.ndarray:
+        """Bar index of each LED: the side of the camera's x axis it sits on (0 left, 1 right)."""
+        if leds.bar is not None:
+            return np.asarray(leds.bar, dtype=int)
+        rel = np.asarray(leds.positions_mm, dtype=float) - T_world_cam[:3, 3]
+        return (rel @ T_world_cam[:3, 0] > 0).astype(int)
+
 
     def depth(self, T_world_cam: np.ndarray) -> np.ndarray:
         """Depth (distance along the optical axis, mm) of the floor at each pixel centre; NaN where no hit."""
