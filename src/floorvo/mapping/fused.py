@@ -39,7 +39,7 @@ class MapFusedConfig:
     odometry: str = "phase-corr"
     odometry_set: str = ""
     fix_every: int = field(default=1, metadata={"min": 1})
-    n_candidates: int = field(default=5, metadata={"min": 1, "max": 1000})
+    n_candidates: int = field(default=3, metadata={"min": 1, "max": 1000})
     n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
     min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
     min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})

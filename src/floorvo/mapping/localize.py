@@ -41,16 +41,18 @@ __all__ = ["LocalizeConfig", "Localization", "Localizer"]
 @dataclass(frozen=True)
 class LocalizeConfig:
     """``n_candidates``: keyframes retrieved by the bag of words; ``n_verify``: of those, how
-    many (most rigid inliers first) get the content similarity; ``min_block_fraction``: the
+    many (most rigid inliers first) get the content similarity, those with at least
+    ``verify_inlier_ratio`` times the best candidate's inliers; ``min_block_fraction``: the
     share of the overlap's sub-blocks that must pass the mismatch check (eq. 22);
     ``min_corr``: least correlation coefficient (eq. 23); ``min_blocks``: least matched
     sub-blocks."""
 
-    n_candidates: int = field(default=5, metadata={"min": 1, "max": 1000})
+    n_candidates: int = field(default=3, metadata={"min": 1, "max": 1000})
     n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
     min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
     min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
     min_blocks: int = field(default=20, metadata={"min": 1})
+    verify_inlier_ratio: float = field(default=0.7, metadata={"min": 0.0, "max": 1.0})
 
     def __post_init__(self) -> None:
         from floorvo.estimators.base import validate_config
@@ -111,6 +113,8 @@ class Localizer:
             fits.append((int(k), fit))
         t2 = time.perf_counter()
         good = sorted([kf for kf in fits if kf[1].ok], key=lambda kf: -kf[1].n_inliers)[: cfg.n_verify]
+        # Only close calls are worth a second content similarity.
+        good = [kf for kf in good if kf[1].n_inliers >= cfg.verify_inlier_ratio * good[0][1].n_inliers]
         best: tuple[int, Similarity] | None = None
         for k, fit in good:
             s = content_similarity(m.images[k], small, fit, sc, refine=True)

@@ -81,7 +81,7 @@ class SimilarityConfig:
     n_features: int = 600
     fast_threshold: int = 10
     ratio: float = 0.8
-    ransac_iters: int = 400
+    ransac_iters: int = 200
     ransac_tol_px: float = 2.0
     length_tol: float = 0.03
     min_inliers: int = 12

@@ -27,10 +27,10 @@ def floor_texture(size_px: int = 4000, seed: int = 0) -> np.ndarray:
     n = int(size_px)
     out = np.zeros((n, n), np.float32)
     for sigma, amp in ((1.2, 0.35), (3.0, 0.35), (8.0, 0.25), (25.0, 0.15)):
-        layer = cv2.GaussianBlur(rng.standard_normal((n, n)).astype(np.float32), (0, 0), sigma)
+        layer = _smooth_noise(rng, n, sigma)
         out += amp * layer / (layer.std() + 1e-9)
     # Veins: thin dark lines where a smooth field crosses zero.
-    field = cv2.GaussianBlur(rng.standard_normal((n, n)).astype(np.float32), (0, 0), 40.0)
+    field = _smooth_noise(rng, n, 40.0)
     field /= field.std() + 1e-9
     out -= 0.8 * np.exp(-(field / 0.06) ** 2)
     # Pores: sparse dark dots.
@@ -39,6 +39,16 @@ def floor_texture(size_px: int = 4000, seed: int = 0) -> np.ndarray:
     out -= out.min()
     out /= out.max() + 1e-9
     return out
+
+
+def _smooth_noise(rng: np.random.Generator, n: int, sigma: float) -> np.ndarray:
+    """White noise blurred by ``sigma`` px; wide blurs are made on a coarser grid and upsampled."""
+    f = max(1, int(sigma // 2))
+    m = -(-n // f)
+    layer = cv2.GaussianBlur(rng.standard_normal((m, m)).astype(np.float32), (0, 0), sigma / f)
+    if f > 1:
+        layer = cv2.resize(layer, (m * f, m * f), interpolation=cv2.INTER_CUBIC)[:n, :n]
+    return layer
 
 
 def texture_extent_mm(texture: np.ndarray, gsd_mm_per_px: float) -> tuple[float, float, float, float]:
@@ -55,16 +65,19 @@ def view(
     *,
     noise_std: float = 0.0,
     rng: np.random.Generator | None = None,
+    centre_mm: tuple[float, float] = (0.0, 0.0),
 ) -> np.ndarray:
     """uint8 (H, W) frame of ``camera`` at ``T_world_cam`` (downward, yaw only) over ``texture``.
 
     A camera at (X0, Y0) with yaw psi sees floor point ``c + Rz(psi) [(u - cx) g, -(v - cy) g]``
     at pixel (u, v) (cam x = world x, cam y = world -y at yaw 0), so the image -> texture map
     is the rotation by psi about the principal point plus the translation (X0 / g, -Y0 / g).
-    ``noise_std``: Gaussian sensor noise in grey levels (needs ``rng``).
+    ``noise_std``: Gaussian sensor noise in grey levels (needs ``rng``); ``centre_mm``: the
+    floor point (mm) at the texture's centre.
     """
     g = camera.gsd_mm_per_px(height_mm)
     x0, y0, psi = se2_from_T(T_world_cam)
+    x0, y0 = x0 - centre_mm[0], y0 - centre_mm[1]
     th, tw = texture.shape
     Uc, Vc = x0 / g + tw / 2.0, -y0 / g + th / 2.0
     c, s = np.cos(psi), np.sin(psi)
