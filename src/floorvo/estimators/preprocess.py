@@ -34,7 +34,13 @@ def illumination_corrected(image: np.ndarray, flatfield: np.ndarray | None = Non
         m = float(out[valid].mean()) if valid.any() else 0.0
         return out / m if m > 0 else out
     sigma = blur_sigma_px or max(img.shape) / 16.0
-    illum = cv2.GaussianBlur(img, (0, 0), sigma)
+    f = int(sigma // 4)
+    if f >= 2:
+        # A wide blur is smooth: compute it on an f-times smaller image and scale it back up.
+        small = cv2.resize(img, (max(1, img.shape[1] // f), max(1, img.shape[0] // f)), interpolation=cv2.INTER_AREA)
+        illum = cv2.resize(cv2.GaussianBlur(small, (0, 0), sigma / f), (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
+    else:
+        illum = cv2.GaussianBlur(img, (0, 0), sigma)
     out = np.zeros_like(img)
     np.divide(img, illum, out=out, where=illum > 1e-3 * max(float(illum.max()), 1e-12))
     return out

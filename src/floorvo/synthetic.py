@@ -1,0 +1,165 @@
+"""Synthetic floorvo sequences with exact ground truth, made in code (no renderer).
+
+For tests and benchmarks that need a sequence folder fast: a procedural floor-like
+texture (bumps at several scales lit from the side, albedo mottling) is viewed by a
+downward camera at each pose of a trajectory through an exact sub-pixel affine warp of
+the texture (a flat floor seen straight down); a rig-fixed LED falloff (bright at the left
+and right edges, dark in the middle), sensor noise and 8-bit quantisation are applied,
+and the flat-field frame (the falloff alone) is written to ``calib/cam0_flatfield.png``.
+Optionally a depth image per frame (flat floor: the camera height) and a right camera
+``baseline_mm`` along cam0's +x axis.
+
+    from floorvo.synthetic import line_poses, write_synthetic_sequence
+    T = line_poses(length_mm=100.0, step_mm=4.0, height_mm=100.0)
+    write_synthetic_sequence("out/synth", camera, T, height_mm=100.0, fps=30.0, seed=0)
+
+The floor texture has one pixel per ``texture_gsd_mm`` (default: the camera's ground
+sample distance at ``height_mm``); a world point (X, Y) mm sits at texture pixel
+``(X / gsd + U0, -Y / gsd + V0)``. The texture is built once, large enough for the whole
+trajectory footprint, so keep trajectories within a few metres at full resolution.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.geometry import T_world_cam_down, se2_from_T
+from floorvo.sequence import SequenceWriter
+
+__all__ = ["floor_texture", "led_falloff", "line_poses", "render_view", "write_synthetic_sequence"]
+
+
+def floor_texture(height_px: int, width_px: int, seed: int) -> np.ndarray:
+    """(H, W) float32 texture > 0: a bumpy relief shaded by a light from -x, times albedo blobs."""
+    rng = np.random.default_rng(seed)
+    h = np.zeros((height_px, width_px), np.float32)
+    for sigma, amp in ((1.0, 1.0), (2.5, 1.5), (6.0, 2.0), (20.0, 3.0)):
+        h += amp * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), sigma)
+    shade = np.gradient(h, axis=1)  # faces towards -x are lit
+    albedo = 1.0 + 0.3 * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), 8.0)
+    tex = albedo * (1.0 + 0.5 * shade / (shade.std() + 1e-6))
+    return np.clip(tex, 0.05, None).astype(np.float32)
+
+
+def led_falloff(camera: CameraModel) -> np.ndarray:
+    """(H, W) float32 rig-fixed LED falloff: bright at the left and right edges, dark in the middle."""
+    u = np.arange(camera.width_px, dtype=np.float32)[None, :]
+    v = np.arange(camera.height_px, dtype=np.float32)[:, None]
+    w = camera.width_px
+    left = 1.0 / (1.0 + (u / (0.25 * w)) ** 2)
+    right = 1.0 / (1.0 + ((w - 1 - u) / (0.25 * w)) ** 2)
+    return ((left + right) * (1.0 - 0.2 * ((v - camera.cy_px) / camera.height_px) ** 2)).astype(np.float32)
+
+
+def line_poses(length_mm: float, step_mm: float, height_mm: float = 100.0, yaw_step_rad: float = 0.0) -> np.ndarray:
+    """(N, 4, 4) T_world_cam of a downward camera moving along world +x by ``step_mm`` a frame
+    (optionally turning by ``yaw_step_rad`` a frame and moving along its own heading)."""
+    n = int(round(length_mm / step_mm)) + 1
+    x = y = yaw = 0.0
+    out = []
+    for _ in range(n):
+        out.append(T_world_cam_down(x, y, height_mm, yaw))
+        x += step_mm * np.cos(yaw)
+        y += step_mm * np.sin(yaw)
+        yaw += yaw_step_rad
+    return np.stack(out)
+
+
+def render_view(coeffs: np.ndarray, origin_px: tuple[float, float], gsd_mm: float, camera: CameraModel, T_world_cam: np.ndarray) -> np.ndarray:
+    """(H, W) float32 view of a texture by a downward camera at ``T_world_cam`` (flat floor).
+
+    ``coeffs``: cubic B-spline coefficients of the texture
+    (``scipy.ndimage.spline_filter(texture, order=3)``); sampling is exact in position
+    (OpenCV's warps quantise sample positions to 1/32 px, which would blur the truth).
+    Pixel (u, v) sees world point (X, Y) + Rz(yaw) diag(1, -1) (p - c) height / f.
+    """
+    from scipy.ndimage import map_coordinates
+
+    X, Y, yaw = se2_from_T(T_world_cam)
+    height = float(T_world_cam[2, 3])
+    s = height / camera.fx_px / gsd_mm  # texture px per camera px
+    c, sn = np.cos(yaw), np.sin(yaw)
+    Rw = np.array([[c, -sn], [sn, c]]) @ np.diag([1.0, -1.0])  # world mm per centred camera px (x height/f)
+    Tt = np.diag([1.0, -1.0])  # texture px from world: U = X / gsd + U0, V = -Y / gsd + V0
+    A = Tt @ Rw * s
+    b = Tt @ np.array([X, Y]) / gsd_mm + np.array(origin_px)
+    v, u = np.mgrid[0 : camera.height_px, 0 : camera.width_px].astype(np.float64)
+    du, dv = u - camera.cx_px, v - camera.cy_px
+    U = A[0, 0] * du + A[0, 1] * dv + b[0]
+    V = A[1, 0] * du + A[1, 1] * dv + b[1]
+    return map_coordinates(coeffs, [V, U], order=3, prefilter=False, mode="mirror", output=np.float32)
+
+
+def write_synthetic_sequence(
+    out_dir: str | os.PathLike,
+    camera: CameraModel,
+    T_world_cam: np.ndarray,
+    *,
+    height_mm: float = 100.0,
+    fps: float = 30.0,
+    seed: int = 0,
+    noise_dn: float = 1.0,
+    depth: bool = False,
+    stereo_baseline_mm: float | None = None,
+    name: str = "synthetic",
+    overwrite: bool = True,
+) -> Path:
+    """Write a floorvo sequence folder for the poses ``T_world_cam`` (N, 4, 4) mm; returns its path.
+
+    Frames are 8-bit, with the LED falloff of :func:`led_falloff`, Gaussian noise of
+    ``noise_dn`` and the flat-field frame in ``calib/``. ``depth``: a float32 mm depth map
+    per frame (flat floor). ``stereo_baseline_mm``: also a right camera ``cam1``.
+    """
+    T_world_cam = np.asarray(T_world_cam, dtype=float)
+    gsd = height_mm / camera.fx_px
+    xy = T_world_cam[:, :2, 3]
+    reach = np.hypot(camera.width_px, camera.height_px) * gsd * 0.6 + (stereo_baseline_mm or 0.0) + 2.0
+    lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
+    w_px, h_px = int(np.ceil((hi[0] - lo[0]) / gsd)), int(np.ceil((hi[1] - lo[1]) / gsd))
+    from scipy.ndimage import spline_filter
+
+    coeffs = spline_filter(floor_texture(h_px, w_px, seed), order=3, output=np.float32)
+    origin = (-lo[0] / gsd, hi[1] / gsd)  # texture px of world (0, 0)
+    fall = led_falloff(camera)
+    T01 = None
+    meta = {
+        "name": name,
+        "camera": camera.to_dict(),
+        "fps": float(fps),
+        "frame_count": int(len(T_world_cam)),
+        "rig": {"height_mm": float(height_mm)},
+        "seeds": {"texture": int(seed)},
+        "synthetic": {"generator": "floorvo.synthetic", "noise_dn": float(noise_dn)},
+    }
+    if depth:
+        meta["depth"] = {"format": "npy_float32_mm"}
+    if stereo_baseline_mm:
+        T01 = np.eye(4)
+        T01[0, 3] = float(stereo_baseline_mm)
+        meta["stereo"] = True
+        meta["rig"]["T_cam0_cam1"] = T01.tolist()
+        meta["cameras"] = {"cam1": camera.to_dict()}
+    w = SequenceWriter(out_dir, meta, overwrite=overwrite)
+    rng = np.random.default_rng(seed + 1)
+    scale = None
+    for i, T in enumerate(T_world_cam):
+        cams = [("cam0", T)] + ([("cam1", T @ T01)] if T01 is not None else [])
+        for cam, Tc in cams:
+            img = render_view(coeffs, origin, gsd, camera, Tc) * fall
+            if scale is None:
+                scale = 230.0 / float(np.percentile(img, 99.5))
+            img = img * scale + rng.normal(0.0, noise_dn, img.shape)
+            w.write_frame(i, np.clip(np.round(img), 0, 255).astype(np.uint8), cam)
+        if depth:
+            w.write_depth(i, np.full((camera.height_px, camera.width_px), np.float32(T[2, 3])))
+    flat = np.clip(fall / fall.max() * 60000.0, 0, 65535).astype(np.uint16)
+    w.write_calib("cam0_flatfield", flat)
+    if T01 is not None:
+        w.write_calib("cam1_flatfield", flat)
+    w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
+    return Path(out_dir)
