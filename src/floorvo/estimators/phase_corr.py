@@ -71,6 +71,8 @@ class _Spectral:
         low = (np.abs(kx) <= low_frac) & (np.abs(ky) <= low_frac)
         low[0, 0] = False
         self.low = low
+        self.kx_low, self.ky_low = kx[low], ky[low]
+        self.A_low = np.stack([-2 * np.pi * self.kx_low, -2 * np.pi * self.ky_low], axis=1)  # phi = A d
 
     def spectrum(self, block: np.ndarray) -> np.ndarray:
         b = block - block.mean()
@@ -91,14 +93,15 @@ def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarr
     n = sp.n
     dy0 = iy - n if iy > n // 2 else iy
     dx0 = ix - n if ix > n // 2 else ix
-    # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy).
-    Q = R * np.exp(2j * np.pi * (sp.kx * dx0 + sp.ky * dy0))
+    # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy),
+    # weighted by the cross-power magnitude, over the low frequencies only.
     m = sp.low
-    phi = np.angle(Q[m])
+    Q = R[m] * np.exp(2j * np.pi * (sp.kx_low * dx0 + sp.ky_low * dy0))
+    phi = np.angle(Q)
     w = mag[m]
-    A = np.stack([-2 * np.pi * sp.kx[m], -2 * np.pi * sp.ky[m]], axis=1)
+    A = sp.A_low
     Aw = A * w[:, None]
-    sol, *_ = np.linalg.lstsq(Aw.T @ A, Aw.T @ phi, rcond=None)
+    sol = np.linalg.solve(Aw.T @ A + 1e-12 * np.eye(2), Aw.T @ phi)
     d = np.array([dx0 + sol[0], dy0 + sol[1]])
     return d, peak
 
@@ -107,6 +110,7 @@ def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarr
 class _State:
     prev: np.ndarray | None = None  # corrected previous frame, float32
     prev_blocks: list | None = None  # spectra of the previous frame's blocks
+    prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
 
 
@@ -180,6 +184,11 @@ class PhaseCorr:
         o = np.array([[1, 0, self.x0], [0, 1, self.y0], [0, 0, 1.0]])
         r = np.array([[1, 0, -self.rx0], [0, 1, -self.ry0], [0, 0, 1.0]])  # frame -> region coordinates
         A = (r @ c @ M @ c_inv @ o)[:2]
+        if np.array_equal(A[:, :2], np.eye(2)) and np.array_equal(A[:, 2], np.round(A[:, 2])):
+            # A whole-pixel translation: a slice, exact and free.
+            x, y = int(A[0, 2]), int(A[1, 2])
+            if 0 <= x and 0 <= y and x + self.crop <= cur.shape[1] and y + self.crop <= cur.shape[0]:
+                return cur[y : y + self.crop, x : x + self.crop]
         return cv2.warpAffine(cur, A, (self.crop, self.crop), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT)
 
     # ------------------------------------------------------------------ step
@@ -194,25 +203,54 @@ class PhaseCorr:
             state.prev = cur
             crop = cur[self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop]
             state.prev_blocks = self._blocks(crop)
-            state.prev_crop_spec = self.sp_crop.spectrum(crop)
+            state.prev_crop = crop
             return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
-        M = state.M_pred.copy() if self.config.predict else np.eye(3)
-        peaks = []
-        if not self.config.predict or np.allclose(M, np.eye(3)):
+        M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
+        M, min_peak, resid = self._measure(state, cur, M0)
+        if self._failed(min_peak, resid) and not np.array_equal(M0, np.eye(3)):
+            M, min_peak, resid = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
+        t2_ = time.perf_counter()
+        n_blocks = self.config.grid**2
+        crop = cur[self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop]
+        new_blocks = self._blocks(crop)
+        if self._failed(min_peak, resid):
+            state.M_pred = np.eye(3)
+            state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
+            why = f"weak correlation peak {min_peak:.3f}" if min_peak < self.config.min_peak else f"blocks disagree by {resid:.2f} px"
+            return StepResult("lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter()))
+        # M maps prev-centred px to cur-centred px: the floor's motion in the image.
+        R_px, t_px = M[:2, :2], M[:2, 2]
+        T = floor_rigid_to_T(R_px, t_px * self.mm_per_px)  # eq. (1) of paper 000 via the camera model
+        state.M_pred = M
+        state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
+        t3 = time.perf_counter()
+        return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
+
+    def _failed(self, min_peak: float, resid: float) -> bool:
+        return min_peak < self.config.min_peak or resid > self.config.max_residual_px
+
+    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px) from a start value.
+
+        Returns ``(M, lowest block peak, largest block residual px)``.
+        """
+        cfg = self.config
+        M = M.copy()
+        if np.array_equal(M, np.eye(3)):
             # No prediction: a whole-crop translation first, for large motions.
             w = self._warp_into_prev(cur, M)
-            d, pk = block_shift(state.prev_crop_spec, self.sp_crop.spectrum(w), self.sp_crop)
+            d, _ = block_shift(self.sp_crop.spectrum(state.prev_crop), self.sp_crop.spectrum(w), self.sp_crop)
             M = M @ _translation(d)
-        resid = np.inf
-        for it in range(self.config.iterations):
+        min_peak, resid = 0.0, np.inf
+        exact_yaw = np.radians(cfg.exact_yaw_max_deg)
+        for it in range(cfg.iterations):
             # Warp by whole pixels only: OpenCV quantises interpolated sample positions to
             # 1/32 px, which biased the measured shift by ~0.03 px per frame; the phase-slope
             # fit measures the whole fractional part instead (exact for a translation).
             M[:2, 2] = np.round(M[:2, 2])
-            if it == self.config.iterations - 1 and abs(np.arctan2(M[1, 0], M[0, 0])) <= np.radians(self.config.exact_yaw_max_deg):
+            if abs(np.arctan2(M[1, 0], M[0, 0])) <= exact_yaw:
                 # The same quantisation in a rotating warp biases yaw (+17 % at 0.2 deg/frame):
-                # the last round warps by the whole-pixel translation alone, and the block
-                # shifts measure the small rotation themselves.
+                # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
             w = self._warp_into_prev(cur, M)
             shifts, peaks = [], []
@@ -226,25 +264,14 @@ class PhaseCorr:
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(self.block_centres @ R2.T + t2 - self.block_centres - shifts).max())
-            M = M @ E
-        t2_ = time.perf_counter()
-        min_peak = float(min(peaks)) if peaks else 0.0
-        new_blocks = None
-        crop = cur[self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop]
-        new_blocks = self._blocks(crop)
-        new_crop_spec = self.sp_crop.spectrum(crop)
-        if min_peak < self.config.min_peak or resid > self.config.max_residual_px:
-            state.M_pred = np.eye(3)
-            state.prev, state.prev_blocks, state.prev_crop_spec = cur, new_blocks, new_crop_spec
-            why = f"weak correlation peak {min_peak:.3f}" if min_peak < self.config.min_peak else f"blocks disagree by {resid:.2f} px"
-            return StepResult("lost", reason=why, n_matches=len(peaks), timing_ms=_timing(t0, t1, t2_, time.perf_counter()))
-        # M maps prev-centred px to cur-centred px: the floor's motion in the image.
-        R_px, t_px = M[:2, :2], M[:2, 2]
-        T = floor_rigid_to_T(R_px, t_px * self.mm_per_px)
-        state.M_pred = M
-        state.prev, state.prev_blocks, state.prev_crop_spec = cur, new_blocks, new_crop_spec
-        t3 = time.perf_counter()
-        return StepResult("ok", T, n_matches=len(peaks), n_inliers=len(peaks), timing_ms=_timing(t0, t1, t2_, t3))
+            min_peak = float(min(peaks))
+            M_new = M @ E
+            # Converged when the next whole-pixel warp would be the same one.
+            same_warp = np.array_equal(np.round(M_new[:2, 2]), M[:2, 2]) and abs(np.arctan2(M_new[1, 0], M_new[0, 0])) <= exact_yaw and np.array_equal(M[:2, :2], np.eye(2))
+            M = M_new
+            if same_warp:
+                break
+        return M, min_peak, resid
 
 
 def _translation(d: np.ndarray) -> np.ndarray:
