@@ -43,13 +43,13 @@ class PhaseCorrConfig:
     ``exact_yaw_max_deg``: up to this yaw per frame the last round is measured without an
     interpolating warp (exact), above it through a rotating warp."""
 
-    crop_px: int = field(default=256, metadata={"min": 32, "max": 4096})
+    crop_px: int = field(default=384, metadata={"min": 32, "max": 4096})
     margin_px: int = field(default=48, metadata={"min": 0, "max": 1024})
     grid: int = field(default=2, metadata={"min": 2, "max": 8})
     iterations: int = field(default=2, metadata={"min": 1, "max": 10})
     min_peak: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
     max_residual_px: float = field(default=1.5, metadata={"gt": 0.0})
-    low_freq_fraction: float = field(default=0.15, metadata={"gt": 0.0, "max": 0.5})
+    low_freq_fraction: float = field(default=0.3, metadata={"gt": 0.0, "max": 0.5})
     exact_yaw_max_deg: float = field(default=1.0, metadata={"min": 0.0, "max": 45.0})
     use_flatfield: bool = True
     predict: bool = True
