@@ -1,9 +1,14 @@
 """Estimator benchmark: time per frame on one core, matching time, drift in % of distance.
 
     .venv/bin/python benchmarks/estimators.py [--scale 1.0] [--line-scale 0.5] [--out out/bench-estimators]
+    .venv/bin/python benchmarks/estimators.py --sequence paper000_uniform=PATH --sequence line=PATH
+    .venv/bin/python benchmarks/estimators.py --synthetic   # no renderer: floorvo.synthetic sequences
 
 Renders (or reuses) ``paper000_uniform`` and the paper-001 3 m line with depth
-(``paper001_line3m_rgbd``), runs every registered estimator each sequence supports with
+(``paper001_line3m_rgbd``), or uses the sequence folders given with ``--sequence``, or with
+``--synthetic`` writes code-made sequences (floorvo.synthetic: a 100 mm line at 4 mm/frame
+and a 3 m line at 10 mm/frame, 648x494, with depth and a 20 mm stereo pair, so every
+estimator runs), and runs every registered estimator each sequence supports with
 OpenCV and drjit held to one thread, and prints a table: median ms per frame (total and
 matching), frames per second, end-point drift and distance error in % of the distance
 travelled. The guided/brute-force matching-time ratio (paper 000's claim) is measured
@@ -24,8 +29,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from floorsim.scene import load_scene  # noqa: E402
-from floorsim.simulate import render_sequence  # noqa: E402
 from floorvo.estimators import REGISTRY, list_estimators  # noqa: E402
 from floorvo.metrics import score_run  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
@@ -46,16 +49,37 @@ def main() -> None:
     ap.add_argument("--line-scale", type=float, default=0.5, help="resolution scale of the 3 m line")
     ap.add_argument("--line-frames", type=int, default=None, help="render only the first N frames of the line")
     ap.add_argument("--estimators", nargs="*", default=None)
+    ap.add_argument("--sequence", action="append", metavar="NAME=PATH", help="use an existing sequence folder (repeatable)")
+    ap.add_argument("--synthetic", action="store_true", help="code-made sequences (floorvo.synthetic) instead of renders")
     ap.add_argument("--out", default="out/bench-estimators")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     out = Path(args.out)
-    seqs = {
-        "paper000_uniform": render_sequence(load_scene("paper000_uniform"), out / "seq" / "paper000_uniform", scale=args.scale),
-        "paper001_line3m_rgbd": render_sequence(
-            load_scene("paper001_line3m_rgbd"), out / "seq" / "paper001_line3m_rgbd", scale=args.line_scale, frames=args.line_frames
-        ),
-    }
+    if args.sequence:
+        seqs = {k: Path(v) for k, v in (a.split("=", 1) for a in args.sequence)}
+    elif args.synthetic:
+        from floorvo.camera import CameraModel
+        from floorvo.synthetic import line_poses, write_synthetic_sequence
+
+        cam = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)
+        seqs = {
+            "synthetic_uniform_100mm": write_synthetic_sequence(
+                out / "seq" / "synthetic_uniform_100mm", cam, line_poses(100.0, 4.0, 100.0), depth=True, stereo_baseline_mm=20.0, seed=0
+            ),
+            "synthetic_line_3m": write_synthetic_sequence(
+                out / "seq" / "synthetic_line_3m", cam, line_poses(3000.0, 10.0, 100.0), depth=True, stereo_baseline_mm=20.0, seed=1
+            ),
+        }
+    else:
+        from floorsim.scene import load_scene
+        from floorsim.simulate import render_sequence
+
+        seqs = {
+            "paper000_uniform": render_sequence(load_scene("paper000_uniform"), out / "seq" / "paper000_uniform", scale=args.scale),
+            "paper001_line3m_rgbd": render_sequence(
+                load_scene("paper001_line3m_rgbd"), out / "seq" / "paper001_line3m_rgbd", scale=args.line_scale, frames=args.line_frames
+            ),
+        }
     names = args.estimators or [n for n in list_estimators() if n != "map-fused"]
     rows = []
     for sname, sdir in seqs.items():
