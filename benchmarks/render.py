@@ -1,11 +1,13 @@
 """Render benchmark: frames per second, PSNR against a high-spp reference, peak memory.
 
-    .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--ref-spp 1024]
+    .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--spp 4,8,12] [--ref-spp 1024]
 
-Renders ``--frames`` full-size frames of the scene at its default quality and reports:
+Renders ``--frames`` full-size frames of the scene at its default quality (or at each
+``--spp`` given) and reports:
 
 * frames/s of the steady per-frame render (camera and LEDs move, the floor tile stays),
-  and the one-off cost of building the floor tile (materials + mesh + BVH);
+  its CPU seconds per frame (all threads; on a shared machine the wall time depends on
+  the other load), and the one-off cost of building the floor tile (materials + mesh + BVH);
 * PSNR of the central 80 % of frame 0 (radiance before sensor noise, in the sequence's
   8-bit DN scale, peak 255) against a ``--ref-spp`` render of the same frame (accumulated
   in batches of 16 spp with independent jitter);
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import resource
 import time
@@ -32,13 +35,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", default="paper000_uniform")
     ap.add_argument("--frames", type=int, default=10)
-    ap.add_argument("--spp", type=int, default=None, help="default: the scene's render.spp")
+    ap.add_argument("--spp", default=None, help="comma-separated list; default: the scene's render.spp")
     ap.add_argument("--ref-spp", type=int, default=1024)
     ap.add_argument("--json", help="also write the figures to this file")
     args = ap.parse_args()
 
     scene = load_scene(args.scene)
-    spp = args.spp or scene.render.spp
+    spps = [int(s) for s in args.spp.split(",")] if args.spp else [scene.render.spp]
     traj = _trajectory_of(scene)
     cam = scene.camera_model()
     T = traj.T_world_cam
@@ -49,44 +52,60 @@ def main() -> None:
     t0 = time.perf_counter()
     _load_tile(renderer, scene, tiles[0][1], spacing)
     t_tile = time.perf_counter() - t0
-    renderer.render(T[0], _leds(scene, T[0]), spp, seed=0)  # warm-up: JIT compilation
-    times = []
-    rad0 = None
-    for i in tiles[0][0][:n]:
-        t = time.perf_counter()
-        rad = renderer.render(T[i], _leds(scene, T[i]), spp, seed=_frame_seed(scene.seed, i))
-        times.append(time.perf_counter() - t)
-        if rad0 is None:
-            rad0 = rad
+    frames = tiles[0][0][:n]
     # Reference: accumulate ref_spp samples in batches of 16 with independent jitter.
     batch = 16
-    acc = np.zeros_like(rad0, dtype=np.float64)
+    acc = np.zeros((cam.height_px, cam.width_px), dtype=np.float64)
     t = time.perf_counter()
     for b in range(args.ref_spp // batch):
         acc += renderer.render(T[0], _leds(scene, T[0]), batch, seed=10_000 + b)
     ref = acc / (args.ref_spp // batch)
     t_ref = time.perf_counter() - t
+    # PSNR in the 8-bit DN scale of the sequence's automatic exposure (peak 255).
     gain = exposure_gain(ref, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
     to_dn = gain / scene.sensor.full_well_e * 255.0
     h, w = ref.shape
     sl = (slice(int(0.1 * h), int(0.9 * h)), slice(int(0.1 * w), int(0.9 * w)))
-    mse = float(np.mean(((rad0[sl] - ref[sl]) * to_dn) ** 2))
-    psnr = 10 * np.log10(255.0**2 / mse)
+    rows = []
+    for spp in spps:
+        renderer.render(T[0], _leds(scene, T[0]), spp, seed=0)  # warm-up: JIT compilation
+        times, cpu = [], []
+        rad0 = None
+        for i in frames:
+            t, c = time.perf_counter(), time.process_time()
+            rad = renderer.render(T[i], _leds(scene, T[i]), spp, seed=_frame_seed(scene.seed, i))
+            times.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+            if rad0 is None:
+                rad0 = rad
+        mse = float(np.mean(((rad0[sl] - ref[sl]) * to_dn) ** 2))
+        psnr = 10 * np.log10(255.0**2 / mse)
+        rows.append(
+            {
+                "spp": renderer.effective_spp(spp),
+                "frame_s_median": round(float(np.median(times)), 3),
+                "frames_per_s": round(1.0 / float(np.median(times)), 2),
+                # CPU seconds of all render threads: wall time on an otherwise idle machine
+                # is about this divided by the number of cores.
+                "cpu_s_per_frame_median": round(float(np.median(cpu)), 3),
+                "psnr_db_central80": round(float(psnr), 2),
+            }
+        )
+        print(json.dumps(rows[-1]), flush=True)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     out = {
         "scene": scene.name,
         "size": f"{cam.width_px}x{cam.height_px}",
-        "spp": spp,
+        "frames_timed": len(frames),
         "leds": int(len(_leds(scene, T[0]).positions_mm)),
         "floor_tile_build_s": round(t_tile, 2),
         "tile_vertices_mm_spacing": spacing,
-        "frame_s_median": round(float(np.median(times)), 3),
-        "frames_per_s": round(1.0 / float(np.median(times)), 2),
-        "psnr_db_central80": round(float(psnr), 2),
+        "results": rows,
         "ref_spp": args.ref_spp,
         "ref_render_s": round(t_ref, 1),
         "peak_rss_mb": round(peak_mb),
-        "machine": f"{platform.machine()}, {__import__('os').cpu_count()} cores",
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+        "load_average_1min_at_end": round(os.getloadavg()[0], 2),
         "backend": backend_info(),
     }
     print(json.dumps(out, indent=2))

@@ -7,16 +7,26 @@ ground-sample distance) with a per-vertex albedo, built once per floor tile. The
 are point sources attached to the rig; each has a cosine-power emission lobe aimed at
 the floor point under the camera. The hood blocks all other light.
 
-For every pixel we trace ``spp`` stratified, jittered primary rays through the pinhole
-(with the camera's lens distortion when it has one) and, at each floor hit, evaluate the
-direct light of **every** LED deterministically::
+For every pixel we trace ``spp`` stratified primary rays through the pinhole (Mitsuba's
+``ldsampler`` for 4^k spp, ``multijitter`` otherwise; the camera's lens distortion when
+it has one). The floor is Lambertian, shaded with the normal interpolated from the
+vertex normals of the height field (the sampled surface is smooth; flat facets would add
+sub-pixel shading noise), and lit by the LEDs only. For LED k at distance r_k::
 
-    L = albedo / pi * sum_k  I_k * max(0, -w_k . a_k)^m * max(0, n . w_k) / r_k^2 * V_k
+    f_k = albedo / pi * I_k * max(0, -w_k . a_k)^m * max(0, n . w_k) / r_k^2
+    L   = sum_k f_k V_k
 
-(w_k: unit vector from the hit to LED k, a_k: LED aim, r_k: distance, V_k: shadow ray
-visibility). This replaces Mitsuba's one-random-light-per-sample ``direct`` integrator
-(noisier, and it scales point-light images by ``emitter_samples``); only the pixel
-footprint is Monte Carlo integrated. Moving the camera and the LEDs touches no shape, so
+(w_k: unit vector from the hit to LED k, a_k: LED aim, m: emission lobe exponent, V_k:
+visibility, a shadow ray against the real relief). The unshadowed ``f_k`` of every LED
+is evaluated exactly at every sample; visibility is estimated with one shadow ray per
+LED bar, to an LED picked with probability f_k / F_bar (F_bar = sum of the bar's f_k),
+the sample adding F_bar V. This is unbiased, exact wherever a bar is wholly visible or
+hidden, and noisy only in penumbrae; ``every_led=True`` traces a shadow ray to every LED
+instead. Mitsuba's own ``direct`` integrator (one random light per sample, and images
+scaled by ``emitter_samples`` with point lights) is not used.
+
+The camera pose and the LED parameters enter the JIT kernel as opaque variables, so one
+compiled kernel serves every frame; moving the camera and the LEDs touches no shape, so
 the BVH is never rebuilt within a tile (DESIGN: a shape transform rebuilds it).
 
 Units: mm; radiance in arbitrary linear units proportional to LED power.
