@@ -1,0 +1,206 @@
+"""Export a sequence folder to a ROS 2 bag or to the EuRoC/ASL folder layout.
+
+Both read a floorvo sequence (:class:`floorvo.sequence.Sequence`) and write with the
+libraries made for the format: ``rosbags`` for ROS 2 bags (sqlite3 storage, CDR), plain
+CSV and YAML (PyYAML) for EuRoC.
+
+ROS 2 bag topics (frames: ``world`` with z up; ``cam0``/``cam1`` optical frames, OpenCV
+axes as in ROS's ``*_optical_frame`` convention; metres):
+
+* ``/cam0/image_raw``, ``/cam1/image_raw`` (sensor_msgs/Image, mono8 or mono16)
+* ``/cam0/camera_info``, ``/cam1/camera_info`` (sensor_msgs/CameraInfo, plumb_bob)
+* ``/cam0/depth`` (sensor_msgs/Image, 32FC1, metres) when the sequence has depth
+* ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0)
+* ``/tf`` (world -> cam0 per frame), ``/tf_static`` (cam0 -> cam1 for stereo)
+
+EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
+``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
+finite differences, biases zero).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from floorvo.errors import FloorbenchError
+from floorvo.geometry import xyz_quat_from_T
+from floorvo.io import atomic_write_text
+from floorvo.sequence import Sequence
+
+__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence"]
+
+
+def _ns(t_s: float) -> int:
+    return int(round(t_s * 1e9))
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and any(out.iterdir()) if out.is_dir() else out.exists():
+        raise FloorbenchError(f"{out}: output exists; choose a new path (exports are not merged into old ones)")
+
+
+def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
+    """Write ``seq`` as a ROS 2 bag (sqlite3) folder at ``out``; returns its path."""
+    try:
+        from rosbags.rosbag2 import Writer
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
+    out = Path(out)
+    _check_out(out)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
+    Image, CameraInfo, Roi = T["sensor_msgs/msg/Image"], T["sensor_msgs/msg/CameraInfo"], T["sensor_msgs/msg/RegionOfInterest"]
+    PoseStamped, Pose = T["geometry_msgs/msg/PoseStamped"], T["geometry_msgs/msg/Pose"]
+    Point, Quaternion, Vector3 = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"], T["geometry_msgs/msg/Vector3"]
+    Transform, TransformStamped, TFMessage = T["geometry_msgs/msg/Transform"], T["geometry_msgs/msg/TransformStamped"], T["tf2_msgs/msg/TFMessage"]
+
+    def header(t_s: float, frame: str):
+        ns = _ns(t_s)
+        return Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame)
+
+    def transform(T44: np.ndarray):
+        xyz_mm, q = xyz_quat_from_T(T44)
+        xyz = xyz_mm / 1000.0
+        return Transform(translation=Vector3(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))
+
+    def cam_info(cam, t_s: float, frame: str, baseline_tx_m: float = 0.0):
+        K = cam.K
+        P = np.zeros((3, 4))
+        P[:, :3] = K
+        P[0, 3] = -cam.fx_px * baseline_tx_m
+        return CameraInfo(
+            header=header(t_s, frame), height=cam.height_px, width=cam.width_px, distortion_model="plumb_bob",
+            d=np.asarray(cam.distortion, dtype=np.float64), k=K.ravel().astype(np.float64), r=np.eye(3).ravel(),
+            p=P.ravel(), binning_x=0, binning_y=0, roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+        )
+
+    def image_msg(img: np.ndarray, t_s: float, frame: str):
+        if img.dtype == np.uint8:
+            enc, step, data = "mono8", img.shape[1], img
+        elif img.dtype == np.uint16:
+            enc, step, data = "mono16", img.shape[1] * 2, img.astype("<u2")
+        else:
+            enc, step, data = "32FC1", img.shape[1] * 4, img.astype("<f4")
+        return Image(header=header(t_s, frame), height=img.shape[0], width=img.shape[1], encoding=enc, is_bigendian=0,
+                     step=step, data=np.frombuffer(np.ascontiguousarray(data).tobytes(), dtype=np.uint8))
+
+    gt = seq.groundtruth()
+    stamps = seq.timestamps_s
+    cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
+    with Writer(out, version=9) as w:
+        conns = {}
+        for c in cams:
+            conns[f"/{c}/image_raw"] = w.add_connection(f"/{c}/image_raw", Image.__msgtype__, typestore=ts)
+            conns[f"/{c}/camera_info"] = w.add_connection(f"/{c}/camera_info", CameraInfo.__msgtype__, typestore=ts)
+        if seq.has_depth:
+            conns["/cam0/depth"] = w.add_connection("/cam0/depth", Image.__msgtype__, typestore=ts)
+        if gt is not None:
+            conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
+            conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
+        if seq.has_stereo:
+            conns["/tf_static"] = w.add_connection("/tf_static", TFMessage.__msgtype__, typestore=ts)
+            tfs = TFMessage(transforms=[TransformStamped(header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(seq.T_cam0_cam1))])
+            w.write(conns["/tf_static"], _ns(stamps[0]), ts.serialize_cdr(tfs, TFMessage.__msgtype__))
+
+        def put(topic: str, t_s: float, msg) -> None:
+            w.write(conns[topic], _ns(t_s), ts.serialize_cdr(msg, msg.__msgtype__))
+
+        for i in range(seq.frame_count):
+            t_s = float(stamps[i])
+            for c in cams:
+                cam = seq.camera_model(c)
+                tx = 0.0 if c == "cam0" else float(seq.T_cam0_cam1[0, 3]) / 1000.0
+                put(f"/{c}/image_raw", t_s, image_msg(seq.image(i, c), t_s, c))
+                put(f"/{c}/camera_info", t_s, cam_info(cam, t_s, c, tx))
+            if seq.has_depth:
+                put("/cam0/depth", t_s, image_msg((seq.depth_mm(i) / 1000.0).astype(np.float32), t_s, "cam0"))
+            if gt is not None:
+                Tw = gt[1][i]
+                tr = transform(Tw)
+                put("/groundtruth/pose", t_s, PoseStamped(header=header(t_s, "world"), pose=Pose(
+                    position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z), orientation=tr.rotation)))
+                put("/tf", t_s, TFMessage(transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]))
+    return out
+
+
+def _yaml_dump(path: Path, data: dict) -> None:
+    import yaml
+
+    atomic_write_text(path, "%YAML:1.0\n" + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+
+
+def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
+    """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
+    out = Path(out)
+    _check_out(out)
+    mav = out / "mav0"
+    stamps = seq.timestamps_s
+    cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
+    for c in cams:
+        d = mav / c / "data"
+        d.mkdir(parents=True, exist_ok=True)
+        rows = []
+        for i in range(seq.frame_count):
+            ns = _ns(float(stamps[i]))
+            src = seq.image_path(i, c)
+            seq.image(i, c)  # validates the frame before it is copied
+            shutil.copyfile(src, d / f"{ns}.png")
+            rows.append((ns, f"{ns}.png"))
+        with open(mav / c / "data.csv", "w", newline="") as fh:
+            fh.write("#timestamp [ns],filename\n")
+            csv.writer(fh, lineterminator="\n").writerows(rows)
+        cam = seq.camera_model(c)
+        T_BS = np.eye(4) if c == "cam0" else np.asarray(seq.T_cam0_cam1, dtype=float).copy()
+        T_BS[:3, 3] /= 1000.0
+        _yaml_dump(
+            mav / c / "sensor.yaml",
+            {
+                "sensor_type": "camera",
+                "comment": f"floorbench {seq.meta.get('name', '')} {c}; body frame = cam0",
+                "T_BS": {"cols": 4, "rows": 4, "data": [float(v) for v in T_BS.ravel()]},
+                "rate_hz": float(seq.fps),
+                "resolution": [cam.width_px, cam.height_px],
+                "camera_model": "pinhole",
+                "intrinsics": [cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px],
+                "distortion_model": "radial-tangential",
+                "distortion_coefficients": [float(v) for v in cam.distortion[:4]],
+            },
+        )
+    gt = seq.groundtruth()
+    if gt is not None:
+        g = mav / "state_groundtruth_estimate0"
+        g.mkdir(parents=True, exist_ok=True)
+        t, Ts = gt
+        p = Ts[:, :3, 3] / 1000.0
+        v = np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p)
+        with open(g / "data.csv", "w", newline="") as fh:
+            fh.write(
+                "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
+                "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
+                "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n"
+            )
+            wr = csv.writer(fh, lineterminator="\n")
+            for k in range(len(t)):
+                _, q = xyz_quat_from_T(Ts[k])
+                wr.writerow([_ns(t[k]), *[f"{x:.9f}" for x in p[k]], *[f"{x:.12f}" for x in (q[3], q[0], q[1], q[2])],
+                             *[f"{x:.9f}" for x in v[k]], 0, 0, 0, 0, 0, 0])
+    return out
+
+
+FORMATS = {"rosbag2": export_rosbag2, "euroc": export_euroc}
+
+
+def export_sequence(seq_dir: str | os.PathLike, fmt: str, out: str | os.PathLike) -> Path:
+    """Export the sequence folder ``seq_dir`` in format ``fmt`` (``rosbag2`` or ``euroc``)."""
+    if fmt not in FORMATS:
+        raise FloorbenchError(f"--format {fmt!r}: unknown (known: {', '.join(FORMATS)})")
+    return FORMATS[fmt](Sequence.open(seq_dir), out)
+
+

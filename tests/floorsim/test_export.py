@@ -1,0 +1,93 @@
+"""Exports read back with the libraries that wrote them; poses compared with groundtruth.txt."""
+
+import csv
+
+import numpy as np
+import pytest
+import yaml
+
+from floorsim.export import export_sequence
+from floorvo.camera import CameraModel
+from floorvo.geometry import T_from_xyz_quat, T_world_cam_down
+from floorvo.sequence import Sequence, SequenceWriter
+
+
+@pytest.fixture
+def stereo_depth_seq(tmp_path):
+    cam = CameraModel.from_sensor(40, 30, pixel_pitch_um=120.0)
+    T01 = np.eye(4)
+    T01[0, 3] = 20.0
+    meta = {
+        "camera": cam.to_dict(), "cameras": {"cam1": cam.to_dict()}, "fps": 10.0, "frame_count": 4, "stereo": True,
+        "depth": {"format": "png16"}, "rig": {"height_mm": 100.0, "T_cam0_cam1": T01.tolist()},
+    }
+    w = SequenceWriter(tmp_path / "seq", meta)
+    rng = np.random.default_rng(0)
+    Ts = np.stack([T_world_cam_down(3.0 * i, 0.5 * i, 100.0, 0.02 * i) for i in range(4)])
+    for i in range(4):
+        w.write_frame(i, rng.integers(0, 255, (30, 40), dtype=np.uint8))
+        w.write_frame(i, rng.integers(0, 255, (30, 40), dtype=np.uint8), "cam1")
+        w.write_depth(i, np.full((30, 40), 100.0 + i))
+    w.write_groundtruth(np.arange(4) / 10.0, Ts)
+    return tmp_path / "seq", Ts
+
+
+def test_rosbag2_round_trip(stereo_depth_seq, tmp_path):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    seq_dir, Ts = stereo_depth_seq
+    out = export_sequence(seq_dir, "rosbag2", tmp_path / "bag")
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    poses, images, depth, infos, static = [], {}, [], [], []
+    with Reader(out) as r:
+        for conn, t_ns, raw in r.messages():
+            msg = ts.deserialize_cdr(raw, conn.msgtype)
+            if conn.topic == "/groundtruth/pose":
+                p, q = msg.pose.position, msg.pose.orientation
+                poses.append(T_from_xyz_quat(np.array([p.x, p.y, p.z]) * 1000.0, [q.x, q.y, q.z, q.w]))
+            elif conn.topic.endswith("image_raw"):
+                images.setdefault(conn.topic, []).append(msg.data.reshape(msg.height, msg.width))
+            elif conn.topic == "/cam0/depth":
+                depth.append(np.frombuffer(msg.data.tobytes(), "<f4").reshape(msg.height, msg.width))
+            elif conn.topic == "/cam0/camera_info":
+                infos.append(msg.k.reshape(3, 3))
+            elif conn.topic == "/tf_static":
+                static.append(msg.transforms[0].transform.translation.x)
+    np.testing.assert_allclose(np.stack(poses), Ts, atol=1e-6)
+    seq = Sequence.open(seq_dir)
+    for c in ("cam0", "cam1"):
+        for i, img in enumerate(images[f"/{c}/image_raw"]):
+            np.testing.assert_array_equal(img, seq.image(i, c))
+    np.testing.assert_allclose(depth[2], 0.102, atol=1e-6)  # metres
+    np.testing.assert_allclose(infos[0], seq.camera.K)
+    assert static == [pytest.approx(0.020)]
+
+
+def test_euroc_round_trip(stereo_depth_seq, tmp_path):
+    seq_dir, Ts = stereo_depth_seq
+    out = export_sequence(seq_dir, "euroc", tmp_path / "euroc")
+    rows = list(csv.reader(open(out / "mav0/state_groundtruth_estimate0/data.csv")))[1:]
+    got = []
+    for r in rows:
+        v = [float(x) for x in r]
+        got.append(T_from_xyz_quat(np.array(v[1:4]) * 1000.0, [v[5], v[6], v[7], v[4]]))
+    np.testing.assert_allclose(np.stack(got), Ts, atol=1e-6)
+    assert int(rows[1][0]) == 100_000_000  # 10 fps in nanoseconds
+    text = (out / "mav0/cam1/sensor.yaml").read_text()
+    sensor = yaml.safe_load(text.split("\n", 1)[1])
+    assert sensor["T_BS"]["data"][3] == pytest.approx(0.020)
+    seq = Sequence.open(seq_dir)
+    assert sensor["intrinsics"] == pytest.approx([seq.camera.fx_px, seq.camera.fy_px, seq.camera.cx_px, seq.camera.cy_px])
+    files = [r[1] for r in list(csv.reader(open(out / "mav0/cam0/data.csv")))[1:]]
+    assert len(files) == 4 and (out / "mav0/cam0/data" / files[0]).read_bytes() == seq.image_path(0).read_bytes()
+
+
+def test_export_refuses_existing_output(stereo_depth_seq, tmp_path):
+    from floorvo.errors import FloorbenchError
+
+    seq_dir, _ = stereo_depth_seq
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "x").write_text("x")
+    with pytest.raises(FloorbenchError, match="output exists"):
+        export_sequence(seq_dir, "euroc", tmp_path / "taken")
