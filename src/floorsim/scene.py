@@ -35,6 +35,9 @@ A scene file (``scenes/NAME.toml``)::
     [stereo]
     enabled = false     # cam1, baseline_mm along cam0's x axis
 
+    [depth_noise]
+    model = "none"      # or "structured_light" (floorsim/depthnoise.py)
+
     [trajectory]
     type = "uniform"    # plus that type's parameters
     [trajectory.disturbance]
@@ -55,6 +58,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
 from floorsim.params import from_mapping, rule, to_plain
 from floorsim.trajectories import Trajectory, build_trajectory
@@ -83,7 +87,12 @@ SCENE_SCHEMA_VERSION = 1
 
 @dataclass(frozen=True)
 class CameraSpec:
-    """Camera of the rig (defaults: paper 000, 1/3" CCD, 6 mm lens, 100 mm above the floor)."""
+    """Camera of the rig (defaults: paper 000, 1/3" CCD, 6 mm lens, 100 mm above the floor).
+
+    ``distortion``: OpenCV (k1, k2, p1, p2, k3), applied to the rays, written to
+    sequence.json. ``vignetting``: strength v of the lens falloff: each pixel is scaled
+    by ``1 - v (1 - cos^4 theta)`` (theta: the pixel ray's angle to the optical axis).
+    """
 
     width_px: int = field(default=648, metadata=rule(">=1", "px", hi=8192))
     height_px: int = field(default=494, metadata=rule(">=1", "px", hi=8192))
@@ -91,6 +100,7 @@ class CameraSpec:
     focal_length_mm: float = field(default=6.0, metadata=rule(">0", "mm"))
     height_mm: float = field(default=100.0, metadata=rule(">0", "mm", lo=5.0, hi=2000.0))
     distortion: tuple[float, ...] = ()
+    vignetting: float = field(default=0.0, metadata=rule("[0,1]"))
 
     def model(self) -> CameraModel:
         dist = tuple(self.distortion) + (0.0,) * (5 - len(self.distortion))
@@ -116,7 +126,9 @@ class LightsSpec:
     """Two LED bars on opposite sides of the hood (camera x axis), parallel to the floor.
 
     ``power`` is each bar's total radiant intensity (relative units, split evenly over
-    its ``count`` LEDs); 0 turns the lights off, ``side`` turns one bar off.
+    its ``count`` LEDs); 0 turns the lights off, ``side`` turns one bar off. ``flicker``:
+    the LED power of frame i is multiplied by ``max(0, 1 + flicker * N(0, 1))`` (seeded
+    per frame; the flat-field frame has none).
     """
 
     height_mm: float = field(default=3.0, metadata=rule(">0", "mm"))
@@ -126,11 +138,17 @@ class LightsSpec:
     power: float = field(default=1.0, metadata=rule(">=0", ""))
     side: str = field(default="both", metadata=rule(choices=("both", "left", "right")))
     lobe_exponent: float = field(default=1.0, metadata=rule(">0", ""))
+    flicker: float = field(default=0.0, metadata=rule(">=0", "relative std", hi=1.0))
 
 
 @dataclass(frozen=True)
 class SensorSpec:
-    """Sensor: exposure (0 = auto from the first frame), noise and quantisation."""
+    """Sensor: exposure (0 = auto from the first frame), noise and quantisation.
+
+    ``exposure_ms`` > 0 adds motion blur: the frame integrates ``blur_samples`` sub-frame
+    renders at poses spread evenly over the exposure, centred on the frame time (the
+    ground-truth pose is the one at the centre).
+    """
 
     bit_depth: int = field(default=8, metadata=rule(choices=(8, 16)))
     exposure_gain: float = field(default=0.0, metadata=rule(">=0", "electrons per radiance unit"))
@@ -140,6 +158,8 @@ class SensorSpec:
     read_noise_e: float = field(default=5.0, metadata=rule(">=0", "e-"))
     shot_noise: bool = True
     noise: bool = True
+    exposure_ms: float = field(default=0.0, metadata=rule(">=0", "ms", hi=1000.0))
+    blur_samples: int = field(default=8, metadata=rule(">=1", "", hi=256))
 
 
 @dataclass(frozen=True)
@@ -178,6 +198,7 @@ class Scene:
     sensor: SensorSpec = field(default_factory=SensorSpec)
     render: RenderSpec = field(default_factory=RenderSpec)
     stereo: StereoSpec = field(default_factory=StereoSpec)
+    depth_noise: DepthNoise = field(default_factory=DepthNoise)
     trajectory: dict = field(default_factory=lambda: {"type": "uniform"})
 
     # ------------------------------------------------------------------ derived
@@ -253,7 +274,7 @@ def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:
     """Build and validate a :class:`Scene` from a plain dict (a parsed TOML file)."""
     d = dict(d)
     d.setdefault("name", default_name)
-    nested = {"camera": CameraSpec, "floor": FloorSpec, "lights": LightsSpec, "sensor": SensorSpec, "render": RenderSpec, "stereo": StereoSpec}
+    nested = {"camera": CameraSpec, "floor": FloorSpec, "lights": LightsSpec, "sensor": SensorSpec, "render": RenderSpec, "stereo": StereoSpec, "depth_noise": DepthNoise}
     if "trajectory" in d and not isinstance(d["trajectory"], Mapping):
         raise ConfigError(f"trajectory: must be a table, got {d['trajectory']!r}")
     floor = d.get("floor")

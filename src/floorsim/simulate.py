@@ -26,6 +26,7 @@ import numpy as np
 
 import floorsim
 import floorvo
+from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import sample_material
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
@@ -100,13 +101,43 @@ def plan_tiles(T_world_cam: np.ndarray, camera: CameraModel, tile_length_mm: flo
     return tiles
 
 
-def _leds(scene: Scene, T_world_cam: np.ndarray):
+def _leds(scene: Scene, T_world_cam: np.ndarray, frame_index: int | None = None):
+    """The rig's LEDs at pose ``T_world_cam``; ``frame_index`` applies that frame's flicker."""
     from floorsim.render import LedArray
 
     pos, aim = scene_T_world_leds(scene, T_world_cam)
     n_per_bar = scene.lights.count
-    inten = np.full(len(pos), scene.lights.power * LED_INTENSITY_UNIT / n_per_bar)
+    power = scene.lights.power
+    if frame_index is not None and scene.lights.flicker > 0:
+        rng = np.random.default_rng([int(scene.seed), int(frame_index), 0xF11C])
+        power *= max(0.0, 1.0 + scene.lights.flicker * float(rng.standard_normal()))
+    inten = np.full(len(pos), power * LED_INTENSITY_UNIT / n_per_bar)
     return LedArray(pos, aim, inten, scene.lights.lobe_exponent)
+
+
+def vignetting_factor(cam: CameraModel, strength: float) -> np.ndarray | None:
+    """(H, W) lens falloff ``1 - v (1 - cos^4 theta)``, or None when ``strength`` is 0."""
+    if strength <= 0:
+        return None
+    u, v = np.meshgrid(np.arange(cam.width_px, dtype=float), np.arange(cam.height_px, dtype=float))
+    d = cam.unproject(np.stack([u.ravel(), v.ravel()], 1), 1.0)
+    cos4 = (1.0 / np.linalg.norm(d, axis=1)) ** 4
+    return (1.0 - strength * (1.0 - cos4)).reshape(cam.height_px, cam.width_px).astype(np.float32)
+
+
+def _render_frame(renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: np.ndarray | None, seed: int) -> np.ndarray:
+    """Radiance of frame i for the camera at ``T_rig_cam`` from cam0 (None: cam0), with motion blur."""
+    t_i = i / traj.fps
+    exp_s = scene.sensor.exposure_ms / 1000.0
+    n = scene.sensor.blur_samples if exp_s > 0 else 1
+    times = [t_i] if n == 1 else list(t_i + exp_s * ((np.arange(n) + 0.5) / n - 0.5))
+    acc = None
+    for k, t in enumerate(times):
+        T0 = traj.pose_at(t)[0]
+        Tc = T0 if T_cam_rig is None else T0 @ T_cam_rig
+        rad = renderer.render(Tc, _leds(scene, T0, i), scene.render.spp, seed=_frame_seed(seed, i * 1009 + k if n > 1 else i))
+        acc = rad.astype(np.float64) if acc is None else acc + rad
+    return (acc / len(times)).astype(np.float32)
 
 
 def _versions() -> dict:
@@ -203,13 +234,19 @@ def render_sequence(
     if gain <= 0 and sensor_path.is_file():
         gain = float(json.loads(sensor_path.read_text())["gain_e_per_unit"])
     margin = 2.0 + 2 * spacing
+    if scene.sensor.exposure_ms > 0 and len(T_all) > 1:
+        # Motion blur reaches poses up to half an exposure away from the frame's.
+        step_mm = float(np.max(np.linalg.norm(np.diff(T_all[:, :3, 3], axis=0), axis=1)))
+        margin += step_mm * scene.sensor.exposure_ms / 1000.0 * scene.fps
     # The tile must hold what both cameras see: widen the margin by the baseline.
     tiles = plan_tiles(T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm))
     if gain <= 0:
         # Exposure from the first frame's radiance (rendered again here if it is on disk).
         first_box = next(b for idx, b in tiles if 0 in idx)
         _load_tile(renderer, scene, footprint_bounds_mm(T_all[:1], cam, margin), spacing)
-        rad0 = renderer.render(T_all[0], _leds(scene, T_all[0]), scene.render.spp, seed=_frame_seed(scene.seed, 0))
+        rad0 = _render_frame(renderer, scene, traj, 0, None, scene.seed)
+        vig0 = vignetting_factor(cam, scene.camera.vignetting)
+        rad0 = rad0 if vig0 is None else rad0 * vig0
         gain = exposure_gain(rad0, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
         if gain <= 0:
             raise ConfigError(f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly")
@@ -219,6 +256,7 @@ def render_sequence(
 
     done = total - len(missing)
     missing_set = set(missing)
+    vig = vignetting_factor(cam, scene.camera.vignetting)
     t0 = time.perf_counter()
     for idx, box in tiles:
         todo = [i for i in idx if i in missing_set]
@@ -226,13 +264,16 @@ def render_sequence(
             continue
         _load_tile(renderer, scene, box, spacing)
         for i in todo:
-            leds = _leds(scene, T_all[i])
-            rad = renderer.render(T_all[i], leds, scene.render.spp, seed=_frame_seed(scene.seed, i))
+            rad = _render_frame(renderer, scene, traj, i, None, scene.seed)
+            if vig is not None:
+                rad = rad * vig
             if T_all_cam1 is not None:
-                rad1 = renderer.render(T_all_cam1[i], leds, scene.render.spp, seed=_frame_seed(scene.seed + 1, i))
+                rad1 = _render_frame(renderer, scene, traj, i, T_01, scene.seed + 1)
+                if vig is not None:
+                    rad1 = rad1 * vig
                 writer.write_frame(i, sensor.capture(rad1, scene.seed + 1, i, noise=scene.sensor.noise), "cam1")
             if scene.render.depth:
-                writer.write_depth(i, renderer.depth(T_all[i]))
+                writer.write_depth(i, apply_depth_noise(renderer.depth(T_all[i]), scene.depth_noise, scene.seed, i))
             # cam0 last: its frame on disk marks the whole frame as done for a resume.
             writer.write_frame(i, sensor.capture(rad, scene.seed, i, noise=scene.sensor.noise))
             done += 1
@@ -267,6 +308,9 @@ def render_flatfield(
     box = footprint_bounds_mm(pose[None], cam, 5.0)
     renderer.load_flat(*box, albedo=scene.render.flatfield_albedo)
     rad = renderer.render(pose, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0)
+    vig = vignetting_factor(cam, scene.camera.vignetting)
+    if vig is not None:
+        rad = rad * vig
     renderer.scene = None
     flat16 = SensorModel(sensor.gain_e_per_unit, sensor.full_well_e, 0.0, False, 16).capture(rad, 0, 0, noise=False)
     writer.write_calib(name, flat16)
