@@ -216,7 +216,9 @@ class FloorRenderer:
         """Scalars as opaque 1-lane JIT variables: changing them between frames reuses the compiled kernel."""
         return [self.dr.opaque(self.mi.Float, float(v)) for v in values]
 
-    def render(self, T_world_cam: np.ndarray, leds: LedArray, spp: int = 4, seed: int = 0, every_led: bool = False) -> np.ndarray:
+    def render(
+        self, T_world_cam: np.ndarray, leds: LedArray, spp: int = 4, seed: int = 0, every_led: bool = False, shadows: bool = True
+    ) -> np.ndarray:
         """Radiance image (H, W) float32 of the loaded floor from pose ``T_world_cam`` (mm).
 
         ``spp`` stratified primary samples per pixel (``ldsampler`` when spp is a power of
@@ -229,7 +231,8 @@ class FloorRenderer:
           whole bar is visible or hidden; noise remains only in penumbrae.
         - ``every_led=True``: a shadow ray to every LED (the reference estimator).
 
-        Deterministic for the same inputs (all samples derive from ``seed``).
+        ``shadows=False`` drops the shadow rays (V = 1: shading of the relief only; for
+        studies and tests). Deterministic for the same inputs (all samples derive from ``seed``).
         """
         if self.scene is None:
             raise RuntimeError("FloorRenderer.render: no floor loaded")
@@ -282,7 +285,10 @@ class FloorRenderer:
             led_terms.append((int(bars[k]), lp, f))
 
         L = mi.Float(0.0)
-        if every_led:
+        if not shadows:
+            for _, _, f in led_terms:
+                L += f
+        elif every_led:
             for _, lp, f in led_terms:
                 occluded = self.scene.ray_test(si.spawn_ray_to(lp), f > 0)
                 L += dr.select(occluded, 0.0, f)
