@@ -3,8 +3,9 @@
 For each live frame, independently of every earlier frame (so a kidnapped robot is placed
 again on its first frame after landing):
 
-1. **Retrieve** candidate keyframes with the bag of binary words
-   (:mod:`floorvo.mapping.retrieval`), so the cost grows slowly with the map size.
+1. **Retrieve** candidate keyframes (:mod:`floorvo.mapping.retrieval`): by descriptor
+   voting through an LSH index (default) or a bag of binary words, so the cost grows
+   slowly with the map size.
 2. **Fit** eq. (5) between the live frame and each candidate from matched features.
 3. **Verify** by content similarity (eqs. 20-23) the candidates with the most rigid
    inliers; the most similar keyframe is kept (the paper's "most similar keyframe").
@@ -45,7 +46,8 @@ class LocalizeConfig:
     ``verify_inlier_ratio`` times the best candidate's inliers; ``min_block_fraction``: the
     share of the overlap's sub-blocks that must pass the mismatch check (eq. 22);
     ``min_corr``: least correlation coefficient (eq. 23); ``min_blocks``: least matched
-    sub-blocks."""
+    sub-blocks; ``retrieval``: ``vote`` (descriptor voting through an LSH index) or ``bow``
+    (tf-idf bag of binary words)."""
 
     n_candidates: int = field(default=3, metadata={"min": 1, "max": 1000})
     n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
@@ -53,6 +55,7 @@ class LocalizeConfig:
     min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
     min_blocks: int = field(default=20, metadata={"min": 1})
     verify_inlier_ratio: float = field(default=0.7, metadata={"min": 0.0, "max": 1.0})
+    retrieval: str = field(default="vote", metadata={"choices": ("vote", "bow")})
 
     def __post_init__(self) -> None:
         from floorvo.estimators.base import validate_config
@@ -89,7 +92,7 @@ class Localizer:
         self.config = config or LocalizeConfig()
         self.flatfield = flatfield
         self.sim_cfg = gmap.config.similarity
-        _ = gmap.index  # build the inverted index now, not on the first query
+        self.index = gmap.vote_index if self.config.retrieval == "vote" else gmap.index  # built now, not on the first query
         if self.config.n_verify > self.config.n_candidates:
             raise ConfigError(f"localize.n_verify = {self.config.n_verify}: must be <= n_candidates ({self.config.n_candidates})")
 
@@ -105,7 +108,7 @@ class Localizer:
         feats = detect_features(p, sc)
         small = downscale(p, sc.sim_scale)
         t1 = time.perf_counter()
-        ids, _ = m.index.query(feats.desc, cfg.n_candidates)
+        ids, _ = self.index.query(feats.desc, cfg.n_candidates)
         fits = []
         for k in ids:
             # Eq. (5): pixels of the live frame (j) onto keyframe k (i).

@@ -35,7 +35,7 @@ from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
-from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex
+from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
 from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
 
 __all__ = ["MAP_SCHEMA_VERSION", "MapConfig", "GlobalMap", "build_map", "build_map_from_images", "load_map", "save_map"]
@@ -104,6 +104,7 @@ class GlobalMap:
     n_mapping_frames: int = 0
     source: str = ""
     _index: KeyframeIndex | None = field(default=None, repr=False)
+    _vote_index: VoteIndex | None = field(default=None, repr=False)
 
     @property
     def n_keyframes(self) -> int:
@@ -114,6 +115,12 @@ class GlobalMap:
         if self._index is None:
             self._index = KeyframeIndex(self.vocab, [f.desc for f in self.features])
         return self._index
+
+    @property
+    def vote_index(self) -> VoteIndex:
+        if self._vote_index is None:
+            self._vote_index = VoteIndex([f.desc for f in self.features], ratio=self.config.similarity.ratio)
+        return self._vote_index
 
     @property
     def keyframe_fraction(self) -> float:

@@ -102,3 +102,38 @@ class KeyframeIndex:
         idx = np.argpartition(-scores, k - 1)[:k]
         idx = idx[np.argsort(-scores[idx])]
         return idx, scores[idx]
+
+
+class VoteIndex:
+    """Descriptor voting: approximate nearest neighbours (FLANN LSH, Hamming) of every query
+    descriptor among all keyframe descriptors; each match passing the ratio test votes for
+    its keyframe. A stationary floor texture gives nearly the same word histogram
+    everywhere, so this keeps the descriptors themselves (their exact appearance) rather
+    than their words; LSH keeps the query sublinear in the number of keyframes."""
+
+    def __init__(self, keyframe_desc: list[np.ndarray], ratio: float = 0.8):
+        self.ratio = ratio
+        self.owner = np.concatenate([np.full(len(d), k, np.int64) for k, d in enumerate(keyframe_desc)]) if keyframe_desc else np.zeros(0, np.int64)
+        self.n_keyframes = len(keyframe_desc)
+        self.matcher = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=12, key_size=20, multi_probe_level=0), dict(checks=32))
+        allx = [np.ascontiguousarray(d) for d in keyframe_desc if len(d)]
+        if allx:
+            self.matcher.add([np.concatenate(allx)])
+            self.matcher.train()
+
+    def query(self, desc: np.ndarray, top_k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(keyframe ids (k,), votes (k,))``, most votes first (keyframes with no vote left out)."""
+        if len(desc) == 0 or len(self.owner) == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.float32)
+        votes = np.zeros(self.n_keyframes, np.float32)
+        for m in self.matcher.knnMatch(np.ascontiguousarray(desc), k=2):
+            if len(m) == 2 and m[0].distance < self.ratio * m[1].distance:
+                votes[self.owner[m[0].trainIdx]] += 1.0
+            elif len(m) == 1:
+                votes[self.owner[m[0].trainIdx]] += 1.0
+        k = min(top_k, int((votes > 0).sum()))
+        if k == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.float32)
+        idx = np.argpartition(-votes, k - 1)[:k]
+        idx = idx[np.argsort(-votes[idx])]
+        return idx, votes[idx]
