@@ -142,22 +142,27 @@ def _spots(X, Y, cell_mm, seed, channel, probability, radius_range):
 
 @dataclass(frozen=True)
 class Material:
-    """A registered floor material: ``Params`` (frozen dataclass) and ``sample``."""
+    """A registered floor material: ``Params`` (frozen dataclass) and ``sample``.
+
+    ``specular``: (strength, Blinn-Phong exponent) of a glossy coat on top of the diffuse
+    albedo, or None for a matte floor.
+    """
 
     name: str
     description: str
     Params: type
     sample: Callable[[np.ndarray, np.ndarray, int, Any], tuple[np.ndarray, np.ndarray]]
+    specular: tuple[float, float] | None = None
 
 
 MATERIALS: dict[str, Material] = {}
 
 
-def register_material(name: str, description: str, Params: type):
+def register_material(name: str, description: str, Params: type, specular: tuple[float, float] | None = None):
     """Decorator registering ``sample(x_mm, y_mm, seed, params)`` under ``name``."""
 
     def deco(fn):
-        MATERIALS[name] = Material(name, description, Params, fn)
+        MATERIALS[name] = Material(name, description, Params, fn, specular)
         return fn
 
     return deco
@@ -169,15 +174,45 @@ def get_material(name: str) -> Material:
     return MATERIALS[name]
 
 
+def overlay_dirt(X, Y, seed: int, dirt_density: float, dust_density: float) -> tuple[np.ndarray, np.ndarray]:
+    """(height_mm, albedo factor) of dirt and dust lying on any floor.
+
+    Dirt: dark flat specks 0.1-0.6 mm across, ``dirt_density`` = fraction of 1 mm cells
+    holding one. Dust: fine bright grains 20-60 um high, ``dust_density`` = fraction of
+    0.25 mm cells holding one.
+    """
+    h = np.zeros(np.broadcast(X, Y).shape)
+    f = np.ones_like(h)
+    if dirt_density > 0:
+        spots = _spots(X, Y, 1.0, seed, 901, dirt_density, (0.05, 0.3))
+        f = f * (1.0 - 0.6 * (spots > 0))
+        h = h + 0.005 * spots
+    if dust_density > 0:
+        grains = _spots(X, Y, 0.25, seed, 911, dust_density, (0.02, 0.05))
+        f = f * (1.0 + 0.4 * (grains > 0))
+        h = h + 0.04 * grains
+    return h, f
+
+
 def sample_material(
-    name: str, x_mm: np.ndarray, y_mm: np.ndarray, seed: int, params: Mapping[str, Any] | Any | None = None, relief_scale: float = 1.0
+    name: str,
+    x_mm: np.ndarray,
+    y_mm: np.ndarray,
+    seed: int,
+    params: Mapping[str, Any] | Any | None = None,
+    relief_scale: float = 1.0,
+    dirt_density: float = 0.0,
+    dust_density: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Height (mm) and albedo grids (H, W) of material ``name`` at x (W,) and y (H,)."""
+    """Height (mm) and albedo grids (H, W) of material ``name`` at x (W,) and y (H,), with overlays."""
     mat = get_material(name)
     p = params if isinstance(params, mat.Params) else from_mapping(mat.Params, params, f"floor.{name}")
     X = np.asarray(x_mm, dtype=np.float64)[None, :]
     Y = np.asarray(y_mm, dtype=np.float64)[:, None]
     h, a = mat.sample(X, Y, int(seed), p)
+    if dirt_density > 0 or dust_density > 0:
+        dh, fa = overlay_dirt(X, Y, int(seed), dirt_density, dust_density)
+        h, a = h + dh, a * fa
     h = np.broadcast_to(h, (len(y_mm), len(x_mm))) * relief_scale
     a = np.clip(np.broadcast_to(a, (len(y_mm), len(x_mm))), 0.0, 1.0)
     return h.astype(np.float32), a.astype(np.float32)
@@ -248,3 +283,115 @@ def _concrete(X, Y, seed, p: ConcreteParams):
     h = h - p.pore_depth_mm * pores
     albedo = albedo * (1.0 - 0.35 * pores)
     return h, albedo
+
+
+# ----------------------------------------------------------------------------- wood
+@dataclass(frozen=True)
+class WoodParams:
+    """Wood planks: growth-ring grain along x, grain grooves, plank joints, scratches."""
+
+    base_albedo: float = field(default=0.40, metadata=rule("[0,1]"))
+    grain_period_mm: float = field(default=1.2, metadata=rule(">0", "mm"))
+    grain_contrast: float = field(default=0.3, metadata=rule("[0,1]"))
+    groove_depth_mm: float = field(default=0.012, metadata=rule(">=0", "mm", hi=1.0))
+    plank_width_mm: float = field(default=90.0, metadata=rule(">0", "mm"))
+    scratch_depth_mm: float = field(default=0.01, metadata=rule(">=0", "mm", hi=1.0))
+
+
+@register_material("wood", "wood planks: grain along x, grooves, plank joints, scratches", WoodParams)
+def _wood(X, Y, seed, p: WoodParams):
+    warp = 3.0 * fbm(X * 0.05, Y, 4.0, seed, octaves=3, channel=31)
+    phase = (Y + warp) / p.grain_period_mm
+    ring = 0.5 + 0.5 * np.sin(2 * np.pi * phase)
+    late = ring**4  # dense latewood bands
+    h = -p.groove_depth_mm * late + 0.004 * fbm(X, Y, 0.3, seed, octaves=3, channel=32)
+    albedo = p.base_albedo * (1.0 - p.grain_contrast * late) * (1.0 + 0.08 * fbm(X, Y, 6.0, seed, octaves=2, channel=33))
+    joint_d = np.abs(((Y / p.plank_width_mm) % 1.0) - 0.5) * p.plank_width_mm  # distance from the plank centre
+    joint = np.clip(1.0 - (p.plank_width_mm / 2 - joint_d) / 0.3, 0.0, 1.0)
+    h = h - 0.15 * joint
+    albedo = albedo * (1.0 - 0.6 * joint)
+    if p.scratch_depth_mm > 0:
+        d = _segments_distance(X, Y, 6.0, seed, 34, 1, (1.5, 5.5), 5.9)
+        groove = np.clip(1.0 - d / 0.03, 0.0, 1.0)
+        h = h - p.scratch_depth_mm * groove
+    return h, albedo
+
+
+# ----------------------------------------------------------------------------- asphalt
+@dataclass(frozen=True)
+class AsphaltParams:
+    """Asphalt: dark binder, coarse bright aggregate with high relief."""
+
+    base_albedo: float = field(default=0.12, metadata=rule("[0,1]"))
+    stone_albedo: float = field(default=0.32, metadata=rule("[0,1]"))
+    stone_cell_mm: float = field(default=2.5, metadata=rule(">0", "mm"))
+    relief_mm: float = field(default=0.25, metadata=rule(">=0", "mm", hi=3.0))
+
+
+@register_material("asphalt", "asphalt: coarse aggregate in dark binder, high relief", AsphaltParams)
+def _asphalt(X, Y, seed, p: AsphaltParams):
+    stones = _spots(X, Y, p.stone_cell_mm, seed, 41, 0.8, (0.4 * p.stone_cell_mm, 0.75 * p.stone_cell_mm))
+    fine = _spots(X, Y, p.stone_cell_mm / 3, seed, 45, 0.6, (0.1, 0.35))
+    h = p.relief_mm * (np.sqrt(stones) + 0.4 * np.sqrt(fine)) + 0.02 * fbm(X, Y, 0.5, seed, octaves=3, channel=42)
+    tone = 0.5 + 0.5 * value_noise(X, Y, p.stone_cell_mm, seed, 43)
+    is_stone = np.maximum(stones > 0, fine > 0)
+    albedo = np.where(is_stone, p.stone_albedo * (0.7 + 0.6 * tone), p.base_albedo * (1.0 + 0.2 * fbm(X, Y, 0.4, seed, channel=44)))
+    return h, albedo
+
+
+# ----------------------------------------------------------------------------- ceramic tile
+@dataclass(frozen=True)
+class TileParams:
+    """Glazed ceramic tiles on a square grid with grout lines: repetitive, a hard case for matching."""
+
+    tile_mm: float = field(default=30.0, metadata=rule(">0", "mm"))
+    grout_mm: float = field(default=2.0, metadata=rule(">0", "mm"))
+    grout_depth_mm: float = field(default=0.4, metadata=rule(">=0", "mm", hi=3.0))
+    tile_albedo: float = field(default=0.7, metadata=rule("[0,1]"))
+    grout_albedo: float = field(default=0.35, metadata=rule("[0,1]"))
+    glaze_relief_mm: float = field(default=0.002, metadata=rule(">=0", "mm", hi=0.1))
+
+
+@register_material("ceramic_tile", "glazed ceramic tiles with grout lines (repetitive texture)", TileParams)
+def _tile(X, Y, seed, p: TileParams):
+    period = p.tile_mm + p.grout_mm
+    gx = np.abs(((X / period) % 1.0) * period - period / 2)
+    gy = np.abs(((Y / period) % 1.0) * period - period / 2)
+    edge = np.maximum(gx, gy) - p.tile_mm / 2  # > 0 inside the grout
+    grout = np.clip(edge / (p.grout_mm / 2) + 0.5, 0.0, 1.0) * (edge > -0.2)
+    h = -p.grout_depth_mm * grout + p.glaze_relief_mm * fbm(X, Y, 0.4, seed, octaves=3, channel=51)
+    h = h - 0.02 * grout * (0.5 + 0.5 * value_noise(X, Y, 0.2, seed, 52))  # sandy grout
+    albedo = p.tile_albedo * (1.0 + 0.02 * fbm(X, Y, 5.0, seed, channel=53)) * (1 - grout) + p.grout_albedo * grout
+    return h, albedo
+
+
+# ----------------------------------------------------------------------------- polished / wet
+@dataclass(frozen=True)
+class PolishedParams:
+    """Polished or wet floor: smooth micro-relief under a glossy coat (highlights at grazing light)."""
+
+    base_albedo: float = field(default=0.35, metadata=rule("[0,1]"))
+    relief_mm: float = field(default=0.003, metadata=rule(">=0", "mm", hi=0.1))
+    mottle: float = field(default=0.1, metadata=rule("[0,1]"))
+
+
+@register_material("polished", "polished or wet floor: smooth, glossy (specular highlights)", PolishedParams, specular=(0.6, 300.0))
+def _polished(X, Y, seed, p: PolishedParams):
+    h = p.relief_mm * fbm(X, Y, 1.5, seed, octaves=4, channel=61)
+    albedo = p.base_albedo * (1.0 + p.mottle * fbm(X, Y, 3.0, seed, octaves=3, channel=62))
+    return h, albedo
+
+
+# ----------------------------------------------------------------------------- featureless
+@dataclass(frozen=True)
+class FeaturelessParams:
+    """A nearly featureless floor (the failure case): uniform albedo, sub-micrometre relief."""
+
+    base_albedo: float = field(default=0.5, metadata=rule("[0,1]"))
+    relief_mm: float = field(default=0.0003, metadata=rule(">=0", "mm", hi=0.01))
+
+
+@register_material("featureless", "nearly featureless floor (the failure case)", FeaturelessParams)
+def _featureless(X, Y, seed, p: FeaturelessParams):
+    h = p.relief_mm * value_noise(X, Y, 2.0, seed, 71)
+    return h, np.full(np.broadcast(X, Y).shape, p.base_albedo)

@@ -149,6 +149,8 @@ class FloorRenderer:
         self.dr = dr
         self.camera = camera
         self.scene = None
+        #: (k_s, Blinn-Phong exponent) of a glossy coat on the floor, or None (matte).
+        self.specular: tuple[float, float] | None = None
         self._samplers: dict = {}
         self.smooth_normals = True
 
@@ -217,7 +219,14 @@ class FloorRenderer:
         return [self.dr.opaque(self.mi.Float, float(v)) for v in values]
 
     def render(
-        self, T_world_cam: np.ndarray, leds: LedArray, spp: int = 4, seed: int = 0, every_led: bool = False, shadows: bool = True
+        self,
+        T_world_cam: np.ndarray,
+        leds: LedArray,
+        spp: int = 4,
+        seed: int = 0,
+        every_led: bool = False,
+        shadows: bool = True,
+        ambient: float = 0.0,
     ) -> np.ndarray:
         """Radiance image (H, W) float32 of the loaded floor from pose ``T_world_cam`` (mm).
 
@@ -233,6 +242,11 @@ class FloorRenderer:
 
         ``shadows=False`` drops the shadow rays (V = 1: shading of the relief only; for
         studies and tests). Deterministic for the same inputs (all samples derive from ``seed``).
+
+        BRDF: Lambertian ``albedo / pi``, plus, when :attr:`specular` = (k_s, e) is set (a
+        glossy or wet floor), a normalised Blinn-Phong coat ``k_s (e + 8) / (8 pi) (n.h)^e``.
+        ``ambient``: irradiance of light leaking under the hood, uniform over the upper
+        hemisphere and unshadowed (adds ``ambient * albedo / pi``).
         """
         if self.scene is None:
             raise RuntimeError("FloorRenderer.render: no floor loaded")
@@ -267,6 +281,9 @@ class FloorRenderer:
         n_shade = si.sh_frame.n if self.smooth_normals else si.n
         nrm = dr.select(dr.dot(n_shade, -ray.d) < 0, -n_shade, n_shade)
         m = float(leds.lobe_exponent)
+        wo = -ray.d
+        diffuse = albedo * (1.0 / np.pi)
+        spec = self.specular
 
         led_terms = []  # (bar, position, unshadowed contribution f_k)
         bars = self._bars(T, leds)
@@ -281,7 +298,12 @@ class FloorRenderer:
             cos_surf = dr.maximum(dr.dot(nrm, wl), 0.0)
             cos_led = dr.maximum(-(wl.x * ax + wl.y * ay + wl.z * az), 0.0)  # emission profile cos^m
             lobe = cos_led if m == 1.0 else dr.power(cos_led, m)
-            f = dr.select(valid, ik * lobe * cos_surf / r2, 0.0)
+            brdf = diffuse
+            if spec is not None:
+                ks, e = float(spec[0]), float(spec[1])
+                hv = dr.normalize(wl + wo)
+                brdf = brdf + ks * (e + 8.0) / (8.0 * np.pi) * dr.power(dr.maximum(dr.dot(nrm, hv), 0.0), e)
+            f = dr.select(valid, ik * lobe * cos_surf / r2 * brdf, 0.0)
             led_terms.append((int(bars[k]), lp, f))
 
         L = mi.Float(0.0)
@@ -309,7 +331,8 @@ class FloorRenderer:
                     found |= pick
                 occluded = self.scene.ray_test(si.spawn_ray_to(chosen), F > 0)
                 L += dr.select(occluded, 0.0, F)
-        L = L * albedo * (1.0 / np.pi)
+        if ambient > 0:
+            L += dr.select(valid, float(ambient) * diffuse, 0.0)
         img = dr.block_sum(L, spp) * (1.0 / spp)
         return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
 

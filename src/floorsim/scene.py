@@ -111,13 +111,16 @@ class CameraSpec:
 
 @dataclass(frozen=True)
 class FloorSpec:
-    """The floor: a registered material, its parameters, and how finely it is meshed."""
+    """The floor: a registered material, its parameters, overlays of dirt and dust (their
+    densities: fraction of cells holding a speck or grain), and how finely it is meshed."""
 
     material: str = "vinyl"
     seed: int | None = None
     relief_scale: float = field(default=1.0, metadata=rule(">=0", "", hi=100.0))
     spacing_mm: float | None = field(default=None, metadata=rule(">0", "mm"))
     tile_length_mm: float = field(default=240.0, metadata=rule(">0", "mm", lo=20.0))
+    dirt_density: float = field(default=0.0, metadata=rule("[0,1]"))
+    dust_density: float = field(default=0.0, metadata=rule("[0,1]"))
     params: dict = field(default_factory=dict)
 
 
@@ -128,7 +131,9 @@ class LightsSpec:
     ``power`` is each bar's total radiant intensity (relative units, split evenly over
     its ``count`` LEDs); 0 turns the lights off, ``side`` turns one bar off. ``flicker``:
     the LED power of frame i is multiplied by ``max(0, 1 + flicker * N(0, 1))`` (seeded
-    per frame; the flat-field frame has none).
+    per frame; the flat-field frame has none). ``ambient_leak``: light leaking under the
+    hood, a uniform unshadowed irradiance given as a fraction of the LEDs' irradiance on a
+    flat floor under the camera.
     """
 
     height_mm: float = field(default=3.0, metadata=rule(">0", "mm"))
@@ -139,6 +144,7 @@ class LightsSpec:
     side: str = field(default="both", metadata=rule(choices=("both", "left", "right")))
     lobe_exponent: float = field(default=1.0, metadata=rule(">0", ""))
     flicker: float = field(default=0.0, metadata=rule(">=0", "relative std", hi=1.0))
+    ambient_leak: float = field(default=0.0, metadata=rule(">=0", "", hi=10.0))
 
 
 @dataclass(frozen=True)

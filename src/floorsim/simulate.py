@@ -27,7 +27,7 @@ import numpy as np
 import floorsim
 import floorvo
 from floorsim.depthnoise import apply_depth_noise
-from floorsim.materials import sample_material
+from floorsim.materials import get_material, sample_material
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
@@ -115,6 +115,22 @@ def _leds(scene: Scene, T_world_cam: np.ndarray, frame_index: int | None = None)
     return LedArray(pos, aim, inten, scene.lights.lobe_exponent)
 
 
+def ambient_irradiance(scene: Scene, T_world_cam: np.ndarray) -> float:
+    """Irradiance of the ambient leak: ``lights.ambient_leak`` x the LEDs' irradiance on a
+    flat floor at the point under the camera (unshadowed, same units as the renderer)."""
+    if scene.lights.ambient_leak <= 0:
+        return 0.0
+    leds = _leds(scene, T_world_cam)
+    T = np.asarray(T_world_cam, dtype=float)
+    target = np.array([T[0, 3], T[1, 3], 0.0])
+    d = leds.positions_mm - target
+    r = np.linalg.norm(d, axis=1)
+    w = d / r[:, None]
+    cos_surf = np.maximum(w[:, 2], 0.0)
+    cos_led = np.maximum(-(w * leds.aim).sum(axis=1), 0.0) ** leds.lobe_exponent
+    return float(scene.lights.ambient_leak * np.sum(leds.intensity * cos_led * cos_surf / r**2))
+
+
 def vignetting_factor(cam: CameraModel, strength: float) -> np.ndarray | None:
     """(H, W) lens falloff ``1 - v (1 - cos^4 theta)``, or None when ``strength`` is 0."""
     if strength <= 0:
@@ -135,7 +151,9 @@ def _render_frame(renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: n
     for k, t in enumerate(times):
         T0 = traj.pose_at(t)[0]
         Tc = T0 if T_cam_rig is None else T0 @ T_cam_rig
-        rad = renderer.render(Tc, _leds(scene, T0, i), scene.render.spp, seed=_frame_seed(seed, i * 1009 + k if n > 1 else i))
+        rad = renderer.render(
+            Tc, _leds(scene, T0, i), scene.render.spp, seed=_frame_seed(seed, i * 1009 + k if n > 1 else i), ambient=ambient_irradiance(scene, T0)
+        )
         acc = rad.astype(np.float64) if acc is None else acc + rad
     return (acc / len(times)).astype(np.float32)
 
@@ -159,8 +177,10 @@ def _load_tile(renderer, scene: Scene, box, spacing: float) -> None:
     j0, j1 = int(np.floor(ymin / spacing)), int(np.ceil(ymax / spacing))
     xs = np.arange(i0, i1 + 1) * spacing
     ys = np.arange(j0, j1 + 1) * spacing
-    h, a = sample_material(scene.floor.material, xs, ys, scene.floor_seed, scene.floor.params, scene.floor.relief_scale)
+    f = scene.floor
+    h, a = sample_material(f.material, xs, ys, scene.floor_seed, f.params, f.relief_scale, f.dirt_density, f.dust_density)
     renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
+    renderer.specular = get_material(f.material).specular
 
 
 def render_sequence(
@@ -307,7 +327,9 @@ def render_flatfield(
     pose = T_world_cam if cam_pose is None else cam_pose
     box = footprint_bounds_mm(pose[None], cam, 5.0)
     renderer.load_flat(*box, albedo=scene.render.flatfield_albedo)
-    rad = renderer.render(pose, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0)
+    specular, renderer.specular = renderer.specular, None  # the calibration target is matte
+    rad = renderer.render(pose, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0, ambient=ambient_irradiance(scene, T_world_cam))
+    renderer.specular = specular
     vig = vignetting_factor(cam, scene.camera.vignetting)
     if vig is not None:
         rad = rad * vig

@@ -80,3 +80,37 @@ def test_depth_noise_follows_its_formula():
     step[:, 5:] = 150.0
     edged = apply_depth_noise(step, DepthNoise(model="structured_light", sigma_px=0.0), seed=0, frame_index=0)
     assert np.all(edged[:, 5] == 0) and np.all(edged[:, 2] > 0)
+
+
+@render
+def test_ambient_leak_raises_the_dark_level(tmp_path):
+    kw = {"trajectory.distance_mm": 4.0, "sensor.noise": False}
+    dark = render_sequence(tiny_scene(**kw), tmp_path / "dark")
+    g = _gain(dark)
+    leak = render_sequence(tiny_scene(**kw, **{"lights.ambient_leak": 0.5, "sensor.exposure_gain": g}), tmp_path / "leak")
+    a = Sequence.open(dark).image(0).astype(float)
+    b = Sequence.open(leak).image(0).astype(float)
+    lo = a < np.percentile(a, 10)  # the darkest pixels (shadows, image centre)
+    assert (b[lo] - a[lo]).mean() > 3.0
+    assert np.percentile(b, 1) > np.percentile(a, 1)
+
+
+@render
+def test_specular_floor_highlights_move_with_the_led(tmp_path):
+    """A glossy floor lit by one bar shows a highlight on the far side of the image (mirror
+    direction); switching to the other bar moves it to the other side. A matte floor does not."""
+    peaks = {}
+    for mat in ("polished", "featureless"):
+        for side in ("left", "right"):
+            kw = {"floor.material": mat, "lights.side": side, "trajectory.distance_mm": 4.0, "sensor.noise": False}
+            seq = Sequence.open(render_sequence(tiny_scene(**kw), tmp_path / f"{mat}-{side}"))
+            c = seq.image(0).astype(float) / np.maximum(seq.flatfield().astype(float), 1)
+            cols = c[30:94].mean(axis=0)
+            peaks[mat, side] = (int(np.argmax(cols[10:-10])) + 10, float(cols.max() / np.median(cols)))
+    w = 162
+    # Light from the left reflects towards the camera on the right half, and vice versa.
+    assert peaks["polished", "left"][0] > w / 2 and peaks["polished", "right"][0] < w / 2
+    # The mirror point of a 3 mm-high LED lies just beyond the image edge: inside the image
+    # the glossy lobe's flank raises the far side, which the matte floor does not show.
+    assert peaks["polished", "left"][1] > peaks["featureless", "left"][1] + 0.1
+    assert peaks["polished", "right"][1] > peaks["featureless", "right"][1] + 0.1
