@@ -52,7 +52,7 @@ def test_bad_files_give_one_line_and_exit_1(tmp_path):
     bad.write_text('name = "bad"\n[camera]\nheight_mm = 100\nbogus = 1\n[trajectory]\ntype = "uniform"\n')
     r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", str(bad), "-o", str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 1
-    assert r.stderr.strip().splitlines()[-1] == "floorsim: error: bad.toml: camera.bogus: unknown key (known: distortion, focal_length_mm, height_mm, height_px, pixel_pitch_um, width_px)"
+    assert r.stderr.strip().splitlines()[-1] == "floorsim: error: bad.toml: camera.bogus: unknown key (known: distortion, focal_length_mm, height_mm, height_px, pixel_pitch_um, vignetting, width_px)"
     assert "Traceback" not in r.stderr
     broken = tmp_path / "broken.toml"
     broken.write_text("name = \n")
