@@ -137,8 +137,20 @@ def supported_estimators(seq_dir: str | os.PathLike, names: SequenceT[str] | Non
         missing = _requires(n) - have
         if missing:
             skipped[n] = "needs " + " and ".join(sorted(missing))
-        else:
-            ok.append(n)
+            continue
+        if names is None:
+            # Default selection: leave out estimators that cannot run with their default
+            # configuration (e.g. one that needs a prebuilt map); named ones fail visibly.
+            try:
+                from floorvo.run import build_estimator
+
+                build_estimator(seq, n)
+            except FloorbenchError as exc:
+                skipped[n] = f"not runnable with its default configuration: {exc}"
+                continue
+            except ImportError:
+                pass
+        ok.append(n)
     return ok, skipped
 
 
@@ -330,7 +342,7 @@ def run_bench(
             names, skipped = supported_estimators(seq_dir, estimators)
             if rep == 0:
                 for n, why in skipped.items():
-                    notes.append(f"{label}: {n} skipped ({why}; the sequence lacks it)")
+                    notes.append(f"{label}: {n} skipped ({why})")
                     log.warning("scene %s: estimator %s skipped: %s", label, n, why)
             for name in names:
                 run_dir = out_dir / "runs" / label / name / f"rep{rep}"

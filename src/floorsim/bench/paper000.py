@@ -28,6 +28,7 @@ from typing import Any, Callable, Mapping, Sequence as SequenceT
 import numpy as np
 
 from floorsim.trajectories import paper000_subsequences
+from floorvo.errors import FloorbenchError
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +97,7 @@ class Paper000Result:
     summary: list[dict[str, Any]]
     curves: dict
     out_dir: Path
+    skipped: list = dataclasses.field(default_factory=list)
 
     def report_section(self, rep) -> None:
         _report(self, rep)
@@ -137,7 +139,14 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
             log.warning("paper 000: the strip of %d frames is too short for any %s run", seq.frame_count, model)
     total = sum(len(s) for _, s in plans) * sum(max(1, len(matching_modes(e)[1])) for e in estimators)
     done = 0
+    skipped: list[str] = []
     for name in estimators:
+        try:
+            run_subsequence(seq, name, [0, 1], (estimator_overrides or {}).get(name), images)
+        except FloorbenchError as exc:
+            skipped.append(f"{name}: {exc}")
+            log.warning("paper 000: %s skipped: %s", name, exc)
+            continue
         field, modes = matching_modes(name)
         for mode in modes or [None]:
             over = dict((estimator_overrides or {}).get(name, {}))
@@ -172,7 +181,7 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
                         "match_ms_std": float(np.nanstd(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan")})
     write_results_csv(out_dir / "runs.csv", runs)
     write_results_csv(out_dir / "summary.csv", summary)
-    return Paper000Result(runs, summary, curves, out_dir)
+    return Paper000Result(runs, summary, curves, out_dir, skipped)
 
 
 def _report(res: Paper000Result, rep) -> None:
@@ -188,6 +197,8 @@ def _report(res: Paper000Result, rep) -> None:
                             ("measured_mm_mean", "measured mm"), ("measured_mm_std", "std mm"),
                             ("error_mm_rmse", "error rmse mm"), ("error_pct", "|error| %"),
                             ("match_ms_mean", "match ms"), ("match_ms_std", "match std ms")])
+    for line in res.skipped:
+        rep.text(f"skipped {line}")
     labels = sorted({k[0] for k in res.curves})
     models = [m for m in MODELS if any((l, m) in res.curves for l in labels)]
     if not models:
