@@ -75,3 +75,28 @@ def test_robust_iterations_drop_outliers():
 def test_refuses_too_few_points():
     with pytest.raises(ValueError, match="N >= 3"):
         icp_svd(np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+def test_rigid_fit_3d_source_destination_order_on_a_floor_with_weights():
+    """rigid_fit_3d(src, dst): dst = R src + t, exact on coplanar (floor) points; a weight of 0 ignores a pair."""
+    from floorvo.estimators.icp import rigid_fit_3d
+
+    rng = np.random.default_rng(11)
+    src = np.column_stack([rng.uniform(-50, 50, (25, 2)), np.full(25, 100.0)])  # X_cur on the floor plane
+    R = Rotation.from_euler("z", -7.5, degrees=True).as_matrix()
+    t = np.array([-3.0, 12.0, 0.0])
+    dst = _apply(R, t, src)  # X_prev = R X_cur + t
+    R_est, t_est = rigid_fit_3d(src, dst)
+    np.testing.assert_allclose(R_est, R, atol=1e-10)
+    np.testing.assert_allclose(t_est, t, atol=1e-9)
+    dst_bad = dst.copy()
+    dst_bad[0] += [40.0, -25.0, 5.0]
+    w = np.ones(25)
+    w[0] = 0.0
+    R_w, t_w = rigid_fit_3d(src, dst_bad, weights=w)
+    np.testing.assert_allclose(R_w, R, atol=1e-10)
+    np.testing.assert_allclose(t_w, t, atol=1e-9)
+    R_u, _ = rigid_fit_3d(src, dst_bad)  # unweighted, the wrong pair pulls the fit away
+    assert not np.allclose(R_u, R, atol=1e-6)
+    with pytest.raises(ValueError, match="weights"):
+        rigid_fit_3d(src, dst, weights=np.zeros(25))

@@ -15,13 +15,18 @@ floor): W then has rank 2 and the third singular vectors' signs are arbitrary.
 
 :func:`icp_svd_robust` iterates the SVD solution with residual-based rejection (the
 "iterative" ICP of paper 001 with known correspondences).
+
+:func:`rigid_fit_3d` is the same solver in source/destination order
+(``dst_i ~ R src_i + t``), the form the estimators use: with ``src`` the points in the
+current camera and ``dst`` the same floor points in the previous camera, ``(R, t)`` is
+``T_prev_cur``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["icp_svd", "icp_svd_robust"]
+__all__ = ["rigid_fit_3d", "icp_svd", "icp_svd_robust"]
 
 
 def icp_svd(P: np.ndarray, P_prime: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -34,6 +39,8 @@ def icp_svd(P: np.ndarray, P_prime: np.ndarray, weights: np.ndarray | None = Non
     if P.shape != Q.shape or P.ndim != 2 or P.shape[1] != 3 or len(P) < 3:
         raise ValueError(f"icp_svd: need two (N, 3) arrays with N >= 3, got {P.shape} and {Q.shape}")
     w = np.ones(len(P)) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (len(P),) or not np.all(w >= 0) or w.sum() <= 0:
+        raise ValueError(f"icp_svd: weights must be (N,) = ({len(P)},), non-negative, not all zero; got shape {w.shape}")
     w = w / w.sum()
     p = w @ P  # eq. (12)
     p_prime = w @ Q
@@ -45,6 +52,15 @@ def icp_svd(P: np.ndarray, P_prime: np.ndarray, weights: np.ndarray | None = Non
     R = U @ np.diag([1.0, 1.0, d]) @ Vt  # R = U V^T with the reflection check
     t = p - R @ p_prime  # eq. (17): t* = p - R p'
     return R, t
+
+
+def rigid_fit_3d(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(R (3, 3), t (3,))`` minimising ``sum w_i |dst_i - (R src_i + t)|^2`` (eq. (11) of paper 001).
+
+    ``src``, ``dst``: (N, 3) matched points, N >= 3 and not all collinear; ``weights``: (N,)
+    non-negative, None = equal. ``det R = +1`` always (reflection check, see the module docstring).
+    """
+    return icp_svd(dst, src, weights)
 
 
 def icp_svd_robust(
