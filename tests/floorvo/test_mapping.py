@@ -195,6 +195,11 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
 
     write_seq(tmp_path / "mapseq", imgs, poses)
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "map")]) == 0
+    # A surveyed mapping run: keyframes take their ground-truth poses; the chain is compared.
+    meta = json.loads((tmp_path / "map" / "map.json").read_text())
+    assert meta["pose_source"] == "groundtruth" and meta["chain_vs_groundtruth"]["max_mm"] < 0.1
+    for kf in meta["keyframes"]:
+        np.testing.assert_allclose(np.array(kf["T_world_kf"]), poses[kf["frame"]], atol=1e-6)
     # A live sequence: two segments over the lane joined by a teleport, then a foreign frame.
     live_T = [T_world_cam_down(-30.0 + 3 * i, 5.0, H_MM, 1.0) for i in range(3)]
     live_T += [T_world_cam_down(40.0 - 3 * i, -6.0, H_MM, -2.0) for i in range(3)]
@@ -219,3 +224,5 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     # Errors are one line: a missing map, an unknown key.
     assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "nomap"), "-o", str(tmp_path / "r3")]) == 1
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1
+    assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "poses=survey"]) == 1
+    assert MapConfig.from_overrides({"poses": "chain"}).poses == "chain"

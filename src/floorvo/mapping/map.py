@@ -7,7 +7,8 @@ for retrieval, the camera model, the camera height and every parameter used.
 On disk a map is a folder::
 
     MAP/map.json        schema_version, format, camera, height_mm, parameters, keyframe
-                        frame indices, timestamps and poses (T_world_kf, mm), sha256 of:
+                        frame indices, timestamps and poses (T_world_kf, mm), pose_source
+                        ("groundtruth" or "chain"), chain_vs_groundtruth, sha256 of:
     MAP/keyframes.npz   images (K, h, w) uint8, kp_xy_px (M, 2) float32, kp_desc (M, 32)
                         uint8, kp_offsets (K + 1,) int64, vocab_words (V, 32) uint8,
                         vocab_idf (V,) float32, T_world_kf (K, 4, 4) float64
@@ -45,6 +46,8 @@ log = logging.getLogger(__name__)
 #: Version of the map folder format; :func:`load_map` refuses any other.
 MAP_SCHEMA_VERSION = 1
 MAP_FORMAT = "floorbench-keyframe-map"
+#: Values of ``MapConfig.poses``.
+POSE_SOURCES = ("groundtruth", "chain")
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,11 @@ class MapConfig:
     keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
     vocab_words: int = 512
     seed: int = 0
+    #: Keyframe poses: ``"groundtruth"`` takes each keyframe's ground-truth pose when the
+    #: mapping sequence has one (a map is built on a surveyed run, so the surveyed poses are
+    #: the better map; the eq. (24) chain is still computed and its disagreement recorded),
+    #: and falls back to the chain otherwise; ``"chain"`` always uses eq. (24).
+    poses: str = "groundtruth"
 
     @classmethod
     def from_overrides(cls, overrides: dict[str, str] | None) -> "MapConfig":
@@ -64,9 +72,10 @@ class MapConfig:
         kf_fields = {f: type(getattr(KeyframeConfig(), f)) for f in asdict(KeyframeConfig())}
         for key, value in (overrides or {}).items():
             group, _, name = key.rpartition(".")
-            table = {"similarity": (sim, sim_fields), "keyframes": (kf, kf_fields), "": (top, {"vocab_words": int, "seed": int})}
+            table = {"similarity": (sim, sim_fields), "keyframes": (kf, kf_fields),
+                     "": (top, {"vocab_words": int, "seed": int, "poses": str})}
             if group not in table or name not in table[group][1]:
-                raise ConfigError(f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed)")
+                raise ConfigError(f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed, poses)")
             dest, types = table[group]
             try:
                 dest[name] = types[name](value)
@@ -75,14 +84,18 @@ class MapConfig:
         cfg = cls(SimilarityConfig(**sim), KeyframeConfig(**kf), **top)
         if cfg.vocab_words < 2:
             raise ConfigError(f"map vocab_words = {cfg.vocab_words}: must be >= 2")
+        if cfg.poses not in POSE_SOURCES:
+            raise ConfigError(f"map poses = {cfg.poses!r}: must be one of {', '.join(POSE_SOURCES)}")
         return cfg
 
     def to_dict(self) -> dict:
-        return {"similarity": asdict(self.similarity), "keyframes": asdict(self.keyframes), "vocab_words": self.vocab_words, "seed": self.seed}
+        return {"similarity": asdict(self.similarity), "keyframes": asdict(self.keyframes), "vocab_words": self.vocab_words,
+                "seed": self.seed, "poses": self.poses}
 
     @classmethod
     def from_dict(cls, d: dict) -> "MapConfig":
-        return cls(SimilarityConfig(**d["similarity"]), KeyframeConfig(**d["keyframes"]), int(d["vocab_words"]), int(d.get("seed", 0)))
+        return cls(SimilarityConfig(**d["similarity"]), KeyframeConfig(**d["keyframes"]), int(d["vocab_words"]), int(d.get("seed", 0)),
+                   str(d.get("poses", "chain")))
 
 
 @dataclass
@@ -103,6 +116,11 @@ class GlobalMap:
     vocab: BinaryVocabulary
     n_mapping_frames: int = 0
     source: str = ""
+    #: ``"groundtruth"`` or ``"chain"`` (eq. 24): where ``T_world_kf`` came from.
+    pose_source: str = "chain"
+    #: When ground truth was at hand: the eq. (24) chain against it, ``{"max_mm", "rms_mm",
+    #: "max_yaw_rad"}`` over the keyframes (a measure of the map's own drift); else empty.
+    chain_vs_groundtruth: dict = field(default_factory=dict)
     _index: KeyframeIndex | None = field(default=None, repr=False)
     _vote_index: VoteIndex | None = field(default=None, repr=False)
 
@@ -135,6 +153,7 @@ def build_map_from_images(
     *,
     timestamps_s: np.ndarray | None = None,
     T_world_first: np.ndarray | None = None,
+    T_world_frames: np.ndarray | None = None,
     flatfield: np.ndarray | None = None,
     config: MapConfig | None = None,
     source: str = "",
@@ -143,7 +162,9 @@ def build_map_from_images(
     """Build a map from frames ``get_image(0 .. n_frames - 1)`` (raw (H, W) images).
 
     ``T_world_first``: pose of frame 0 (the map's world frame; default: downward camera at
-    the origin with yaw 0 at ``height_mm``).
+    the origin with yaw 0 at ``height_mm``). ``T_world_frames``: (n_frames, 4, 4) ground-truth
+    poses (mm) of every frame, or None; with ``config.poses == "groundtruth"`` the keyframes
+    take theirs (see :class:`MapConfig`), and the chain is anchored at frame 0's.
     """
     cfg = config or MapConfig()
     sc = cfg.similarity
@@ -166,31 +187,70 @@ def build_map_from_images(
 
     res = extract_keyframes(lambda i: prepared(i)[0], lambda i: prepared(i)[1], n_frames, camera, height_mm, sc,
                             cfg.keyframes, rng=np.random.default_rng(cfg.seed), on_progress=on_progress)
-    T0 = T_world_cam_down(0.0, 0.0, height_mm) if T_world_first is None else np.asarray(T_world_first, float)
-    T_world_kf = chain_poses(T0, res.T_kf_prev_kf)  # Eq. (24)
+    gt = None if T_world_frames is None else np.asarray(T_world_frames, float).reshape(-1, 4, 4)
+    if gt is not None and len(gt) != n_frames:
+        raise ValueError(f"T_world_frames has {len(gt)} poses for {n_frames} frames")
+    if T_world_first is not None:
+        T0 = np.asarray(T_world_first, float)
+    elif gt is not None:
+        T0 = gt[0]
+    else:
+        T0 = T_world_cam_down(0.0, 0.0, height_mm)
+    T_chain = chain_poses(T0, res.T_kf_prev_kf)  # Eq. (24)
+    pose_source, chain_vs_gt = "chain", {}
+    T_world_kf = T_chain
+    if gt is not None:
+        T_gt = gt[np.asarray(res.indices)]
+        d_mm = np.linalg.norm(T_chain[:, :2, 3] - T_gt[:, :2, 3], axis=1)
+        d_yaw = np.abs(np.angle(np.exp(1j * (np.arctan2(T_chain[:, 1, 0], T_chain[:, 0, 0])
+                                             - np.arctan2(T_gt[:, 1, 0], T_gt[:, 0, 0])))))
+        chain_vs_gt = {"max_mm": float(d_mm.max()), "rms_mm": float(np.sqrt(np.mean(d_mm ** 2))), "max_yaw_rad": float(d_yaw.max())}
+        log.info("map: eq. (24) chain against ground truth: max %.3f mm, rms %.3f mm", chain_vs_gt["max_mm"], chain_vs_gt["rms_mm"])
+        if cfg.poses == "groundtruth":
+            T_world_kf, pose_source = T_gt.copy(), "groundtruth"
     images = np.stack([prepared(i)[0] for i in res.indices])
     feats = [prepared(i)[1] for i in res.indices]
     vocab = BinaryVocabulary.train([f.desc for f in feats], n_words=cfg.vocab_words, seed=cfg.seed)
     ts = np.asarray(timestamps_s, float)[res.indices] if timestamps_s is not None else np.asarray(res.indices, float)
     log.info("map: %d keyframes of %d frames (%.1f %%)", len(res.indices), n_frames, 100.0 * len(res.indices) / n_frames)
     return GlobalMap(camera, float(height_mm), cfg, list(map(int, res.indices)), ts, T_world_kf, images, feats, vocab,
-                     n_mapping_frames=int(n_frames), source=source)
+                     n_mapping_frames=int(n_frames), source=source, pose_source=pose_source, chain_vs_groundtruth=chain_vs_gt)
 
 
 def build_map(seq_path: str | os.PathLike, config: MapConfig | None = None, *,
               on_progress: Callable[[int, int], None] | None = None) -> GlobalMap:
-    """Build a map from a sequence folder. The first keyframe takes the sequence's first
-    ground-truth pose when it has one (so map and ground truth share the world frame)."""
+    """Build a map from a sequence folder. With ground truth for every frame, the keyframes
+    take their ground-truth poses (``config.poses == "groundtruth"``, the default) or the
+    eq. (24) chain starts at the first frame's (``"chain"``), so map and ground truth share
+    the world frame; without ground truth the chain starts at the origin."""
     from floorvo.sequence import Sequence
 
     seq = Sequence.open(seq_path)
     if seq.height_mm is None:
         raise SequenceError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
     gt = seq.groundtruth()
-    T0 = gt[1][0] if gt is not None and len(gt[1]) else None
+    T_frames = _groundtruth_per_frame(gt, seq.timestamps_s) if gt is not None else None
+    T0 = gt[1][0] if T_frames is None and gt is not None and len(gt[1]) else None
     return build_map_from_images(seq.image, seq.frame_count, seq.camera, seq.height_mm, timestamps_s=seq.timestamps_s,
-                                 T_world_first=T0, flatfield=seq.flatfield(), config=config, source=str(seq.root),
+                                 T_world_first=T0, T_world_frames=T_frames, flatfield=seq.flatfield(), config=config, source=str(seq.root),
                                  on_progress=on_progress)
+
+
+def _groundtruth_per_frame(gt: tuple[np.ndarray, np.ndarray], ts_frames: np.ndarray) -> np.ndarray | None:
+    """Ground-truth pose of each frame (nearest timestamp within 1 ms), or None when some frame has none."""
+    ts_gt, T_gt = gt
+    ts_frames = np.asarray(ts_frames, float)
+    if len(ts_gt) == len(ts_frames):
+        return T_gt
+    if len(ts_gt) == 0:
+        return None
+    j = np.clip(np.searchsorted(ts_gt, ts_frames), 1, len(ts_gt) - 1) if len(ts_gt) > 1 else np.zeros(len(ts_frames), int)
+    if len(ts_gt) > 1:
+        j = np.where(np.abs(ts_gt[j - 1] - ts_frames) <= np.abs(ts_gt[j] - ts_frames), j - 1, j)
+    if np.any(np.abs(ts_gt[j] - ts_frames) > 1e-3):
+        log.warning("map: ground truth does not cover every frame; keyframe poses are chained (eq. 24)")
+        return None
+    return T_gt[j]
 
 
 # --------------------------------------------------------------------------- disk
@@ -221,6 +281,8 @@ def save_map(m: GlobalMap, out_dir: str | os.PathLike) -> Path:
         "source": m.source,
         "n_mapping_frames": m.n_mapping_frames,
         "n_keyframes": m.n_keyframes,
+        "pose_source": m.pose_source,
+        "chain_vs_groundtruth": m.chain_vs_groundtruth,
         "keyframes": [
             {"frame": int(f), "timestamp_s": float(t), "T_world_kf": T.tolist()}
             for f, t, T in zip(m.frame_indices, m.timestamps_s, m.T_world_kf)
@@ -279,4 +341,6 @@ def load_map(path: str | os.PathLike) -> GlobalMap:
     return GlobalMap(camera, float(meta["height_mm"]), cfg, [int(k["frame"]) for k in kfs],
                      np.array([k["timestamp_s"] for k in kfs], float), T, arr["images"], feats,
                      BinaryVocabulary(arr["vocab_words"], arr["vocab_idf"]),
-                     n_mapping_frames=int(meta.get("n_mapping_frames", 0)), source=str(meta.get("source", "")))
+                     n_mapping_frames=int(meta.get("n_mapping_frames", 0)), source=str(meta.get("source", "")),
+                     pose_source=str(meta.get("pose_source", "chain")),
+                     chain_vs_groundtruth=dict(meta.get("chain_vs_groundtruth", {})))
