@@ -44,7 +44,7 @@ class PhaseCorrConfig:
     interpolating warp (exact), above it through a rotating warp."""
 
     crop_px: int = field(default=384, metadata={"min": 32, "max": 4096})
-    margin_px: int = field(default=48, metadata={"min": 0, "max": 1024})
+    margin_px: int = field(default=128, metadata={"min": 0, "max": 1024})
     grid: int = field(default=2, metadata={"min": 2, "max": 8})
     iterations: int = field(default=2, metadata={"min": 1, "max": 10})
     min_peak: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
