@@ -226,3 +226,29 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "poses=survey"]) == 1
     assert MapConfig.from_overrides({"poses": "chain"}).poses == "chain"
+
+
+def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, lane):
+    from floorvo.estimators.base import Frame, get_estimator, make_config
+
+    _, _, m = lane
+    save_map(m, tmp_path / "map")
+    est_cls = get_estimator("map-fused")
+    cfg = make_config("map-fused", {"map": str(tmp_path / "map"), "odometry": "phase-corr", "fix_every": "4"})
+    est = est_cls(cfg, CAM, height_mm=H_MM)
+    state = est.start()
+    # A diagonal pass over the lane at 2.5 mm / frame with a slow turn.
+    Ts = [T_world_cam_down(-30.0 + 2.5 * i, -4.0 + 0.4 * i, H_MM, 0.2 + 0.01 * i) for i in range(10)]
+    T_world = None
+    for i, T in enumerate(Ts):
+        img = syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(400 + i))
+        r = est.step(state, Frame(i, i / 30.0, img))
+        if i == 0:
+            assert r.status == "init" and "map" in r.reason  # placed by the map, not at a guess
+            T_world = state.T_world
+        else:
+            assert r.ok, r.reason
+            assert r.reason == ("map fix" if i % 4 == 0 else "odometry")
+            T_world = T_world @ r.T_prev_cur
+        d, a = _se2_err(T_world, T)
+        assert d < (0.2 if i % 4 == 0 else 0.5) and a < 5e-3, (i, r.reason, d, a)
