@@ -20,9 +20,14 @@ def rig():
     return scene, T, renderer
 
 
-def test_flat_floor_matches_hand_computed_irradiance(rig):
-    """Over a flat floor L = albedo/pi * sum_k I_k cos_led^m cos_surf / r^2 (no shadows)."""
+@pytest.mark.parametrize("distortion", [(), (-0.2, 0.05, 0.001, -0.002)])
+def test_flat_floor_matches_hand_computed_irradiance(rig, distortion):
+    """Over a flat floor L = albedo/pi * sum_k I_k cos_led^m cos_surf / r^2 (no shadows),
+    with each pixel's ray from the camera model (lens distortion included)."""
     scene, T, r = rig
+    if distortion:
+        scene = tiny_scene(**{"camera.distortion": list(distortion)})
+        r = FloorRenderer(scene.camera_model())
     cam = r.camera
     leds = _leds(scene, T)
     r.load_flat(*footprint_bounds_mm(T[None], cam, 5.0), albedo=0.5)
