@@ -124,7 +124,7 @@ def test_homogenised_keypoints_capped_per_cell():
 def test_bad_config_refused():
     with pytest.raises(ConfigError, match=r"orb-icp.ratio = 1.5: must be <= 1.0"):
         make_config("orb-icp", {"ratio": "1.5"})
-    with pytest.raises(ConfigError, match=r"stereo-sift.update = 'median': must be one of 'rigid', 'mean'"):
+    with pytest.raises(ConfigError, match=r"stereo-sift.update = 'median': must be one of 'planar', 'rigid', 'mean'"):
         make_config("stereo-sift", {"update": "median"})
     with pytest.raises(ConfigError, match="stereo-sift: needs camera_right"):
         get_estimator("stereo-sift")(make_config("stereo-sift"), CAM, height_mm=100.0)
@@ -157,3 +157,22 @@ def test_missing_depth_or_stereo_refused_before_any_frame(tmp_path, monkeypatch)
         run_estimator(seq, "stereo-sift", tmp_path / "run2")
     assert calls == []
     assert not (tmp_path / "run1" / "result.json").exists()
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("scene, name", [("paper002_stereo", "stereo-sift"), ("paper001_line3m_rgbd", "orb-icp")])
+def test_rendered_stereo_and_depth_sequences(tmp_path, scene, name):
+    """A few rendered frames (324x247) of the stereo and the RGB-D scene: within 1 % of the distance."""
+    from floorsim.scene import load_scene
+    from floorsim.simulate import render_sequence
+    from floorvo.run import run_estimator
+    from floorvo.tum import read_tum
+
+    seq = render_sequence(load_scene(scene), tmp_path / "seq", scale=0.5, frames=6)
+    res = run_estimator(seq, name, tmp_path / "run")
+    assert res.lost == 0 and res.ok == 5
+    _, T_est = read_tum(tmp_path / "run" / "trajectory.txt")
+    _, T_gt = read_tum(seq / "groundtruth.txt")
+    travelled = np.linalg.norm(T_gt[-1][:3, 3] - T_gt[0][:3, 3])
+    assert travelled > 15.0
+    assert 100 * np.linalg.norm(T_est[-1][:3, 3] - T_gt[-1][:3, 3]) / travelled < 1.0
