@@ -133,7 +133,10 @@ class LightsSpec:
     the LED power of frame i is multiplied by ``max(0, 1 + flicker * N(0, 1))`` (seeded
     per frame; the flat-field frame has none). ``ambient_leak``: light leaking under the
     hood, a uniform unshadowed irradiance given as a fraction of the LEDs' irradiance on a
-    flat floor under the camera.
+    flat floor under the camera. ``aim_offset_mm`` / ``aim_elevation_deg``: where the LEDs
+    point (default: the floor under the camera centre). ``colour_temperature_k``: the LEDs'
+    spectrum as a black body; the mono camera's response to it relative to 5000 K scales
+    the power (:func:`floorsim.spectral.mono_response`), at equal luminous power.
     """
 
     height_mm: float = field(default=3.0, metadata=rule(">0", "mm"))
@@ -145,6 +148,9 @@ class LightsSpec:
     lobe_exponent: float = field(default=1.0, metadata=rule(">0", ""))
     flicker: float = field(default=0.0, metadata=rule(">=0", "relative std", hi=1.0))
     ambient_leak: float = field(default=0.0, metadata=rule(">=0", "", hi=10.0))
+    aim_offset_mm: float = field(default=0.0, metadata=rule("any", "mm", lo=-500.0, hi=500.0))
+    aim_elevation_deg: float = field(default=0.0, metadata=rule("any", "deg", lo=-45.0, hi=45.0))
+    colour_temperature_k: float = field(default=5000.0, metadata=rule(">0", "K", lo=1500.0, hi=20000.0))
 
 
 @dataclass(frozen=True)
@@ -356,16 +362,27 @@ def load_scene(path: str | os.PathLike, overrides: Mapping[str, str] | None = No
 def scene_T_world_leds(scene: Scene, T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """LED world positions (N, 3) and unit aims (N, 3) for camera pose ``T_world_cam``.
 
-    LEDs ride on the rig; each is aimed at the floor point under the camera centre.
+    LEDs ride on the rig; each is aimed at the floor point under the camera centre, moved
+    ``lights.aim_offset_mm`` along the camera's x axis away from the LED's own bar
+    (positive: beyond the centre), and ``lights.aim_elevation_deg`` above that line.
     """
-    p_cam, _ = scene.led_positions_cam()
+    p_cam, side = scene.led_positions_cam()
     T = np.asarray(T_world_cam, dtype=float)
     p_world = p_cam @ T[:3, :3].T + T[:3, 3]
     # Target: where the optical axis meets the mean floor plane.
     axis = T[:3, 2]
     s = -T[2, 3] / axis[2] if axis[2] < 0 else T[2, 3]
     target = T[:3, 3] + s * axis
-    aim = target[None, :] - p_world
+    # Each bar aims away from its own side: a left LED (side -1) aims towards +x.
+    target = target[None, :] - side[:, None] * scene.lights.aim_offset_mm * T[:3, 0][None, :]
+    aim = target - p_world
+    aim /= np.linalg.norm(aim, axis=1, keepdims=True)
+    if scene.lights.aim_elevation_deg:
+        up = np.array([0.0, 0.0, 1.0])
+        horiz = aim - (aim @ up)[:, None] * up
+        horiz /= np.maximum(np.linalg.norm(horiz, axis=1, keepdims=True), 1e-12)
+        el = np.arcsin(np.clip(aim @ up, -1, 1)) + np.radians(scene.lights.aim_elevation_deg)
+        aim = np.cos(el)[:, None] * horiz + np.sin(el)[:, None] * up
     aim /= np.linalg.norm(aim, axis=1, keepdims=True)
     return p_world, aim
 

@@ -27,6 +27,7 @@ import numpy as np
 import floorsim
 import floorvo
 from floorsim.depthnoise import apply_depth_noise
+from floorsim.spectral import mono_response
 from floorsim.materials import get_material, sample_material
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
@@ -107,7 +108,7 @@ def _leds(scene: Scene, T_world_cam: np.ndarray, frame_index: int | None = None)
 
     pos, aim = scene_T_world_leds(scene, T_world_cam)
     n_per_bar = scene.lights.count
-    power = scene.lights.power
+    power = scene.lights.power * mono_response(scene.lights.colour_temperature_k)
     if frame_index is not None and scene.lights.flicker > 0:
         rng = np.random.default_rng([int(scene.seed), int(frame_index), 0xF11C])
         power *= max(0.0, 1.0 + scene.lights.flicker * float(rng.standard_normal()))

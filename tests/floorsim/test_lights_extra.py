@@ -1,0 +1,60 @@
+"""LED aim and colour temperature; memory across floor tiles."""
+
+import numpy as np
+import pytest
+
+from floorsim.scene import scene_T_world_leds
+from floorsim.spectral import mono_response
+from floorsim.simulate import render_sequence
+
+from _tiny import tiny_scene
+
+
+def test_aim_defaults_to_floor_under_camera_and_offsets_away_from_bar():
+    scene = tiny_scene()
+    T = scene.build_trajectory().T_world_cam[0]
+    pos, aim = scene_T_world_leds(scene, T)
+    # Default: every LED aims at the floor point under the camera.
+    for p, a in zip(pos, aim):
+        t = (T[2, 3] * 0 - p[2]) / a[2] if a[2] != 0 else None
+        hit = p + t * a
+        np.testing.assert_allclose(hit[:2], T[:2, 3], atol=1e-9)
+    off = tiny_scene(**{"lights.aim_offset_mm": 10.0})
+    pos2, aim2 = scene_T_world_leds(off, T)
+    left = pos2[:, 0] < T[0, 3]
+    assert np.all(aim2[left, 0] > 0) and np.all(aim2[~left, 0] < 0)
+    hit_left = pos2[left][0] - pos2[left][0][2] / aim2[left][0][2] * aim2[left][0]
+    assert hit_left[0] == pytest.approx(T[0, 3] + 10.0)
+
+
+def test_colour_temperature_weight():
+    assert mono_response(5000.0) == pytest.approx(1.0)
+    # Silicon sees more of a warm (red-rich) source's power than the eye does, per lumen.
+    assert mono_response(2700.0) > mono_response(5000.0) > mono_response(10000.0)
+    assert 0.7 < mono_response(10000.0) < 1.0 < mono_response(2700.0) < 2.0
+
+
+@pytest.mark.render
+def test_memory_flat_across_floor_tiles(tmp_path):
+    """A line ten tiles long: resident memory after the last tile is that after the second."""
+
+    def rss_mb() -> float:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * 4096 / 2**20
+
+    # Camera 20 mm above the floor: a 16 x 12 mm footprint, so 30 mm tiles hold two frames.
+    scene = tiny_scene(
+        **{
+            "camera.height_mm": 20.0,
+            "trajectory": {"type": "line", "length_mm": 180.0, "speed_mm_s": 300.0},
+            "floor.tile_length_mm": 30.0,
+            "floor.spacing_mm": 0.04,
+        }
+    )
+    marks = {}
+    render_sequence(scene, tmp_path / "seq", on_frame=lambda done, total: marks.setdefault(done, rss_mb()))
+    n = max(marks)
+    assert n == 19
+    # A tile (30 x 16 mm at 0.04 mm) holds ~0.3 M vertices, ~30 MB with its BVH; the
+    # nine tiles of this line would add hundreds of MB if they were kept.
+    assert marks[n] - marks[6] < 40.0, marks
