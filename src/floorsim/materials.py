@@ -91,13 +91,32 @@ def fbm(x_mm, y_mm, cell_mm: float, seed: int, octaves: int = 4, gain: float = 0
     return total / norm
 
 
-def _segments_distance(X, Y, cell_mm, seed, channel, per_cell, length_range, max_len):
+def _segments_distance(X, Y, cell_mm, seed, channel, per_cell, length_range, max_len, max_dist=np.inf):
     """Distance (mm) from each point to the nearest of a seeded set of line segments.
 
     Segments are hashed per ``cell_mm`` cell (``per_cell`` candidates, each present with
     probability 0.5) and shorter than ``cell_mm``, so the 3x3 neighbourhood of cells covers
     every segment that can reach a point: the result is tile-independent.
+
+    With a finite ``max_dist``, distances of ``max_dist`` or more may come back as inf;
+    on a grid (X (1, W) and Y (H, 1), increasing) each segment then only visits the grid
+    points in its own bounding box, which is much faster and gives the same values below
+    ``max_dist`` (the same element-wise arithmetic per point and segment).
     """
+    X = np.asarray(X, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    if (
+        np.isfinite(max_dist)
+        and X.ndim == 2
+        and Y.ndim == 2
+        and X.shape[0] == 1
+        and Y.shape[1] == 1
+        and X.shape[1] > 1
+        and Y.shape[0] > 1
+        and np.all(np.diff(X[0]) > 0)
+        and np.all(np.diff(Y[:, 0]) > 0)
+    ):
+        return _segments_distance_grid(X[0], Y[:, 0], cell_mm, seed, channel, per_cell, length_range, max_len, max_dist)
     cx0 = np.floor(X / cell_mm).astype(np.int64)
     cy0 = np.floor(Y / cell_mm).astype(np.int64)
     best = np.full(np.broadcast(X, Y).shape, np.inf)
@@ -118,6 +137,35 @@ def _segments_distance(X, Y, cell_mm, seed, channel, per_cell, length_range, max
                 tproj = np.clip(rx * ux + ry * uy, -ln / 2, ln / 2)
                 d = np.hypot(rx - tproj * ux, ry - tproj * uy)
                 best = np.where(present, np.minimum(best, d), best)
+    return best
+
+
+def _segments_distance_grid(x, y, cell_mm, seed, channel, per_cell, length_range, max_len, max_dist):
+    """:func:`_segments_distance` on the grid x (W,) by y (H,): per segment, its bounding box only."""
+    best = np.full((len(y), len(x)), np.inf)
+    cxs = np.arange(int(np.floor(x[0] / cell_mm)) - 1, int(np.floor(x[-1] / cell_mm)) + 2)
+    cys = np.arange(int(np.floor(y[0] / cell_mm)) - 1, int(np.floor(y[-1] / cell_mm)) + 2)
+    cx, cy = (a.ravel() for a in np.meshgrid(cxs, cys))
+    for k in range(per_cell):
+        ch = channel * 131 + k * 7
+        hv = [hash01(cx, cy, seed, ch + j) for j in range(5)]
+        px = (cx + hv[1]) * cell_mm
+        py = (cy + hv[2]) * cell_mm
+        ang = hv[3] * np.pi
+        ln = np.minimum(length_range[0] + (length_range[1] - length_range[0]) * hv[4], max_len)
+        ux, uy = np.cos(ang), np.sin(ang)
+        for s in np.flatnonzero(hv[0] < 0.5):
+            reach = ln[s] / 2 + max_dist
+            j0, j1 = np.searchsorted(x, px[s] - reach), np.searchsorted(x, px[s] + reach, side="right")
+            i0, i1 = np.searchsorted(y, py[s] - reach), np.searchsorted(y, py[s] + reach, side="right")
+            if j0 >= j1 or i0 >= i1:
+                continue
+            rx = x[None, j0:j1] - px[s]
+            ry = y[i0:i1, None] - py[s]
+            tproj = np.clip(rx * ux[s] + ry * uy[s], -ln[s] / 2, ln[s] / 2)
+            d = np.hypot(rx - tproj * ux[s], ry - tproj * uy[s])
+            sub = best[i0:i1, j0:j1]
+            np.minimum(sub, d, out=sub)
     return best
 
 
@@ -250,8 +298,8 @@ def _vinyl(X, Y, seed, p: VinylParams):
     # Scratches: thin grooves with V profile, 5 mm cells.
     if p.scratch_density > 0 and p.scratch_depth_mm > 0:
         per_cell = max(1, int(np.ceil(p.scratch_density)))
-        d = _segments_distance(X, Y, 5.0, seed, 5, per_cell, (1.0, 4.5), 4.9)
         width = 0.04
+        d = _segments_distance(X, Y, 5.0, seed, 5, per_cell, (1.0, 4.5), 4.9, max_dist=width)
         groove = np.clip(1.0 - d / width, 0.0, 1.0)
         h = h - p.scratch_depth_mm * groove
         albedo = albedo * (1.0 - 0.15 * groove)
@@ -311,7 +359,7 @@ def _wood(X, Y, seed, p: WoodParams):
     h = h - 0.15 * joint
     albedo = albedo * (1.0 - 0.6 * joint)
     if p.scratch_depth_mm > 0:
-        d = _segments_distance(X, Y, 6.0, seed, 34, 1, (1.5, 5.5), 5.9)
+        d = _segments_distance(X, Y, 6.0, seed, 34, 1, (1.5, 5.5), 5.9, max_dist=0.03)
         groove = np.clip(1.0 - d / 0.03, 0.0, 1.0)
         h = h - p.scratch_depth_mm * groove
     return h, albedo

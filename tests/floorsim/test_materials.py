@@ -83,3 +83,18 @@ def test_registering_a_new_material():
         np.testing.assert_allclose(a[:, 1], 0.1)
     finally:
         MATERIALS.pop("test_stripes", None)
+
+
+def test_scratch_fast_grid_path_matches_general_path():
+    """Per-segment bounding boxes on a grid give the grooves of the all-points computation."""
+    from floorsim.materials import _segments_distance
+
+    xs = (np.round(3000.0 / SPACING) + np.arange(0, 400)) * SPACING
+    ys = (np.arange(-200, 150)) * SPACING
+    for per_cell in (1, 3):
+        slow = _segments_distance(xs[None, :], ys[:, None], 5.0, 3, 5, per_cell, (1.0, 4.5), 4.9)
+        fast = _segments_distance(xs[None, :], ys[:, None], 5.0, 3, 5, per_cell, (1.0, 4.5), 4.9, max_dist=0.04)
+        near = slow < 0.04
+        assert near.mean() > 0.002  # the region holds scratches
+        np.testing.assert_array_equal(fast[near], slow[near])
+        assert np.all(fast[~near] >= 0.04)
