@@ -146,9 +146,16 @@ def main(argv=None) -> int:
         recover.append(k)
 
     # Retrieval for a map of thousands of keyframes: the inverted index over `big_map`
-    # keyframes (the real keyframes' descriptor sets, repeated), queried with real frames.
+    # keyframes (the real keyframes plus perturbed copies), queried with real frames.
     # Descriptor voting (the default) and the bag of words, each timed on both maps.
-    reps = [gmap.features[i % gmap.n_keyframes].desc for i in range(args.big_map)]
+    # The extra keyframes are the real ones' descriptors with 30 % of their bits flipped
+    # (distinct, ORB-like, never true matches); exact copies would pile into LSH buckets.
+    rng = np.random.default_rng(5)
+    reps = [f.desc for f in gmap.features]
+    while len(reps) < args.big_map:
+        base = gmap.features[len(reps) % gmap.n_keyframes].desc
+        flips = np.packbits(rng.random((len(base), 256)) < 0.3, axis=1)
+        reps.append(np.bitwise_xor(base, flips))
     t_b = time.perf_counter()
     big_vote = VoteIndex(reps)
     t_big_build = time.perf_counter() - t_b
