@@ -155,8 +155,8 @@ def supported_estimators(seq_dir: str | os.PathLike, names: SequenceT[str] | Non
 
 
 # ----------------------------------------------------------------------------- results.csv
-def _columns(rows: SequenceT[Mapping[str, Any]]) -> list[str]:
-    cols = list(ID_COLUMNS)
+def _columns(rows: SequenceT[Mapping[str, Any]], first: SequenceT[str] = ID_COLUMNS) -> list[str]:
+    cols = list(first)
     for r in rows:
         for k in r:
             if k not in cols:
@@ -172,11 +172,12 @@ def _cell(v: Any) -> str:
     return str(v)
 
 
-def write_results_csv(path: str | os.PathLike, rows: SequenceT[Mapping[str, Any]]) -> None:
-    """Write rows (dicts) as CSV atomically; columns are the id columns, then every metric seen."""
+def write_results_csv(path: str | os.PathLike, rows: SequenceT[Mapping[str, Any]],
+                      first_columns: SequenceT[str] = ID_COLUMNS) -> None:
+    """Write rows (dicts) as CSV atomically; columns: ``first_columns``, then every other key seen."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    cols = _columns(rows)
+    cols = _columns(rows, first_columns)
     w.writerow(cols)
     for r in rows:
         w.writerow([_cell(r.get(c)) for c in cols])

@@ -179,8 +179,8 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
                         "error_pct": 100.0 * float(np.mean(np.abs(err))) / true_end if true_end > 0 else float("nan"),
                         "match_ms_mean": float(np.nanmean(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan"),
                         "match_ms_std": float(np.nanstd(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan")})
-    write_results_csv(out_dir / "runs.csv", runs)
-    write_results_csv(out_dir / "summary.csv", summary)
+    write_results_csv(out_dir / "runs.csv", runs, ())
+    write_results_csv(out_dir / "summary.csv", summary, ())
     return Paper000Result(runs, summary, curves, out_dir, skipped)
 
 
