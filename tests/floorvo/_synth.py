@@ -13,28 +13,13 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.geometry import invert_T
+from floorvo.synthetic import floor_texture as _floor_texture
+from floorvo.synthetic import led_falloff as falloff  # rig-fixed: bright at the left and right edges
 
 
 def floor_texture(size_px: int, seed: int) -> np.ndarray:
     """(size, size) float32 texture: a bumpy relief shaded by a light from -x, plus albedo blobs."""
-    rng = np.random.default_rng(seed)
-    h = np.zeros((size_px, size_px), np.float32)
-    for sigma, amp in ((1.0, 1.0), (2.5, 1.5), (6.0, 2.0), (20.0, 3.0)):
-        h += amp * cv2.GaussianBlur(rng.standard_normal((size_px, size_px)).astype(np.float32), (0, 0), sigma)
-    shade = np.gradient(h, axis=1)  # faces towards -x lit (light from -x)
-    albedo = 1.0 + 0.3 * cv2.GaussianBlur(rng.standard_normal((size_px, size_px)).astype(np.float32), (0, 0), 8.0)
-    tex = albedo * (1.0 + 2.0 * shade / (shade.std() + 1e-6) * 0.25)
-    return np.clip(tex, 0.05, None).astype(np.float32)
-
-
-def falloff(camera: CameraModel) -> np.ndarray:
-    """Rig-fixed LED falloff: bright at the left and right edges, dark in the middle."""
-    u = np.arange(camera.width_px, dtype=np.float32)[None, :]
-    v = np.arange(camera.height_px, dtype=np.float32)[:, None]
-    w = camera.width_px
-    left = 1.0 / (1.0 + (u / (0.25 * w)) ** 2)
-    right = 1.0 / (1.0 + ((w - 1 - u) / (0.25 * w)) ** 2)
-    return ((left + right) * (1.0 - 0.2 * ((v - camera.cy_px) / camera.height_px) ** 2)).astype(np.float32)
+    return _floor_texture(size_px, size_px, seed)
 
 
 def view(texture: np.ndarray, camera: CameraModel, M_cur_from_prev: np.ndarray) -> np.ndarray:
