@@ -160,7 +160,6 @@ class FloorRenderer:
 
         ``height_mm`` and ``albedo`` are (H, W) grids. Replaces any previous floor.
         """
-        mi = self.mi
         height_mm = np.asarray(height_mm, dtype=np.float32)
         albedo = np.asarray(albedo, dtype=np.float32)
         ny, nx = height_mm.shape

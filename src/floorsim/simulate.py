@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import gc
-import json
 import logging
 import os
 import platform
@@ -34,7 +33,7 @@ from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError
-from floorvo.io import atomic_write_json
+from floorvo.io import atomic_write_json, read_json
 from floorvo.sequence import SequenceWriter
 
 __all__ = ["render_sequence", "prepare_scene", "plan_tiles", "LED_INTENSITY_UNIT"]
@@ -253,7 +252,12 @@ def render_sequence(
     sensor_path = root / "calib" / "sensor.json"
     gain = scene.sensor.exposure_gain
     if gain <= 0 and sensor_path.is_file():
-        gain = float(json.loads(sensor_path.read_text())["gain_e_per_unit"])
+        try:
+            gain = float(read_json(sensor_path, ConfigError)["gain_e_per_unit"])
+        except (ConfigError, KeyError, TypeError, ValueError) as exc:
+            # The exposure is a deterministic function of the scene and seed: choose it again.
+            log.warning("%s: unusable (%s); choosing the exposure again", sensor_path, exc)
+            gain = 0.0
     margin = 2.0 + 2 * spacing
     if scene.sensor.exposure_ms > 0 and len(T_all) > 1:
         # Motion blur reaches poses up to half an exposure away from the frame's.

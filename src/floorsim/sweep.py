@@ -38,7 +38,6 @@ from __future__ import annotations
 import itertools
 import json
 import logging
-import math
 import os
 import tomllib
 from dataclasses import dataclass, field

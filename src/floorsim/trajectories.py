@@ -34,7 +34,7 @@ import numpy as np
 from floorsim.params import from_mapping, rule, to_plain
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError
-from floorvo.geometry import R_WORLD_CAM_DOWN, T_world_cam_down
+from floorvo.geometry import T_world_cam_down
 
 __all__ = [
     "Trajectory",

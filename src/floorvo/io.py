@@ -24,6 +24,7 @@ __all__ = [
     "atomic_write_json",
     "write_png",
     "read_png",
+    "read_json",
     "ensure_writable_dir",
 ]
 
@@ -82,6 +83,23 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
     if img is None:
         raise SequenceError(f"{path}: not a readable PNG (corrupt or truncated)")
     return img
+
+
+def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None) -> Any:
+    """Parse a JSON file; a missing, unreadable or malformed file raises ``error`` with one line.
+
+    ``label`` names the file in the message (default: its path).
+    """
+    path = Path(path)
+    name = label or str(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{name}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
 
 
 def ensure_writable_dir(path: str | os.PathLike) -> Path:

@@ -46,6 +46,7 @@ import numpy as np
 
 from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit_2d
+from floorvo.io import read_json
 
 __all__ = [
     "ALIGNMENTS",
@@ -552,10 +553,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     result: dict = {}
     rp = run_dir / "result.json"
     if rp.is_file():
-        try:
-            result = json.loads(rp.read_text())
-        except json.JSONDecodeError as exc:
-            raise SequenceError(f"{rp}: not valid JSON ({exc.msg})") from None
+        result = read_json(rp, SequenceError)
     timing = read_timing_csv(run_dir / "timing.csv")
     statuses = list(timing["status"]) if timing and "status" in timing else None
     if timing and "frame" in timing and len(timing["frame"]):

@@ -27,7 +27,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
-from floorvo.io import atomic_write_json, atomic_write_bytes, ensure_writable_dir, read_png, write_png
+from floorvo.io import atomic_write_json, atomic_write_bytes, ensure_writable_dir, read_json, read_png, write_png
 from floorvo.tum import read_tum, write_tum
 
 __all__ = ["SCHEMA_VERSION", "Sequence", "SequenceWriter", "frame_name", "DEPTH_PNG_SCALE_PER_MM"]
@@ -186,10 +186,7 @@ class Sequence:
             raise SequenceError(f"{root}: sequence folder does not exist")
         if not meta_path.is_file():
             raise SequenceError(f"{root}: not a sequence (no sequence.json)")
-        try:
-            meta = json.loads(meta_path.read_text())
-        except json.JSONDecodeError as exc:
-            raise SequenceError(f"{meta_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+        meta = read_json(meta_path, SequenceError)
         version = meta.get("schema_version") if isinstance(meta, dict) else None
         if version != SCHEMA_VERSION:
             raise SequenceError(

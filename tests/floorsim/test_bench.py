@@ -2,7 +2,6 @@
 render cache, results.csv, skipping unsupported estimators, the CLI and its gate."""
 
 import json
-import math
 
 import pytest
 

@@ -4,7 +4,6 @@ The strip is a random texture seen through a window that moves 2 px (one strip s
 frame, so the measured distance of every run must equal the ground truth.
 """
 
-import dataclasses
 import sys
 import types
 from dataclasses import dataclass, field

@@ -174,6 +174,11 @@ def test_resume_keeps_written_frames(tmp_path):
     render_sequence(scene, root)
     assert [f.read_bytes() for f in frames] == original
     assert frames[0].stat().st_mtime_ns == stat_before[0] and frames[2].stat().st_mtime_ns == stat_before[2]
+    # A sensor.json cut short by the interruption: the exposure is chosen again, identically.
+    (root / "calib" / "sensor.json").write_text('{"gain_e_per_unit": ')
+    frames[1].unlink()
+    render_sequence(scene, root)
+    assert [f.read_bytes() for f in frames] == original
 
 
 def test_cli_render_unwritable_and_summary(tmp_path):

@@ -4,7 +4,6 @@ The renderer and the estimators are the test doubles of ``_bench_doubles`` (the
 ``scaled`` estimator's drift is 0.1 % per mm of LED height), so the drift of every row
 is known."""
 
-import math
 from pathlib import Path
 
 import pytest

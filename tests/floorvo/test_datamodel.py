@@ -122,6 +122,9 @@ def test_sequence_rejects_other_schema_and_corrupt_png(tmp_path):
     with pytest.raises(SequenceError, match="schema_version"):
         Sequence.open(tmp_path / "seq")
     assert w.root.exists()
+    (tmp_path / "seq" / "sequence.json").write_text('{"schema_version": 1,')  # truncated
+    with pytest.raises(SequenceError, match=r"sequence\.json: not valid JSON \(.* at line 1\)$"):
+        Sequence.open(tmp_path / "seq")
 
 
 def test_depth_png_round_trip(tmp_path):

@@ -14,7 +14,6 @@ loosen a gate.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -22,7 +21,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from floorvo.errors import ConfigError
-from floorvo.io import atomic_write_json
+from floorvo.io import atomic_write_json, read_json
 
 __all__ = ["DEFAULT_TOLERANCES", "Regression", "GateResult", "aggregate", "make_baseline", "save_baseline",
            "load_baseline", "compare"]
@@ -91,10 +90,7 @@ def load_baseline(path: str | os.PathLike) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"--baseline {path}: file does not exist (write one with --save-baseline)")
-    try:
-        b = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"--baseline {path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    b = read_json(path, ConfigError, label=f"--baseline {path}")
     if not isinstance(b, dict) or b.get("format") != BASELINE_FORMAT:
         raise ConfigError(f"--baseline {path}: not a floorbench baseline (format must be {BASELINE_FORMAT!r})")
     if b.get("version") != BASELINE_VERSION:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import json
 import logging
 import os
 from collections import OrderedDict
@@ -34,7 +33,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.geometry import T_world_cam_down
-from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir
+from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, read_json
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
 from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
@@ -299,10 +298,7 @@ def load_map(path: str | os.PathLike) -> GlobalMap:
     mj = root / "map.json"
     if not mj.is_file():
         raise FloorbenchError(f"{root}: not a map folder (map.json is missing); build one with `floorvo map SEQ -o MAP`")
-    try:
-        meta = json.loads(mj.read_text())
-    except json.JSONDecodeError as exc:
-        raise FloorbenchError(f"{mj}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    meta = read_json(mj, FloorbenchError)
     if meta.get("format") != MAP_FORMAT:
         raise FloorbenchError(f"{mj}: format {meta.get('format')!r} is not {MAP_FORMAT!r}")
     if meta.get("schema_version") != MAP_SCHEMA_VERSION:

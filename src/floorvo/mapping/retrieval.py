@@ -53,7 +53,6 @@ class BinaryVocabulary:
             if empty.any():
                 new[empty] = allx[rng.choice(len(allx), int(empty.sum()), replace=False)]
             centres = new
-        vocab = cls(centres, np.ones(k, np.float32))
         df = np.zeros(k, np.int64)
         for d in descriptors:
             if len(d):
