@@ -377,7 +377,11 @@ def tracking_stats(statuses: SequenceT[str] | None, n_ref: int, n_est: int) -> d
 
 
 def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
-    """Columns of ``timing.csv`` (frame, detect_ms, match_ms, estimate_ms, total_ms, status) or None if missing."""
+    """Columns of ``timing.csv`` (frame, detect_ms, match_ms, estimate_ms, total_ms, status, ...) or None if missing.
+
+    ``frame`` and the ``*_ms`` columns must be numbers (empty cells read as NaN); ``status``
+    and any other column that is not all numbers (such as a ``reason``) stay text.
+    """
     path = Path(path)
     if not path.is_file():
         return None
@@ -394,7 +398,9 @@ def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
         try:
             cols[key] = np.array([float(v) if v not in ("", None) else np.nan for v in vals])
         except ValueError:
-            raise SequenceError(f"{path}: column {key!r} holds a value that is not a number") from None
+            if key == "frame" or key.endswith("_ms"):
+                raise SequenceError(f"{path}: column {key!r} holds a value that is not a number") from None
+            cols[key] = np.array(vals, dtype=object)
     return cols
 
 

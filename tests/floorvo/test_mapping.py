@@ -252,3 +252,12 @@ def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, 
             T_world = T_world @ r.T_prev_cur
         d, a = _se2_err(T_world, T)
         assert d < (0.2 if i % 4 == 0 else 0.5) and a < 5e-3, (i, r.reason, d, a)
+
+
+def test_map_fused_localiser_defaults_are_the_localizers():
+    from floorvo.mapping.fused import MapFusedConfig
+    from floorvo.mapping.localize import LocalizeConfig
+
+    fused, loc = MapFusedConfig(), LocalizeConfig()
+    for name in ("n_candidates", "n_verify", "min_block_fraction", "min_corr", "retrieval"):
+        assert getattr(fused, name) == getattr(loc, name), name

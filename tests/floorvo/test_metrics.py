@@ -178,6 +178,21 @@ def test_floorvo_score_cli_prints_table_and_writes_score_json(tmp_path, capsys):
     assert err.count("\n") == 1 and "groundtruth.txt" in err
 
 
+def test_timing_csv_keeps_text_columns_and_refuses_text_times(tmp_path, capsys):
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path)
+    lines = (run / "timing.csv").read_text().splitlines()
+    lines = [lines[0] + ",reason"] + [ln + (",map fix" if i % 2 else ",") for i, ln in enumerate(lines[1:])]
+    (run / "timing.csv").write_text("\n".join(lines) + "\n")  # as `floorvo localize` writes it
+    s = M.score_run(run, seq)
+    assert s.tracking["lost_frames"] == 2 and s.timing["total_ms"]["mean"] == pytest.approx(4.0)
+    (run / "timing.csv").write_text("\n".join([lines[0], lines[1].replace(",1.0,", ",fast,", 1)]) + "\n")
+    assert main(["score", str(run), "--gt", str(seq)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "column 'detect_ms' holds a value that is not a number" in err
+
+
 # ----------------------------------------------------------------------------- agreement with evo
 def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
     monkeypatch.setenv("HOME", str(tmp_path))  # evo writes its settings into the home folder

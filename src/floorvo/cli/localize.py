@@ -19,7 +19,7 @@ def add_parser(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="run folder")
     p.add_argument("--odometry", default="none", help="estimator between map fixes (floorvo list), default none")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="localiser setting: fix_every, n_candidates, n_verify, min_block_fraction, min_corr, odometry_set")
+                   help="localiser setting: fix_every, n_candidates, n_verify, min_block_fraction, min_corr, retrieval (vote|bow), odometry_set")
     p.set_defaults(func=run)
 
 

@@ -33,16 +33,18 @@ __all__ = ["MapFused", "MapFusedConfig"]
 class MapFusedConfig:
     """``map``: map folder (``floorvo map``); ``odometry``: estimator between fixes (``none``:
     fixes only); ``odometry_set``: its overrides as ``key=value;key=value``; ``fix_every``:
-    localise every N-th frame; the rest tune the localiser (:class:`LocalizeConfig`)."""
+    localise every N-th frame; the rest tune the localiser, with :class:`LocalizeConfig`'s defaults
+    (repeated: importing floorvo.mapping.localize here would be circular; a test keeps them equal)."""
 
     map: str = ""
     odometry: str = "phase-corr"
     odometry_set: str = ""
     fix_every: int = field(default=1, metadata={"min": 1})
-    n_candidates: int = field(default=3, metadata={"min": 1, "max": 1000})
-    n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
+    n_candidates: int = field(default=8, metadata={"min": 1, "max": 1000})
+    n_verify: int = field(default=3, metadata={"min": 1, "max": 100})
     min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
     min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
+    retrieval: str = field(default="vote", metadata={"choices": ("vote", "bow")})
 
 
 @dataclass
@@ -74,7 +76,8 @@ class MapFused:
         if abs(self.map.height_mm - float(height_mm)) > 0.01 * self.map.height_mm:
             raise ConfigError(f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm")
         loc_cfg = LocalizeConfig(n_candidates=config.n_candidates, n_verify=config.n_verify,
-                                 min_block_fraction=config.min_block_fraction, min_corr=config.min_corr)
+                                 min_block_fraction=config.min_block_fraction, min_corr=config.min_corr,
+                                 retrieval=config.retrieval)
         self.localizer = Localizer(self.map, loc_cfg, flatfield=flatfield)
         self.odometry = None
         if config.odometry != "none":

@@ -49,8 +49,8 @@ class LocalizeConfig:
     sub-blocks; ``retrieval``: ``vote`` (descriptor voting through an LSH index) or ``bow``
     (tf-idf bag of binary words)."""
 
-    n_candidates: int = field(default=3, metadata={"min": 1, "max": 1000})
-    n_verify: int = field(default=2, metadata={"min": 1, "max": 100})
+    n_candidates: int = field(default=8, metadata={"min": 1, "max": 1000})
+    n_verify: int = field(default=3, metadata={"min": 1, "max": 100})
     min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
     min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
     min_blocks: int = field(default=20, metadata={"min": 1})
