@@ -261,3 +261,25 @@ def test_map_fused_localiser_defaults_are_the_localizers():
     fused, loc = MapFusedConfig(), LocalizeConfig()
     for name in ("n_candidates", "n_verify", "min_block_fraction", "min_corr", "retrieval"):
         assert getattr(fused, name) == getattr(loc, name), name
+
+
+def test_vote_index_is_the_same_in_every_build():
+    """The LSH tables are drawn from a seeded RNG: two indexes of one map rank alike."""
+    import cv2
+
+    from floorvo.mapping.retrieval import VoteIndex
+
+    rng = np.random.default_rng(0)
+    kf = [rng.integers(0, 256, (300, 32), dtype=np.uint8) for _ in range(20)]
+    # queries: a keyframe's descriptors with 10 % of their bits flipped, as a new view gives
+    flips = [np.packbits(rng.random((300, 256)) < 0.1, axis=1) for _ in range(5)]
+    queries = [np.bitwise_xor(kf[3 * i], f) for i, f in enumerate(flips)]
+    out = []
+    for disturb in (1, 2):
+        cv2.setRNGSeed(disturb)
+        idx = VoteIndex(kf)
+        out.append([idx.query(q, 5) for q in queries])
+    for (k0, s0), (k1, s1) in zip(*out):
+        np.testing.assert_array_equal(k0, k1)
+        np.testing.assert_array_equal(s0, s1)
+    assert [int(k[0]) for k, _ in out[0]] == [0, 3, 6, 9, 12]  # and the right keyframe ranks first

@@ -45,7 +45,9 @@ class OrbIcpConfig:
     PROSAC reprojection threshold; ``icp_iterations``: SVD re-solves with residual rejection;
     ``refine_win_px``: window of the sub-pixel refinement of each inlier's position in the
     current frame (Lucas-Kanade from the match; 0 = off: FAST corners lie on whole pixels,
-    which quantises a pure translation to whole pixels, 1.3 % of a 32.4 px step)."""
+    which quantises a pure translation to whole pixels, 1.3 % of a 32.4 px step); ``seed``:
+    OpenCV's RNG is seeded with it before each FLANN-LSH match (the LSH tables draw their bits
+    from it), so a frame pair gives the same matches whatever ran before."""
 
     fast_threshold: int = field(default=8, metadata={"min": 1, "max": 100})
     grid_cols: int = field(default=8, metadata={"min": 1, "max": 64})
@@ -58,6 +60,7 @@ class OrbIcpConfig:
     min_matches: int = field(default=8, metadata={"min": 4})
     refine_win_px: int = field(default=15, metadata={"min": 0, "max": 63})
     use_flatfield: bool = True
+    seed: int = field(default=0, metadata={"min": 0})
 
 
 def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int, per_cell: int) -> list:
@@ -134,6 +137,7 @@ class OrbIcp:
         """(i_prev, i_cur, gamma) of the matches passing the ratio test, best (lowest gamma) first."""
         if len(d_prev) < 2 or len(d_cur) < 2:
             return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+        cv2.setRNGSeed(self.config.seed)  # the LSH index built on d_cur draws its hash bits from OpenCV's RNG
         knn = self.flann.knnMatch(d_prev, d_cur, k=2)
         qi, ti, gam = [], [], []
         for m in knn:

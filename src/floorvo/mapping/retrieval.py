@@ -117,7 +117,7 @@ class VoteIndex:
     LSH_TABLES = 6
     LSH_KEY_BITS = 24
 
-    def __init__(self, keyframe_desc: list[np.ndarray], ratio: float = 0.8):
+    def __init__(self, keyframe_desc: list[np.ndarray], ratio: float = 0.8, seed: int = 0):
         self.ratio = ratio
         self.owner = np.concatenate([np.full(len(d), k, np.int64) for k, d in enumerate(keyframe_desc)]) if keyframe_desc else np.zeros(0, np.int64)
         self.n_keyframes = len(keyframe_desc)
@@ -126,6 +126,9 @@ class VoteIndex:
         allx = [np.ascontiguousarray(d) for d in keyframe_desc if len(d)]
         if allx:
             self.matcher.add([np.concatenate(allx)])
+            # The LSH tables draw their hash bits from OpenCV's RNG: seed it, so that the same
+            # map gives the same candidates in every index built from it (and in every process).
+            cv2.setRNGSeed(int(seed))
             self.matcher.train()
 
     def query(self, desc: np.ndarray, top_k: int) -> tuple[np.ndarray, np.ndarray]:
