@@ -19,7 +19,9 @@ the same scene (floor texture unless ``floor.seed`` fixes it, sensor noise, samp
 
 Paper reproductions: a scene whose trajectory is the paper-000 ``strip`` also runs that
 paper's protocol (:mod:`floorsim.bench.paper000`); a scene named ``paper001*`` is
-compared with paper 001's 0.783 % error over its 3 m line.
+compared with paper 001's 0.783 % error over its 3 m line; a ``kidnap`` scene is localised
+against the keyframe map built from a ``lawnmower`` scene over the same floor in the same
+bench (:mod:`floorsim.bench.paper003`), as rows ``relocalise`` and ``map-fused``.
 """
 
 from __future__ import annotations
@@ -331,6 +333,7 @@ def run_bench(
     sections = []
     notes: list[str] = []
     results_csv = out_dir / "results.csv"
+    first_rendered: dict[str, tuple[Path, Any, Path, int]] = {}  # label -> (scene file, scene, sequence, seed) of rep 0
     for path, scene in scenes:
         label = scene.name
         names_seen[label] = names_seen.get(label, 0) + 1
@@ -340,6 +343,8 @@ def run_bench(
             seed = _scene_seed(scene) + rep
             cb = (lambda i, n, _s=label: on_frame(_s, i, n)) if on_frame else None
             seq_dir = render_cached(scene, cache_dir, seed=seed, frames=frames, scale=scale, spp=spp, on_frame=cb, render=render)
+            if rep == 0:
+                first_rendered[label] = (path, scene, seq_dir, seed)
             names, skipped = supported_estimators(seq_dir, estimators)
             if rep == 0:
                 for n, why in skipped.items():
@@ -371,6 +376,26 @@ def run_bench(
                 sections.append(p0.report_section)
         if label.startswith("paper001"):
             sections.append(_paper001_section([r for r in rows if r["scene"] == label]))
+
+    # Paper 003: a map from each lawnmower scene, the kidnap scenes over its floor localised on it.
+    from floorsim.bench.paper003 import pair_map_and_kidnap, run_paper003
+
+    pairs, p3_notes = pair_map_and_kidnap([(lab, v[1]) for lab, v in first_rendered.items()])
+    notes.extend(p3_notes)
+    for map_label, kid_label in pairs:
+        kpath, _, kseq, kseed = first_rendered[kid_label]
+        base = {"scene_file": str(kpath), "seed": kseed}
+        try:
+            p3 = run_paper003(first_rendered[map_label][2], kseq, out_dir / "paper003", map_label=map_label,
+                              kidnap_label=kid_label, row_base=base)
+        except FloorbenchError as exc:
+            notes.append(f"{kid_label}: relocalisation against the map of {map_label} failed: {exc}")
+            log.warning("paper 003 (%s on %s): %s", kid_label, map_label, exc)
+            continue
+        rows.extend(p3.rows)
+        records.extend(p3.records)
+        write_results_csv(results_csv, rows)
+        sections.append(p3.report_section)
 
     res = BenchResult(rows, records, results_csv, notes=notes)
     gate_text = None
