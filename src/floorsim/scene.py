@@ -177,9 +177,12 @@ class SensorSpec:
 @dataclass(frozen=True)
 class RenderSpec:
     """Render quality: samples per pixel (stratified), the flat-field calibration frame,
-    and the depth output (exact depth along the optical axis at each pixel centre)."""
+    the depth output (exact depth along the optical axis at each pixel centre), and
+    ``shadows``: False drops the relief's cast shadows (shading only; for studies that
+    separate what the shadows do to an estimator from what the shading does)."""
 
     spp: int = field(default=4, metadata=rule(">=1", "", hi=4096))
+    shadows: bool = True
     flatfield: bool = True
     flatfield_albedo: float = field(default=0.5, metadata=rule("[0,1]"))
     depth: bool = False

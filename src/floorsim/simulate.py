@@ -152,7 +152,12 @@ def _render_frame(renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: n
         T0 = traj.pose_at(t)[0]
         Tc = T0 if T_cam_rig is None else T0 @ T_cam_rig
         rad = renderer.render(
-            Tc, _leds(scene, T0, i), scene.render.spp, seed=_frame_seed(seed, i * 1009 + k if n > 1 else i), ambient=ambient_irradiance(scene, T0)
+            Tc,
+            _leds(scene, T0, i),
+            scene.render.spp,
+            seed=_frame_seed(seed, i * 1009 + k if n > 1 else i),
+            ambient=ambient_irradiance(scene, T0),
+            shadows=scene.render.shadows,
         )
         acc = rad.astype(np.float64) if acc is None else acc + rad
     return (acc / len(times)).astype(np.float32)

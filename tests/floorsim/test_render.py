@@ -196,3 +196,74 @@ def test_cli_render_unwritable_and_summary(tmp_path):
     assert "2 frames 162x124" in r.stdout
     seq = Sequence.open(tmp_path / "d")
     assert seq.camera.fx_px == pytest.approx(810.81 / 4, rel=1e-3)  # demo is half size; --scale 0.5 halves again
+
+
+def _down_camera_at(x_mm: float) -> np.ndarray:
+    """T_world_cam of a camera 100 mm above (x_mm, 0), looking straight down, image x along world x."""
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[0, 3], T[2, 3] = x_mm, 100.0
+    return T
+
+
+@pytest.mark.parametrize("x_world_mm", [0.0, 300.0, 2500.0])
+def test_ridge_casts_shadow_of_hand_computed_length_anywhere(x_world_mm):
+    """A 30 um ridge lit by one LED 3 mm high, 40 mm away, shadows the floor behind it to
+    x_s = x_e + h (x_e - x_led) / (H - h) (similar triangles), at the world origin and far from it.
+
+    (Shadow rays leave the surface at a fixed small lift: with a lift that grew with the
+    distance from the world origin, a 30 um ridge cast almost no shadow 300 mm away.)
+    """
+    from floorsim.render import FloorRenderer, LedArray
+    from floorvo.camera import CameraModel
+
+    full = CameraModel.from_sensor()  # the paper rig's intrinsics, a 96x24 crop
+    cam = CameraModel(96, 24, full.fx_px, full.fy_px, 47.5, 11.5)
+    gsd = 100.0 / cam.fx_px
+    spacing, h_mm, H_mm, d_mm = 0.02, 0.03, 3.0, 40.0
+    xs = np.arange(-400, 401) * spacing  # tile-relative
+    ys = np.arange(-110, 111) * spacing
+    height = np.where(np.abs(xs) <= 0.1 + 1e-9, h_mm, 0.0)[None, :].repeat(len(ys), 0)
+    r = FloorRenderer(cam)
+    r.load_heightfield(x_world_mm + xs[0], ys[0], spacing, height, np.full(height.shape, 0.5))
+    x_led = x_world_mm - d_mm
+    aim = np.array([1.0, 0.0, -H_mm / d_mm]) / np.hypot(1.0, H_mm / d_mm)
+    leds = LedArray(np.array([[x_led, 0.0, H_mm]]), aim[None, :], np.array([1.0]))
+    T = _down_camera_at(x_world_mm)
+    lit = r.render(T, leds, spp=16, seed=0).astype(np.float64)
+    bare = r.render(T, leds, spp=16, seed=0, shadows=False).astype(np.float64)
+    visible = (lit / bare).mean(axis=0)  # (W,) mean visibility per column; the ridge runs along y
+    x_left = x_world_mm + (np.arange(cam.width_px) - 0.5 - cam.cx_px) * gsd  # left edge of each column
+    # From the first column that lies wholly beyond the ridge's far wall (x_e + spacing).
+    x_e = x_world_mm + 0.1
+    c0 = int(np.argmax(x_left >= x_e + spacing))
+    assert visible[c0] < 0.05, "the column just behind the ridge must lie in its shadow"
+    x_shadow_end = x_left[c0] + gsd * np.sum(1.0 - visible[c0:])
+    expect = x_e + h_mm * (x_e - x_led) / (H_mm - h_mm)
+    assert x_shadow_end - x_world_mm == pytest.approx(expect - x_world_mm, abs=0.005)
+
+
+def test_same_floor_patch_renders_alike_anywhere_in_the_world():
+    """The vinyl relief at the world origin and 300 mm / 2.5 m away, seen from the same
+    relative pose: the pictures agree (the renderer has no preferred place in the world)."""
+    from floorsim.render import FloorRenderer
+    from floorsim.simulate import _leds
+    from floorvo.camera import CameraModel
+
+    full = CameraModel.from_sensor()
+    cam = CameraModel(96, 72, full.fx_px, full.fy_px, 47.5, 35.5)
+    spacing = 0.0617
+    xs = (np.arange(300) - 150) * spacing
+    ys = (np.arange(240) - 120) * spacing
+    height, albedo = sample_material("vinyl", xs, ys, 5)
+    scene = tiny_scene()
+    r = FloorRenderer(cam)
+    imgs = []
+    for x_world_mm in (0.0, 300.0, 2500.0):
+        r.load_heightfield(x_world_mm + xs[0], ys[0], spacing, height, albedo)
+        T = _down_camera_at(x_world_mm)
+        imgs.append(r.render(T, _leds(scene, T), spp=4, seed=1).astype(np.float64))
+        bare = r.render(T, _leds(scene, T), spp=4, seed=1, shadows=False)
+        assert imgs[-1].mean() / bare.mean() < 0.97, "grazing LEDs must cast micro-shadows on the vinyl relief"
+    for img in imgs[1:]:
+        assert np.abs(img - imgs[0]).max() <= 1e-4 * imgs[0].mean()

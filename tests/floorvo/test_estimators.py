@@ -102,22 +102,33 @@ def test_registry_lists_paper_estimators():
 
 
 @pytest.mark.render
-def test_rendered_paper000_uniform_distance(tmp_path_factory):
-    """Every mono estimator ends within 1 % of the 100 mm travelled; akaze-guided and phase-corr within 0.2 %."""
+@pytest.mark.parametrize(
+    "shadows, limits",
+    [
+        # Shading only: the picture moves rigidly with the floor, so the estimators' own
+        # errors remain.
+        (False, {"phase-corr": 0.1, "akaze-guided": 0.1, "akaze-bruteforce": 0.2}),
+        # With the relief's cast shadows the image moves about 0.25 % faster than the floor
+        # along the LED-bar axis (x here): the shadows lengthen with the distance from
+        # the bar they point away from (BENCHMARKS.md). Every estimator still ends within
+        # 0.5 %, far under paper 001's 0.783 %.
+        (True, {"phase-corr": 0.5, "akaze-guided": 0.5, "akaze-bruteforce": 1.0}),
+    ],
+)
+def test_rendered_paper000_uniform_distance(tmp_path_factory, shadows, limits):
+    """Every mono estimator ends near the 100 mm travelled on the rendered paper-000 run."""
     from floorsim.scene import load_scene
     from floorsim.simulate import render_sequence
     from floorvo.metrics import score_run
     from floorvo.run import run_estimator
+    from floorvo.tum import read_tum
 
     root = tmp_path_factory.mktemp("p0u")
-    seq = render_sequence(load_scene("paper000_uniform"), root / "seq", scale=0.5)
-    limits = {"phase-corr": 0.2, "akaze-guided": 0.2, "akaze-bruteforce": 1.0}
+    seq = render_sequence(load_scene("paper000_uniform", {"render.shadows": str(shadows).lower()}), root / "seq", scale=0.5)
     for name in MONO:
         run = root / name
         res = run_estimator(seq, name, run)
         assert res.lost == 0
-        from floorvo.tum import read_tum
-
         _, T_est = read_tum(run / "trajectory.txt")
         _, T_gt = read_tum(seq / "groundtruth.txt")
         end_err = np.linalg.norm(T_est[-1][:3, 3] - T_gt[-1][:3, 3])
