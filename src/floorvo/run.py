@@ -18,6 +18,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError
 from floorvo.estimators import Frame, get_estimator, make_config
 from floorvo.io import atomic_write_json, atomic_write_text, ensure_writable_dir
@@ -69,8 +70,13 @@ def run_estimator(
     overrides: Mapping[str, str] | None = None,
     frames: range | list[int] | None = None,
     on_frame: Callable[[int, int], None] | None = None,
+    scale_calibration: ScaleCalibration | None = None,
 ) -> RunResult:
-    """Run estimator ``name`` over ``seq`` (or the listed ``frames`` of it) into ``out_dir``."""
+    """Run estimator ``name`` over ``seq`` (or the listed ``frames`` of it) into ``out_dir``.
+
+    ``scale_calibration`` (:mod:`floorvo.calibration`): divide each step's camera-frame
+    x, y translation by the rig's calibrated scales before chaining it.
+    """
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)
     est, cfg = build_estimator(seq, name, overrides)
@@ -94,7 +100,8 @@ def run_estimator(
         )
         res = est.step(state, frame)
         if res.status == "ok":
-            T_world = T_world @ res.T_prev_cur
+            step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
+            T_world = T_world @ step
         if res.status in ("ok", "init"):
             poses.append(T_world.copy())
             stamps.append(float(ts_all[i]))
@@ -131,6 +138,7 @@ def run_estimator(
         {
             **asdict(result),
             "config": asdict(cfg),
+            "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
             "sequence": str(seq.root),
             "status_counts": counts,
             "first_frame": indices[0],

@@ -17,7 +17,7 @@ from floorvo import __version__
 from floorvo.errors import FloorbenchError
 
 #: Command modules under ``floorvo.cli``, in the order ``--help`` lists them.
-COMMANDS: list[str] = ["run", "list", "score", "map", "localize"]
+COMMANDS: list[str] = ["run", "list", "score", "calibrate", "map", "localize"]
 
 
 def build_parser(prog: str, package: str, commands: list[str], description: str, version: str) -> argparse.ArgumentParser:

@@ -1,0 +1,116 @@
+"""floorvo.calibration: per-axis odometry scale fitted on one run and divided out of others."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from floorvo.calibration import ScaleCalibration, apply_scale, fit_scale_calibration, load_scale_calibration
+from floorvo.camera import CameraModel
+from floorvo.cli import main as floorvo_main
+from floorvo.errors import ConfigError
+from floorvo.geometry import T_world_cam_down, invert_T
+from floorvo.synthetic import write_synthetic_sequence
+from floorvo.tum import read_tum
+
+CAM = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)  # GSD 0.4933 mm at 100 mm
+
+
+def _chain_scaled(T_true: np.ndarray, sx: float, sy: float) -> np.ndarray:
+    """Poses whose camera-frame steps are the true ones with x, y translation times (sx, sy)."""
+    out = [T_true[0].copy()]
+    for i in range(len(T_true) - 1):
+        d = invert_T(T_true[i]) @ T_true[i + 1]
+        d[0, 3] *= sx
+        d[1, 3] *= sy
+        out.append(out[-1] @ d)
+    return np.stack(out)
+
+
+def test_fit_recovers_per_axis_scales_of_a_turning_path():
+    k = np.arange(40)
+    T_true = np.stack([T_world_cam_down(3.0 * i, 1.5 * i + 0.02 * i**2, 100.0, 0.03 * i) for i in k])
+    T_est = _chain_scaled(T_true, 1.0025, 0.9990)
+    cal = fit_scale_calibration(T_true, T_est)
+    assert cal.observed_x and cal.observed_y and cal.steps == 39
+    assert cal.scale_x == pytest.approx(1.0025, abs=1e-9)
+    assert cal.scale_y == pytest.approx(0.9990, abs=1e-9)
+    # Dividing the scales out of the estimated steps gives back the true end pose.
+    fixed = [T_est[0]]
+    for i in range(len(T_est) - 1):
+        fixed.append(fixed[-1] @ apply_scale(invert_T(T_est[i]) @ T_est[i + 1], cal))
+    np.testing.assert_allclose(fixed[-1], T_true[-1], atol=1e-9)
+
+
+def test_axis_without_travel_keeps_scale_one():
+    T_true = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])
+    cal = fit_scale_calibration(T_true, _chain_scaled(T_true, 1.01, 1.0))
+    assert cal.observed_x and cal.scale_x == pytest.approx(1.01)
+    assert not cal.observed_y and cal.scale_y == 1.0 and cal.travel_y_mm == pytest.approx(0.0, abs=1e-9)
+
+
+def _diagonal_sequence(path, seed: int, dx: float, dy: float, n: int = 26):
+    """A synthetic sequence rendered at 100 mm whose sequence.json says 102 mm (a mis-measured rig)."""
+    T = np.stack([T_world_cam_down(dx * i, dy * i, 100.0) for i in range(n)])
+    root = write_synthetic_sequence(path, CAM, T, height_mm=100.0, seed=seed)
+    meta = json.loads((root / "sequence.json").read_text())
+    meta["rig"]["height_mm"] = 102.0
+    (root / "sequence.json").write_text(json.dumps(meta))
+    return root
+
+
+def _end_error_pct(run, seq) -> float:
+    _, T_est = read_tum(run / "trajectory.txt")
+    _, T_gt = read_tum(seq / "groundtruth.txt")
+    return 100 * np.linalg.norm(T_est[-1][:3, 3] - T_gt[-1][:3, 3]) / np.linalg.norm(T_gt[-1][:3, 3] - T_gt[0][:3, 3])
+
+
+def test_calibration_fitted_on_one_run_corrects_another(tmp_path, capsys):
+    """A 2 % height error: calibrated on one run (floor seed 1), the next run (seed 2, another path) ends within 0.1 %."""
+    cal_seq = _diagonal_sequence(tmp_path / "cal", 1, 3.0, 2.0)
+    test_seq = _diagonal_sequence(tmp_path / "test", 2, 2.0, -3.0)
+    assert floorvo_main(["run", str(cal_seq), "-e", "phase-corr", "-o", str(tmp_path / "run_cal")]) == 0
+    assert floorvo_main(["calibrate", str(tmp_path / "run_cal"), "--gt", str(cal_seq), "-o", str(tmp_path / "scale.json")]) == 0
+    assert "scale x 1.0" in capsys.readouterr().out
+    cal = load_scale_calibration(tmp_path / "scale.json")
+    assert cal.estimator == "phase-corr"
+    assert cal.scale_x == pytest.approx(1.02, abs=0.002) and cal.scale_y == pytest.approx(1.02, abs=0.002)
+    assert floorvo_main(["run", str(test_seq), "-e", "phase-corr", "-o", str(tmp_path / "raw")]) == 0
+    cmd = ["run", str(test_seq), "-e", "phase-corr", "-o", str(tmp_path / "fixed"), "--scale-calibration", str(tmp_path / "scale.json")]
+    assert floorvo_main(cmd) == 0
+    assert _end_error_pct(tmp_path / "raw", test_seq) == pytest.approx(2.0, abs=0.2)
+    assert _end_error_pct(tmp_path / "fixed", test_seq) < 0.1
+    result = json.loads((tmp_path / "fixed" / "result.json").read_text())
+    assert result["scale_calibration"]["scale_x"] == cal.scale_x
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("{not json", "not valid JSON"),
+        ('{"kind": "something else", "version": 1}', "not a scale calibration"),
+        ('{"kind": "floorvo scale calibration", "version": 7, "scale_x": 1.0, "scale_y": 1.0}', "version 7"),
+        ('{"kind": "floorvo scale calibration", "version": 1, "scale_x": 2.0, "scale_y": 1.0}', "scale_x = 2.0 must be a number in"),
+        ('{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "scale_z": 1}', "unknown key 'scale_z'"),
+    ],
+)
+def test_bad_calibration_file_is_one_line_error(tmp_path, capsys, content, message):
+    path = tmp_path / "scale.json"
+    path.write_text(content)
+    with pytest.raises(ConfigError, match=message):
+        load_scale_calibration(path)
+    seq = write_synthetic_sequence(tmp_path / "s", CAM, np.stack([T_world_cam_down(0.0, 0.0, 100.0)] * 2))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run"), "--scale-calibration", str(path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err
+    assert not (tmp_path / "run" / "trajectory.txt").exists()
+
+
+def test_calibration_round_trips_through_its_file(tmp_path):
+    from floorvo.calibration import save_scale_calibration
+
+    cal = ScaleCalibration(1.0025, 0.9993, True, True, 100.0, 20.0, 25, "akaze-guided", "r", "s")
+    save_scale_calibration(cal, tmp_path / "c.json")
+    assert load_scale_calibration(tmp_path / "c.json") == cal
