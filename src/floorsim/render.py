@@ -367,7 +367,9 @@ class FloorRenderer:
         along the geometric normal, on the side of the target (see :meth:`_set_mesh`).
         """
         mi, dr = self.mi, self.dr
-        lift = dr.mulsign(mi.Float(self.shadow_offset_mm), dr.dot(si.n, target - si.p))
+        # Opaque: the offset differs per tile, and a literal would compile new kernels for each one.
+        (offset,) = self._opaque([self.shadow_offset_mm])
+        lift = dr.mulsign(offset, dr.dot(si.n, target - si.p))
         o = si.p + lift * si.n
         d = target - o
         dist = dr.norm(d)

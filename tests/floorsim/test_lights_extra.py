@@ -1,11 +1,15 @@
 """LED aim and colour temperature; memory across floor tiles."""
 
+import json
+import pathlib
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from floorsim.scene import scene_T_world_leds
 from floorsim.spectral import mono_response
-from floorsim.simulate import render_sequence
 
 from _tiny import tiny_scene
 
@@ -34,25 +38,40 @@ def test_colour_temperature_weight():
     assert 0.7 < mono_response(10000.0) < 1.0 < mono_response(2700.0) < 2.0
 
 
+#: Renders a line ten floor tiles long in a fresh interpreter and prints resident memory (MB)
+#: after each frame: in the test process other tests' allocations would blur the figure.
+_MEMORY_PROBE = r"""
+import json, pathlib, sys, tempfile
+sys.path.insert(0, sys.argv[1])
+from _tiny import tiny_scene
+from floorsim.simulate import render_sequence
+
+def rss_mb():
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * 4096 / 2**20
+
+# Camera 20 mm above the floor: a 16 x 12 mm footprint, so 30 mm tiles hold two frames.
+scene = tiny_scene(**{
+    "camera.height_mm": 20.0,
+    "trajectory": {"type": "line", "length_mm": 180.0, "speed_mm_s": 300.0},
+    "floor.tile_length_mm": 30.0,
+    "floor.spacing_mm": 0.04,
+})
+marks = {}
+with tempfile.TemporaryDirectory() as d:
+    render_sequence(scene, pathlib.Path(d) / "seq", on_frame=lambda done, total: marks.setdefault(done, rss_mb()))
+print(json.dumps(marks))
+"""
+
+
 @pytest.mark.render
-def test_memory_flat_across_floor_tiles(tmp_path):
+def test_memory_flat_across_floor_tiles():
     """A line ten tiles long: resident memory after the last tile is that after the second."""
-
-    def rss_mb() -> float:
-        with open("/proc/self/statm") as fh:
-            return int(fh.read().split()[1]) * 4096 / 2**20
-
-    # Camera 20 mm above the floor: a 16 x 12 mm footprint, so 30 mm tiles hold two frames.
-    scene = tiny_scene(
-        **{
-            "camera.height_mm": 20.0,
-            "trajectory": {"type": "line", "length_mm": 180.0, "speed_mm_s": 300.0},
-            "floor.tile_length_mm": 30.0,
-            "floor.spacing_mm": 0.04,
-        }
+    out = subprocess.run(
+        [sys.executable, "-c", _MEMORY_PROBE, str(pathlib.Path(__file__).parent)],
+        capture_output=True, text=True, check=True, timeout=300,
     )
-    marks = {}
-    render_sequence(scene, tmp_path / "seq", on_frame=lambda done, total: marks.setdefault(done, rss_mb()))
+    marks = {int(k): v for k, v in json.loads(out.stdout.strip().splitlines()[-1]).items()}
     n = max(marks)
     assert n == 19
     # A tile (30 x 16 mm at 0.04 mm) holds ~0.3 M vertices, ~30 MB with its BVH; the
