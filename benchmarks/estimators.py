@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/estimators.py [--scale 1.0] [--line-scale 0.5] [--out out/bench-estimators]
     .venv/bin/python benchmarks/estimators.py --sequence paper000_uniform=PATH --sequence line=PATH
     .venv/bin/python benchmarks/estimators.py --synthetic   # no renderer: floorvo.synthetic sequences
+    .venv/bin/python benchmarks/estimators.py --line-scale 1 --calibrate-on paper000_uniform   # + scale calibration
 
 Renders (or reuses) ``paper000_uniform`` and the paper-001 3 m line with depth
 (``paper001_line3m_rgbd``), or uses the sequence folders given with ``--sequence``, or with
@@ -75,6 +76,11 @@ def main() -> None:
     ap.add_argument("--sequence", action="append", metavar="NAME=PATH", help="use an existing sequence folder (repeatable)")
     ap.add_argument("--synthetic", action="store_true", help="code-made sequences (floorvo.synthetic) instead of renders")
     ap.add_argument("--out", default="out/bench-estimators")
+    ap.add_argument(
+        "--calibrate-on", metavar="NAME", default=None,
+        help="fit each estimator's scale calibration (floorvo calibrate) on sequence NAME and run it again, "
+        "calibrated, on the other sequences: a table of end drift raw and calibrated",
+    )
     args = ap.parse_args()
     cv2.setNumThreads(1)
     out = Path(args.out)
@@ -145,7 +151,47 @@ def main() -> None:
         print("| " + " | ".join(str(r[c]) for c in cols) + " |")
     print(f"\nmatching-time ratio brute-force / guided (same run): {ratios}")
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
-    (out / "estimators.json").write_text(json.dumps({"rows": rows, "match_ratio": ratios}, indent=2))
+    calibrated = _calibrated_rows(seqs, rows, args.calibrate_on, out) if args.calibrate_on else []
+    (out / "estimators.json").write_text(json.dumps({"rows": rows, "match_ratio": ratios, "calibrated": calibrated}, indent=2))
+
+
+def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> list[dict]:
+    """Per estimator: the scale fitted on ``cal_name``'s run, then each other sequence run with it."""
+    from floorvo.calibration import calibrate_run
+
+    if cal_name not in seqs:
+        raise SystemExit(f"--calibrate-on {cal_name}: no such sequence (have {', '.join(seqs)})")
+    table = []
+    for r in rows:
+        if r["sequence"] == cal_name:
+            continue
+        name, sname = r["estimator"], r["sequence"]
+        cal_run = out / "runs" / cal_name / name
+        if not (cal_run / "trajectory.txt").is_file():
+            continue
+        cal = calibrate_run(cal_run, seqs[cal_name])
+        run = out / "runs" / sname / f"{name}-calibrated"
+        run_estimator(Sequence.open(seqs[sname]), name, run, scale_calibration=cal)
+        sc = score_run(run, seqs[sname]).flat()
+        table.append(
+            {
+                "sequence": sname,
+                "estimator": name,
+                "scale_x": round(cal.scale_x, 5),
+                "scale_y": round(cal.scale_y, 5),
+                "end_drift_pct_raw": r["end_drift_pct"],
+                "end_drift_pct_calibrated": round(sc["end_drift_pct"], 4),
+                "distance_error_pct_calibrated": round(sc["distance_error_pct"], 4),
+            }
+        )
+    if table:
+        cols = list(table[0])
+        print(f"\nscale calibration fitted on {cal_name}, applied to the others:")
+        print("| " + " | ".join(cols) + " |")
+        print("|" + "---|" * len(cols))
+        for t in table:
+            print("| " + " | ".join(str(t[c]) for c in cols) + " |")
+    return table
 
 
 if __name__ == "__main__":
