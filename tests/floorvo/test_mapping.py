@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from floorvo.camera import CameraModel
-from floorvo.errors import FloorbenchError
+from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.geometry import T_world_cam_down, invert_T, se2_from_T
 from floorvo.mapping import synthetic as syn
 from floorvo.mapping.keyframes import KeyframeConfig, fit_to_T_i_j
@@ -283,3 +283,40 @@ def test_vote_index_is_the_same_in_every_build():
         np.testing.assert_array_equal(k0, k1)
         np.testing.assert_array_equal(s0, s1)
     assert [int(k[0]) for k, _ in out[0]] == [0, 3, 6, 9, 12]  # and the right keyframe ranks first
+
+
+def test_vote_index_ranks_every_keyframe_that_shares_the_floor():
+    """Overlapping keyframes hold the same floor point's descriptor: both get its votes.
+
+    Keyframes 0 and 1 overlap over all of keyframe 0's content (1 holds 0's descriptors,
+    4 % of bits changed, plus its own); keyframes 2-9 are other floor. A query seen near
+    keyframe 0 (8 % of bits changed) must rank 0 and 1 first, and the shared descriptors
+    must vote for both. (Lowe's ratio test against the second neighbour gave keyframe 1
+    almost nothing: its copy is the second neighbour, barely farther than the first.)
+    """
+    from floorvo.mapping.retrieval import VoteIndex
+
+    rng = np.random.default_rng(4)
+
+    def flip(d, p):
+        return np.bitwise_xor(d, np.packbits(rng.random((len(d), 256)) < p, axis=1))
+
+    kf0 = rng.integers(0, 256, (300, 32), dtype=np.uint8)
+    kf1 = np.concatenate([flip(kf0, 0.04), rng.integers(0, 256, (150, 32), dtype=np.uint8)])
+    others = [rng.integers(0, 256, (300, 32), dtype=np.uint8) for _ in range(8)]
+    idx = VoteIndex([kf0, kf1, *others])
+    ids, votes = idx.query(flip(kf0, 0.08), 4)
+    assert ids[0] == 0 and ids[1] == 1
+    # LSH (6 tables of 24 bits) finds a neighbour 8 % of bits away about 60 % of the time
+    # and one 12 % away about 30 %: so about 170 and 85 votes of 300. The ratio test gave
+    # keyframe 1 under 2 % of keyframe 0's votes.
+    assert votes[0] > 0.4 * 300
+    assert votes[1] > 0.3 * votes[0]
+    assert len(votes) == 2 or votes[2] < 0.05 * votes[1]  # random floor gets (almost) nothing
+
+
+def test_vote_index_refuses_impossible_radius():
+    from floorvo.mapping.retrieval import VoteIndex
+
+    with pytest.raises(ConfigError, match="max_hamming_bits = 300: must be in"):
+        VoteIndex([], max_hamming_bits=300)

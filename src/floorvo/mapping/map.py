@@ -136,7 +136,7 @@ class GlobalMap:
     @property
     def vote_index(self) -> VoteIndex:
         if self._vote_index is None:
-            self._vote_index = VoteIndex([f.desc for f in self.features], ratio=self.config.similarity.ratio, seed=self.config.seed)
+            self._vote_index = VoteIndex([f.desc for f in self.features], seed=self.config.seed)
         return self._vote_index
 
     @property
