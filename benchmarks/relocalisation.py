@@ -104,6 +104,8 @@ def main(argv=None) -> int:
     ap.add_argument("--noise", type=float, default=2.0, help="sensor noise std in grey levels (synthetic mode)")
     ap.add_argument("--map-set", action="append", metavar="KEY=VALUE", help="override a key of the map scene")
     ap.add_argument("--kidnap-set", action="append", metavar="KEY=VALUE", help="override a key of the kidnap scene")
+    ap.add_argument("--vote-bits", type=int, default=None,
+                    help="Hamming radius of the descriptor votes (default: VoteIndex's 48)")
     ap.add_argument("--big-map", type=int, default=5000, help="keyframes of the large map for the retrieval timing")
     ap.add_argument("--poses", choices=("groundtruth", "chain"), default="groundtruth",
                     help="keyframe poses: the mapping run's ground truth (as `floorvo map` does by default) or the eq. (24) chain")
@@ -126,6 +128,8 @@ def main(argv=None) -> int:
                                  config=MapConfig(poses=args.poses))
     t_map = time.perf_counter() - t0
     chain = gmap.chain_vs_groundtruth  # eq. (24) chained keyframe poses against the ground truth
+    if args.vote_bits is not None:
+        gmap._vote_index = VoteIndex([f.desc for f in gmap.features], max_hamming_bits=args.vote_bits, seed=gmap.config.seed)
 
     loc = Localizer(gmap, flatfield=flat_k)
     loc.localize(kid_img(0))  # warm-up (allocations, ORB object)

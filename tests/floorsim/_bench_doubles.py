@@ -89,11 +89,18 @@ class _DepthEst:
 ESTIMATORS = {"scaled": _Est, "lossy": _Est, "needs_depth": _DepthEst}
 
 
-def run_estimator(seq, name, out_dir, overrides=None, frames=None):
+#: (estimator, ScaleCalibration or None) of every run_estimator call.
+CALIBRATIONS: list = []
+
+
+def run_estimator(seq, name, out_dir, overrides=None, frames=None, scale_calibration=None):
+    CALIBRATIONS.append((name, scale_calibration))
     meta = json.loads((Path(seq) / "sequence.json").read_text())
     height = float(meta["scene"]["lights"]["height_mm"])
     if name == "scaled":
         scale = float((overrides or {}).get("scale", 1.0 + 0.001 * height))
+        if scale_calibration is not None:  # the sequences travel along the camera's x axis
+            scale /= scale_calibration.scale_x
         write_run(Path(out_dir), Path(seq), scale=scale, estimator=name)
     elif name == "lossy":
         write_run(Path(out_dir), Path(seq), scale=1.0, lost=(3, 4), estimator=name)
@@ -130,6 +137,7 @@ def install(monkeypatch) -> None:
     import floorvo
 
     RENDER_CALLS.clear()
+    CALIBRATIONS.clear()
     scene = types.ModuleType("floorsim.scene")
     scene.load_scene = load_scene
     simulate = types.ModuleType("floorsim.simulate")

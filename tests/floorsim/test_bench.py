@@ -85,3 +85,36 @@ def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
     assert main(["bench", str(scene), "--estimators", "nope", "-o", str(tmp_path / "d")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "nope" in err
+
+
+def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, doubles, capsys):
+    """--scale-calibration NAME=FILE reaches that estimator's runs (only), and the row names the file."""
+    from floorsim.cli import main
+    from floorvo.calibration import ScaleCalibration, save_scale_calibration
+
+    scene = D.write_scene(tmp_path / "tiny.toml", height=3.0)  # 'scaled' reads 0.3 % long
+    cal = tmp_path / "scale.json"
+    save_scale_calibration(ScaleCalibration(scale_x=1.003, observed_x=True, travel_x_mm=100.0, steps=25), cal)
+    out = tmp_path / "out"
+    assert main(["bench", str(scene), "--estimators", "scaled,lossy", "-o", str(out), "--no-report",
+                 "--scale-calibration", f"scaled={cal}"]) == 0
+    rows = {r["estimator"]: r for r in read_results_csv(out / "results.csv")}
+    assert rows["scaled"]["scale_calibration"] == str(cal)
+    assert abs(rows["scaled"]["end_drift_pct"]) < 1e-3  # 0.3 % divided out
+    assert not rows["lossy"].get("scale_calibration")
+    given = dict(D.CALIBRATIONS)
+    assert given["scaled"].scale_x == pytest.approx(1.003) and given["lossy"] is None
+    capsys.readouterr()
+    # bad input: one line on stderr, exit 1
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    for args, words in (
+        ([f"nope={cal}"], "unknown estimator"),
+        ([f"lossy={cal}"], "not among --estimators"),
+        ([f"scaled={bad}"], "bad.json"),
+        (["scaled"], "expected ESTIMATOR=FILE"),
+    ):
+        rc = main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "x"), "--no-report",
+                   *[a for v in args for a in ("--scale-calibration", v)]])
+        err = capsys.readouterr().err
+        assert rc == 1 and err.count("\n") == 1 and words in err, err

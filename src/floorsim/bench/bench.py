@@ -226,12 +226,17 @@ class BenchResult:
     notes: list[str] = field(default_factory=list)
 
 
-def run_one(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """Run one estimator on one sequence and score it; returns the metric part of a row."""
+def run_one(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None,
+            scale_calibration=None) -> dict[str, Any]:
+    """Run one estimator on one sequence and score it; returns the metric part of a row.
+
+    ``scale_calibration``: a :class:`floorvo.calibration.ScaleCalibration` divided out of
+    every step (``floorvo run --scale-calibration``), or None.
+    """
     from floorvo.metrics import score_run
     from floorvo.run import run_estimator
 
-    run_estimator(seq_dir, estimator, run_dir, overrides=dict(overrides or {}))
+    run_estimator(seq_dir, estimator, run_dir, overrides=dict(overrides or {}), scale_calibration=scale_calibration)
     score = score_run(run_dir, seq_dir)
     atomic_write_json(run_dir / "score.json", score.to_dict())
     return score.flat()
@@ -302,6 +307,7 @@ def run_bench(
     paper000_runs: int | None = None,
     on_frame: Callable[[str, int, int], None] | None = None,
     render: RenderFn | None = None,
+    scale_calibrations: Mapping[str, str | os.PathLike] | None = None,
 ) -> BenchResult:
     """Render, run, score, report and gate (see the module doc).
 
@@ -309,6 +315,9 @@ def run_bench(
     ``paper000_runs`` limits the number of runs per paper-000 model (None: all of them).
     ``on_frame(scene_name, done, n)`` reports render progress (frames done of n). ``render`` replaces the
     renderer (same signature as ``floorsim.simulate.render_sequence``).
+    ``scale_calibrations``: ``{estimator: calibration file}`` (``floorvo calibrate``); that
+    estimator's runs, the paper-000 protocol's included, divide the rig's scale out of
+    every step, and each row names the file in ``scale_calibration``.
     """
     from floorsim.scene import load_scene
 
@@ -324,6 +333,15 @@ def run_bench(
         for n in list(estimators) + list(est_over):
             if n not in known:
                 raise ConfigError(f"--estimators {n!r}: unknown estimator (known: {', '.join(sorted(known))})")
+    cals = {}
+    for n, f in (scale_calibrations or {}).items():
+        if n not in _registry_names():
+            raise ConfigError(f"--scale-calibration {n}={f}: unknown estimator (known: {', '.join(sorted(_registry_names()))})")
+        if estimators is not None and n not in estimators:
+            raise ConfigError(f"--scale-calibration {n}={f}: estimator {n!r} is not among --estimators ({', '.join(estimators)})")
+        from floorvo.calibration import load_scale_calibration
+
+        cals[n] = (str(f), load_scale_calibration(f))
     baseline_data = load_baseline(baseline) if baseline is not None else None
 
     scenes = [(Path(p), load_scene(p, dict(scene_overrides or {}))) for p in scene_paths]
@@ -354,8 +372,10 @@ def run_bench(
                 run_dir = out_dir / "runs" / label / name / f"rep{rep}"
                 row: dict[str, Any] = {"scene": label, "scene_file": str(path), "estimator": name, "repetition": rep,
                                        "seed": seed, "sequence": str(seq_dir), "run_dir": str(run_dir)}
+                if name in cals:
+                    row["scale_calibration"] = cals[name][0]
                 try:
-                    metrics = run_one(seq_dir, name, run_dir, est_over.get(name))
+                    metrics = run_one(seq_dir, name, run_dir, est_over.get(name), cals[name][1] if name in cals else None)
                     row["status"] = "ok"
                     row.update(metrics)
                     if report and rep == 0:
@@ -372,7 +392,7 @@ def run_bench(
                 from floorsim.bench.paper000 import run_paper000
 
                 p0 = run_paper000(seq_dir, names, out_dir / "paper000" / label, max_runs=paper000_runs,
-                                  estimator_overrides=est_over)
+                                  estimator_overrides=est_over, scale_calibrations={n: c for n, (_, c) in cals.items()})
                 sections.append(p0.report_section)
         if label.startswith("paper001"):
             sections.append(_paper001_section([r for r in rows if r["scene"] == label]))

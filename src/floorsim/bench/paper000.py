@@ -28,6 +28,7 @@ from typing import Any, Callable, Mapping, Sequence as SequenceT
 import numpy as np
 
 from floorsim.trajectories import paper000_subsequences
+from floorvo.calibration import apply_scale
 from floorvo.errors import FloorbenchError
 
 log = logging.getLogger(__name__)
@@ -56,8 +57,11 @@ def matching_modes(estimator: str) -> tuple[str | None, list[str]]:
 
 
 def run_subsequence(seq, estimator: str, indices: SequenceT[int], overrides: Mapping[str, str] | None = None,
-                    images: dict[int, np.ndarray] | None = None) -> dict[str, Any]:
+                    images: dict[int, np.ndarray] | None = None, scale_calibration=None) -> dict[str, Any]:
     """Run ``estimator`` over the strip frames ``indices`` (in order; repeats allowed).
+
+    ``scale_calibration`` (:class:`floorvo.calibration.ScaleCalibration` or None) is
+    divided out of every step, as ``floorvo run --scale-calibration`` does.
 
     Returns ``measured_mm`` (K,) (distance from the run's first pose, per frame),
     ``true_mm`` (K,), ``match_ms`` (K,) and ``lost`` (count). The run's frame k gets
@@ -82,7 +86,8 @@ def run_subsequence(seq, estimator: str, indices: SequenceT[int], overrides: Map
             if k > 0:
                 lost += 1
         else:
-            T = T @ np.asarray(res.T_prev_cur, dtype=float)
+            step = np.asarray(res.T_prev_cur, dtype=float)
+            T = T @ (step if scale_calibration is None else apply_scale(step, scale_calibration))
         measured.append(float(np.linalg.norm(T[:3, 3] - p0)))
         match_ms.append(float((res.timing_ms or {}).get("match", float("nan"))))
     true = [float(np.linalg.norm(T_gt[i][:3, 3] - T_gt[indices[0]][:3, 3])) for i in indices]
@@ -105,11 +110,13 @@ class Paper000Result:
 
 def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir: str | os.PathLike, *,
                  max_runs: int | None = None, estimator_overrides: Mapping[str, Mapping[str, str]] | None = None,
-                 on_run: Callable[[int, int], None] | None = None) -> Paper000Result:
+                 on_run: Callable[[int, int], None] | None = None,
+                 scale_calibrations: Mapping[str, Any] | None = None) -> Paper000Result:
     """Run the paper-000 protocol on the strip sequence ``seq_dir`` (see the module doc).
 
     ``max_runs`` keeps at most that many runs per model, spread evenly over the start
     frames (None: 100 uniform and 190 per sigmoid model on a 200-frame strip).
+    ``scale_calibrations``: ``{estimator: ScaleCalibration}`` divided out of its steps.
     """
     from floorvo.sequence import Sequence
 
@@ -156,7 +163,8 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
             for model, subs in plans:
                 measured, true, times = [], [], []
                 for sub in subs:
-                    r = run_subsequence(seq, name, [int(i) for i in sub], over, images)
+                    r = run_subsequence(seq, name, [int(i) for i in sub], over, images,
+                                        (scale_calibrations or {}).get(name))
                     measured.append(r["measured_mm"])
                     true.append(r["true_mm"])
                     times.append(np.nanmean(r["match_ms"][1:]) if len(r["match_ms"]) > 1 else float("nan"))

@@ -40,6 +40,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--save-baseline", type=Path, default=None, metavar="FILE", help="write the results as a baseline")
     p.add_argument("--paper000-runs", type=int, default=None, help="at most N runs per paper-000 model (default: all)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML/Markdown report")
+    p.add_argument("--scale-calibration", action="append", metavar="ESTIMATOR=FILE",
+                   help="divide the rig scale fitted by `floorvo calibrate` out of that estimator's steps (repeatable)")
     p.set_defaults(func=run)
 
 
@@ -51,6 +53,17 @@ def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
             raise ConfigError(f"--est-set {key}={value}: expected NAME.KEY=VALUE (e.g. akaze.threshold=0.001)")
         name, k = key.split(".", 1)
         out.setdefault(name, {})[k] = value
+    return out
+
+
+def parse_scale_calibrations(items: list[str] | None) -> dict[str, str]:
+    """``ESTIMATOR=FILE`` items into ``{ESTIMATOR: FILE}``."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name.strip() or not path.strip():
+            raise ConfigError(f"--scale-calibration {item!r}: expected ESTIMATOR=FILE (e.g. phase-corr=scale.json)")
+        out[name.strip()] = path.strip()
     return out
 
 
@@ -76,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         scene_overrides=parse_set_args(args.scene_set), estimator_overrides=parse_estimator_sets(args.est_set),
         frames=args.frames, scale=args.scale, spp=args.spp, cache_dir=args.cache, baseline=args.baseline,
         save_baseline_to=args.save_baseline, report=not args.no_report, paper000_runs=args.paper000_runs,
-        on_frame=on_frame,
+        on_frame=on_frame, scale_calibrations=parse_scale_calibrations(args.scale_calibration),
     )
     for bar in bars.values():
         bar.close()
