@@ -367,7 +367,7 @@ class FloorRenderer:
         along the geometric normal, on the side of the target (see :meth:`_set_mesh`).
         """
         mi, dr = self.mi, self.dr
-        # Opaque: the offset differs per tile, and a literal would compile new kernels for each one.
+        # Opaque: the offset follows the tile's extent, and a literal would compile a new kernel per value.
         (offset,) = self._opaque([self.shadow_offset_mm])
         lift = dr.mulsign(offset, dr.dot(si.n, target - si.p))
         o = si.p + lift * si.n
