@@ -90,22 +90,15 @@ def fit_scale_calibration(T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: 
 
 def calibrate_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_diff_s: float = 0.01, min_travel_mm: float = 10.0) -> ScaleCalibration:
     """Fit the scales of ``RUN/trajectory.txt`` against ``SEQ/groundtruth.txt`` (or a TUM file)."""
-    from floorvo.metrics import associate
-    from floorvo.tum import read_tum
+    from floorvo.metrics import associate, read_run_and_groundtruth
 
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    gt = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
-    if not gt.is_file():
-        raise SequenceError(f"{gt}: no ground truth to calibrate against (groundtruth.txt is missing)")
-    t_ref, T_ref = read_tum(gt)
-    t_est, T_est = read_tum(run_dir / "trajectory.txt")
+    gt, (t_ref, T_ref), (t_est, T_est), result = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
     i_ref, i_est = associate(t_ref, t_est, max_diff_s)
     if len(i_ref) < 2:
         raise SequenceError(f"{run_dir}/trajectory.txt: fewer than 2 poses match {gt} in time (within {max_diff_s} s)")
     cal = fit_scale_calibration(T_ref[i_ref], T_est[i_est], min_travel_mm)
-    result = run_dir / "result.json"
-    name = str(read_json(result).get("estimator", "")) if result.is_file() else ""
-    return ScaleCalibration(**{**asdict(cal), "estimator": name, "run": str(run_dir), "sequence": str(seq_dir)})
+    return ScaleCalibration(**{**asdict(cal), "estimator": str(result.get("estimator", "")), "run": str(run_dir), "sequence": str(seq_dir)})
 
 
 def save_scale_calibration(cal: ScaleCalibration, path: str | os.PathLike) -> None:

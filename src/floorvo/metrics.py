@@ -68,6 +68,7 @@ __all__ = [
     "timing_stats",
     "Score",
     "score_trajectories",
+    "read_run_and_groundtruth",
     "score_run",
 ]
 
@@ -542,24 +543,33 @@ def score_trajectories(
     )
 
 
-def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
-    """Score ``RUN/trajectory.txt`` (+ ``timing.csv``, ``result.json``) against ``SEQ/groundtruth.txt``.
+def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, purpose: str):
+    """``(groundtruth path, (t_ref, T_ref), (t_est, T_est), result.json dict or {})`` of a run.
 
-    When the run covered a sub-range of the sequence (``result.json`` ``frames``), the
-    reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
+    ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
+    ("score", "calibrate") words the error when there is no ground truth.
     """
     from floorvo.tum import read_tum
 
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
     if not gt_path.is_file():
-        raise SequenceError(f"{gt_path}: no ground truth to score against (groundtruth.txt is missing)")
-    t_ref, T_ref = read_tum(gt_path)
-    t_est, T_est = read_tum(run_dir / "trajectory.txt")
-    result: dict = {}
+        raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+    ref = read_tum(gt_path)
+    est = read_tum(run_dir / "trajectory.txt")
     rp = run_dir / "result.json"
-    if rp.is_file():
-        result = read_json(rp, SequenceError)
+    result = read_json(rp, SequenceError) if rp.is_file() else {}
+    return gt_path, ref, est, result
+
+
+def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
+    """Score ``RUN/trajectory.txt`` (+ ``timing.csv``, ``result.json``) against ``SEQ/groundtruth.txt``.
+
+    When the run covered a sub-range of the sequence (``result.json`` ``frames``), the
+    reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
+    """
+    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
+    _, (t_ref, T_ref), (t_est, T_est), result = read_run_and_groundtruth(run_dir, seq_dir, "score")
     timing = read_timing_csv(run_dir / "timing.csv")
     statuses = list(timing["status"]) if timing and "status" in timing else None
     if timing and "frame" in timing and len(timing["frame"]):
