@@ -56,7 +56,9 @@ def _cpu_ms(seq: Sequence, name: str, max_frames: int = 60) -> float:
     times = []
     for i in range(min(seq.frame_count, max_frames)):
         frame = Frame(
-            i, i / seq.fps, seq.image(i),
+            i,
+            i / seq.fps,
+            seq.image(i),
             image_right=seq.image(i, "cam1") if "stereo" in est.requires else None,
             depth_mm=seq.depth_mm(i) if "depth" in est.requires else None,
         )
@@ -73,11 +75,17 @@ def main() -> None:
     ap.add_argument("--line-scale", type=float, default=0.5, help="resolution scale of the 3 m line")
     ap.add_argument("--line-frames", type=int, default=None, help="render only the first N frames of the line")
     ap.add_argument("--estimators", nargs="*", default=None)
-    ap.add_argument("--sequence", action="append", metavar="NAME=PATH", help="use an existing sequence folder (repeatable)")
-    ap.add_argument("--synthetic", action="store_true", help="code-made sequences (floorvo.synthetic) instead of renders")
+    ap.add_argument(
+        "--sequence", action="append", metavar="NAME=PATH", help="use an existing sequence folder (repeatable)"
+    )
+    ap.add_argument(
+        "--synthetic", action="store_true", help="code-made sequences (floorvo.synthetic) instead of renders"
+    )
     ap.add_argument("--out", default="out/bench-estimators")
     ap.add_argument(
-        "--calibrate-on", metavar="NAME", default=None,
+        "--calibrate-on",
+        metavar="NAME",
+        default=None,
         help="fit each estimator's scale calibration (floorvo calibrate) on sequence NAME and run it again, "
         "calibrated, on the other sequences: a table of end drift raw and calibrated",
     )
@@ -93,10 +101,20 @@ def main() -> None:
         cam = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)
         seqs = {
             "synthetic_uniform_100mm": write_synthetic_sequence(
-                out / "seq" / "synthetic_uniform_100mm", cam, line_poses(100.0, 4.0, 100.0), depth=True, stereo_baseline_mm=20.0, seed=0
+                out / "seq" / "synthetic_uniform_100mm",
+                cam,
+                line_poses(100.0, 4.0, 100.0),
+                depth=True,
+                stereo_baseline_mm=20.0,
+                seed=0,
             ),
             "synthetic_line_3m": write_synthetic_sequence(
-                out / "seq" / "synthetic_line_3m", cam, line_poses(3000.0, 10.0, 100.0), depth=True, stereo_baseline_mm=20.0, seed=1
+                out / "seq" / "synthetic_line_3m",
+                cam,
+                line_poses(3000.0, 10.0, 100.0),
+                depth=True,
+                stereo_baseline_mm=20.0,
+                seed=1,
             ),
         }
     else:
@@ -104,9 +122,14 @@ def main() -> None:
         from floorsim.simulate import render_sequence
 
         seqs = {
-            "paper000_uniform": render_sequence(load_scene("paper000_uniform"), out / "seq" / "paper000_uniform", scale=args.scale),
+            "paper000_uniform": render_sequence(
+                load_scene("paper000_uniform"), out / "seq" / "paper000_uniform", scale=args.scale
+            ),
             "paper001_line3m_rgbd": render_sequence(
-                load_scene("paper001_line3m_rgbd"), out / "seq" / "paper001_line3m_rgbd", scale=args.line_scale, frames=args.line_frames
+                load_scene("paper001_line3m_rgbd"),
+                out / "seq" / "paper001_line3m_rgbd",
+                scale=args.line_scale,
+                frames=args.line_frames,
             ),
         }
     names = args.estimators or [n for n in list_estimators() if n != "map-fused"]
@@ -144,7 +167,18 @@ def main() -> None:
         if g and b and g["match_ms"] > 0:
             ratios[sname] = round(b["match_ms"] / g["match_ms"], 2)
     print()
-    cols = ["sequence", "size", "estimator", "ms_per_frame", "cpu_ms_per_frame", "match_ms", "frames_per_s", "end_drift_pct", "distance_error_pct", "lost"]
+    cols = [
+        "sequence",
+        "size",
+        "estimator",
+        "ms_per_frame",
+        "cpu_ms_per_frame",
+        "match_ms",
+        "frames_per_s",
+        "end_drift_pct",
+        "distance_error_pct",
+        "lost",
+    ]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:
@@ -152,7 +186,9 @@ def main() -> None:
     print(f"\nmatching-time ratio brute-force / guided (same run): {ratios}")
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     calibrated = _calibrated_rows(seqs, rows, args.calibrate_on, out) if args.calibrate_on else []
-    (out / "estimators.json").write_text(json.dumps({"rows": rows, "match_ratio": ratios, "calibrated": calibrated}, indent=2))
+    (out / "estimators.json").write_text(
+        json.dumps({"rows": rows, "match_ratio": ratios, "calibrated": calibrated}, indent=2)
+    )
 
 
 def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> list[dict]:

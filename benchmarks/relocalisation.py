@@ -97,39 +97,52 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--out", type=Path, default=ROOT / "out" / "relocalisation")
     ap.add_argument("--map-scene", default=str(ROOT / "scenes" / "paper003_map.toml"))
     ap.add_argument("--kidnap-scene", default=str(ROOT / "scenes" / "paper003_kidnap.toml"))
-    ap.add_argument("--rendered", action="store_true", help="render the scenes with Mitsuba instead of warping a texture")
+    ap.add_argument(
+        "--rendered", action="store_true", help="render the scenes with Mitsuba instead of warping a texture"
+    )
     ap.add_argument("--scale", type=float, default=None, help="render scale (rendered mode)")
     ap.add_argument("--spp", type=int, default=None, help="samples per pixel (rendered mode)")
     ap.add_argument("--texture-seed", type=int, default=3)
     ap.add_argument("--noise", type=float, default=2.0, help="sensor noise std in grey levels (synthetic mode)")
     ap.add_argument("--map-set", action="append", metavar="KEY=VALUE", help="override a key of the map scene")
     ap.add_argument("--kidnap-set", action="append", metavar="KEY=VALUE", help="override a key of the kidnap scene")
-    ap.add_argument("--vote-bits", type=int, default=None,
-                    help="Hamming radius of the descriptor votes (default: VoteIndex's 48)")
+    ap.add_argument(
+        "--vote-bits", type=int, default=None, help="Hamming radius of the descriptor votes (default: VoteIndex's 48)"
+    )
     ap.add_argument("--big-map", type=int, default=5000, help="keyframes of the large map for the retrieval timing")
-    ap.add_argument("--poses", choices=("groundtruth", "chain"), default="groundtruth",
-                    help="keyframe poses: the mapping run's ground truth (as `floorvo map` does by default) or the eq. (24) chain")
+    ap.add_argument(
+        "--poses",
+        choices=("groundtruth", "chain"),
+        default="groundtruth",
+        help="keyframe poses: the mapping run's ground truth (as `floorvo map` does by default) or the eq. (24) chain",
+    )
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
     from floorsim.scene import load_scene
-
     from floorvo.cli.common import parse_set_args
 
     map_scene = load_scene(args.map_scene, parse_set_args(args.map_set))
     kid_scene = load_scene(args.kidnap_scene, parse_set_args(args.kidnap_set))
     args.out.mkdir(parents=True, exist_ok=True)
     if args.rendered:
-        cam, h, Tm, map_img, flat_m, Tk, tele, kid_img, flat_k, tex_px = rendered_sources(map_scene, kid_scene, args.out, args.scale, args.spp)
+        cam, h, Tm, map_img, flat_m, Tk, tele, kid_img, flat_k, tex_px = rendered_sources(
+            map_scene, kid_scene, args.out, args.scale, args.spp
+        )
     else:
-        cam, h, Tm, map_img, flat_m, Tk, tele, kid_img, flat_k, tex_px = synthetic_sources(map_scene, kid_scene, args.texture_seed, args.noise)
+        cam, h, Tm, map_img, flat_m, Tk, tele, kid_img, flat_k, tex_px = synthetic_sources(
+            map_scene, kid_scene, args.texture_seed, args.noise
+        )
 
     t0 = time.perf_counter()
-    gmap = build_map_from_images(map_img, len(Tm), cam, h, T_world_frames=Tm, flatfield=flat_m,
-                                 config=MapConfig(poses=args.poses))
+    gmap = build_map_from_images(
+        map_img, len(Tm), cam, h, T_world_frames=Tm, flatfield=flat_m, config=MapConfig(poses=args.poses)
+    )
     t_map = time.perf_counter() - t0
     chain = gmap.chain_vs_groundtruth  # eq. (24) chained keyframe poses against the ground truth
     if args.vote_bits is not None:
-        gmap._vote_index = VoteIndex([f.desc for f in gmap.features], max_hamming_bits=args.vote_bits, seed=gmap.config.seed)
+        gmap._vote_index = VoteIndex(
+            [f.desc for f in gmap.features], max_hamming_bits=args.vote_bits, seed=gmap.config.seed
+        )
 
     loc = Localizer(gmap, flatfield=flat_k)
     loc.localize(kid_img(0))  # warm-up (allocations, ORB object)
@@ -169,9 +182,17 @@ def main(argv=None) -> int:
     big_bow = KeyframeIndex(gmap.vocab, reps)
     from floorvo.mapping.similarity import detect_features, prepare_image
 
-    q = [detect_features(prepare_image(kid_img(i), flat_k), gmap.config.similarity).desc for i in range(0, len(Tk), max(1, len(Tk) // 10))]
+    q = [
+        detect_features(prepare_image(kid_img(i), flat_k), gmap.config.similarity).desc
+        for i in range(0, len(Tk), max(1, len(Tk) // 10))
+    ]
     ret = {}
-    for name, idx in (("vote_map", gmap.vote_index), ("vote_big", big_vote), ("bow_map", gmap.index), ("bow_big", big_bow)):
+    for name, idx in (
+        ("vote_map", gmap.vote_index),
+        ("vote_big", big_vote),
+        ("bow_map", gmap.index),
+        ("bow_big", big_bow),
+    ):
         idx.query(q[0], 3)
         t1 = time.perf_counter()
         for x in q:
@@ -204,7 +225,9 @@ def main(argv=None) -> int:
         "frames_to_recover": recover,
         "query_ms_median": float(np.median(ms)),
         "query_ms_p95": float(np.percentile(ms, 95)),
-        "query_ms_median_stages": dict(zip(("detect", "retrieve_and_fit", "similarity"), np.median(stages, axis=0).round(2).tolist())),
+        "query_ms_median_stages": dict(
+            zip(("detect", "retrieve_and_fit", "similarity"), np.median(stages, axis=0).round(2).tolist())
+        ),
         "retrieval_ms_map": t_small,
         f"retrieval_ms_{args.big_map}_keyframes": t_big,
         "retrieval_ms_all": ret,
@@ -214,15 +237,36 @@ def main(argv=None) -> int:
     }
     (args.out / "relocalisation.json").write_text(json.dumps(summary, indent=2) + "\n")
     rows = [
-        ("keyframes / mapping frames", f"{gmap.n_keyframes} / {len(Tm)} = {summary['keyframe_fraction_pct']:.1f} % (paper: < 5 %)"),
+        (
+            "keyframes / mapping frames",
+            f"{gmap.n_keyframes} / {len(Tm)} = {summary['keyframe_fraction_pct']:.1f} % (paper: < 5 %)",
+        ),
         ("keyframe poses used", args.poses),
         ("eq. (24) chain against ground truth", f"RMS {chain['rms_mm']:.3f} mm, max {chain['max_mm']:.3f} mm"),
-        ("localised (kidnap run)", f"{summary['success_rate_pct']:.1f} % of {len(Tk)} frames; within 1 mm {summary['within_1mm_pct']:.1f} %"),
-        ("localisation error", f"RMSE {summary['loc_rmse_mm']:.3f} mm (max {summary['loc_max_mm']:.3f}), yaw RMSE {summary['loc_yaw_rmse_deg']:.4f} deg"),
-        ("frames to recover after each kidnap", ", ".join(str(x) for x in recover) + " (0 = first frame after landing)"),
-        ("time per query, one core", f"median {summary['query_ms_median']:.1f} ms, p95 {summary['query_ms_p95']:.1f} ms; stages (median ms) {summary['query_ms_median_stages']}"),
-        ("retrieval only (descriptor voting, LSH)", f"{t_small:.2f} ms ({gmap.n_keyframes} keyframes), {t_big:.2f} ms ({args.big_map} keyframes; index built in {t_big_build:.1f} s)"),
-        ("retrieval only (bag of words)", f"{ret['bow_map']:.2f} ms ({gmap.n_keyframes} keyframes), {ret['bow_big']:.2f} ms ({args.big_map} keyframes)"),
+        (
+            "localised (kidnap run)",
+            f"{summary['success_rate_pct']:.1f} % of {len(Tk)} frames; within 1 mm {summary['within_1mm_pct']:.1f} %",
+        ),
+        (
+            "localisation error",
+            f"RMSE {summary['loc_rmse_mm']:.3f} mm (max {summary['loc_max_mm']:.3f}), yaw RMSE {summary['loc_yaw_rmse_deg']:.4f} deg",
+        ),
+        (
+            "frames to recover after each kidnap",
+            ", ".join(str(x) for x in recover) + " (0 = first frame after landing)",
+        ),
+        (
+            "time per query, one core",
+            f"median {summary['query_ms_median']:.1f} ms, p95 {summary['query_ms_p95']:.1f} ms; stages (median ms) {summary['query_ms_median_stages']}",
+        ),
+        (
+            "retrieval only (descriptor voting, LSH)",
+            f"{t_small:.2f} ms ({gmap.n_keyframes} keyframes), {t_big:.2f} ms ({args.big_map} keyframes; index built in {t_big_build:.1f} s)",
+        ),
+        (
+            "retrieval only (bag of words)",
+            f"{ret['bow_map']:.2f} ms ({gmap.n_keyframes} keyframes), {ret['bow_big']:.2f} ms ({args.big_map} keyframes)",
+        ),
         ("map build", f"{t_map:.1f} s"),
     ]
     print("| quantity | value |\n|---|---|")

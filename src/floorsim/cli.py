@@ -17,7 +17,11 @@ COMMANDS: list[str] = ["render", "list", "bench", "sweep", "export", "gallery"]
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser(
-        "floorsim", "floorsim.commands", COMMANDS, "Render the floor-camera rig and run the odometry bench.", __version__
+        "floorsim",
+        "floorsim.commands",
+        COMMANDS,
+        "Render the floor-camera rig and run the odometry bench.",
+        __version__,
     )
     return run_cli(parser, argv, "floorsim")
 

@@ -56,10 +56,22 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
-    Image, CameraInfo, Roi = T["sensor_msgs/msg/Image"], T["sensor_msgs/msg/CameraInfo"], T["sensor_msgs/msg/RegionOfInterest"]
+    Image, CameraInfo, Roi = (
+        T["sensor_msgs/msg/Image"],
+        T["sensor_msgs/msg/CameraInfo"],
+        T["sensor_msgs/msg/RegionOfInterest"],
+    )
     PoseStamped, Pose = T["geometry_msgs/msg/PoseStamped"], T["geometry_msgs/msg/Pose"]
-    Point, Quaternion, Vector3 = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"], T["geometry_msgs/msg/Vector3"]
-    Transform, TransformStamped, TFMessage = T["geometry_msgs/msg/Transform"], T["geometry_msgs/msg/TransformStamped"], T["tf2_msgs/msg/TFMessage"]
+    Point, Quaternion, Vector3 = (
+        T["geometry_msgs/msg/Point"],
+        T["geometry_msgs/msg/Quaternion"],
+        T["geometry_msgs/msg/Vector3"],
+    )
+    Transform, TransformStamped, TFMessage = (
+        T["geometry_msgs/msg/Transform"],
+        T["geometry_msgs/msg/TransformStamped"],
+        T["tf2_msgs/msg/TFMessage"],
+    )
 
     def header(t_s: float, frame: str):
         ns = _ns(t_s)
@@ -68,7 +80,9 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     def transform(T44: np.ndarray):
         xyz_mm, q = xyz_quat_from_T(T44)
         xyz = xyz_mm / 1000.0
-        return Transform(translation=Vector3(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))
+        return Transform(
+            translation=Vector3(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])
+        )
 
     def cam_info(cam, t_s: float, frame: str, baseline_tx_m: float = 0.0):
         K = cam.K
@@ -76,9 +90,17 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         P[:, :3] = K
         P[0, 3] = -cam.fx_px * baseline_tx_m
         return CameraInfo(
-            header=header(t_s, frame), height=cam.height_px, width=cam.width_px, distortion_model="plumb_bob",
-            d=np.asarray(cam.distortion, dtype=np.float64), k=K.ravel().astype(np.float64), r=np.eye(3).ravel(),
-            p=P.ravel(), binning_x=0, binning_y=0, roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+            header=header(t_s, frame),
+            height=cam.height_px,
+            width=cam.width_px,
+            distortion_model="plumb_bob",
+            d=np.asarray(cam.distortion, dtype=np.float64),
+            k=K.ravel().astype(np.float64),
+            r=np.eye(3).ravel(),
+            p=P.ravel(),
+            binning_x=0,
+            binning_y=0,
+            roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
         )
 
     def image_msg(img: np.ndarray, t_s: float, frame: str):
@@ -88,8 +110,15 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
             enc, step, data = "mono16", img.shape[1] * 2, img.astype("<u2")
         else:
             enc, step, data = "32FC1", img.shape[1] * 4, img.astype("<f4")
-        return Image(header=header(t_s, frame), height=img.shape[0], width=img.shape[1], encoding=enc, is_bigendian=0,
-                     step=step, data=np.frombuffer(np.ascontiguousarray(data).tobytes(), dtype=np.uint8))
+        return Image(
+            header=header(t_s, frame),
+            height=img.shape[0],
+            width=img.shape[1],
+            encoding=enc,
+            is_bigendian=0,
+            step=step,
+            data=np.frombuffer(np.ascontiguousarray(data).tobytes(), dtype=np.uint8),
+        )
 
     gt = seq.groundtruth()
     stamps = seq.timestamps_s
@@ -106,7 +135,13 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
         if seq.has_stereo:
             conns["/tf_static"] = w.add_connection("/tf_static", TFMessage.__msgtype__, typestore=ts)
-            tfs = TFMessage(transforms=[TransformStamped(header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(seq.T_cam0_cam1))])
+            tfs = TFMessage(
+                transforms=[
+                    TransformStamped(
+                        header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(seq.T_cam0_cam1)
+                    )
+                ]
+            )
             w.write(conns["/tf_static"], _ns(stamps[0]), ts.serialize_cdr(tfs, TFMessage.__msgtype__))
 
         def put(topic: str, t_s: float, msg) -> None:
@@ -124,9 +159,24 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
             if gt is not None:
                 Tw = gt[1][i]
                 tr = transform(Tw)
-                put("/groundtruth/pose", t_s, PoseStamped(header=header(t_s, "world"), pose=Pose(
-                    position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z), orientation=tr.rotation)))
-                put("/tf", t_s, TFMessage(transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]))
+                put(
+                    "/groundtruth/pose",
+                    t_s,
+                    PoseStamped(
+                        header=header(t_s, "world"),
+                        pose=Pose(
+                            position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z),
+                            orientation=tr.rotation,
+                        ),
+                    ),
+                )
+                put(
+                    "/tf",
+                    t_s,
+                    TFMessage(
+                        transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]
+                    ),
+                )
     return out
 
 
@@ -189,8 +239,20 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
             wr = csv.writer(fh, lineterminator="\n")
             for k in range(len(t)):
                 _, q = xyz_quat_from_T(Ts[k])
-                wr.writerow([_ns(t[k]), *[f"{x:.9f}" for x in p[k]], *[f"{x:.12f}" for x in (q[3], q[0], q[1], q[2])],
-                             *[f"{x:.9f}" for x in v[k]], 0, 0, 0, 0, 0, 0])
+                wr.writerow(
+                    [
+                        _ns(t[k]),
+                        *[f"{x:.9f}" for x in p[k]],
+                        *[f"{x:.12f}" for x in (q[3], q[0], q[1], q[2])],
+                        *[f"{x:.9f}" for x in v[k]],
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                    ]
+                )
     return out
 
 
@@ -202,5 +264,3 @@ def export_sequence(seq_dir: str | os.PathLike, fmt: str, out: str | os.PathLike
     if fmt not in FORMATS:
         raise FloorbenchError(f"--format {fmt!r}: unknown (known: {', '.join(FORMATS)})")
     return FORMATS[fmt](Sequence.open(seq_dir), out)
-
-

@@ -10,8 +10,8 @@ so a person can judge the realism at a glance. The frames are kept as sequences 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import cv2
 import numpy as np
@@ -59,7 +59,9 @@ def render_gallery(
         jobs.append((f"vinyl, {label}", {"floor.material": '"vinyl"', **over}))
     tiles = []
     for k, (label, over) in enumerate(jobs):
-        scene: Scene = load_scene(base, {**over, "trajectory.type": '"uniform"', "trajectory.distance_mm": "4", "trajectory.step_mm": "4"})
+        scene: Scene = load_scene(
+            base, {**over, "trajectory.type": '"uniform"', "trajectory.distance_mm": "4", "trajectory.step_mm": "4"}
+        )
         slug = "".join(c if c.isalnum() else "_" for c in label).strip("_")
         seq = Sequence.open(render_sequence(scene, out / "frames" / slug, frames=1, scale=scale))
         img = seq.image(0)

@@ -14,15 +14,25 @@ parameter dataclass (validated like scene sections) and a ``sample`` function::
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
 from floorsim.params import from_mapping, rule
 from floorvo.errors import ConfigError
 
-__all__ = ["Material", "MATERIALS", "register_material", "get_material", "sample_material", "value_noise", "fbm", "hash01"]
+__all__ = [
+    "Material",
+    "MATERIALS",
+    "register_material",
+    "get_material",
+    "sample_material",
+    "value_noise",
+    "fbm",
+    "hash01",
+]
 
 _M1 = np.uint64(0x9E3779B97F4A7C15)
 _M2 = np.uint64(0xC2B2AE3D27D4EB4F)
@@ -322,7 +332,9 @@ class ConcreteParams:
 @register_material("concrete", "concrete: rough cement, exposed aggregate, pores", ConcreteParams)
 def _concrete(X, Y, seed, p: ConcreteParams):
     h = p.roughness_mm * fbm(X, Y, 0.8, seed, octaves=4, gain=0.55, channel=11)
-    agg_field = value_noise(X, Y, p.aggregate_cell_mm, seed, 12) + 0.3 * value_noise(X, Y, p.aggregate_cell_mm / 3, seed, 13)
+    agg_field = value_noise(X, Y, p.aggregate_cell_mm, seed, 12) + 0.3 * value_noise(
+        X, Y, p.aggregate_cell_mm / 3, seed, 13
+    )
     stone = np.clip((agg_field - 0.35) * 4.0, 0.0, 1.0)
     h = h + p.aggregate_height_mm * stone
     tone = value_noise(X, Y, p.aggregate_cell_mm, seed, 14)
@@ -353,7 +365,9 @@ def _wood(X, Y, seed, p: WoodParams):
     ring = 0.5 + 0.5 * np.sin(2 * np.pi * phase)
     late = ring**4  # dense latewood bands
     h = -p.groove_depth_mm * late + 0.004 * fbm(X, Y, 0.3, seed, octaves=3, channel=32)
-    albedo = p.base_albedo * (1.0 - p.grain_contrast * late) * (1.0 + 0.08 * fbm(X, Y, 6.0, seed, octaves=2, channel=33))
+    albedo = (
+        p.base_albedo * (1.0 - p.grain_contrast * late) * (1.0 + 0.08 * fbm(X, Y, 6.0, seed, octaves=2, channel=33))
+    )
     joint_d = np.abs(((Y / p.plank_width_mm) % 1.0) - 0.5) * p.plank_width_mm  # distance from the plank centre
     joint = np.clip(1.0 - (p.plank_width_mm / 2 - joint_d) / 0.3, 0.0, 1.0)
     h = h - 0.15 * joint
@@ -383,7 +397,9 @@ def _asphalt(X, Y, seed, p: AsphaltParams):
     h = p.relief_mm * (np.sqrt(stones) + 0.4 * np.sqrt(fine)) + 0.02 * fbm(X, Y, 0.5, seed, octaves=3, channel=42)
     tone = 0.5 + 0.5 * value_noise(X, Y, p.stone_cell_mm, seed, 43)
     is_stone = np.maximum(stones > 0, fine > 0)
-    albedo = np.where(is_stone, p.stone_albedo * (0.7 + 0.6 * tone), p.base_albedo * (1.0 + 0.2 * fbm(X, Y, 0.4, seed, channel=44)))
+    albedo = np.where(
+        is_stone, p.stone_albedo * (0.7 + 0.6 * tone), p.base_albedo * (1.0 + 0.2 * fbm(X, Y, 0.4, seed, channel=44))
+    )
     return h, albedo
 
 
@@ -423,7 +439,9 @@ class PolishedParams:
     mottle: float = field(default=0.1, metadata=rule("[0,1]"))
 
 
-@register_material("polished", "polished or wet floor: smooth, glossy (specular highlights)", PolishedParams, specular=(0.6, 300.0))
+@register_material(
+    "polished", "polished or wet floor: smooth, glossy (specular highlights)", PolishedParams, specular=(0.6, 300.0)
+)
 def _polished(X, Y, seed, p: PolishedParams):
     h = p.relief_mm * fbm(X, Y, 1.5, seed, octaves=4, channel=61)
     albedo = p.base_albedo * (1.0 + p.mottle * fbm(X, Y, 3.0, seed, octaves=3, channel=62))

@@ -11,7 +11,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import typing
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from floorvo.errors import ConfigError
 
@@ -26,7 +27,14 @@ _OPS = {
 }
 
 
-def rule(check: str = "any", unit: str = "", help: str = "", choices: tuple | None = None, lo: float | None = None, hi: float | None = None) -> dict:
+def rule(
+    check: str = "any",
+    unit: str = "",
+    help: str = "",
+    choices: tuple | None = None,
+    lo: float | None = None,
+    hi: float | None = None,
+) -> dict:
     """Metadata for a dataclass field: a named check, a unit, a help line, choices or a [lo, hi] range."""
     return {"check": check, "unit": unit, "help": help, "choices": choices, "lo": lo, "hi": hi}
 
@@ -111,7 +119,9 @@ def check_rules(obj: Any, prefix: str) -> None:
             raise ConfigError(f"{key} = {value}{unit}: must be within [{lo}, {hi}]{unit}")
 
 
-def from_mapping(cls: type, data: Mapping[str, Any] | None, prefix: str, nested: Mapping[str, type] | None = None) -> Any:
+def from_mapping(
+    cls: type, data: Mapping[str, Any] | None, prefix: str, nested: Mapping[str, type] | None = None
+) -> Any:
     """Build dataclass ``cls`` from ``data``, refusing unknown keys and wrong types by name.
 
     ``nested`` maps a field name to the dataclass its sub-table loads into.

@@ -96,7 +96,9 @@ def _import_mitsuba(variant: str | None = None):
     try:
         import mitsuba as mi
     except ImportError as exc:
-        raise FloorbenchError(f"the renderer needs mitsuba ({exc}); run scripts/setup or 'pip install mitsuba==3.9.1'") from None
+        raise FloorbenchError(
+            f"the renderer needs mitsuba ({exc}); run scripts/setup or 'pip install mitsuba==3.9.1'"
+        ) from None
     try:
         mi.set_variant(want)
     except (ImportError, AttributeError, RuntimeError) as exc:
@@ -159,7 +161,9 @@ class FloorRenderer:
         self.smooth_normals = True
 
     # --------------------------------------------------------------------- geometry
-    def load_heightfield(self, x0_mm: float, y0_mm: float, spacing_mm: float, height_mm: np.ndarray, albedo: np.ndarray) -> None:
+    def load_heightfield(
+        self, x0_mm: float, y0_mm: float, spacing_mm: float, height_mm: np.ndarray, albedo: np.ndarray
+    ) -> None:
         """Build the floor mesh: vertex (i, j) at (x0 + j s, y0 + i s, height[i, j]).
 
         ``height_mm`` and ``albedo`` are (H, W) grids. Replaces any previous floor.
@@ -168,7 +172,9 @@ class FloorRenderer:
         albedo = np.asarray(albedo, dtype=np.float32)
         ny, nx = height_mm.shape
         if albedo.shape != height_mm.shape or nx < 2 or ny < 2:
-            raise ValueError(f"load_heightfield: height {height_mm.shape} and albedo {albedo.shape} must be equal, >= 2x2")
+            raise ValueError(
+                f"load_heightfield: height {height_mm.shape} and albedo {albedo.shape} must be equal, >= 2x2"
+            )
         # Tile-local coordinates about the central vertex (see _set_mesh): two tiles of one
         # size hold bit-identical vertex x, y whatever their place in the world.
         cx, cy = (nx - 1) // 2, (ny - 1) // 2
@@ -382,7 +388,6 @@ class FloorRenderer:
             return np.asarray(leds.bar, dtype=int)
         rel = np.asarray(leds.positions_mm, dtype=float) - T_world_cam[:3, 3]
         return (rel @ T_world_cam[:3, 0] > 0).astype(int)
-
 
     def depth(self, T_world_cam: np.ndarray) -> np.ndarray:
         """Depth (distance along the optical axis, mm) of the floor at each pixel centre; NaN where no hit."""

@@ -52,9 +52,10 @@ from __future__ import annotations
 import copy
 import os
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -105,7 +106,9 @@ class CameraSpec:
     def model(self) -> CameraModel:
         dist = tuple(self.distortion) + (0.0,) * (5 - len(self.distortion))
         if len(self.distortion) > 5:
-            raise ConfigError(f"camera.distortion = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)")
+            raise ConfigError(
+                f"camera.distortion = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)"
+            )
         return CameraModel.from_sensor(self.width_px, self.height_px, self.pixel_pitch_um, self.focal_length_mm, dist)
 
 
@@ -234,7 +237,9 @@ class Scene:
         t = dict(self.trajectory)
         ttype = t.pop("type")
         dist = t.pop("disturbance", None)
-        return build_trajectory(ttype, t, height_mm=self.camera.height_mm, fps=self.fps, seed=self.seed, disturbance=dist)
+        return build_trajectory(
+            ttype, t, height_mm=self.camera.height_mm, fps=self.fps, seed=self.seed, disturbance=dist
+        )
 
     def led_positions_cam(self) -> tuple[np.ndarray, np.ndarray]:
         """LED positions (N, 3) in the camera frame (mm) and their bar side (+1 right, -1 left).
@@ -281,7 +286,7 @@ def _check_scene(scene: Scene) -> None:
     from_mapping(mat.Params, scene.floor.params, "floor.params")
     scene.camera.model()
     if not isinstance(scene.trajectory, Mapping) or "type" not in scene.trajectory:
-        raise ConfigError("trajectory.type: missing (e.g. type = \"uniform\")")
+        raise ConfigError('trajectory.type: missing (e.g. type = "uniform")')
     scene.build_trajectory()  # validates the type's parameters
 
 
@@ -289,7 +294,15 @@ def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:
     """Build and validate a :class:`Scene` from a plain dict (a parsed TOML file)."""
     d = dict(d)
     d.setdefault("name", default_name)
-    nested = {"camera": CameraSpec, "floor": FloorSpec, "lights": LightsSpec, "sensor": SensorSpec, "render": RenderSpec, "stereo": StereoSpec, "depth_noise": DepthNoise}
+    nested = {
+        "camera": CameraSpec,
+        "floor": FloorSpec,
+        "lights": LightsSpec,
+        "sensor": SensorSpec,
+        "render": RenderSpec,
+        "stereo": StereoSpec,
+        "depth_noise": DepthNoise,
+    }
     if "trajectory" in d and not isinstance(d["trajectory"], Mapping):
         raise ConfigError(f"trajectory: must be a table, got {d['trajectory']!r}")
     floor = d.get("floor")

@@ -18,18 +18,18 @@ import logging
 import os
 import platform
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 import floorsim
 import floorvo
 from floorsim.depthnoise import apply_depth_noise
-from floorsim.spectral import mono_response
 from floorsim.materials import get_material, sample_material
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
+from floorsim.spectral import mono_response
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError
@@ -44,7 +44,14 @@ log = logging.getLogger(__name__)
 LED_INTENSITY_UNIT = 1000.0
 
 
-def prepare_scene(scene: Scene, *, frames: int | None = None, scale: float | None = None, spp: int | None = None, seed: int | None = None) -> Scene:
+def prepare_scene(
+    scene: Scene,
+    *,
+    frames: int | None = None,
+    scale: float | None = None,
+    spp: int | None = None,
+    seed: int | None = None,
+) -> Scene:
     """Apply the command-line knobs to a scene (validated like the file)."""
     if frames is not None and frames < 1:
         raise ConfigError(f"--frames = {frames}: must be >= 1")
@@ -75,7 +82,9 @@ def _trajectory_of(scene: Scene) -> Trajectory:
     return traj
 
 
-def plan_tiles(T_world_cam: np.ndarray, camera: CameraModel, tile_length_mm: float, margin_mm: float) -> list[tuple[list[int], tuple[float, float, float, float]]]:
+def plan_tiles(
+    T_world_cam: np.ndarray, camera: CameraModel, tile_length_mm: float, margin_mm: float
+) -> list[tuple[list[int], tuple[float, float, float, float]]]:
     """Group frame indices into floor tiles: ``[(frame_indices, (xmin, xmax, ymin, ymax)), ...]``.
 
     Consecutive frames join a tile while the union of their footprints (plus margin)
@@ -141,7 +150,9 @@ def vignetting_factor(cam: CameraModel, strength: float) -> np.ndarray | None:
     return (1.0 - strength * (1.0 - cos4)).reshape(cam.height_px, cam.width_px).astype(np.float32)
 
 
-def _render_frame(renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: np.ndarray | None, seed: int) -> np.ndarray:
+def _render_frame(
+    renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: np.ndarray | None, seed: int
+) -> np.ndarray:
     """Radiance of frame i for the camera at ``T_rig_cam`` from cam0 (None: cam0), with motion blur."""
     t_i = i / traj.fps
     exp_s = scene.sensor.exposure_ms / 1000.0
@@ -164,7 +175,12 @@ def _render_frame(renderer, scene: Scene, traj: Trajectory, i: int, T_cam_rig: n
 
 
 def _versions() -> dict:
-    v = {"floorsim": floorsim.__version__, "floorvo": floorvo.__version__, "numpy": np.__version__, "python": platform.python_version()}
+    v = {
+        "floorsim": floorsim.__version__,
+        "floorvo": floorvo.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
     try:
         from floorsim.render import backend_info
 
@@ -183,7 +199,9 @@ def _load_tile(renderer, scene: Scene, box, spacing: float) -> None:
     xs = np.arange(i0, i1 + 1) * spacing
     ys = np.arange(j0, j1 + 1) * spacing
     f = scene.floor
-    h, a = sample_material(f.material, xs, ys, scene.floor_seed, f.params, f.relief_scale, f.dirt_density, f.dust_density)
+    h, a = sample_material(
+        f.material, xs, ys, scene.floor_seed, f.params, f.relief_scale, f.dirt_density, f.dust_density
+    )
     renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
     renderer.specular = get_material(f.material).specular
 
@@ -229,16 +247,27 @@ def render_sequence(
         },
         "stereo": T_01 is not None,
         "cameras": {"cam1": cam.to_dict()} if T_01 is not None else {},
-        "depth": {"format": scene.render.depth_format, "scale_per_mm": 100.0, "content": "depth along the optical axis, mm"}
+        "depth": {
+            "format": scene.render.depth_format,
+            "scale_per_mm": 100.0,
+            "content": "depth along the optical axis, mm",
+        }
         if scene.render.depth
         else None,
-        "seeds": {"scene": scene.seed, "floor": scene.floor_seed, "pixel_jitter": scene.seed, "sensor_noise": scene.seed},
+        "seeds": {
+            "scene": scene.seed,
+            "floor": scene.floor_seed,
+            "pixel_jitter": scene.seed,
+            "sensor_noise": scene.seed,
+        },
         "units": {"length": "mm (sequence.json); m (groundtruth.txt)", "angle": "rad", "time": "s", "frames": "DN"},
         "floor_spacing_mm": spacing,
         "events": dict(traj.events),
         "trajectory": traj.to_dict(),
         "scene": scene.to_dict(),
-        "calib": {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 16} if scene.render.flatfield else None,
+        "calib": {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 16}
+        if scene.render.flatfield
+        else None,
         "versions": _versions(),
     }
     writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
@@ -269,7 +298,9 @@ def render_sequence(
         step_mm = float(np.max(np.linalg.norm(np.diff(T_all[:, :3, 3], axis=0), axis=1)))
         margin += step_mm * scene.sensor.exposure_ms / 1000.0 * scene.fps
     # The tile must hold what both cameras see: widen the margin by the baseline.
-    tiles = plan_tiles(T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm))
+    tiles = plan_tiles(
+        T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm)
+    )
     if gain <= 0:
         # Exposure from the first frame's radiance (rendered again here if it is on disk).
         first_box = next(b for idx, b in tiles if 0 in idx)
@@ -279,10 +310,14 @@ def render_sequence(
         rad0 = rad0 if vig0 is None else rad0 * vig0
         gain = exposure_gain(rad0, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
         if gain <= 0:
-            raise ConfigError(f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly")
+            raise ConfigError(
+                f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
+            )
         del first_box
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
-    sensor = SensorModel(gain, scene.sensor.full_well_e, scene.sensor.read_noise_e, scene.sensor.shot_noise, scene.sensor.bit_depth)
+    sensor = SensorModel(
+        gain, scene.sensor.full_well_e, scene.sensor.read_noise_e, scene.sensor.shot_noise, scene.sensor.bit_depth
+    )
 
     done = total - len(missing)
     missing_set = set(missing)
@@ -324,7 +359,14 @@ def _frame_seed(seed: int, index: int) -> int:
 
 
 def render_flatfield(
-    renderer, scene: Scene, T_world_cam: np.ndarray, sensor: SensorModel, writer: SequenceWriter, *, cam_pose: np.ndarray | None = None, name: str = "cam0_flatfield"
+    renderer,
+    scene: Scene,
+    T_world_cam: np.ndarray,
+    sensor: SensorModel,
+    writer: SequenceWriter,
+    *,
+    cam_pose: np.ndarray | None = None,
+    name: str = "cam0_flatfield",
 ) -> np.ndarray:
     """Render and write ``calib/NAME.png``: the rig over a flat floor of uniform albedo.
 
@@ -338,7 +380,13 @@ def render_flatfield(
     box = footprint_bounds_mm(pose[None], cam, 5.0)
     renderer.load_flat(*box, albedo=scene.render.flatfield_albedo)
     specular, renderer.specular = renderer.specular, None  # the calibration target is matte
-    rad = renderer.render(pose, _leds(scene, T_world_cam), max(16, scene.render.spp), seed=0, ambient=ambient_irradiance(scene, T_world_cam))
+    rad = renderer.render(
+        pose,
+        _leds(scene, T_world_cam),
+        max(16, scene.render.spp),
+        seed=0,
+        ambient=ambient_irradiance(scene, T_world_cam),
+    )
     renderer.specular = specular
     vig = vignetting_factor(cam, scene.camera.vignetting)
     if vig is not None:
@@ -347,6 +395,3 @@ def render_flatfield(
     flat16 = SensorModel(sensor.gain_e_per_unit, sensor.full_well_e, 0.0, False, 16).capture(rad, 0, 0, noise=False)
     writer.write_calib(name, flat16)
     return flat16
-
-
-

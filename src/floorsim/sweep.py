@@ -40,9 +40,10 @@ import json
 import logging
 import os
 import tomllib
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -90,7 +91,9 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         raise ConfigError(f"{path}: not valid TOML ({exc})") from None
     unknown = set(d) - _TOP_KEYS
     if unknown:
-        raise ConfigError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(_TOP_KEYS))})")
+        raise ConfigError(
+            f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(_TOP_KEYS))})"
+        )
     if "base" not in d or not isinstance(d["base"], str):
         raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
     base = (path.parent / d["base"]).resolve()
@@ -122,7 +125,9 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         if k not in vary:
             raise ConfigError(f"{path}: operating_point.{k}: not a varied key (varied: {', '.join(vary)})")
     fixed = {k: _as_override(v) for k, v in d.get("set", {}).items()}
-    return SweepSpec(str(d.get("name", path.stem)), base, {k: list(v) for k, v in vary.items()}, est, reps, render, fixed, dict(op))
+    return SweepSpec(
+        str(d.get("name", path.stem)), base, {k: list(v) for k, v in vary.items()}, est, reps, render, fixed, dict(op)
+    )
 
 
 def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
@@ -137,8 +142,9 @@ def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
     return jobs
 
 
-def run_sweep_job(job: Mapping[str, Any], spec: SweepSpec, out_dir: str, cache_dir: str,
-                  render: Callable | None = None) -> list[dict[str, Any]]:
+def run_sweep_job(
+    job: Mapping[str, Any], spec: SweepSpec, out_dir: str, cache_dir: str, render: Callable | None = None
+) -> list[dict[str, Any]]:
     """Render one grid point and run and score every estimator on it; returns its rows.
 
     Runs in a worker (a local process or a Dask worker): takes and returns plain data.
@@ -161,7 +167,14 @@ def run_sweep_job(job: Mapping[str, Any], spec: SweepSpec, out_dir: str, cache_d
     safe = "".join(c if c.isalnum() or c in "-_.=" else "_" for c in job["job"])
     for name in names:
         run_dir = out_dir / "runs" / safe / name
-        row = {**base_row, "scene": scene.name, "estimator": name, "seed": seed, "sequence": str(seq_dir), "run_dir": str(run_dir)}
+        row = {
+            **base_row,
+            "scene": scene.name,
+            "estimator": name,
+            "seed": seed,
+            "sequence": str(seq_dir),
+            "run_dir": str(run_dir),
+        }
         try:
             row.update(run_one(seq_dir, name, run_dir))
             row["status"] = "ok"
@@ -184,10 +197,19 @@ class SweepResult:
     report_md: Path | None = None
 
 
-def run_sweep(sweep_path: str | os.PathLike, out_dir: str | os.PathLike, scheduler: str | None = None,
-              workers: int | None = None, *, jobs: int = 1, cache_dir: str | os.PathLike | None = None,
-              processes: bool = True, report: bool = True, render: Callable | None = None,
-              on_job: Callable[[int, int], None] | None = None) -> SweepResult:
+def run_sweep(
+    sweep_path: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    *,
+    jobs: int = 1,
+    cache_dir: str | os.PathLike | None = None,
+    processes: bool = True,
+    report: bool = True,
+    render: Callable | None = None,
+    on_job: Callable[[int, int], None] | None = None,
+) -> SweepResult:
     """Run a sweep file's grid (see the module doc); returns the rows and where things are.
 
     ``scheduler``: a Dask scheduler address; ``workers``: start a local Dask cluster of
@@ -212,7 +234,9 @@ def run_sweep(sweep_path: str | os.PathLike, out_dir: str | os.PathLike, schedul
     done = {r.get("job") for r in rows}
     all_jobs = sweep_jobs(spec)
     todo = [j for j in all_jobs if j["job"] not in done]
-    log.info("sweep %s: %d jobs, %d already done, %d to run", spec.name, len(all_jobs), len(all_jobs) - len(todo), len(todo))
+    log.info(
+        "sweep %s: %d jobs, %d already done, %d to run", spec.name, len(all_jobs), len(all_jobs) - len(todo), len(todo)
+    )
     errors: list[str] = []
     finished = 0
 
@@ -265,10 +289,11 @@ def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, p
             try:
                 client = Client(scheduler, timeout="10s")
             except (OSError, TimeoutError) as exc:
-                raise FloorbenchError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})") from None
+                raise FloorbenchError(
+                    f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})"
+                ) from None
         else:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None)
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=None)
             client = Client(cluster)
         with client:
             futs = {}
@@ -316,9 +341,11 @@ def plot_sweep(spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.Pa
     plt = _plt()
     rep = Report(f"floorbench sweep: {spec.name}", Path(out_dir), stem="sweep")
     ok = [r for r in rows if r.get("status") == "ok"]
-    rep.text(f"Base scene {spec.base.name}; {len(rows)} rows, {len(ok)} scored. Each point is the mean over the "
-             "other varied keys and the repetitions; the dashed line marks the paper rig's operating point. "
-             "Failed or skipped jobs are listed in results.csv.")
+    rep.text(
+        f"Base scene {spec.base.name}; {len(rows)} rows, {len(ok)} scored. Each point is the mean over the "
+        "other varied keys and the repetitions; the dashed line marks the paper rig's operating point. "
+        "Failed or skipped jobs are listed in results.csv."
+    )
     estimators = sorted({r["estimator"] for r in ok})
     for key, values in spec.vary.items():
         rep.heading(key)
@@ -336,7 +363,9 @@ def plot_sweep(spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.Pa
                 lo = [_num(r.get("lost_frames")) for r in sel]
                 drift.append(float(np.nanmean(d)) if d and np.isfinite(d).any() else np.nan)
                 lost.append(float(np.nanmean(lo)) if lo and np.isfinite(lo).any() else np.nan)
-                table.append({"estimator": est, "value": _as_override(v), "drift": drift[-1], "lost": lost[-1], "n": len(sel)})
+                table.append(
+                    {"estimator": est, "value": _as_override(v), "drift": drift[-1], "lost": lost[-1], "n": len(sel)}
+                )
             x = [pos[_as_override(v)] for v in xs_sorted]
             axes[0].plot(x, drift, "o-", label=est)
             axes[1].plot(x, lost, "o-", label=est)
@@ -357,6 +386,14 @@ def plot_sweep(spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.Pa
         fig.suptitle(f"robustness against {key}")
         fig.tight_layout()
         rep.figure(fig, f"drift and tracking loss against {key} (operating point {op!r})")
-        rep.table(table, [("estimator", "estimator"), ("value", key), ("drift", "end drift %"), ("lost", "lost frames"),
-                          ("n", "runs")])
+        rep.table(
+            table,
+            [
+                ("estimator", "estimator"),
+                ("value", key),
+                ("drift", "end drift %"),
+                ("lost", "lost frames"),
+                ("n", "runs"),
+            ],
+        )
     return rep.write()

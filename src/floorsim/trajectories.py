@@ -26,8 +26,9 @@ Types (registry :data:`TRAJECTORIES`, parameters validated by name):
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -71,7 +72,9 @@ class Disturbance:
     def __post_init__(self) -> None:
         band = self.vibration_band_hz
         if len(band) != 2 or not 0 < band[0] < band[1]:
-            raise ConfigError(f"trajectory.disturbance.vibration_band_hz = {list(band)}: must be [low, high] with 0 < low < high")
+            raise ConfigError(
+                f"trajectory.disturbance.vibration_band_hz = {list(band)}: must be [low, high] with 0 < low < high"
+            )
 
     @property
     def active(self) -> bool:
@@ -218,7 +221,9 @@ class ArcParams:
 
     def __post_init__(self) -> None:
         if abs(self.radius_mm) < 1.0:
-            raise ConfigError(f"trajectory.radius_mm = {self.radius_mm} mm: |radius| must be >= 1 mm (use spin for rotation in place)")
+            raise ConfigError(
+                f"trajectory.radius_mm = {self.radius_mm} mm: |radius| must be >= 1 mm (use spin for rotation in place)"
+            )
 
 
 @dataclass(frozen=True)
@@ -317,7 +322,9 @@ def _straight(x0: float, y0: float, direction: float, speed: float, yaw: float =
 def _build_uniform(p: UniformParams, fps: float, seed: int):
     n = int(round(p.distance_mm / p.step_mm))
     if abs(n * p.step_mm - p.distance_mm) > 1e-9 * p.distance_mm:
-        raise ConfigError(f"trajectory.distance_mm = {p.distance_mm}: must be a whole multiple of step_mm = {p.step_mm}")
+        raise ConfigError(
+            f"trajectory.distance_mm = {p.distance_mm}: must be a whole multiple of step_mm = {p.step_mm}"
+        )
     return n + 1, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.step_mm * fps, p.yaw_rad), {}
 
 
@@ -450,12 +457,16 @@ TRAJECTORIES: dict[str, TrajectoryType] = {
     t.name: t
     for t in (
         TrajectoryType("uniform", UniformParams, "paper 000 model I: 100 mm along x at 4 mm/frame", _build_uniform),
-        TrajectoryType("sigmoid", SigmoidParams, "paper 000 models II/III: 10 mm sigmoid, gain 1.25 or 1.75", _build_sigmoid),
+        TrajectoryType(
+            "sigmoid", SigmoidParams, "paper 000 models II/III: 10 mm sigmoid, gain 1.25 or 1.75", _build_sigmoid
+        ),
         TrajectoryType("line", LineParams, "straight line at constant speed (paper 001: 3 m at 0.3 m/s)", _build_line),
         TrajectoryType("arc", ArcParams, "constant-curvature arc, yaw along the tangent", _build_arc),
         TrajectoryType("spin", SpinParams, "rotation in place about the optical axis", _build_spin),
         TrajectoryType("s_curve", SCurveParams, "sinusoidal S-curve at constant ground speed", _build_s_curve),
-        TrajectoryType("lawnmower", LawnmowerParams, "back-and-forth lanes covering a rectangle (mapping)", _build_lawnmower),
+        TrajectoryType(
+            "lawnmower", LawnmowerParams, "back-and-forth lanes covering a rectangle (mapping)", _build_lawnmower
+        ),
         TrajectoryType("kidnap", KidnapParams, "straight segments joined by teleports (relocalisation)", _build_kidnap),
         TrajectoryType("strip", StripParams, "paper 000 capture: 200 frames at 1 mm spacing", _build_strip),
     )
@@ -493,14 +504,20 @@ def build_trajectory(
     if fps <= 0:
         raise ConfigError(f"fps = {fps}: must be > 0")
     p = from_mapping(ttype.Params, params, "trajectory")
-    dist = disturbance if isinstance(disturbance, Disturbance) else from_mapping(Disturbance, disturbance, "trajectory.disturbance")
+    dist = (
+        disturbance
+        if isinstance(disturbance, Disturbance)
+        else from_mapping(Disturbance, disturbance, "trajectory.disturbance")
+    )
     n, path, events = ttype.build(p, float(fps), int(seed))
     if n < 1:
         raise ConfigError(f"trajectory: type {type_name!r} with these parameters has no frames")
     return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
 
 
-def footprint_bounds_mm(T_world_cam: np.ndarray, camera: CameraModel, margin_mm: float = 0.0) -> tuple[float, float, float, float]:
+def footprint_bounds_mm(
+    T_world_cam: np.ndarray, camera: CameraModel, margin_mm: float = 0.0
+) -> tuple[float, float, float, float]:
     """Bounding box ``(xmin, xmax, ymin, ymax)`` of the floor (z = 0) seen by ``camera`` at poses (N, 4, 4)."""
     Ts = np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4)
     w, h = camera.width_px, camera.height_px

@@ -35,7 +35,14 @@ from floorvo.errors import ConfigError, SequenceError
 from floorvo.geometry import invert_T
 from floorvo.io import atomic_write_json, read_json
 
-__all__ = ["ScaleCalibration", "fit_scale_calibration", "calibrate_run", "save_scale_calibration", "load_scale_calibration", "apply_scale"]
+__all__ = [
+    "ScaleCalibration",
+    "fit_scale_calibration",
+    "calibrate_run",
+    "save_scale_calibration",
+    "load_scale_calibration",
+    "apply_scale",
+]
 
 KIND = "floorvo scale calibration"
 VERSION = 1
@@ -76,7 +83,9 @@ def fit_scale_calibration(T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: 
     """
     T_true, T_est = np.asarray(T_true, float), np.asarray(T_est, float)
     if T_true.shape != T_est.shape or T_true.ndim != 3 or len(T_true) < 2:
-        raise SequenceError(f"scale calibration: needs at least 2 paired poses, got {len(T_true)} true and {len(T_est)} estimated")
+        raise SequenceError(
+            f"scale calibration: needs at least 2 paired poses, got {len(T_true)} true and {len(T_est)} estimated"
+        )
     g, e = _steps(T_true), _steps(T_est)
     out = {}
     for k, axis in enumerate("xy"):
@@ -88,7 +97,9 @@ def fit_scale_calibration(T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: 
     return ScaleCalibration(steps=len(g), **out)
 
 
-def calibrate_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_diff_s: float = 0.01, min_travel_mm: float = 10.0) -> ScaleCalibration:
+def calibrate_run(
+    run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_diff_s: float = 0.01, min_travel_mm: float = 10.0
+) -> ScaleCalibration:
     """Fit the scales of ``RUN/trajectory.txt`` against ``SEQ/groundtruth.txt`` (or a TUM file)."""
     from floorvo.metrics import associate, read_run_and_groundtruth
 
@@ -98,7 +109,9 @@ def calibrate_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_di
     if len(i_ref) < 2:
         raise SequenceError(f"{run_dir}/trajectory.txt: fewer than 2 poses match {gt} in time (within {max_diff_s} s)")
     cal = fit_scale_calibration(T_ref[i_ref], T_est[i_est], min_travel_mm)
-    return ScaleCalibration(**{**asdict(cal), "estimator": str(result.get("estimator", "")), "run": str(run_dir), "sequence": str(seq_dir)})
+    return ScaleCalibration(
+        **{**asdict(cal), "estimator": str(result.get("estimator", "")), "run": str(run_dir), "sequence": str(seq_dir)}
+    )
 
 
 def save_scale_calibration(cal: ScaleCalibration, path: str | os.PathLike) -> None:
@@ -109,16 +122,25 @@ def load_scale_calibration(path: str | os.PathLike) -> ScaleCalibration:
     """Read a calibration file; a wrong kind, version, key or value is a one-line ConfigError."""
     d = read_json(path, ConfigError)
     if not isinstance(d, dict) or d.get("kind") != KIND:
-        raise ConfigError(f"{path}: not a scale calibration (\"kind\" must be {KIND!r}; write one with 'floorvo calibrate')")
+        raise ConfigError(
+            f"{path}: not a scale calibration (\"kind\" must be {KIND!r}; write one with 'floorvo calibrate')"
+        )
     if d.get("version") != VERSION:
-        raise ConfigError(f"{path}: scale calibration version {d.get('version')!r}, this floorvo reads version {VERSION}")
+        raise ConfigError(
+            f"{path}: scale calibration version {d.get('version')!r}, this floorvo reads version {VERSION}"
+        )
     fields = set(ScaleCalibration.__dataclass_fields__)
     unknown = sorted(set(d) - fields - {"kind", "version"})
     if unknown:
         raise ConfigError(f"{path}: unknown key {unknown[0]!r} in a scale calibration")
     for axis in "xy":
         v = d.get(f"scale_{axis}")
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or not SCALE_RANGE[0] <= v <= SCALE_RANGE[1]:
+        if (
+            not isinstance(v, (int, float))
+            or isinstance(v, bool)
+            or not math.isfinite(v)
+            or not SCALE_RANGE[0] <= v <= SCALE_RANGE[1]
+        ):
             raise ConfigError(f"{path}: scale_{axis} = {v!r} must be a number in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]")
     return ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
 

@@ -53,7 +53,7 @@ class CameraModel:
         pixel_pitch_um: float = 7.4,
         focal_length_mm: float = 6.0,
         distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0),
-    ) -> "CameraModel":
+    ) -> CameraModel:
         """Ideal pinhole from the sensor's pixel pitch and the lens focal length.
 
         The principal point is the image centre, ((w - 1) / 2, (h - 1) / 2).
@@ -66,7 +66,7 @@ class CameraModel:
         return cls(width_px, height_px, f_px, f_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0, tuple(distortion))
 
     @classmethod
-    def from_dict(cls, d: dict) -> "CameraModel":
+    def from_dict(cls, d: dict) -> CameraModel:
         """Inverse of :meth:`to_dict` (the ``camera`` block of ``sequence.json``)."""
         try:
             K = np.asarray(d["K"], dtype=float)
@@ -119,7 +119,7 @@ class CameraModel:
         """Full horizontal and vertical field of view (rad)."""
         return (2 * np.arctan(self.width_px / 2 / self.fx_px), 2 * np.arctan(self.height_px / 2 / self.fy_px))
 
-    def scaled(self, scale: float) -> "CameraModel":
+    def scaled(self, scale: float) -> CameraModel:
         """The same camera at ``scale`` times the resolution (pixel centres kept consistent).
 
         A pixel of the scaled image covers ``1 / scale`` pixels of the original, so

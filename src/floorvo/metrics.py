@@ -38,9 +38,10 @@ import csv
 import json
 import math
 import os
+from collections.abc import Sequence as SequenceT
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Sequence as SequenceT
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,11 @@ def associate(
         return np.zeros(0, int), np.zeros(0, int)
     order = np.argsort(t_ref, kind="stable")
     sorted_ref = t_ref[order]
-    pos = np.clip(np.searchsorted(sorted_ref, t_est), 1, len(sorted_ref) - 1) if len(sorted_ref) > 1 else np.zeros(len(t_est), int)
+    pos = (
+        np.clip(np.searchsorted(sorted_ref, t_est), 1, len(sorted_ref) - 1)
+        if len(sorted_ref) > 1
+        else np.zeros(len(t_est), int)
+    )
     if len(sorted_ref) > 1:
         left = pos - 1
         pick = np.where(np.abs(sorted_ref[left] - t_est) <= np.abs(sorted_ref[pos] - t_est), left, pos)
@@ -132,7 +137,9 @@ def associate(
 
 
 # ----------------------------------------------------------------------------- alignment
-def umeyama_alignment(src: np.ndarray, dst: np.ndarray, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+def umeyama_alignment(
+    src: np.ndarray, dst: np.ndarray, with_scale: bool = False
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Least-squares similarity ``dst ~ s R src + t`` (Umeyama 1991, eqs. 40-42).
 
     ``src``, ``dst``: (N, d) points. Returns ``(R (d, d), t (d,), s)``; ``s = 1`` unless
@@ -273,7 +280,9 @@ def _relative_errors(A: np.ndarray, B: np.ndarray, pairs: np.ndarray) -> tuple[n
     return np.linalg.norm(E[:, :3, 3], axis=1), _rotation_angle_deg(E[:, :3, :3])
 
 
-def rpe(T_ref: np.ndarray, T_est: np.ndarray, *, delta_frames: int | None = 1, delta_mm: float | None = None) -> dict[str, Any]:
+def rpe(
+    T_ref: np.ndarray, T_est: np.ndarray, *, delta_frames: int | None = 1, delta_mm: float | None = None
+) -> dict[str, Any]:
     """Relative pose error per ``delta_frames`` frames or per ``delta_mm`` of reference path.
 
     Give exactly one of the two. Returns ``{"delta", "unit", "trans_mm": stats,
@@ -287,8 +296,15 @@ def rpe(T_ref: np.ndarray, T_est: np.ndarray, *, delta_frames: int | None = 1, d
         pairs = rpe_pairs_by_frames(len(A), int(delta_frames or 1))
         delta, unit = int(delta_frames or 1), "frames"
     e_t, e_r = _relative_errors(A, B, pairs)
-    return {"delta": delta, "unit": unit, "trans_mm": error_stats(e_t), "rot_deg": error_stats(e_r), "pairs": pairs,
-            "trans_errors_mm": e_t, "rot_errors_deg": e_r}
+    return {
+        "delta": delta,
+        "unit": unit,
+        "trans_mm": error_stats(e_t),
+        "rot_deg": error_stats(e_r),
+        "pairs": pairs,
+        "trans_errors_mm": e_t,
+        "rot_errors_deg": e_r,
+    }
 
 
 # ----------------------------------------------------------------------------- drift
@@ -340,17 +356,21 @@ def segment_errors(
             continue
         pairs = np.stack([starts[ok], j[ok]], axis=1)
         e_t, e_r = _relative_errors(A, B, pairs)
-        out.append({
-            "length_mm": float(L),
-            "count": int(len(pairs)),
-            "t_err_pct": float(np.mean(e_t / L) * 100.0),
-            "t_err_pct_max": float(np.max(e_t / L) * 100.0),
-            "r_err_deg_per_m": float(np.mean(e_r / L) * 1000.0),
-        })
+        out.append(
+            {
+                "length_mm": float(L),
+                "count": int(len(pairs)),
+                "t_err_pct": float(np.mean(e_t / L) * 100.0),
+                "t_err_pct_max": float(np.max(e_t / L) * 100.0),
+                "r_err_deg_per_m": float(np.mean(e_r / L) * 1000.0),
+            }
+        )
     return out
 
 
-def translation_error_along_path(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none") -> tuple[np.ndarray, np.ndarray]:
+def translation_error_along_path(
+    T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none"
+) -> tuple[np.ndarray, np.ndarray]:
     """``(distance travelled (N,) mm, translation error (N,) mm)`` for an error-vs-distance plot."""
     A, B = _check_pair(T_ref, T_est)
     B2, _ = align(A, B, alignment)
@@ -370,11 +390,21 @@ def tracking_stats(statuses: SequenceT[str] | None, n_ref: int, n_est: int) -> d
         lost = np.array([s == "lost" for s in statuses], dtype=bool)
         events = int(np.sum(lost[1:] & ~lost[:-1]) + (1 if lost[0] else 0))
         n = len(lost)
-        return {"lost_frames": int(lost.sum()), "loss_events": events, "tracked_fraction": float(1 - lost.mean()),
-                "frames": n, "source": "timing.csv"}
+        return {
+            "lost_frames": int(lost.sum()),
+            "loss_events": events,
+            "tracked_fraction": float(1 - lost.mean()),
+            "frames": n,
+            "source": "timing.csv",
+        }
     lost_n = max(0, int(n_ref) - int(n_est))
-    return {"lost_frames": lost_n, "loss_events": int(lost_n > 0), "tracked_fraction": float(n_est / n_ref) if n_ref else float("nan"),
-            "frames": int(n_ref), "source": "gaps"}
+    return {
+        "lost_frames": lost_n,
+        "loss_events": int(lost_n > 0),
+        "tracked_fraction": float(n_est / n_ref) if n_ref else float("nan"),
+        "frames": int(n_ref),
+        "source": "gaps",
+    }
 
 
 def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
@@ -417,8 +447,13 @@ def timing_stats(timing: dict[str, np.ndarray] | None) -> dict[str, dict[str, fl
         v = v[np.isfinite(v)]
         if v.size == 0:
             continue
-        out[key] = {"mean": float(v.mean()), "median": float(np.median(v)), "p95": float(np.percentile(v, 95)),
-                    "max": float(v.max()), "std": float(v.std())}
+        out[key] = {
+            "mean": float(v.mean()),
+            "median": float(np.median(v)),
+            "p95": float(np.percentile(v, 95)),
+            "max": float(v.max()),
+            "std": float(v.std()),
+        }
     if "total_ms" in out and out["total_ms"]["mean"] > 0:
         out["fps"] = 1000.0 / out["total_ms"]["mean"]
     return out
@@ -474,8 +509,12 @@ class Score:
         f["measured_mm"] = self.drift["measured_mm"]
         for s in self.segments:
             f[f"seg_{s['length_mm']:g}mm_t_err_pct"] = s["t_err_pct"]
-        f["seg_mean_t_err_pct"] = float(np.mean([s["t_err_pct"] for s in self.segments])) if self.segments else float("nan")
-        f["seg_mean_r_err_deg_per_m"] = float(np.mean([s["r_err_deg_per_m"] for s in self.segments])) if self.segments else float("nan")
+        f["seg_mean_t_err_pct"] = (
+            float(np.mean([s["t_err_pct"] for s in self.segments])) if self.segments else float("nan")
+        )
+        f["seg_mean_r_err_deg_per_m"] = (
+            float(np.mean([s["r_err_deg_per_m"] for s in self.segments])) if self.segments else float("nan")
+        )
         f["lost_frames"] = float(self.tracking["lost_frames"])
         f["loss_events"] = float(self.tracking["loss_events"])
         f["tracked_fraction"] = float(self.tracking["tracked_fraction"])
@@ -579,11 +618,21 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         keep = np.isin(np.round(t_ref * fps).astype(int), frames)
         if keep.sum() >= 2:
             t_ref, T_ref = t_ref[keep], T_ref[keep]
-    score = score_trajectories(t_ref, T_ref, t_est, T_est, estimator=str(result.get("estimator", "")),
-                               statuses=statuses, timing=timing, max_diff_s=max_diff_s)
+    score = score_trajectories(
+        t_ref,
+        T_ref,
+        t_est,
+        T_est,
+        estimator=str(result.get("estimator", "")),
+        statuses=statuses,
+        timing=timing,
+        max_diff_s=max_diff_s,
+    )
     score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
     if result:
-        score.extra["result"] = {k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result}
+        score.extra["result"] = {
+            k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
+        }
     return score
 
 

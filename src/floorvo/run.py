@@ -13,8 +13,8 @@ import io
 import logging
 import os
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -55,10 +55,16 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
         raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
     height = seq.height_mm
     if height is None:
-        raise FloorbenchError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
+        raise FloorbenchError(
+            f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
+        )
     rig = {}
     if seq.has_stereo:
-        rig = {"camera_right": seq.camera_model("cam1"), "T_cam0_cam1": seq.T_cam0_cam1, "flatfield_right": seq.flatfield("cam1")}
+        rig = {
+            "camera_right": seq.camera_model("cam1"),
+            "T_cam0_cam1": seq.T_cam0_cam1,
+            "flatfield_right": seq.flatfield("cam1"),
+        }
     flat = seq.flatfield()
     return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
 
@@ -108,17 +114,33 @@ def run_estimator(
         else:
             lost.append({"frame": i, "reason": res.reason})
         tm = res.timing_ms
-        rows.append([i, f"{tm.get('detect', 0):.3f}", f"{tm.get('match', 0):.3f}", f"{tm.get('estimate', 0):.3f}", f"{tm.get('total', 0):.3f}", res.status, res.n_keypoints, res.n_matches, res.n_inliers])
+        rows.append(
+            [
+                i,
+                f"{tm.get('detect', 0):.3f}",
+                f"{tm.get('match', 0):.3f}",
+                f"{tm.get('estimate', 0):.3f}",
+                f"{tm.get('total', 0):.3f}",
+                res.status,
+                res.n_keypoints,
+                res.n_matches,
+                res.n_inliers,
+            ]
+        )
         if on_frame:
             on_frame(k + 1, len(indices))
     wall = time.perf_counter() - t_run
     if poses:
-        write_tum(out / "trajectory.txt", np.array(stamps), np.stack(poses), header=f"floorvo {name}: T_world_cam, metres")
+        write_tum(
+            out / "trajectory.txt", np.array(stamps), np.stack(poses), header=f"floorvo {name}: T_world_cam, metres"
+        )
     else:
         atomic_write_text(out / "trajectory.txt", f"# floorvo {name}: no frame tracked\n")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["frame", "detect_ms", "match_ms", "estimate_ms", "total_ms", "status", "n_keypoints", "n_matches", "n_inliers"])
+    w.writerow(
+        ["frame", "detect_ms", "match_ms", "estimate_ms", "total_ms", "status", "n_keypoints", "n_matches", "n_inliers"]
+    )
     w.writerows(rows)
     atomic_write_text(out / "timing.csv", buf.getvalue())
     totals = [float(r[4]) for r in rows]

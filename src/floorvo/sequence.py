@@ -19,15 +19,16 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
-from floorvo.io import atomic_write_json, atomic_write_bytes, ensure_writable_dir, read_json, read_png, write_png
+from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, read_json, read_png, write_png
 from floorvo.tum import read_tum, write_tum
 
 __all__ = ["SCHEMA_VERSION", "Sequence", "SequenceWriter", "frame_name", "DEPTH_PNG_SCALE_PER_MM"]
@@ -179,7 +180,7 @@ class Sequence:
     meta: dict
 
     @classmethod
-    def open(cls, root: str | os.PathLike) -> "Sequence":
+    def open(cls, root: str | os.PathLike) -> Sequence:
         root = Path(root)
         meta_path = root / "sequence.json"
         if not root.is_dir():
@@ -196,7 +197,7 @@ class Sequence:
             if key not in meta:
                 raise SequenceError(f"{meta_path}: missing required key {key!r}")
         seq = cls(root, meta)
-        seq.camera  # validate the camera block now
+        _ = seq.camera  # validate the camera block now
         if seq.frame_count <= 0:
             raise SequenceError(f"{meta_path}: frame_count must be >= 1, got {seq.frame_count}")
         return seq

@@ -70,7 +70,9 @@ def line_poses(length_mm: float, step_mm: float, height_mm: float = 100.0, yaw_s
     return np.stack(out)
 
 
-def render_view(coeffs: np.ndarray, origin_px: tuple[float, float], gsd_mm: float, camera: CameraModel, T_world_cam: np.ndarray) -> np.ndarray:
+def render_view(
+    coeffs: np.ndarray, origin_px: tuple[float, float], gsd_mm: float, camera: CameraModel, T_world_cam: np.ndarray
+) -> np.ndarray:
     """(H, W) float32 view of a texture by a downward camera at ``T_world_cam`` (flat floor).
 
     ``coeffs``: cubic B-spline coefficients of the texture

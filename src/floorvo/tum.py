@@ -33,13 +33,13 @@ def format_tum(timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | 
     for ts, T in zip(timestamps_s, T_world_cam):
         xyz_mm, q = xyz_quat_from_T(T)
         xyz = xyz_mm / 1000.0
-        lines.append(
-            f"{ts:.6f} {xyz[0]:.9f} {xyz[1]:.9f} {xyz[2]:.9f} {q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}"
-        )
+        lines.append(f"{ts:.6f} {xyz[0]:.9f} {xyz[1]:.9f} {xyz[2]:.9f} {q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}")
     return "\n".join(lines) + "\n"
 
 
-def write_tum(path: str | os.PathLike, timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> None:
+def write_tum(
+    path: str | os.PathLike, timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None
+) -> None:
     """Write a TUM file atomically (translations converted mm -> m)."""
     atomic_write_text(path, format_tum(timestamps_s, T_world_cam, header))
 

@@ -27,8 +27,17 @@ def write_sequence(root: Path, n: int = 12, step_mm: float = 2.0, fps: float = 1
     return Path(root)
 
 
-def write_run(run: Path, seq: Path, *, scale: float = 1.01, y_drift_mm: float = 0.0, lost=(), total_ms: float = 5.0,
-              estimator: str = "fake", matches: bool = False) -> Path:
+def write_run(
+    run: Path,
+    seq: Path,
+    *,
+    scale: float = 1.01,
+    y_drift_mm: float = 0.0,
+    lost=(),
+    total_ms: float = 5.0,
+    estimator: str = "fake",
+    matches: bool = False,
+) -> Path:
     """A run folder whose trajectory is the ground truth with steps scaled by ``scale``."""
     from floorvo.tum import read_tum
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
 from _bench_data import write_run, write_sequence
+
 from floorvo.estimators.base import Frame, StepResult
 
 SCENE_TOML = """name = "{name}"
@@ -151,7 +151,11 @@ def install(monkeypatch) -> None:
     base = types.ModuleType("floorvo.estimators.base")
     base.Frame, base.StepResult = Frame, StepResult
     monkeypatch.setitem(sys.modules, "floorvo.estimators.base", base)
-    for name, mod, parent in (("floorsim.scene", scene, floorsim), ("floorsim.simulate", simulate, floorsim),
-                              ("floorvo.run", run, floorvo), ("floorvo.estimators", est, floorvo)):
+    for name, mod, parent in (
+        ("floorsim.scene", scene, floorsim),
+        ("floorsim.simulate", simulate, floorsim),
+        ("floorvo.run", run, floorvo),
+        ("floorvo.estimators", est, floorvo),
+    ):
         monkeypatch.setitem(sys.modules, name, mod)
         monkeypatch.setattr(parent, name.split(".")[1], mod, raising=False)

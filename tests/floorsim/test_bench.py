@@ -3,9 +3,9 @@ render cache, results.csv, skipping unsupported estimators, the CLI and its gate
 
 import json
 
+import _bench_doubles as D
 import pytest
 
-import _bench_doubles as D
 from floorsim.bench import run_bench
 from floorsim.bench.bench import read_results_csv, scene_cache_key
 
@@ -42,7 +42,9 @@ def test_bench_scores_every_supported_estimator_and_reuses_renders(tmp_path, dou
     run_bench([scene], ["scaled"], tmp_path / "out2", repetitions=2, cache_dir=out / "sequences")
     assert len(D.RENDER_CALLS) == 2
     # another resolved scene renders anew
-    run_bench([scene], ["scaled"], tmp_path / "out3", cache_dir=out / "sequences", scene_overrides={"lights.height_mm": "5"})
+    run_bench(
+        [scene], ["scaled"], tmp_path / "out3", cache_dir=out / "sequences", scene_overrides={"lights.height_mm": "5"}
+    )
     assert len(D.RENDER_CALLS) == 3
 
 
@@ -68,17 +70,34 @@ def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
 
     scene = D.write_scene(tmp_path / "tiny.toml")
     base = tmp_path / "baseline.json"
-    assert main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "a"), "--save-baseline", str(base)]) == 0
+    assert (
+        main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "a"), "--save-baseline", str(base)])
+        == 0
+    )
     out = capsys.readouterr().out.strip().splitlines()
     assert out[-2].startswith("report: ") and out[-2].split()[1].endswith("report.html")
     assert any(line.split()[:2] == ["tiny", "scaled"] for line in out)
     assert base.is_file()
     # the same estimator again: passes
-    assert main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "b"), "--baseline", str(base)]) == 0
+    assert (
+        main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "b"), "--baseline", str(base)]) == 0
+    )
     assert "regression gate passed" in capsys.readouterr().out
     # a deliberately worse configuration: 2 % scale error instead of 0.3 %
-    rc = main(["bench", str(scene), "--estimators", "scaled", "--est-set", "scaled.scale=1.02", "-o", str(tmp_path / "c"),
-               "--baseline", str(base)])
+    rc = main(
+        [
+            "bench",
+            str(scene),
+            "--estimators",
+            "scaled",
+            "--est-set",
+            "scaled.scale=1.02",
+            "-o",
+            str(tmp_path / "c"),
+            "--baseline",
+            str(base),
+        ]
+    )
     text = capsys.readouterr().out
     assert rc == 1 and "end_drift_pct got worse" in text and "FAILED" in text
     # an unknown estimator is one line on stderr, exit 1
@@ -96,8 +115,22 @@ def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, double
     cal = tmp_path / "scale.json"
     save_scale_calibration(ScaleCalibration(scale_x=1.003, observed_x=True, travel_x_mm=100.0, steps=25), cal)
     out = tmp_path / "out"
-    assert main(["bench", str(scene), "--estimators", "scaled,lossy", "-o", str(out), "--no-report",
-                 "--scale-calibration", f"scaled={cal}"]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                str(scene),
+                "--estimators",
+                "scaled,lossy",
+                "-o",
+                str(out),
+                "--no-report",
+                "--scale-calibration",
+                f"scaled={cal}",
+            ]
+        )
+        == 0
+    )
     rows = {r["estimator"]: r for r in read_results_csv(out / "results.csv")}
     assert rows["scaled"]["scale_calibration"] == str(cal)
     assert abs(rows["scaled"]["end_drift_pct"]) < 1e-3  # 0.3 % divided out
@@ -114,7 +147,17 @@ def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, double
         ([f"scaled={bad}"], "bad.json"),
         (["scaled"], "expected ESTIMATOR=FILE"),
     ):
-        rc = main(["bench", str(scene), "--estimators", "scaled", "-o", str(tmp_path / "x"), "--no-report",
-                   *[a for v in args for a in ("--scale-calibration", v)]])
+        rc = main(
+            [
+                "bench",
+                str(scene),
+                "--estimators",
+                "scaled",
+                "-o",
+                str(tmp_path / "x"),
+                "--no-report",
+                *[a for v in args for a in ("--scale-calibration", v)],
+            ]
+        )
         err = capsys.readouterr().err
         assert rc == 1 and err.count("\n") == 1 and words in err, err

@@ -3,8 +3,8 @@
 import json
 
 import pytest
-
 from _bench_data import write_run, write_sequence
+
 from floorsim.bench.gates import DEFAULT_TOLERANCES, compare, load_baseline, save_baseline
 from floorvo.errors import ConfigError
 from floorvo.metrics import score_run

@@ -26,7 +26,7 @@ def _strip(root, n=16):
     tex = np.random.default_rng(0).integers(0, 255, (cam.height_px, cam.width_px + 2 * n + 4), dtype=np.uint8)
     for i in range(n):
         # moving the camera +x shifts the content toward -u
-        w.write_frame(i, np.ascontiguousarray(tex[:, 2 * i: 2 * i + cam.width_px]))
+        w.write_frame(i, np.ascontiguousarray(tex[:, 2 * i : 2 * i + cam.width_px]))
     w.write_groundtruth(np.arange(n) / 10.0, np.stack([T_world_cam_down(i * spacing, 0, 100.0) for i in range(n)]))
     return root, gsd, spacing
 

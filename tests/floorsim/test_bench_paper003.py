@@ -43,8 +43,15 @@ def _texture_render(texture):
         cam = scene.camera_model()
         h = scene.camera.height_mm
         T = traj.T_world_cam
-        meta = {"name": scene.name, "camera": cam.to_dict(), "fps": scene.fps, "frame_count": len(T),
-                "rig": {"height_mm": h}, "events": dict(traj.events), "scene": scene.to_dict()}
+        meta = {
+            "name": scene.name,
+            "camera": cam.to_dict(),
+            "fps": scene.fps,
+            "frame_count": len(T),
+            "rig": {"height_mm": h},
+            "events": dict(traj.events),
+            "scene": scene.to_dict(),
+        }
         w = SequenceWriter(out, meta, overwrite=True)
         rng = np.random.default_rng(seed)
         for i, Ti in enumerate(T):
@@ -62,8 +69,12 @@ def test_kidnap_scene_is_relocalised_on_the_map_of_the_lawnmower_scene(tmp_path,
     out = tmp_path / "bench"
     res = run_bench([map_scene, kid_scene], ["phase-corr"], out, render=_texture_render(texture))
     rows = {(r["scene"], r["estimator"]): r for r in read_results_csv(out / "results.csv")}
-    assert set(rows) == {("paper003_map", "phase-corr"), ("paper003_kidnap", "phase-corr"),
-                         ("paper003_kidnap", "relocalise"), ("paper003_kidnap", "map-fused")}
+    assert set(rows) == {
+        ("paper003_map", "phase-corr"),
+        ("paper003_kidnap", "phase-corr"),
+        ("paper003_kidnap", "relocalise"),
+        ("paper003_kidnap", "map-fused"),
+    }
     reloc = rows[("paper003_kidnap", "relocalise")]
     # 81 mapping frames (two 60 mm lanes and a 40 mm turn at 2 mm/frame); the 50 % rule keeps a few
     assert reloc["status"] == "ok" and reloc["map_scene"] == "paper003_map"

@@ -14,7 +14,9 @@ def test_bench_on_a_tiny_render_scores_every_mono_estimator(tmp_path):
     res = run_bench(["scenes/demo.toml"], None, out, frames=4, spp=2)
     rows = read_results_csv(out / "results.csv")
     mono = [n for n in list_estimators() if not get_estimator(n).requires]
-    not_default = [n for n in mono if any(f"{n} skipped (not runnable with its default configuration" in t for t in res.notes)]
+    not_default = [
+        n for n in mono if any(f"{n} skipped (not runnable with its default configuration" in t for t in res.notes)
+    ]
     assert sorted(r["estimator"] for r in rows) == sorted(set(mono) - set(not_default))
     assert {"phase-corr", "akaze-guided", "akaze-bruteforce"} <= {r["estimator"] for r in rows}
     # estimators that need depth or stereo are skipped on this mono sequence, and say why
@@ -29,5 +31,13 @@ def test_bench_on_a_tiny_render_scores_every_mono_estimator(tmp_path):
     seq_dirs = list((out / "sequences").iterdir())
     assert len(seq_dirs) == 1
     stamp = (seq_dirs[0] / "cam0" / "000000.png").stat().st_mtime_ns
-    run_bench(["scenes/demo.toml"], ["phase-corr"], tmp_path / "again", frames=4, spp=2, cache_dir=out / "sequences", report=False)
+    run_bench(
+        ["scenes/demo.toml"],
+        ["phase-corr"],
+        tmp_path / "again",
+        frames=4,
+        spp=2,
+        cache_dir=out / "sequences",
+        report=False,
+    )
     assert (seq_dirs[0] / "cam0" / "000000.png").stat().st_mtime_ns == stamp  # reused, not rendered again

@@ -4,12 +4,11 @@ import json
 
 import numpy as np
 import pytest
+from _tiny import tiny_scene
 
 from floorsim.depthnoise import DepthNoise, apply_depth_noise
 from floorsim.simulate import render_sequence
 from floorvo.sequence import Sequence
-
-from _tiny import tiny_scene
 
 render = pytest.mark.render
 
@@ -22,7 +21,10 @@ def _gain(root) -> float:
 def test_vignetting_darkens_the_corners_by_cos4(tmp_path):
     base = render_sequence(tiny_scene(**{"trajectory.distance_mm": 4.0}), tmp_path / "a")
     g = _gain(base)
-    vig = render_sequence(tiny_scene(**{"trajectory.distance_mm": 4.0, "camera.vignetting": 1.0, "sensor.exposure_gain": g}), tmp_path / "b")
+    vig = render_sequence(
+        tiny_scene(**{"trajectory.distance_mm": 4.0, "camera.vignetting": 1.0, "sensor.exposure_gain": g}),
+        tmp_path / "b",
+    )
     fa = Sequence.open(base).flatfield().astype(float)
     fb = Sequence.open(vig).flatfield().astype(float)
     cam = Sequence.open(base).camera
@@ -36,7 +38,9 @@ def test_vignetting_darkens_the_corners_by_cos4(tmp_path):
 def test_flicker_varies_frame_brightness_only_when_asked(tmp_path):
     steady = render_sequence(tiny_scene(**{"trajectory.distance_mm": 8.0}), tmp_path / "s")
     g = _gain(steady)
-    flick = render_sequence(tiny_scene(**{"trajectory.distance_mm": 8.0, "lights.flicker": 0.3, "sensor.exposure_gain": g}), tmp_path / "f")
+    flick = render_sequence(
+        tiny_scene(**{"trajectory.distance_mm": 8.0, "lights.flicker": 0.3, "sensor.exposure_gain": g}), tmp_path / "f"
+    )
     ms = [Sequence.open(steady).image(i).astype(float).mean() for i in range(3)]
     mf = [Sequence.open(flick).image(i).astype(float).mean() for i in range(3)]
     assert np.ptp(ms) / np.mean(ms) < 0.02
@@ -48,7 +52,12 @@ def test_motion_blur_smears_along_the_motion_not_across(tmp_path):
     kw = {"trajectory.distance_mm": 8.0, "trajectory.step_mm": 4.0, "sensor.noise": False}
     sharp = Sequence.open(render_sequence(tiny_scene(**kw), tmp_path / "sharp"))
     # 4 mm/frame at 30 fps = 120 mm/s; 20 ms exposure smears 2.4 mm = ~5 px along x.
-    blur = Sequence.open(render_sequence(tiny_scene(**kw, **{"sensor.exposure_ms": 20.0, "sensor.exposure_gain": _gain(sharp.root)}), tmp_path / "blur"))
+    blur = Sequence.open(
+        render_sequence(
+            tiny_scene(**kw, **{"sensor.exposure_ms": 20.0, "sensor.exposure_gain": _gain(sharp.root)}),
+            tmp_path / "blur",
+        )
+    )
 
     def energy(seq, axis):
         c = seq.image(1).astype(float) / np.maximum(seq.flatfield().astype(float), 1)
@@ -69,12 +78,16 @@ def test_depth_noise_follows_its_formula():
     out = apply_depth_noise(z, p, seed=1, frame_index=0)
     fb = 580.0 * 50.0
     assert np.all(out == np.float32(fb / (np.round(fb / 400.0 * 8) / 8)))
-    noisy = apply_depth_noise(z, DepthNoise(model="structured_light", sigma_px=0.5, subpixel=64.0, dropout=0.1), seed=1, frame_index=0)
+    noisy = apply_depth_noise(
+        z, DepthNoise(model="structured_light", sigma_px=0.5, subpixel=64.0, dropout=0.1), seed=1, frame_index=0
+    )
     valid = noisy > 0
     assert valid.mean() == pytest.approx(0.9, abs=0.03)
     # sigma_z = z^2 / (f B) sigma_d
     assert noisy[valid].std() == pytest.approx(400.0**2 / fb * 0.5, rel=0.1)
-    again = apply_depth_noise(z, DepthNoise(model="structured_light", sigma_px=0.5, subpixel=64.0, dropout=0.1), seed=1, frame_index=0)
+    again = apply_depth_noise(
+        z, DepthNoise(model="structured_light", sigma_px=0.5, subpixel=64.0, dropout=0.1), seed=1, frame_index=0
+    )
     np.testing.assert_array_equal(noisy, again)
     step = np.zeros((10, 10)) + 100.0
     step[:, 5:] = 150.0
@@ -87,7 +100,9 @@ def test_ambient_leak_raises_the_dark_level(tmp_path):
     kw = {"trajectory.distance_mm": 4.0, "sensor.noise": False}
     dark = render_sequence(tiny_scene(**kw), tmp_path / "dark")
     g = _gain(dark)
-    leak = render_sequence(tiny_scene(**kw, **{"lights.ambient_leak": 0.5, "sensor.exposure_gain": g}), tmp_path / "leak")
+    leak = render_sequence(
+        tiny_scene(**kw, **{"lights.ambient_leak": 0.5, "sensor.exposure_gain": g}), tmp_path / "leak"
+    )
     a = Sequence.open(dark).image(0).astype(float)
     b = Sequence.open(leak).image(0).astype(float)
     lo = a < np.percentile(a, 10)  # the darkest pixels (shadows, image centre)

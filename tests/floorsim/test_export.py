@@ -18,8 +18,13 @@ def stereo_depth_seq(tmp_path):
     T01 = np.eye(4)
     T01[0, 3] = 20.0
     meta = {
-        "camera": cam.to_dict(), "cameras": {"cam1": cam.to_dict()}, "fps": 10.0, "frame_count": 4, "stereo": True,
-        "depth": {"format": "png16"}, "rig": {"height_mm": 100.0, "T_cam0_cam1": T01.tolist()},
+        "camera": cam.to_dict(),
+        "cameras": {"cam1": cam.to_dict()},
+        "fps": 10.0,
+        "frame_count": 4,
+        "stereo": True,
+        "depth": {"format": "png16"},
+        "rig": {"height_mm": 100.0, "T_cam0_cam1": T01.tolist()},
     }
     w = SequenceWriter(tmp_path / "seq", meta)
     rng = np.random.default_rng(0)
@@ -41,7 +46,7 @@ def test_rosbag2_round_trip(stereo_depth_seq, tmp_path):
     ts = get_typestore(Stores.ROS2_HUMBLE)
     poses, images, depth, infos, static = [], {}, [], [], []
     with Reader(out) as r:
-        for conn, t_ns, raw in r.messages():
+        for conn, _t_ns, raw in r.messages():
             msg = ts.deserialize_cdr(raw, conn.msgtype)
             if conn.topic == "/groundtruth/pose":
                 p, q = msg.pose.position, msg.pose.orientation
@@ -78,7 +83,9 @@ def test_euroc_round_trip(stereo_depth_seq, tmp_path):
     sensor = yaml.safe_load(text.split("\n", 1)[1])
     assert sensor["T_BS"]["data"][3] == pytest.approx(0.020)
     seq = Sequence.open(seq_dir)
-    assert sensor["intrinsics"] == pytest.approx([seq.camera.fx_px, seq.camera.fy_px, seq.camera.cx_px, seq.camera.cy_px])
+    assert sensor["intrinsics"] == pytest.approx(
+        [seq.camera.fx_px, seq.camera.fy_px, seq.camera.cx_px, seq.camera.cy_px]
+    )
     files = [r[1] for r in list(csv.reader(open(out / "mav0/cam0/data.csv")))[1:]]
     assert len(files) == 4 and (out / "mav0/cam0/data" / files[0]).read_bytes() == seq.image_path(0).read_bytes()
 

@@ -24,8 +24,13 @@ def test_gallery_sheet_has_a_tile_per_material_and_variant(tmp_path):
     rows = -(-n // 4)
     assert sheet.shape == (rows * (tile_h + 6) + 6, 4 * (tile_w + 6) + 6)
     # Each tile differs from the others (no material or variant renders the same picture).
-    tiles = [sheet[6 + r * (tile_h + 6) : 6 + r * (tile_h + 6) + 62, 6 + c * (tile_w + 6) : 6 + c * (tile_w + 6) + tile_w].astype(float)
-             for r in range(rows) for c in range(4)][:n]
+    tiles = [
+        sheet[
+            6 + r * (tile_h + 6) : 6 + r * (tile_h + 6) + 62, 6 + c * (tile_w + 6) : 6 + c * (tile_w + 6) + tile_w
+        ].astype(float)
+        for r in range(rows)
+        for c in range(4)
+    ][:n]
     # The first variant is the paper rig, identical to the vinyl material tile.
     names = sorted(MATERIALS)
     vinyl = tiles[names.index("vinyl")]

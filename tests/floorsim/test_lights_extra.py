@@ -7,11 +7,10 @@ import sys
 
 import numpy as np
 import pytest
+from _tiny import tiny_scene
 
 from floorsim.scene import scene_T_world_leds
 from floorsim.spectral import mono_response
-
-from _tiny import tiny_scene
 
 
 def test_aim_defaults_to_floor_under_camera_and_offsets_away_from_bar():
@@ -69,7 +68,10 @@ def test_memory_flat_across_floor_tiles():
     """A line ten tiles long: resident memory after the last tile is that after the second."""
     out = subprocess.run(
         [sys.executable, "-c", _MEMORY_PROBE, str(pathlib.Path(__file__).parent)],
-        capture_output=True, text=True, check=True, timeout=300,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
     )
     marks = {int(k): v for k, v in json.loads(out.stdout.strip().splitlines()[-1]).items()}
     n = max(marks)

@@ -52,7 +52,9 @@ def test_vinyl_has_scratches_and_veins():
     h0, _ = sample_material("vinyl", xs, ys, seed=3, params={"scratch_density": 0.0})
     groove = h0 - h
     assert groove.min() >= -1e-9 and (groove > 0.005).mean() > 0.001  # scratches only cut into the floor
-    _, a0 = sample_material("vinyl", xs, ys, seed=3, params={"vein_contrast": 0.0, "stain_contrast": 0.0, "scratch_density": 0.0})
+    _, a0 = sample_material(
+        "vinyl", xs, ys, seed=3, params={"vein_contrast": 0.0, "stain_contrast": 0.0, "scratch_density": 0.0}
+    )
     _, a1 = sample_material("vinyl", xs, ys, seed=3, params={"stain_contrast": 0.0, "scratch_density": 0.0})
     assert np.all(a1 <= a0 + 1e-6) and (a0 - a1).max() > 0.05  # veins darken
 

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from _tiny import tiny_scene
 from skimage.registration import phase_cross_correlation
 
 from floorsim.simulate import render_sequence
 from floorvo.sequence import Sequence
-
-from _tiny import tiny_scene
 
 pytestmark = pytest.mark.render
 

@@ -9,14 +9,13 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from _tiny import tiny_scene
 from skimage.registration import phase_cross_correlation
 
 from floorsim.materials import sample_material
 from floorsim.simulate import render_sequence
 from floorvo.geometry import invert_T, yaw_of_R
 from floorvo.sequence import Sequence
-
-from _tiny import tiny_scene
 
 pytestmark = pytest.mark.render
 
@@ -51,7 +50,9 @@ def _hann(img: np.ndarray) -> np.ndarray:
 )
 def test_translation_of_k_gsd_shifts_image_by_k_pixels(tmp_path, k, direction_rad, tol_px):
     gsd = tiny_scene().camera_model().gsd_mm_per_px(100.0)
-    scene = tiny_scene(**{"trajectory.distance_mm": k * gsd, "trajectory.step_mm": k * gsd, "trajectory.direction_rad": direction_rad})
+    scene = tiny_scene(
+        **{"trajectory.distance_mm": k * gsd, "trajectory.step_mm": k * gsd, "trajectory.direction_rad": direction_rad}
+    )
     seq = Sequence.open(render_sequence(scene, tmp_path / "seq"))
     # Expected motion from groundtruth.txt and the intrinsics in sequence.json alone.
     _, T = seq.groundtruth()
@@ -146,7 +147,9 @@ def test_brightness_linear_in_led_power_until_saturation(tmp_path):
 def test_higher_leds_lower_relief_contrast(tmp_path):
     contrast = {}
     for h in (3.0, 30.0):
-        seq = Sequence.open(render_sequence(tiny_scene(**{"lights.height_mm": h, "trajectory.distance_mm": 4.0}), tmp_path / f"h{h}"))
+        seq = Sequence.open(
+            render_sequence(tiny_scene(**{"lights.height_mm": h, "trajectory.distance_mm": 4.0}), tmp_path / f"h{h}")
+        )
         c = _interior(_corrected(seq, 0))
         contrast[h] = c.std() / c.mean()
     assert contrast[3.0] > 1.5 * contrast[30.0]
@@ -184,11 +187,28 @@ def test_resume_keeps_written_frames(tmp_path):
 def test_cli_render_unwritable_and_summary(tmp_path):
     ro = tmp_path / "ro"
     ro.write_text("a file, not a folder")
-    r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", "demo", "-o", str(ro / "x"), "--frames", "1"], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "render", "demo", "-o", str(ro / "x"), "--frames", "1"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1 and "Traceback" not in r.stderr
     assert "not writable" in r.stderr.strip().splitlines()[-1]
     r = subprocess.run(
-        [sys.executable, "-m", "floorsim.cli", "-q", "render", "demo", "-o", str(tmp_path / "d"), "--frames", "2", "--scale", "0.5"],
+        [
+            sys.executable,
+            "-m",
+            "floorsim.cli",
+            "-q",
+            "render",
+            "demo",
+            "-o",
+            str(tmp_path / "d"),
+            "--frames",
+            "2",
+            "--scale",
+            "0.5",
+        ],
         capture_output=True,
         text=True,
     )

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from _tiny import tiny_scene
 
 from floorsim.render import FloorRenderer, LedArray
 from floorsim.simulate import _leds, _load_tile
 from floorsim.trajectories import footprint_bounds_mm
-
-from _tiny import tiny_scene
 
 pytestmark = pytest.mark.render
 
@@ -56,8 +55,12 @@ def test_one_shadow_ray_per_bar_is_unbiased(rig):
     rel_rms = np.sqrt(np.mean((per_bar - every) ** 2)) / every.mean()
     assert rel_rms < 0.03
     # Bars are grouped by side; an explicit grouping with one LED per group is the every-LED sum.
-    single = LedArray(leds.positions_mm, leds.aim, leds.intensity, leds.lobe_exponent, bar=np.arange(len(leds.intensity)))
-    np.testing.assert_allclose(r.render(T, single, 4, seed=6), r.render(T, leds, 4, seed=6, every_led=True), rtol=1e-5, atol=1e-9)
+    single = LedArray(
+        leds.positions_mm, leds.aim, leds.intensity, leds.lobe_exponent, bar=np.arange(len(leds.intensity))
+    )
+    np.testing.assert_allclose(
+        r.render(T, single, 4, seed=6), r.render(T, leds, 4, seed=6, every_led=True), rtol=1e-5, atol=1e-9
+    )
 
 
 def test_relief_casts_real_shadows(rig):
@@ -72,4 +75,6 @@ def test_relief_casts_real_shadows(rig):
     # clear share of the pixels by more than 30 %.
     assert (lit < 0.7 * unshadowed).mean() > 0.03
     r.load_flat(*footprint_bounds_mm(T[None], r.camera, 5.0), albedo=0.5)
-    np.testing.assert_array_equal(r.render(T, leds, 4, seed=2, every_led=True), r.render(T, leds, 4, seed=2, shadows=False))
+    np.testing.assert_array_equal(
+        r.render(T, leds, 4, seed=2, every_led=True), r.render(T, leds, 4, seed=2, shadows=False)
+    )

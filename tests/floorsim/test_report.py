@@ -6,18 +6,28 @@ import shutil
 import subprocess
 
 import pytest
-
 from _bench_data import write_run, write_sequence
+
 from floorsim.bench.report import RunRecord, build_bench_report, format_table
 from floorvo.metrics import score_run
 
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 # Appended to a copy of the report: after load, list every image's decoded size.
-PROBE = ("<script>window.addEventListener('load',function(){var r=[];document.querySelectorAll('img').forEach("
-         "function(i){r.push(i.complete+':'+i.naturalWidth+'x'+i.naturalHeight)});var d=document.createElement('pre');"
-         "d.id='imgcheck';d.textContent=r.join(' ');document.body.appendChild(d);});</script>")
+PROBE = (
+    "<script>window.addEventListener('load',function(){var r=[];document.querySelectorAll('img').forEach("
+    "function(i){r.push(i.complete+':'+i.naturalWidth+'x'+i.naturalHeight)});var d=document.createElement('pre');"
+    "d.id='imgcheck';d.textContent=r.join(' ');document.body.appendChild(d);});</script>"
+)
 
 
 def _chromium():
@@ -31,7 +41,9 @@ def _chromium():
 def _bench_dirs(tmp_path):
     seq = write_sequence(tmp_path / "seq")
     good = write_run(tmp_path / "runs" / "good", seq, scale=1.0, matches=True)
-    bad = write_run(tmp_path / "runs" / "bad", seq, scale=1.05, y_drift_mm=0.05, lost=(3, 4), total_ms=9.0, estimator="bad")
+    bad = write_run(
+        tmp_path / "runs" / "bad", seq, scale=1.05, y_drift_mm=0.05, lost=(3, 4), total_ms=9.0, estimator="bad"
+    )
     rows, recs = [], []
     for name, run in (("good", good), ("bad", bad)):
         rows.append({"scene": "demo", "estimator": name, "repetition": 0, "status": "ok", **score_run(run, seq).flat()})
@@ -49,14 +61,26 @@ def test_report_is_self_contained_and_its_plots_render_in_chromium(tmp_path):
     assert len(imgs) == 4  # trajectory, error against distance, timing, matched keypoints
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in imgs)
     md = md_path.read_text()
-    assert "| demo | bad |" in md and all((md_path.parent / p).is_file() for p in re.findall(r"\]\((plots/[^)]+)\)", md))
+    assert "| demo | bad |" in md and all(
+        (md_path.parent / p).is_file() for p in re.findall(r"\]\((plots/[^)]+)\)", md)
+    )
 
     chromium = _chromium()
     probe = tmp_path / "out" / "probe.html"
     probe.write_text(page.replace("</body>", PROBE + "</body>"))
-    out = subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'chromium-profile'}",
-                          "--virtual-time-budget=5000", "--dump-dom", probe.as_uri()],
-                         capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [
+            chromium,
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={tmp_path / 'chromium-profile'}",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            probe.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     found = re.search(r'<pre id="imgcheck">([^<]*)</pre>', out.stdout)
     assert found, out.stderr[-2000:]
     sizes = found.group(1).split()
@@ -78,7 +102,16 @@ def test_report_says_when_no_keypoints_are_exposed(tmp_path):
 
 
 def test_format_table_lists_every_row():
-    rows = [{"scene": "a", "estimator": "x", "repetition": 0, "status": "ok", "ate_se2_rmse_mm": 0.123456, "lost_frames": 2.0},
-            {"scene": "b", "estimator": "y", "repetition": 1, "status": "failed: lost", "ate_se2_rmse_mm": float("nan")}]
+    rows = [
+        {
+            "scene": "a",
+            "estimator": "x",
+            "repetition": 0,
+            "status": "ok",
+            "ate_se2_rmse_mm": 0.123456,
+            "lost_frames": 2.0,
+        },
+        {"scene": "b", "estimator": "y", "repetition": 1, "status": "failed: lost", "ate_se2_rmse_mm": float("nan")},
+    ]
     t = format_table(rows).splitlines()
     assert len(t) == 4 and "0.1235" in t[2] and t[3].split()[0] == "b" and " - " in t[3]

@@ -4,11 +4,10 @@ import subprocess
 import sys
 
 import pytest
+from _tiny import TINY_SCENE, tiny_scene
 
 from floorsim.scene import load_scene, scene_from_dict
 from floorvo.errors import ConfigError
-
-from _tiny import TINY_SCENE, tiny_scene
 
 
 def test_shipped_scenes_load():
@@ -50,15 +49,30 @@ def test_bad_values_refused_by_name(override, message):
 def test_bad_files_give_one_line_and_exit_1(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "bad"\n[camera]\nheight_mm = 100\nbogus = 1\n[trajectory]\ntype = "uniform"\n')
-    r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", str(bad), "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "render", str(bad), "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1
-    assert r.stderr.strip().splitlines()[-1] == "floorsim: error: bad.toml: camera.bogus: unknown key (known: distortion, focal_length_mm, height_mm, height_px, pixel_pitch_um, vignetting, width_px)"
+    assert (
+        r.stderr.strip().splitlines()[-1]
+        == "floorsim: error: bad.toml: camera.bogus: unknown key (known: distortion, focal_length_mm, height_mm, height_px, pixel_pitch_um, vignetting, width_px)"
+    )
     assert "Traceback" not in r.stderr
     broken = tmp_path / "broken.toml"
     broken.write_text("name = \n")
-    r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", str(broken), "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "render", str(broken), "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1 and "not valid TOML" in r.stderr and "Traceback" not in r.stderr
-    r = subprocess.run([sys.executable, "-m", "floorsim.cli", "render", "demo", "--frames", "0", "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "render", "demo", "--frames", "0", "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1 and "--frames = 0: must be >= 1" in r.stderr
 
 

@@ -3,8 +3,8 @@
 import copy
 
 import pytest
-
 from _tiny import TINY_SCENE
+
 from floorsim.scene import scene_from_dict
 from floorsim.simulate import plan_tiles
 from floorsim.trajectories import footprint_bounds_mm

@@ -6,20 +6,21 @@ is known."""
 
 from pathlib import Path
 
+import _bench_doubles as D
 import pytest
 
 from floorsim.bench.bench import read_results_csv
 from floorsim.sweep import load_sweep, run_sweep, sweep_jobs
 from floorvo.errors import ConfigError
 
-import _bench_doubles as D
-
 
 def _sweep_file(tmp_path: Path) -> Path:
     base = D.write_scene(tmp_path / "base.toml", height=3.0)
     p = tmp_path / "sweep.toml"
-    p.write_text(f'base = "{base.name}"\nestimators = ["scaled", "lossy"]\n\n[vary]\n'
-                 '"lights.height_mm" = [1.0, 10.0]\n"lights.power" = [0.5, 1.0]\n')
+    p.write_text(
+        f'base = "{base.name}"\nestimators = ["scaled", "lossy"]\n\n[vary]\n'
+        '"lights.height_mm" = [1.0, 10.0]\n"lights.power" = [0.5, 1.0]\n'
+    )
     return p
 
 

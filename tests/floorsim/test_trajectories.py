@@ -59,14 +59,18 @@ def test_spin_in_place():
 
 
 def test_s_curve_constant_ground_speed():
-    tr = build_trajectory("s_curve", {"length_mm": 200.0, "amplitude_mm": 15.0, "speed_mm_s": 100.0}, height_mm=100.0, fps=50.0)
+    tr = build_trajectory(
+        "s_curve", {"length_mm": 200.0, "amplitude_mm": 15.0, "speed_mm_s": 100.0}, height_mm=100.0, fps=50.0
+    )
     s = _se2(tr)
     steps = np.linalg.norm(np.diff(s[:, :2], axis=0), axis=1)
     np.testing.assert_allclose(steps, 2.0, rtol=2e-3)
 
 
 def test_lawnmower_covers_rectangle():
-    tr = build_trajectory("lawnmower", {"width_mm": 100.0, "depth_mm": 60.0, "lane_spacing_mm": 30.0}, height_mm=100.0, fps=30.0)
+    tr = build_trajectory(
+        "lawnmower", {"width_mm": 100.0, "depth_mm": 60.0, "lane_spacing_mm": 30.0}, height_mm=100.0, fps=30.0
+    )
     s = _se2(tr)
     assert s[:, 0].min() == pytest.approx(0.0) and s[:, 0].max() == pytest.approx(100.0, abs=4.0)
     assert set(np.round(s[:, 1], 6)) >= {0.0, 30.0, 60.0}
@@ -90,11 +94,15 @@ def test_kidnap_teleports_marked_and_seeded():
 
 def test_disturbances_change_height_and_tilt_only_as_asked():
     base = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0)
-    bounced = build_trajectory("uniform", {}, height_mm=100.0, fps=30.0, disturbance={"bounce_amp_mm": 2.0, "bounce_freq_hz": 3.0})
+    bounced = build_trajectory(
+        "uniform", {}, height_mm=100.0, fps=30.0, disturbance={"bounce_amp_mm": 2.0, "bounce_freq_hz": 3.0}
+    )
     dz = bounced.T_world_cam[:, 2, 3] - 100.0
     np.testing.assert_allclose(dz, 2.0 * np.sin(2 * np.pi * 3.0 * base.timestamps_s), atol=1e-12)
     np.testing.assert_allclose(bounced.T_world_cam[:, :2, 3], base.T_world_cam[:, :2, 3], atol=1e-12)
-    vib = build_trajectory("line", {"length_mm": 300.0}, height_mm=100.0, fps=30.0, disturbance={"vibration_rms_mm": 0.1}, seed=1)
+    vib = build_trajectory(
+        "line", {"length_mm": 300.0}, height_mm=100.0, fps=30.0, disturbance={"vibration_rms_mm": 0.1}, seed=1
+    )
     t = np.linspace(0, 1, 20001)
     d = vib.pose_at(t)[:, 2, 3] - 100.0
     assert np.sqrt(np.mean(d**2)) == pytest.approx(0.1, rel=0.25)

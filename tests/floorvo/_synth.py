@@ -32,7 +32,9 @@ def view(texture: np.ndarray, camera: CameraModel, M_cur_from_prev: np.ndarray) 
     B = np.eye(3)
     B[:2, 2] = [-camera.cx_px, -camera.cy_px]
     full = (A @ Minv @ B)[:2]
-    return cv2.warpAffine(texture, full, (camera.width_px, camera.height_px), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP)
+    return cv2.warpAffine(
+        texture, full, (camera.width_px, camera.height_px), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP
+    )
 
 
 def pixel_motion(T_prev_cur: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
@@ -44,7 +46,9 @@ def pixel_motion(T_prev_cur: np.ndarray, camera: CameraModel, height_mm: float) 
     return M
 
 
-def frame_pair(camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0):
+def frame_pair(
+    camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
+):
     """(prev uint8, cur uint8, flatfield uint16) for camera motion ``T_prev_cur`` (mm)."""
     size = int(2.2 * max(camera.width_px, camera.height_px))
     tex = floor_texture(size, seed)
@@ -64,7 +68,14 @@ def flat_floor_depth(camera: CameraModel, height_mm: float = 100.0) -> np.ndarra
     return np.full((camera.height_px, camera.width_px), np.float32(height_mm))
 
 
-def stereo_pairs(camera: CameraModel, T_prev_cur: np.ndarray, baseline_mm: float, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0):
+def stereo_pairs(
+    camera: CameraModel,
+    T_prev_cur: np.ndarray,
+    baseline_mm: float,
+    height_mm: float = 100.0,
+    seed: int = 0,
+    noise_dn: float = 1.0,
+):
     """Left and right frames at prev and cur for a rig with cam1 ``baseline_mm`` along cam0's +x.
 
     Returns ``((L0, R0), (L1, R1), flatfield uint16, T_cam0_cam1)``; each camera is a

@@ -72,13 +72,25 @@ def test_calibration_fitted_on_one_run_corrects_another(tmp_path, capsys):
     cal_seq = _diagonal_sequence(tmp_path / "cal", 1, 3.0, 2.0)
     test_seq = _diagonal_sequence(tmp_path / "test", 2, 2.0, -3.0)
     assert floorvo_main(["run", str(cal_seq), "-e", "phase-corr", "-o", str(tmp_path / "run_cal")]) == 0
-    assert floorvo_main(["calibrate", str(tmp_path / "run_cal"), "--gt", str(cal_seq), "-o", str(tmp_path / "scale.json")]) == 0
+    assert (
+        floorvo_main(["calibrate", str(tmp_path / "run_cal"), "--gt", str(cal_seq), "-o", str(tmp_path / "scale.json")])
+        == 0
+    )
     assert "scale x 1.0" in capsys.readouterr().out
     cal = load_scale_calibration(tmp_path / "scale.json")
     assert cal.estimator == "phase-corr"
     assert cal.scale_x == pytest.approx(1.02, abs=0.002) and cal.scale_y == pytest.approx(1.02, abs=0.002)
     assert floorvo_main(["run", str(test_seq), "-e", "phase-corr", "-o", str(tmp_path / "raw")]) == 0
-    cmd = ["run", str(test_seq), "-e", "phase-corr", "-o", str(tmp_path / "fixed"), "--scale-calibration", str(tmp_path / "scale.json")]
+    cmd = [
+        "run",
+        str(test_seq),
+        "-e",
+        "phase-corr",
+        "-o",
+        str(tmp_path / "fixed"),
+        "--scale-calibration",
+        str(tmp_path / "scale.json"),
+    ]
     assert floorvo_main(cmd) == 0
     assert _end_error_pct(tmp_path / "raw", test_seq) == pytest.approx(2.0, abs=0.2)
     assert _end_error_pct(tmp_path / "fixed", test_seq) < 0.1
@@ -92,8 +104,14 @@ def test_calibration_fitted_on_one_run_corrects_another(tmp_path, capsys):
         ("{not json", "not valid JSON"),
         ('{"kind": "something else", "version": 1}', "not a scale calibration"),
         ('{"kind": "floorvo scale calibration", "version": 7, "scale_x": 1.0, "scale_y": 1.0}', "version 7"),
-        ('{"kind": "floorvo scale calibration", "version": 1, "scale_x": 2.0, "scale_y": 1.0}', "scale_x = 2.0 must be a number in"),
-        ('{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "scale_z": 1}', "unknown key 'scale_z'"),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 2.0, "scale_y": 1.0}',
+            "scale_x = 2.0 must be a number in",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "scale_z": 1}',
+            "unknown key 'scale_z'",
+        ),
     ],
 )
 def test_bad_calibration_file_is_one_line_error(tmp_path, capsys, content, message):
@@ -102,7 +120,12 @@ def test_bad_calibration_file_is_one_line_error(tmp_path, capsys, content, messa
     with pytest.raises(ConfigError, match=message):
         load_scale_calibration(path)
     seq = write_synthetic_sequence(tmp_path / "s", CAM, np.stack([T_world_cam_down(0.0, 0.0, 100.0)] * 2))
-    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run"), "--scale-calibration", str(path)]) == 1
+    assert (
+        floorvo_main(
+            ["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run"), "--scale-calibration", str(path)]
+        )
+        == 1
+    )
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err
     assert not (tmp_path / "run" / "trajectory.txt").exists()

@@ -7,7 +7,7 @@ import pytest
 
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, SequenceError
-from floorvo.geometry import T_world_cam_down, invert_T, rigid_fit_2d, se2_from_T, rot_z
+from floorvo.geometry import T_world_cam_down, invert_T, rigid_fit_2d, rot_z, se2_from_T
 from floorvo.sequence import SCHEMA_VERSION, Sequence, SequenceWriter
 from floorvo.tum import read_tum, write_tum
 
@@ -88,7 +88,12 @@ def test_tum_errors(tmp_path):
 
 
 def _meta(n=3):
-    return {"camera": CameraModel.from_sensor().scaled(0.25).to_dict(), "fps": 10.0, "frame_count": n, "scene": {"a": 1}}
+    return {
+        "camera": CameraModel.from_sensor().scaled(0.25).to_dict(),
+        "fps": 10.0,
+        "frame_count": n,
+        "scene": {"a": 1},
+    }
 
 
 def test_sequence_write_read_resume(tmp_path):

@@ -6,14 +6,13 @@ import json
 
 import numpy as np
 import pytest
+from _synth import frame_pair
 
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators import Frame, get_estimator, list_estimators, make_config
 from floorvo.estimators.akaze import mean_std_filter
 from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
-
-from _synth import frame_pair
 
 CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)  # GSD 0.2467 mm at 100 mm
 MONO = ["phase-corr", "akaze-guided", "akaze-bruteforce"]

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _synth import flat_floor_depth, frame_pair, stereo_pairs
 
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators import Frame, get_estimator, make_config
 from floorvo.estimators.orb_icp import homogenise_keypoints
 from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
-
-from _synth import flat_floor_depth, frame_pair, stereo_pairs
 
 CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
 # Per-estimator tolerance on a synthetic pair: translation (mm), yaw (deg). Measured worst
@@ -65,7 +64,13 @@ def test_stereo_sift_recovers_motion_from_triangulation(dx, dy, yaw):
     T_true = _motion(dx, dy, yaw)
     (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
     est = get_estimator("stereo-sift")(
-        make_config("stereo-sift"), CAM, height_mm=100.0, flatfield=flat, camera_right=CAM, T_cam0_cam1=T01, flatfield_right=flat
+        make_config("stereo-sift"),
+        CAM,
+        height_mm=100.0,
+        flatfield=flat,
+        camera_right=CAM,
+        T_cam0_cam1=T01,
+        flatfield_right=flat,
     )
     st = est.start()
     assert est.step(st, Frame(0, 0.0, L0, image_right=R0)).status == "init"
@@ -77,7 +82,13 @@ def test_stereo_sift_paper_mean_update_translation_only():
     T_true = _motion(3.0, 1.0, 0.0)
     (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0, seed=3)
     est = get_estimator("stereo-sift")(
-        make_config("stereo-sift", {"update": "mean"}), CAM, height_mm=100.0, flatfield=flat, camera_right=CAM, T_cam0_cam1=T01, flatfield_right=flat
+        make_config("stereo-sift", {"update": "mean"}),
+        CAM,
+        height_mm=100.0,
+        flatfield=flat,
+        camera_right=CAM,
+        T_cam0_cam1=T01,
+        flatfield_right=flat,
     )
     st = est.start()
     est.step(st, Frame(0, 0.0, L0, image_right=R0))
@@ -106,7 +117,9 @@ def test_lost_frames_give_status_and_the_run_goes_on():
     assert r.status == "lost" and r.reason
 
     (L0, R0), (L1, R1), flat2, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
-    ss = get_estimator("stereo-sift")(make_config("stereo-sift"), CAM, height_mm=100.0, camera_right=CAM, T_cam0_cam1=T01)
+    ss = get_estimator("stereo-sift")(
+        make_config("stereo-sift"), CAM, height_mm=100.0, camera_right=CAM, T_cam0_cam1=T01
+    )
     st = ss.start()
     ss.step(st, Frame(0, 0.0, L0, image_right=R0))
     r = ss.step(st, Frame(1, 0.1, L1, image_right=np.zeros_like(R1)))
@@ -116,7 +129,9 @@ def test_lost_frames_give_status_and_the_run_goes_on():
 def test_homogenised_keypoints_capped_per_cell():
     import cv2
 
-    kps = [cv2.KeyPoint(float(x), float(y), 7, -1, float(r)) for x, y, r in [(1, 1, 5), (2, 2, 9), (3, 3, 1), (90, 90, 2)]]
+    kps = [
+        cv2.KeyPoint(float(x), float(y), 7, -1, float(r)) for x, y, r in [(1, 1, 5), (2, 2, 9), (3, 3, 1), (90, 90, 2)]
+    ]
     kept = homogenise_keypoints(kps, (100, 100), 2, 2, 2)
     assert sorted(k.response for k in kept) == [2, 5, 9]
 

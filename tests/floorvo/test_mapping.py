@@ -120,9 +120,12 @@ def test_keyframes_on_a_straight_line_follow_the_half_similarity_rule(texture):
 def lane(texture):
     """A mapped lane along x (4 mm per frame), its poses and its map."""
     poses = [T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(28)]
-    imgs = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(100 + i)) for i, T in enumerate(poses)]
-    m = build_map_from_images(imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0],
-                              timestamps_s=np.arange(len(imgs)) / 30.0)
+    imgs = [
+        syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(100 + i)) for i, T in enumerate(poses)
+    ]
+    m = build_map_from_images(
+        imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0], timestamps_s=np.arange(len(imgs)) / 30.0
+    )
     return poses, imgs, m
 
 
@@ -188,7 +191,9 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     poses, imgs, _ = lane
 
     def write_seq(root, frames, Ts):
-        w = SequenceWriter(root, {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": len(frames), "rig": {"height_mm": H_MM}})
+        w = SequenceWriter(
+            root, {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": len(frames), "rig": {"height_mm": H_MM}}
+        )
         for i, f in enumerate(frames):
             w.write_frame(i, f)
         w.write_groundtruth(np.arange(len(frames)) / 30.0, np.stack(Ts))
@@ -203,7 +208,9 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     # A live sequence: two segments over the lane joined by a teleport, then a foreign frame.
     live_T = [T_world_cam_down(-30.0 + 3 * i, 5.0, H_MM, 1.0) for i in range(3)]
     live_T += [T_world_cam_down(40.0 - 3 * i, -6.0, H_MM, -2.0) for i in range(3)]
-    live = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(200 + i)) for i, T in enumerate(live_T)]
+    live = [
+        syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(200 + i)) for i, T in enumerate(live_T)
+    ]
     live.append(_view(other_texture, 0, 0, 0, 300))
     live_T.append(live_T[-1])
     write_seq(tmp_path / "live", live, live_T)
@@ -217,7 +224,9 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     assert [x["frame"] for x in res["lost_frames"]] == [6] and res["lost_frames"][0]["reason"]
     assert (tmp_path / "run" / "timing.csv").read_text().count("\n") == 8
     # The registered estimator under the generic runner (fixes only).
-    r = run_estimator(tmp_path / "live", "map-fused", tmp_path / "run2", {"map": str(tmp_path / "map"), "odometry": "none"})
+    r = run_estimator(
+        tmp_path / "live", "map-fused", tmp_path / "run2", {"map": str(tmp_path / "map"), "odometry": "none"}
+    )
     assert r.lost == 1 and r.ok == 5
     ts2, T2 = read_tum(tmp_path / "run2" / "trajectory.txt")
     assert np.max(np.abs(T2[:, :3, 3] - T_est[:, :3, 3])) < 0.3  # runner anchors at GT frame 0

@@ -25,7 +25,9 @@ def wiggly_traj(n=60, seed=0):
     y = np.cumsum(rng.normal(0, 0.5, n))
     yaw = np.cumsum(rng.normal(0, 0.02, n))
     z = 100 + rng.normal(0, 0.2, n)
-    return np.stack([T_world_cam_down(x[i], y[i], z[i], yaw[i], rng.normal(0, 0.01), rng.normal(0, 0.01)) for i in range(n)])
+    return np.stack(
+        [T_world_cam_down(x[i], y[i], z[i], yaw[i], rng.normal(0, 0.01), rng.normal(0, 0.01)) for i in range(n)]
+    )
 
 
 # ----------------------------------------------------------------------------- association
@@ -42,7 +44,9 @@ def test_associate_pairs_nearest_within_tolerance_and_uses_each_reference_once()
 def test_umeyama_recovers_known_rigid_motion():
     rng = np.random.default_rng(1)
     src = rng.normal(size=(30, 3)) * 50
-    R = make_T(rot_z(0.7), [0, 0, 0])[:3, :3] @ np.array([[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]])
+    R = make_T(rot_z(0.7), [0, 0, 0])[:3, :3] @ np.array(
+        [[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]]
+    )
     t = np.array([5.0, -3.0, 12.0])
     R_hat, t_hat, s = M.umeyama_alignment(src, src @ R.T + t)
     np.testing.assert_allclose(R_hat, R, atol=1e-10)
@@ -233,12 +237,18 @@ def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
         m.process_data((traj_ref, e))
         return m.get_all_statistics()
 
-    for ours, theirs in ((M.ate(A, B, "none"), evo_ape(False)), (M.ate(A, B, "se3"), evo_ape(True)),
-                         (M.ate(A, B, "origin"), evo_ape(False, True))):
+    for ours, theirs in (
+        (M.ate(A, B, "none"), evo_ape(False)),
+        (M.ate(A, B, "se3"), evo_ape(True)),
+        (M.ate(A, B, "origin"), evo_ape(False, True)),
+    ):
         for k in ("rmse", "mean", "max", "median"):
             assert ours["trans_mm"][k] == pytest.approx(theirs[k] * 1000.0, rel=1e-6, abs=1e-6), (ours["alignment"], k)
 
-    for relation, key, unit in ((em.PoseRelation.translation_part, "trans_mm", 1000.0), (em.PoseRelation.rotation_angle_deg, "rot_deg", 1.0)):
+    for relation, key, unit in (
+        (em.PoseRelation.translation_part, "trans_mm", 1000.0),
+        (em.PoseRelation.rotation_angle_deg, "rot_deg", 1.0),
+    ):
         m = em.RPE(relation, delta=1, delta_unit=em.Unit.frames, all_pairs=False)
         m.process_data((traj_ref, traj_est))
         theirs = m.get_all_statistics()
@@ -250,8 +260,21 @@ def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
     evo_ape_bin = Path(sys.executable).parent / "evo_ape"
     if evo_ape_bin.exists():
         res = tmp_path / "ape.zip"
-        out = subprocess.run([str(evo_ape_bin), "tum", str(tmp_path / "gt.txt"), str(tmp_path / "est.txt"), "-a",
-                              "--save_results", str(res), "--no_warnings"], capture_output=True, text=True, env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"})
+        out = subprocess.run(
+            [
+                str(evo_ape_bin),
+                "tum",
+                str(tmp_path / "gt.txt"),
+                str(tmp_path / "est.txt"),
+                "-a",
+                "--save_results",
+                str(res),
+                "--no_warnings",
+            ],
+            capture_output=True,
+            text=True,
+            env={"HOME": str(tmp_path), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"},
+        )
         assert out.returncode == 0, out.stderr
         from evo.tools import file_interface as fi
 

@@ -44,7 +44,9 @@ def test_sequence_folder_complete(tmp_path):
     assert img[:, 75:87].mean() < 0.7 * img[:, :12].mean()
 
 
-@pytest.mark.parametrize("name, tol_pct", [("phase-corr", 0.2), ("akaze-guided", 0.5), ("orb-icp", 1.0), ("stereo-sift", 1.0)])
+@pytest.mark.parametrize(
+    "name, tol_pct", [("phase-corr", 0.2), ("akaze-guided", 0.5), ("orb-icp", 1.0), ("stereo-sift", 1.0)]
+)
 def test_estimators_track_a_synthetic_line(tmp_path, name, tol_pct):
     from floorvo.run import run_estimator
 

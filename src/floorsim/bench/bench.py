@@ -33,15 +33,16 @@ import json
 import logging
 import math
 import os
+from collections.abc import Callable, Mapping
+from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence as SequenceT
-
-from floorvo.errors import ConfigError, FloorbenchError
-from floorvo.io import atomic_write_json, atomic_write_text
+from typing import Any
 
 from floorsim.bench.gates import GateResult, compare, load_baseline, save_baseline
 from floorsim.bench.report import RunRecord, build_bench_report
+from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.io import atomic_write_json, atomic_write_text
 
 log = logging.getLogger(__name__)
 
@@ -72,19 +73,35 @@ def _scene_seed(scene) -> int:
     return int(seed)
 
 
-def scene_cache_key(resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None,
-                    spp: int | None) -> str:
+def scene_cache_key(
+    resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None, spp: int | None
+) -> str:
     """Hex SHA-256 of the resolved scene and everything else that changes the rendered sequence."""
     from floorsim import __version__
 
-    payload = {"scene": resolved_scene, "seed": seed, "frames": frames, "scale": scale, "spp": spp, "floorsim": __version__}
+    payload = {
+        "scene": resolved_scene,
+        "seed": seed,
+        "frames": frames,
+        "scale": scale,
+        "spp": spp,
+        "floorsim": __version__,
+    }
     text = json.dumps(payload, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def render_cached(scene, cache_dir: str | os.PathLike, *, seed: int | None = None, frames: int | None = None,
-                  scale: float | None = None, spp: int | None = None, on_frame: Callable[[int, int], None] | None = None,
-                  render: RenderFn | None = None) -> Path:
+def render_cached(
+    scene,
+    cache_dir: str | os.PathLike,
+    *,
+    seed: int | None = None,
+    frames: int | None = None,
+    scale: float | None = None,
+    spp: int | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
+    render: RenderFn | None = None,
+) -> Path:
     """Render ``scene`` into ``cache_dir/NAME-HASH`` unless an identical render is there already.
 
     The folder gets a ``bench-cache.json`` marker (the key) once the render finished; a
@@ -105,7 +122,9 @@ def render_cached(scene, cache_dir: str | os.PathLike, *, seed: int | None = Non
             pass
     log.info("scene %s: rendering into %s", scene.name, out)
     render(scene, out, frames=frames, scale=scale, spp=spp, seed=seed, on_frame=on_frame)
-    atomic_write_json(marker, {"key": key, "scene": scene.name, "seed": seed, "frames": frames, "scale": scale, "spp": spp})
+    atomic_write_json(
+        marker, {"key": key, "scene": scene.name, "seed": seed, "frames": frames, "scale": scale, "spp": spp}
+    )
     return out
 
 
@@ -123,7 +142,9 @@ def _requires(name: str) -> set[str]:
     return set(getattr(get_estimator(name), "requires", set()) or set())
 
 
-def supported_estimators(seq_dir: str | os.PathLike, names: SequenceT[str] | None = None) -> tuple[list[str], dict[str, str]]:
+def supported_estimators(
+    seq_dir: str | os.PathLike, names: SequenceT[str] | None = None
+) -> tuple[list[str], dict[str, str]]:
     """Split estimator ``names`` (default: all registered) into those the sequence supports
     and ``{name: reason}`` for the others (e.g. ``needs depth``)."""
     from floorvo.sequence import Sequence
@@ -174,8 +195,9 @@ def _cell(v: Any) -> str:
     return str(v)
 
 
-def write_results_csv(path: str | os.PathLike, rows: SequenceT[Mapping[str, Any]],
-                      first_columns: SequenceT[str] = ID_COLUMNS) -> None:
+def write_results_csv(
+    path: str | os.PathLike, rows: SequenceT[Mapping[str, Any]], first_columns: SequenceT[str] = ID_COLUMNS
+) -> None:
     """Write rows (dicts) as CSV atomically; columns: ``first_columns``, then every other key seen."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -226,8 +248,9 @@ class BenchResult:
     notes: list[str] = field(default_factory=list)
 
 
-def run_one(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None,
-            scale_calibration=None) -> dict[str, Any]:
+def run_one(
+    seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None, scale_calibration=None
+) -> dict[str, Any]:
     """Run one estimator on one sequence and score it; returns the metric part of a row.
 
     ``scale_calibration``: a :class:`floorvo.calibration.ScaleCalibration` divided out of
@@ -242,8 +265,9 @@ def run_one(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str
     return score.flat()
 
 
-def write_match_samples(seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None,
-                        count: int = 3) -> int:
+def write_match_samples(
+    seq_dir: Path, estimator: str, run_dir: Path, overrides: Mapping[str, str] | None = None, count: int = 3
+) -> int:
     """Save the matched keypoints of ``count`` frame pairs as ``RUN/matches/NNNNNN.npz`` for the report.
 
     Runs the estimator afresh on each pair (previous, current) and keeps
@@ -270,9 +294,16 @@ def write_match_samples(seq_dir: Path, estimator: str, run_dir: Path, overrides:
         state = est.start()
         res = None
         for j in (i - 1, i):
-            res = est.step(state, Frame(index=j, timestamp_s=float(seq.timestamps_s[j]), image=seq.image(j),
-                                        image_right=seq.image(j, "cam1") if "stereo" in est.requires else None,
-                                        depth_mm=seq.depth_mm(j) if "depth" in est.requires else None))
+            res = est.step(
+                state,
+                Frame(
+                    index=j,
+                    timestamp_s=float(seq.timestamps_s[j]),
+                    image=seq.image(j),
+                    image_right=seq.image(j, "cam1") if "stereo" in est.requires else None,
+                    depth_mm=seq.depth_mm(j) if "depth" in est.requires else None,
+                ),
+            )
         m = getattr(res, "matches_px", None)
         if m is None or len(m) == 0:
             continue
@@ -336,9 +367,13 @@ def run_bench(
     cals = {}
     for n, f in (scale_calibrations or {}).items():
         if n not in _registry_names():
-            raise ConfigError(f"--scale-calibration {n}={f}: unknown estimator (known: {', '.join(sorted(_registry_names()))})")
+            raise ConfigError(
+                f"--scale-calibration {n}={f}: unknown estimator (known: {', '.join(sorted(_registry_names()))})"
+            )
         if estimators is not None and n not in estimators:
-            raise ConfigError(f"--scale-calibration {n}={f}: estimator {n!r} is not among --estimators ({', '.join(estimators)})")
+            raise ConfigError(
+                f"--scale-calibration {n}={f}: estimator {n!r} is not among --estimators ({', '.join(estimators)})"
+            )
         from floorvo.calibration import load_scale_calibration
 
         cals[n] = (str(f), load_scale_calibration(f))
@@ -360,7 +395,9 @@ def run_bench(
         for rep in range(repetitions):
             seed = _scene_seed(scene) + rep
             cb = (lambda i, n, _s=label: on_frame(_s, i, n)) if on_frame else None
-            seq_dir = render_cached(scene, cache_dir, seed=seed, frames=frames, scale=scale, spp=spp, on_frame=cb, render=render)
+            seq_dir = render_cached(
+                scene, cache_dir, seed=seed, frames=frames, scale=scale, spp=spp, on_frame=cb, render=render
+            )
             if rep == 0:
                 first_rendered[label] = (path, scene, seq_dir, seed)
             names, skipped = supported_estimators(seq_dir, estimators)
@@ -370,12 +407,21 @@ def run_bench(
                     log.warning("scene %s: estimator %s skipped: %s", label, n, why)
             for name in names:
                 run_dir = out_dir / "runs" / label / name / f"rep{rep}"
-                row: dict[str, Any] = {"scene": label, "scene_file": str(path), "estimator": name, "repetition": rep,
-                                       "seed": seed, "sequence": str(seq_dir), "run_dir": str(run_dir)}
+                row: dict[str, Any] = {
+                    "scene": label,
+                    "scene_file": str(path),
+                    "estimator": name,
+                    "repetition": rep,
+                    "seed": seed,
+                    "sequence": str(seq_dir),
+                    "run_dir": str(run_dir),
+                }
                 if name in cals:
                     row["scale_calibration"] = cals[name][0]
                 try:
-                    metrics = run_one(seq_dir, name, run_dir, est_over.get(name), cals[name][1] if name in cals else None)
+                    metrics = run_one(
+                        seq_dir, name, run_dir, est_over.get(name), cals[name][1] if name in cals else None
+                    )
                     row["status"] = "ok"
                     row.update(metrics)
                     if report and rep == 0:
@@ -391,8 +437,14 @@ def run_bench(
             if rep == 0 and _trajectory_type(scene) == "strip":
                 from floorsim.bench.paper000 import run_paper000
 
-                p0 = run_paper000(seq_dir, names, out_dir / "paper000" / label, max_runs=paper000_runs,
-                                  estimator_overrides=est_over, scale_calibrations={n: c for n, (_, c) in cals.items()})
+                p0 = run_paper000(
+                    seq_dir,
+                    names,
+                    out_dir / "paper000" / label,
+                    max_runs=paper000_runs,
+                    estimator_overrides=est_over,
+                    scale_calibrations={n: c for n, (_, c) in cals.items()},
+                )
                 sections.append(p0.report_section)
         if label.startswith("paper001"):
             sections.append(_paper001_section([r for r in rows if r["scene"] == label]))
@@ -406,8 +458,14 @@ def run_bench(
         kpath, _, kseq, kseed = first_rendered[kid_label]
         base = {"scene_file": str(kpath), "seed": kseed}
         try:
-            p3 = run_paper003(first_rendered[map_label][2], kseq, out_dir / "paper003", map_label=map_label,
-                              kidnap_label=kid_label, row_base=base)
+            p3 = run_paper003(
+                first_rendered[map_label][2],
+                kseq,
+                out_dir / "paper003",
+                map_label=map_label,
+                kidnap_label=kid_label,
+                row_base=base,
+            )
         except FloorbenchError as exc:
             notes.append(f"{kid_label}: relocalisation against the map of {map_label} failed: {exc}")
             log.warning("paper 003 (%s on %s): %s", kid_label, map_label, exc)
@@ -428,25 +486,43 @@ def run_bench(
     if report:
         if notes:
             sections.insert(0, lambda rep, _n=list(notes): [rep.heading("Notes"), *[rep.text(t) for t in _n]])
-        res.report_html, res.report_md = build_bench_report(out_dir, rows, records, gate_summary=gate_text,
-                                                            extra_sections=sections)
+        res.report_html, res.report_md = build_bench_report(
+            out_dir, rows, records, gate_summary=gate_text, extra_sections=sections
+        )
     return res
 
 
 def _paper001_section(rows: list[dict[str, Any]]):
     def section(rep) -> None:
         rep.heading("Paper 001 reproduction: 3 m straight line")
-        rep.text(f"Li et al. (JSER 2020) report an error of {PAPER001_ERROR_PCT} % over a 3 m line at 0.3 m/s. "
-                 "Here: the measured against the true distance (distance error) and the end-point error, each in % "
-                 "of the distance travelled; 'beats paper' compares the absolute distance error with the paper's.")
+        rep.text(
+            f"Li et al. (JSER 2020) report an error of {PAPER001_ERROR_PCT} % over a 3 m line at 0.3 m/s. "
+            "Here: the measured against the true distance (distance error) and the end-point error, each in % "
+            "of the distance travelled; 'beats paper' compares the absolute distance error with the paper's."
+        )
         table = []
         for r in rows:
             de = r.get("distance_error_pct")
             ok = isinstance(de, float) and math.isfinite(de)
-            table.append({**r, "paper": PAPER001_ERROR_PCT,
-                          "beats": ("yes" if abs(de) <= PAPER001_ERROR_PCT else "no") if ok else "-"})
-        rep.table(table, [("estimator", "estimator"), ("repetition", "rep"), ("path_length_mm", "path mm"),
-                          ("measured_mm", "measured mm"), ("distance_error_pct", "distance error %"),
-                          ("end_drift_pct", "end-point error %"), ("paper", "paper 001 %"), ("beats", "beats paper")])
+            table.append(
+                {
+                    **r,
+                    "paper": PAPER001_ERROR_PCT,
+                    "beats": ("yes" if abs(de) <= PAPER001_ERROR_PCT else "no") if ok else "-",
+                }
+            )
+        rep.table(
+            table,
+            [
+                ("estimator", "estimator"),
+                ("repetition", "rep"),
+                ("path_length_mm", "path mm"),
+                ("measured_mm", "measured mm"),
+                ("distance_error_pct", "distance error %"),
+                ("end_drift_pct", "end-point error %"),
+                ("paper", "paper 001 %"),
+                ("beats", "beats paper"),
+            ],
+        )
 
     return section

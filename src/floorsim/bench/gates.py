@@ -16,15 +16,24 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from floorvo.errors import ConfigError
 from floorvo.io import atomic_write_json, read_json
 
-__all__ = ["DEFAULT_TOLERANCES", "Regression", "GateResult", "aggregate", "make_baseline", "save_baseline",
-           "load_baseline", "compare"]
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "Regression",
+    "GateResult",
+    "aggregate",
+    "make_baseline",
+    "save_baseline",
+    "load_baseline",
+    "compare",
+]
 
 BASELINE_FORMAT = "floorbench-baseline"
 BASELINE_VERSION = 1
@@ -70,7 +79,9 @@ def aggregate(rows: Iterable[Mapping[str, Any]], metrics: Iterable[str]) -> dict
     return out
 
 
-def make_baseline(rows: Iterable[Mapping[str, Any]], tolerances: Mapping[str, Mapping[str, float]] | None = None) -> dict:
+def make_baseline(
+    rows: Iterable[Mapping[str, Any]], tolerances: Mapping[str, Mapping[str, float]] | None = None
+) -> dict:
     """A baseline dict from bench rows (see the module doc for the format)."""
     tol = {k: dict(v) for k, v in (tolerances or DEFAULT_TOLERANCES).items()}
     agg = aggregate(rows, tol)
@@ -94,10 +105,14 @@ def load_baseline(path: str | os.PathLike) -> dict:
     if not isinstance(b, dict) or b.get("format") != BASELINE_FORMAT:
         raise ConfigError(f"--baseline {path}: not a floorbench baseline (format must be {BASELINE_FORMAT!r})")
     if b.get("version") != BASELINE_VERSION:
-        raise ConfigError(f"--baseline {path}: version {b.get('version')!r} is not supported (expected {BASELINE_VERSION})")
+        raise ConfigError(
+            f"--baseline {path}: version {b.get('version')!r} is not supported (expected {BASELINE_VERSION})"
+        )
     for m, t in b.get("tolerances", {}).items():
-        if not isinstance(t, dict) or any(not isinstance(t.get(k, 0), (int, float)) or t.get(k, 0) < 0 for k in ("abs", "rel")):
-            raise ConfigError(f"--baseline {path}: tolerance of {m} = {t!r}: must be {{\"abs\": >= 0, \"rel\": >= 0}}")
+        if not isinstance(t, dict) or any(
+            not isinstance(t.get(k, 0), (int, float)) or t.get(k, 0) < 0 for k in ("abs", "rel")
+        ):
+            raise ConfigError(f'--baseline {path}: tolerance of {m} = {t!r}: must be {{"abs": >= 0, "rel": >= 0}}')
     return b
 
 
@@ -114,8 +129,10 @@ class Regression:
     def describe(self) -> str:
         if not math.isfinite(self.value):
             return f"{self.key}: {self.metric} is missing now (baseline {self.baseline:.6g})"
-        return (f"{self.key}: {self.metric} got worse: {self.value:.6g} against baseline {self.baseline:.6g} "
-                f"(allowed up to {self.allowed:.6g})")
+        return (
+            f"{self.key}: {self.metric} got worse: {self.value:.6g} against baseline {self.baseline:.6g} "
+            f"(allowed up to {self.allowed:.6g})"
+        )
 
 
 @dataclass

@@ -21,9 +21,11 @@ import dataclasses
 import logging
 import math
 import os
+from collections.abc import Callable, Mapping
+from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence as SequenceT
+from typing import Any
 
 import numpy as np
 
@@ -56,8 +58,14 @@ def matching_modes(estimator: str) -> tuple[str | None, list[str]]:
     return None, []
 
 
-def run_subsequence(seq, estimator: str, indices: SequenceT[int], overrides: Mapping[str, str] | None = None,
-                    images: dict[int, np.ndarray] | None = None, scale_calibration=None) -> dict[str, Any]:
+def run_subsequence(
+    seq,
+    estimator: str,
+    indices: SequenceT[int],
+    overrides: Mapping[str, str] | None = None,
+    images: dict[int, np.ndarray] | None = None,
+    scale_calibration=None,
+) -> dict[str, Any]:
     """Run ``estimator`` over the strip frames ``indices`` (in order; repeats allowed).
 
     ``scale_calibration`` (:class:`floorvo.calibration.ScaleCalibration` or None) is
@@ -108,19 +116,24 @@ class Paper000Result:
         _report(self, rep)
 
 
-def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir: str | os.PathLike, *,
-                 max_runs: int | None = None, estimator_overrides: Mapping[str, Mapping[str, str]] | None = None,
-                 on_run: Callable[[int, int], None] | None = None,
-                 scale_calibrations: Mapping[str, Any] | None = None) -> Paper000Result:
+def run_paper000(
+    seq_dir: str | os.PathLike,
+    estimators: SequenceT[str],
+    out_dir: str | os.PathLike,
+    *,
+    max_runs: int | None = None,
+    estimator_overrides: Mapping[str, Mapping[str, str]] | None = None,
+    on_run: Callable[[int, int], None] | None = None,
+    scale_calibrations: Mapping[str, Any] | None = None,
+) -> Paper000Result:
     """Run the paper-000 protocol on the strip sequence ``seq_dir`` (see the module doc).
 
     ``max_runs`` keeps at most that many runs per model, spread evenly over the start
     frames (None: 100 uniform and 190 per sigmoid model on a 200-frame strip).
     ``scale_calibrations``: ``{estimator: ScaleCalibration}`` divided out of its steps.
     """
-    from floorvo.sequence import Sequence
-
     from floorsim.bench.bench import write_results_csv
+    from floorvo.sequence import Sequence
 
     seq = Sequence.open(seq_dir)
     gt = seq.groundtruth()
@@ -163,30 +176,54 @@ def run_paper000(seq_dir: str | os.PathLike, estimators: SequenceT[str], out_dir
             for model, subs in plans:
                 measured, true, times = [], [], []
                 for sub in subs:
-                    r = run_subsequence(seq, name, [int(i) for i in sub], over, images,
-                                        (scale_calibrations or {}).get(name))
+                    r = run_subsequence(
+                        seq, name, [int(i) for i in sub], over, images, (scale_calibrations or {}).get(name)
+                    )
                     measured.append(r["measured_mm"])
                     true.append(r["true_mm"])
                     times.append(np.nanmean(r["match_ms"][1:]) if len(r["match_ms"]) > 1 else float("nan"))
-                    runs.append({"scene": seq.root.name, "estimator": name, "mode": mode or "", "model": model,
-                                 "start_frame": int(sub[0]), "frames": len(sub), "true_mm": r["true_mm"][-1],
-                                 "measured_mm": r["measured_mm"][-1], "error_mm": r["measured_mm"][-1] - r["true_mm"][-1],
-                                 "match_ms_mean": times[-1], "lost": r["lost"]})
+                    runs.append(
+                        {
+                            "scene": seq.root.name,
+                            "estimator": name,
+                            "mode": mode or "",
+                            "model": model,
+                            "start_frame": int(sub[0]),
+                            "frames": len(sub),
+                            "true_mm": r["true_mm"][-1],
+                            "measured_mm": r["measured_mm"][-1],
+                            "error_mm": r["measured_mm"][-1] - r["true_mm"][-1],
+                            "match_ms_mean": times[-1],
+                            "lost": r["lost"],
+                        }
+                    )
                     done += 1
                     if on_run:
                         on_run(done, total)
-                curves[(label, model)] = {"measured": np.array(measured), "true": np.array(true), "match_ms": np.array(times)}
+                curves[(label, model)] = {
+                    "measured": np.array(measured),
+                    "true": np.array(true),
+                    "match_ms": np.array(times),
+                }
     summary = []
     for (label, model), c in curves.items():
         err = c["measured"][:, -1] - c["true"][:, -1]
         true_end = float(np.mean(c["true"][:, -1]))
-        summary.append({"estimator": label, "model": model, "runs": len(err), "true_mm": true_end,
-                        "measured_mm_mean": float(np.mean(c["measured"][:, -1])),
-                        "measured_mm_std": float(np.std(c["measured"][:, -1])),
-                        "error_mm_mean": float(np.mean(err)), "error_mm_rmse": float(np.sqrt(np.mean(err**2))),
-                        "error_pct": 100.0 * float(np.mean(np.abs(err))) / true_end if true_end > 0 else float("nan"),
-                        "match_ms_mean": float(np.nanmean(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan"),
-                        "match_ms_std": float(np.nanstd(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan")})
+        summary.append(
+            {
+                "estimator": label,
+                "model": model,
+                "runs": len(err),
+                "true_mm": true_end,
+                "measured_mm_mean": float(np.mean(c["measured"][:, -1])),
+                "measured_mm_std": float(np.std(c["measured"][:, -1])),
+                "error_mm_mean": float(np.mean(err)),
+                "error_mm_rmse": float(np.sqrt(np.mean(err**2))),
+                "error_pct": 100.0 * float(np.mean(np.abs(err))) / true_end if true_end > 0 else float("nan"),
+                "match_ms_mean": float(np.nanmean(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan"),
+                "match_ms_std": float(np.nanstd(c["match_ms"])) if np.isfinite(c["match_ms"]).any() else float("nan"),
+            }
+        )
     write_results_csv(out_dir / "runs.csv", runs, ())
     write_results_csv(out_dir / "summary.csv", summary, ())
     return Paper000Result(runs, summary, curves, out_dir, skipped)
@@ -197,14 +234,27 @@ def _report(res: Paper000Result, rep) -> None:
 
     plt = _plt()
     rep.heading("Paper 000 reproduction: the 200-frame strip")
-    rep.text("Nakashima et al. (IEEE Access 2019) ran 100 uniform runs (100 mm at 4 mm/frame) and 190 runs of each "
-             "sigmoid model (10 mm, gains 1.25 and 1.75) from every start frame of a strip of 200 frames 1 mm apart. "
-             "Fig. 8 there: measured distance against ground truth; Fig. 9: matching time of guided against "
-             "brute-force matching. The same protocol on the rendered strip:")
-    rep.table(res.summary, [("estimator", "estimator"), ("model", "model"), ("runs", "runs"), ("true_mm", "true mm"),
-                            ("measured_mm_mean", "measured mm"), ("measured_mm_std", "std mm"),
-                            ("error_mm_rmse", "error rmse mm"), ("error_pct", "|error| %"),
-                            ("match_ms_mean", "match ms"), ("match_ms_std", "match std ms")])
+    rep.text(
+        "Nakashima et al. (IEEE Access 2019) ran 100 uniform runs (100 mm at 4 mm/frame) and 190 runs of each "
+        "sigmoid model (10 mm, gains 1.25 and 1.75) from every start frame of a strip of 200 frames 1 mm apart. "
+        "Fig. 8 there: measured distance against ground truth; Fig. 9: matching time of guided against "
+        "brute-force matching. The same protocol on the rendered strip:"
+    )
+    rep.table(
+        res.summary,
+        [
+            ("estimator", "estimator"),
+            ("model", "model"),
+            ("runs", "runs"),
+            ("true_mm", "true mm"),
+            ("measured_mm_mean", "measured mm"),
+            ("measured_mm_std", "std mm"),
+            ("error_mm_rmse", "error rmse mm"),
+            ("error_pct", "|error| %"),
+            ("match_ms_mean", "match ms"),
+            ("match_ms_std", "match std ms"),
+        ],
+    )
     for line in res.skipped:
         rep.text(f"skipped {line}")
     labels = sorted({k[0] for k in res.curves})
@@ -240,8 +290,14 @@ def _report(res: Paper000Result, rep) -> None:
         for j, label in enumerate(labels):
             vals = [next((r for r in timed if r["estimator"] == label and r["model"] == m), None) for m in models]
             x = np.arange(len(models)) + j * width
-            ax.bar(x, [v["match_ms_mean"] if v else np.nan for v in vals], width,
-                   yerr=[v["match_ms_std"] if v else 0 for v in vals], capsize=3, label=label)
+            ax.bar(
+                x,
+                [v["match_ms_mean"] if v else np.nan for v in vals],
+                width,
+                yerr=[v["match_ms_std"] if v else 0 for v in vals],
+                capsize=3,
+                label=label,
+            )
         ax.set_xticks(np.arange(len(models)) + width * (len(labels) - 1) / 2, models)
         ax.set_ylabel("matching time per frame [ms]")
         ax.grid(alpha=0.3, axis="y")

@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Mapping
+from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence as SequenceT
+from typing import Any
 
 import numpy as np
 
@@ -58,18 +60,27 @@ def pair_map_and_kidnap(scenes: SequenceT[tuple[str, Any]]) -> tuple[list[tuple[
         if _traj_type(sc) != "kidnap":
             continue
         d = sc.to_dict()
-        match = next((ml for ml, ms in maps
-                      if ms.to_dict().get("floor") == d.get("floor") and ms.to_dict().get("camera") == d.get("camera")), None)
+        match = next(
+            (
+                ml
+                for ml, ms in maps
+                if ms.to_dict().get("floor") == d.get("floor") and ms.to_dict().get("camera") == d.get("camera")
+            ),
+            None,
+        )
         if match is None:
-            notes.append(f"{lab}: no relocalisation (no lawnmower scene in this bench has the same floor and camera "
-                         f"to build a map from; add e.g. scenes/paper003_map.toml)")
+            notes.append(
+                f"{lab}: no relocalisation (no lawnmower scene in this bench has the same floor and camera "
+                f"to build a map from; add e.g. scenes/paper003_map.toml)"
+            )
         else:
             pairs.append((match, lab))
     return pairs, notes
 
 
-def relocalisation_metrics(seq_dir: str | os.PathLike, run_dir: str | os.PathLike,
-                           within_mm: float = RELOCALISED_WITHIN_MM) -> dict[str, Any]:
+def relocalisation_metrics(
+    seq_dir: str | os.PathLike, run_dir: str | os.PathLike, within_mm: float = RELOCALISED_WITHIN_MM
+) -> dict[str, Any]:
     """Per-frame localisation of a run against its sequence's ground truth.
 
     Returns ``frames``, ``localised_pct`` (frames with a pose), ``within_1mm_pct`` (frames
@@ -134,19 +145,25 @@ class Paper003Result:
         _report(self, rep)
 
 
-def run_paper003(map_seq: str | os.PathLike, kidnap_seq: str | os.PathLike, out_dir: str | os.PathLike, *,
-                 map_label: str, kidnap_label: str, row_base: Mapping[str, Any] | None = None,
-                 modes: Mapping[str, str] = MODES) -> Paper003Result:
+def run_paper003(
+    map_seq: str | os.PathLike,
+    kidnap_seq: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    *,
+    map_label: str,
+    kidnap_label: str,
+    row_base: Mapping[str, Any] | None = None,
+    modes: Mapping[str, str] = MODES,
+) -> Paper003Result:
     """Build the map from ``map_seq``, localise ``kidnap_seq`` in each mode, score (see the module doc).
 
     ``row_base``: columns every row gets (scene_file, seed, ...); ``scene``, ``estimator``,
     ``sequence`` and ``run_dir`` are set here.
     """
+    from floorsim.bench.report import RunRecord
     from floorvo.mapping.localize_run import localize_sequence
     from floorvo.mapping.map import build_map, save_map
     from floorvo.metrics import score_run
-
-    from floorsim.bench.report import RunRecord
 
     out_dir = Path(out_dir)
     map_dir = out_dir / map_label / "map"
@@ -154,28 +171,48 @@ def run_paper003(map_seq: str | os.PathLike, kidnap_seq: str | os.PathLike, out_
     save_map(gmap, map_dir)
     chain = gmap.chain_vs_groundtruth or {}
     map_summary = {
-        "map_scene": map_label, "map_dir": str(map_dir), "mapping_frames": gmap.n_mapping_frames,
-        "keyframes": gmap.n_keyframes, "keyframe_fraction_pct": 100.0 * gmap.keyframe_fraction,
+        "map_scene": map_label,
+        "map_dir": str(map_dir),
+        "mapping_frames": gmap.n_mapping_frames,
+        "keyframes": gmap.n_keyframes,
+        "keyframe_fraction_pct": 100.0 * gmap.keyframe_fraction,
         "keyframe_poses": gmap.pose_source,
         "chain_vs_groundtruth_rms_mm": chain.get("rms_mm", float("nan")),
         "chain_vs_groundtruth_max_mm": chain.get("max_mm", float("nan")),
     }
-    log.info("paper 003: map of %s: %d keyframes of %d frames (%.1f %%)", map_label, gmap.n_keyframes,
-             gmap.n_mapping_frames, map_summary["keyframe_fraction_pct"])
+    log.info(
+        "paper 003: map of %s: %d keyframes of %d frames (%.1f %%)",
+        map_label,
+        gmap.n_keyframes,
+        gmap.n_mapping_frames,
+        map_summary["keyframe_fraction_pct"],
+    )
     rows, records = [], []
     for name, odometry in modes.items():
         run_dir = out_dir / kidnap_label / name
-        row: dict[str, Any] = {**dict(row_base or {}), "scene": kidnap_label, "estimator": name, "repetition": 0,
-                               "sequence": str(kidnap_seq), "run_dir": str(run_dir)}
+        row: dict[str, Any] = {
+            **dict(row_base or {}),
+            "scene": kidnap_label,
+            "estimator": name,
+            "repetition": 0,
+            "sequence": str(kidnap_seq),
+            "run_dir": str(run_dir),
+        }
         localize_sequence(kidnap_seq, map_dir, run_dir, odometry=odometry)
         score = score_run(run_dir, kidnap_seq)
         atomic_write_json(run_dir / "score.json", score.to_dict())
         reloc = relocalisation_metrics(kidnap_seq, run_dir)
         atomic_write_json(run_dir / "relocalisation.json", {**map_summary, **reloc})
         recover = reloc.pop("frames_to_recover")
-        row.update(status="ok", **score.flat(), map_scene=map_label, keyframes=gmap.n_keyframes,
-                   keyframe_fraction_pct=map_summary["keyframe_fraction_pct"], **reloc,
-                   frames_to_recover=" ".join("-" if r is None else str(r) for r in recover))
+        row.update(
+            status="ok",
+            **score.flat(),
+            map_scene=map_label,
+            keyframes=gmap.n_keyframes,
+            keyframe_fraction_pct=map_summary["keyframe_fraction_pct"],
+            **reloc,
+            frames_to_recover=" ".join("-" if r is None else str(r) for r in recover),
+        )
         rows.append(row)
         records.append(RunRecord(kidnap_label, name, 0, Path(kidnap_seq), run_dir))
     atomic_write_json(out_dir / kidnap_label / "summary.json", {"map": map_summary, "runs": rows})
@@ -183,25 +220,36 @@ def run_paper003(map_seq: str | os.PathLike, kidnap_seq: str | os.PathLike, out_
 
 
 def _report(res: Paper003Result, rep) -> None:
+    from floorsim.bench.report import _plt
     from floorvo.mapping.map import load_map
     from floorvo.tum import read_tum
 
-    from floorsim.bench.report import _plt
-
     m = res.map_summary
     rep.heading("Paper 003 reproduction: keyframe map and relocalisation after kidnapping")
-    rep.text(f"Cao et al. (J. Robotics 2017) keep under {PAPER003_KEYFRAME_PCT:g} % of the mapping frames as keyframes "
-             "and place every frame on the map with no use of earlier poses. Map built from "
-             f"{m['map_scene']}: {m['keyframes']} keyframes of {m['mapping_frames']} frames "
-             f"({m['keyframe_fraction_pct']:.1f} %), keyframe poses from the {m['keyframe_poses']}; the eq. (24) chain "
-             f"strays {m['chain_vs_groundtruth_rms_mm']:.3f} mm RMS ({m['chain_vs_groundtruth_max_mm']:.3f} mm max) "
-             "from the ground truth. 'relocalise': map fixes only; 'map-fused': phase-corr odometry between fixes. "
-             f"Recovery counts the frames after each teleport until one is placed within {RELOCALISED_WITHIN_MM:g} mm "
-             "(0: the first frame after landing).")
-    rep.table(res.rows, [("scene", "scene"), ("estimator", "mode"), ("localised_pct", "localised %"),
-                         ("within_1mm_pct", "within 1 mm %"), ("loc_rmse_mm", "RMSE mm"), ("loc_max_mm", "max mm"),
-                         ("frames_to_recover", "frames to recover"), ("query_ms_median", "ms/query median"),
-                         ("query_ms_p95", "ms/query p95")])
+    rep.text(
+        f"Cao et al. (J. Robotics 2017) keep under {PAPER003_KEYFRAME_PCT:g} % of the mapping frames as keyframes "
+        "and place every frame on the map with no use of earlier poses. Map built from "
+        f"{m['map_scene']}: {m['keyframes']} keyframes of {m['mapping_frames']} frames "
+        f"({m['keyframe_fraction_pct']:.1f} %), keyframe poses from the {m['keyframe_poses']}; the eq. (24) chain "
+        f"strays {m['chain_vs_groundtruth_rms_mm']:.3f} mm RMS ({m['chain_vs_groundtruth_max_mm']:.3f} mm max) "
+        "from the ground truth. 'relocalise': map fixes only; 'map-fused': phase-corr odometry between fixes. "
+        f"Recovery counts the frames after each teleport until one is placed within {RELOCALISED_WITHIN_MM:g} mm "
+        "(0: the first frame after landing)."
+    )
+    rep.table(
+        res.rows,
+        [
+            ("scene", "scene"),
+            ("estimator", "mode"),
+            ("localised_pct", "localised %"),
+            ("within_1mm_pct", "within 1 mm %"),
+            ("loc_rmse_mm", "RMSE mm"),
+            ("loc_max_mm", "max mm"),
+            ("frames_to_recover", "frames to recover"),
+            ("query_ms_median", "ms/query median"),
+            ("query_ms_p95", "ms/query p95"),
+        ],
+    )
     plt = _plt()
     try:
         gmap = load_map(m["map_dir"])

@@ -17,9 +17,11 @@ import html
 import io
 import math
 import os
+from collections.abc import Iterable, Mapping
+from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence as SequenceT
+from typing import Any
 
 import numpy as np
 
@@ -144,7 +146,9 @@ class Report:
         )
         page = (
             f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
-            f"<style>{style}</style></head><body><h1>{html.escape(self.title)}</h1>" + "\n".join(self._html) + "</body></html>\n"
+            f"<style>{style}</style></head><body><h1>{html.escape(self.title)}</h1>"
+            + "\n".join(self._html)
+            + "</body></html>\n"
         )
         html_path = self.out_dir / f"{self.stem}.html"
         md_path = self.out_dir / f"{self.stem}.md"
@@ -171,7 +175,7 @@ def _trajectory_figure(scene: str, recs: list[RunRecord]):
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
     drawn = False
-    for k, rec in enumerate(recs):
+    for rec in recs:
         pair = _load_pair(rec)
         if pair is None:
             continue
@@ -295,8 +299,10 @@ def build_bench_report(
     out_dir = Path(out_dir)
     rep = Report(title, out_dir)
     rep.heading("Scores")
-    rep.text("One row per scene x estimator x repetition. ATE in mm without alignment (the estimate starts at the "
-             "first ground-truth pose) and after the best SE(2) fit; drift in % of the distance travelled.")
+    rep.text(
+        "One row per scene x estimator x repetition. ATE in mm without alignment (the estimate starts at the "
+        "first ground-truth pose) and after the best SE(2) fit; drift in % of the distance travelled."
+    )
     rep.table(rows, SUMMARY_COLUMNS)
     if gate_summary:
         rep.heading("Regression gate")
@@ -328,5 +334,8 @@ def build_bench_report(
     if kp is None:
         rep.text("No run wrote matched keypoints (RUN/matches/*.npz), so this plot is skipped.")
     else:
-        rep.figure(kp[0], f"{kp[1].scene} / {kp[1].estimator}: matched keypoints (circles: current frame, lines to the previous position)")
+        rep.figure(
+            kp[0],
+            f"{kp[1].scene} / {kp[1].estimator}: matched keypoints (circles: current frame, lines to the previous position)",
+        )
     return rep.write()

@@ -27,21 +27,38 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("scenes", metavar="SCENE", nargs="+", type=Path, help="scene TOML files")
     p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
-    p.add_argument("--estimators", default=None,
-                   help="comma-separated estimator names (default: every registered estimator the sequence supports)")
+    p.add_argument(
+        "--estimators",
+        default=None,
+        help="comma-separated estimator names (default: every registered estimator the sequence supports)",
+    )
     p.add_argument("--repeat", type=int, default=1, help="repetitions per scene, seeds scene seed + k (default 1)")
-    p.add_argument("--set", dest="scene_set", action="append", metavar="KEY=VALUE", help="override a scene key, e.g. lights.height_mm=5")
+    p.add_argument(
+        "--set",
+        dest="scene_set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a scene key, e.g. lights.height_mm=5",
+    )
     p.add_argument("--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key")
     p.add_argument("--frames", type=int, default=None, help="render only the first N frames")
     p.add_argument("--scale", type=float, default=None, help="render at this fraction of the camera resolution")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel")
-    p.add_argument("--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)")
-    p.add_argument("--baseline", type=Path, default=None, help="compare with this baseline; exit 1 if anything got worse")
+    p.add_argument(
+        "--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)"
+    )
+    p.add_argument(
+        "--baseline", type=Path, default=None, help="compare with this baseline; exit 1 if anything got worse"
+    )
     p.add_argument("--save-baseline", type=Path, default=None, metavar="FILE", help="write the results as a baseline")
     p.add_argument("--paper000-runs", type=int, default=None, help="at most N runs per paper-000 model (default: all)")
     p.add_argument("--no-report", action="store_true", help="skip the HTML/Markdown report")
-    p.add_argument("--scale-calibration", action="append", metavar="ESTIMATOR=FILE",
-                   help="divide the rig scale fitted by `floorvo calibrate` out of that estimator's steps (repeatable)")
+    p.add_argument(
+        "--scale-calibration",
+        action="append",
+        metavar="ESTIMATOR=FILE",
+        help="divide the rig scale fitted by `floorvo calibrate` out of that estimator's steps (repeatable)",
+    )
     p.set_defaults(func=run)
 
 
@@ -85,11 +102,22 @@ def run(args: argparse.Namespace) -> int:
         bar.update(max(0, i - bar.n))  # i frames of n are done
 
     res = run_bench(
-        args.scenes, estimators, args.output, repetitions=args.repeat,
-        scene_overrides=parse_set_args(args.scene_set), estimator_overrides=parse_estimator_sets(args.est_set),
-        frames=args.frames, scale=args.scale, spp=args.spp, cache_dir=args.cache, baseline=args.baseline,
-        save_baseline_to=args.save_baseline, report=not args.no_report, paper000_runs=args.paper000_runs,
-        on_frame=on_frame, scale_calibrations=parse_scale_calibrations(args.scale_calibration),
+        args.scenes,
+        estimators,
+        args.output,
+        repetitions=args.repeat,
+        scene_overrides=parse_set_args(args.scene_set),
+        estimator_overrides=parse_estimator_sets(args.est_set),
+        frames=args.frames,
+        scale=args.scale,
+        spp=args.spp,
+        cache_dir=args.cache,
+        baseline=args.baseline,
+        save_baseline_to=args.save_baseline,
+        report=not args.no_report,
+        paper000_runs=args.paper000_runs,
+        on_frame=on_frame,
+        scale_calibrations=parse_scale_calibrations(args.scale_calibration),
     )
     for bar in bars.values():
         bar.close()

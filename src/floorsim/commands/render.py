@@ -29,7 +29,14 @@ def run(args) -> int:
     t0 = time.perf_counter()
     with progress_callback("render", "frame") as cb:
         root = render_sequence(
-            scene, args.out, frames=args.frames, scale=args.scale, spp=args.spp, seed=args.seed, overwrite=args.overwrite, on_frame=cb
+            scene,
+            args.out,
+            frames=args.frames,
+            scale=args.scale,
+            spp=args.spp,
+            seed=args.seed,
+            overwrite=args.overwrite,
+            on_frame=cb,
         )
     from floorvo.sequence import Sequence
 

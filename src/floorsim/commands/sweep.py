@@ -22,10 +22,16 @@ def add_parser(subparsers) -> None:
     p.add_argument("sweep", metavar="SWEEP", type=Path, help="sweep TOML file (see scenes/sweeps/)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None, help="send the jobs to this Dask scheduler")
+    where.add_argument(
+        "--scheduler", metavar="tcp://HOST:PORT", default=None, help="send the jobs to this Dask scheduler"
+    )
     where.add_argument("--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N workers")
-    where.add_argument("--jobs", type=int, default=1, metavar="N", help="local worker processes when not on Dask (default 1)")
-    p.add_argument("--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)")
+    where.add_argument(
+        "--jobs", type=int, default=1, metavar="N", help="local worker processes when not on Dask (default 1)"
+    )
+    p.add_argument(
+        "--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)"
+    )
     p.set_defaults(func=run)
 
 
@@ -46,8 +52,15 @@ def run(args: argparse.Namespace) -> int:
             bar = tqdm(total=n, desc="sweep", unit="job", leave=False)
         bar.update(1)
 
-    res = run_sweep(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers, jobs=args.jobs,
-                    cache_dir=args.cache, on_job=on_job)
+    res = run_sweep(
+        args.sweep,
+        args.output,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        jobs=args.jobs,
+        cache_dir=args.cache,
+        on_job=on_job,
+    )
     if bar is not None:
         bar.close()
     print(f"sweep: {res.ran} job(s) run, {res.skipped} already done; {len(res.rows)} row(s) in {res.results_csv}")

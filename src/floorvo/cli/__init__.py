@@ -20,7 +20,9 @@ from floorvo.errors import FloorbenchError
 COMMANDS: list[str] = ["run", "list", "score", "calibrate", "map", "localize"]
 
 
-def build_parser(prog: str, package: str, commands: list[str], description: str, version: str) -> argparse.ArgumentParser:
+def build_parser(
+    prog: str, package: str, commands: list[str], description: str, version: str
+) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
@@ -49,7 +51,9 @@ def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None, prog: str) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser("floorvo", "floorvo.cli", COMMANDS, "Odometry for downward-looking floor cameras.", __version__)
+    parser = build_parser(
+        "floorvo", "floorvo.cli", COMMANDS, "Odometry for downward-looking floor cameras.", __version__
+    )
     return run_cli(parser, argv, "floorvo")
 
 

@@ -17,8 +17,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
     p.add_argument("--gt", metavar="SEQ", type=Path, required=True, help="sequence folder (or a TUM ground-truth file)")
     p.add_argument("-o", "--output", metavar="FILE", type=Path, required=True, help="calibration file to write (JSON)")
-    p.add_argument("--min-travel-mm", type=float, default=10.0, help="an axis with less travel keeps scale 1 (default 10)")
-    p.add_argument("--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)")
+    p.add_argument(
+        "--min-travel-mm", type=float, default=10.0, help="an axis with less travel keeps scale 1 (default 10)"
+    )
+    p.add_argument(
+        "--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)"
+    )
     p.set_defaults(func=run)
 
 

@@ -18,8 +18,12 @@ def add_parser(sub) -> None:
     p.add_argument("--map", required=True, help="map folder written by `floorvo map`")
     p.add_argument("-o", "--out", required=True, help="run folder")
     p.add_argument("--odometry", default="none", help="estimator between map fixes (floorvo list), default none")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="localiser setting: fix_every, n_candidates, n_verify, min_block_fraction, min_corr, retrieval (vote|bow), odometry_set")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="localiser setting: fix_every, n_candidates, n_verify, min_block_fraction, min_corr, retrieval (vote|bow), odometry_set",
+    )
     p.set_defaults(func=run)
 
 
@@ -27,9 +31,12 @@ def run(args) -> int:
     from floorvo.mapping.localize_run import localize_sequence
 
     with progress_callback("localize") as cb:
-        res = localize_sequence(args.sequence, args.map, args.out, odometry=args.odometry,
-                                overrides=parse_set_args(args.set), on_frame=cb)
+        res = localize_sequence(
+            args.sequence, args.map, args.out, odometry=args.odometry, overrides=parse_set_args(args.set), on_frame=cb
+        )
     placed = res["ok"] + res["status_counts"]["init"]
-    print(f"localize: {placed} of {res['frames']} frames placed ({res['map_fixes']} map fixes), "
-          f"{res['median_total_ms']:.1f} ms/frame median -> {res['run_dir']}")
+    print(
+        f"localize: {placed} of {res['frames']} frames placed ({res['map_fixes']} map fixes), "
+        f"{res['median_total_ms']:.1f} ms/frame median -> {res['run_dir']}"
+    )
     return 0

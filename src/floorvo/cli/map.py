@@ -17,8 +17,12 @@ def add_parser(sub) -> None:
     )
     p.add_argument("sequence", help="mapping sequence folder")
     p.add_argument("-o", "--out", required=True, help="map folder to write")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="parameter, e.g. keyframes.window=50, keyframes.ratio=0.5, similarity.block_px=12, vocab_words=512, poses=chain")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="parameter, e.g. keyframes.window=50, keyframes.ratio=0.5, similarity.block_px=12, vocab_words=512, poses=chain",
+    )
     p.set_defaults(func=run)
 
 
@@ -29,9 +33,13 @@ def run(args) -> int:
     with progress_callback("map") as cb:
         m = build_map(args.sequence, cfg, on_progress=cb)
     out = save_map(m, args.out)
-    print(f"map: {m.n_keyframes} keyframes of {m.n_mapping_frames} frames ({100 * m.keyframe_fraction:.1f} %), poses: {m.pose_source} -> {out}")
+    print(
+        f"map: {m.n_keyframes} keyframes of {m.n_mapping_frames} frames ({100 * m.keyframe_fraction:.1f} %), poses: {m.pose_source} -> {out}"
+    )
     if m.chain_vs_groundtruth:
         c = m.chain_vs_groundtruth
-        print(f"map: eq. (24) chain against ground truth: max {c['max_mm']:.3f} mm, rms {c['rms_mm']:.3f} mm, "
-              f"max yaw {c['max_yaw_rad']:.2e} rad")
+        print(
+            f"map: eq. (24) chain against ground truth: max {c['max_mm']:.3f} mm, rms {c['rms_mm']:.3f} mm, "
+            f"max yaw {c['max_yaw_rad']:.2e} rad"
+        )
     return 0

@@ -12,7 +12,9 @@ def add_parser(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="run folder for trajectory.txt, timing.csv, result.json")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="estimator config override, e.g. grid=3")
     p.add_argument(
-        "--scale-calibration", metavar="FILE", default=None,
+        "--scale-calibration",
+        metavar="FILE",
+        default=None,
         help="divide each step's camera-frame x, y translation by the scales in FILE (written by 'floorvo calibrate')",
     )
     p.set_defaults(func=run)
@@ -24,7 +26,9 @@ def run(args) -> int:
 
     cal = None if args.scale_calibration is None else load_scale_calibration(args.scale_calibration)
     with progress_callback(args.estimator) as cb:
-        res = run_estimator(args.sequence, args.estimator, args.out, parse_set_args(args.set), on_frame=cb, scale_calibration=cal)
+        res = run_estimator(
+            args.sequence, args.estimator, args.out, parse_set_args(args.set), on_frame=cb, scale_calibration=cal
+        )
     print(
         f"{res.estimator}: {res.frames} frames, {res.ok} tracked, {res.lost} lost, "
         f"{res.median_total_ms:.1f} ms/frame median -> {res.run_dir}"

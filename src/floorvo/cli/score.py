@@ -25,7 +25,9 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
     p.add_argument("--gt", metavar="SEQ", type=Path, required=True, help="sequence folder (or a TUM ground-truth file)")
-    p.add_argument("--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)")
+    p.add_argument(
+        "--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)"
+    )
     p.add_argument("-o", "--output", type=Path, default=None, help="where to write score.json (default RUN/score.json)")
     p.set_defaults(func=run)
 
@@ -42,21 +44,33 @@ def format_score_table(score: Score) -> str:
     lines.append(f"{'metric':<34} {'rmse':>10} {'mean':>10} {'max':>10}")
     for name, a in score.ate.items():
         t = a["trans_mm"]
-        lines.append(f"{'ATE [mm], alignment ' + name:<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}")
-    for label, r in [("RPE per frame", score.rpe_frame)] + [(f"RPE per {d['delta']:g} mm", d) for d in score.rpe_distance]:
+        lines.append(
+            f"{'ATE [mm], alignment ' + name:<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}"
+        )
+    for label, r in [("RPE per frame", score.rpe_frame)] + [
+        (f"RPE per {d['delta']:g} mm", d) for d in score.rpe_distance
+    ]:
         t, q = r["trans_mm"], r["rot_deg"]
         lines.append(f"{label + ' [mm]':<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}")
         lines.append(f"{label + ' [deg]':<34} {_fmt(q['rmse']):>10} {_fmt(q['mean']):>10} {_fmt(q['max']):>10}")
     d = score.drift
-    lines.append(f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
-                 f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)")
+    lines.append(
+        f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
+        f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)"
+    )
     for s in score.segments:
-        lines.append(f"segment {s['length_mm']:>6g} mm: t_err {_fmt(s['t_err_pct'])} %  r_err {_fmt(s['r_err_deg_per_m'])} deg/m  (n={s['count']})")
+        lines.append(
+            f"segment {s['length_mm']:>6g} mm: t_err {_fmt(s['t_err_pct'])} %  r_err {_fmt(s['r_err_deg_per_m'])} deg/m  (n={s['count']})"
+        )
     tr = score.tracking
-    lines.append(f"tracking: {tr['lost_frames']} lost frame(s) in {tr['loss_events']} event(s), tracked {100 * tr['tracked_fraction']:.1f} %")
+    lines.append(
+        f"tracking: {tr['lost_frames']} lost frame(s) in {tr['loss_events']} event(s), tracked {100 * tr['tracked_fraction']:.1f} %"
+    )
     if "total_ms" in score.timing:
         t = score.timing["total_ms"]
-        lines.append(f"timing: total {_fmt(t['mean'])} ms mean, {_fmt(t['p95'])} ms p95 ({_fmt(score.timing.get('fps', float('nan')))} frames/s)")
+        lines.append(
+            f"timing: total {_fmt(t['mean'])} ms mean, {_fmt(t['p95'])} ms p95 ({_fmt(score.timing.get('fps', float('nan')))} frames/s)"
+        )
     return "\n".join(lines)
 
 

@@ -4,6 +4,7 @@ Importing this package registers the built-in estimators; :func:`list_estimators
 them and :func:`get_estimator` returns a class by name.
 """
 
+from floorvo.estimators import akaze, orb_icp, phase_corr, stereo_sift  # noqa: F401  (registers them)
 from floorvo.estimators.base import (
     REGISTRY,
     Estimator,
@@ -14,7 +15,15 @@ from floorvo.estimators.base import (
     make_config,
     register,
 )
-from floorvo.estimators import akaze, orb_icp, phase_corr, stereo_sift  # noqa: F401  (registers them)
 from floorvo.mapping import fused as _map_fused  # noqa: F401,E402  (registers map-fused, paper 003)
 
-__all__ = ["REGISTRY", "Estimator", "Frame", "StepResult", "get_estimator", "list_estimators", "make_config", "register"]
+__all__ = [
+    "REGISTRY",
+    "Estimator",
+    "Frame",
+    "StepResult",
+    "get_estimator",
+    "list_estimators",
+    "make_config",
+    "register",
+]

@@ -40,6 +40,7 @@ from floorvo.geometry import rigid_fit_2d
 
 __all__ = ["AkazeGuided", "AkazeBruteforce", "AkazeConfig", "mean_std_filter", "hamming_distances", "pack_descriptors"]
 
+
 def pack_descriptors(desc: np.ndarray) -> np.ndarray:
     """uint8 descriptors (N, B) as (N, ceil(B / 8)) uint64 words (zero padded), for fast XOR/popcount."""
     desc = np.ascontiguousarray(desc, dtype=np.uint8)
@@ -103,7 +104,9 @@ class _AkazeBase:
     Config = AkazeConfig
     requires = frozenset()
 
-    def __init__(self, config: AkazeConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+    def __init__(
+        self, config: AkazeConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
+    ):
         self.config = config
         self.camera = camera
         self.height_mm = float(height_mm)
@@ -159,10 +162,17 @@ class _AkazeBase:
         t1 = time.perf_counter()
         if state.kps is None:
             state.kps, state.desc, state.packed = kps, desc, pack_descriptors(desc)
-            return StepResult("init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
+            )
         if len(kps) < self.config.min_matches or len(state.kps) < self.config.min_matches:
             state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
-            return StepResult("lost", reason=f"too few keypoints ({len(kps)})", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few keypoints ({len(kps)})",
+                n_keypoints=len(kps),
+                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+            )
         if self.guided and state.M_last is not None:
             src, dst = self._guided(state, kps, desc)
             pred_M = state.M_last
@@ -173,7 +183,13 @@ class _AkazeBase:
         n_matches = len(src)
         if n_matches < self.config.min_matches:
             state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
-            return StepResult("lost", reason=f"too few matches ({n_matches})", n_keypoints=len(kps), n_matches=n_matches, timing_ms=_timing(t0, t1, t2, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few matches ({n_matches})",
+                n_keypoints=len(kps),
+                n_matches=n_matches,
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+            )
         # Section II-C: twice mean +/- std on the movement (relative to the prediction).
         p = src - self.centre
         predicted = p @ pred_M[:2, :2].T + pred_M[:2, 2] + self.centre
@@ -181,7 +197,13 @@ class _AkazeBase:
         src, dst = src[keep], dst[keep]
         if len(src) < max(2, self.config.min_matches // 2):
             state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
-            return StepResult("lost", reason=f"too few inliers ({len(src)})", n_keypoints=len(kps), n_matches=n_matches, timing_ms=_timing(t0, t1, t2, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few inliers ({len(src)})",
+                n_keypoints=len(kps),
+                n_matches=n_matches,
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+            )
         # Eq. (1) via the camera model, then the SE(2) least-squares rigid fit.
         q_prev = pixels_to_floor_mm(src, self.camera, self.height_mm)
         q_cur = pixels_to_floor_mm(dst, self.camera, self.height_mm)
@@ -193,15 +215,22 @@ class _AkazeBase:
         state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), M
         t3 = time.perf_counter()
         return StepResult(
-            "ok", T, n_keypoints=len(kps), n_matches=n_matches, n_inliers=int(keep.sum()),
-            timing_ms=_timing(t0, t1, t2, t3), matches_px=np.hstack([src, dst]),
+            "ok",
+            T,
+            n_keypoints=len(kps),
+            n_matches=n_matches,
+            n_inliers=int(keep.sum()),
+            timing_ms=_timing(t0, t1, t2, t3),
+            matches_px=np.hstack([src, dst]),
         )
 
 
 @register
 class AkazeGuided(_AkazeBase):
     name = "akaze-guided"
-    description = "paper 000: AKAZE, motion-predicted nearest-first Hamming matching, twice mean+/-std filter, SE(2) fit"
+    description = (
+        "paper 000: AKAZE, motion-predicted nearest-first Hamming matching, twice mean+/-std filter, SE(2) fit"
+    )
     guided = True
 
 

@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import dataclasses
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Mapping, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -85,7 +86,9 @@ class Estimator(Protocol):
     Config: ClassVar[type]
     requires: ClassVar[frozenset[str]]
 
-    def __init__(self, config: Any, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig: Any): ...
+    def __init__(
+        self, config: Any, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig: Any
+    ): ...
 
     def start(self) -> Any: ...
 

@@ -40,7 +40,9 @@ def icp_svd(P: np.ndarray, P_prime: np.ndarray, weights: np.ndarray | None = Non
         raise ValueError(f"icp_svd: need two (N, 3) arrays with N >= 3, got {P.shape} and {Q.shape}")
     w = np.ones(len(P)) if weights is None else np.asarray(weights, dtype=float)
     if w.shape != (len(P),) or not np.all(w >= 0) or w.sum() <= 0:
-        raise ValueError(f"icp_svd: weights must be (N,) = ({len(P)},), non-negative, not all zero; got shape {w.shape}")
+        raise ValueError(
+            f"icp_svd: weights must be (N,) = ({len(P)},), non-negative, not all zero; got shape {w.shape}"
+        )
     w = w / w.sum()
     p = w @ P  # eq. (12)
     p_prime = w @ Q

@@ -70,7 +70,9 @@ def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int
     h, w = shape
     pts = np.array([k.pt for k in kps])
     resp = np.array([k.response for k in kps])
-    cell = np.minimum((pts[:, 1] * rows / h).astype(int), rows - 1) * cols + np.minimum((pts[:, 0] * cols / w).astype(int), cols - 1)
+    cell = np.minimum((pts[:, 1] * rows / h).astype(int), rows - 1) * cols + np.minimum(
+        (pts[:, 0] * cols / w).astype(int), cols - 1
+    )
     order = np.lexsort((-resp, cell))  # by cell, strongest first
     keep, last, count = [], -1, 0
     for i in order:
@@ -99,15 +101,25 @@ class OrbIcp:
     Config = OrbIcpConfig
     requires = frozenset({"depth"})
 
-    def __init__(self, config: OrbIcpConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+    def __init__(
+        self, config: OrbIcpConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
+    ):
         self.config = config
         self.camera = camera
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         n_max = config.grid_cols * config.grid_rows * config.per_cell
-        self.orb = cv2.ORB_create(nfeatures=4 * n_max, nlevels=config.n_levels, fastThreshold=config.fast_threshold, edgeThreshold=19, patchSize=19)
+        self.orb = cv2.ORB_create(
+            nfeatures=4 * n_max,
+            nlevels=config.n_levels,
+            fastThreshold=config.fast_threshold,
+            edgeThreshold=19,
+            patchSize=19,
+        )
         # FLANN with locality-sensitive hashing for binary descriptors (FLANN_INDEX_LSH = 6).
-        self.flann = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1), dict(checks=50))
+        self.flann = cv2.FlannBasedMatcher(
+            dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1), dict(checks=50)
+        )
 
     def start(self) -> _State:
         return _State()
@@ -163,7 +175,9 @@ class OrbIcp:
         if frame.depth_mm is None:
             return StepResult("lost", reason="frame has no depth image", timing_ms=_timing(t0, t0, t0, t0))
         if img.size == 0 or float(img.std()) == 0.0:
-            return StepResult("lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+            return StepResult(
+                "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
+            )
         uv, desc, xyz, img8 = self._features(frame)
         t1 = time.perf_counter()
         first = state.kps is None
@@ -173,22 +187,46 @@ class OrbIcp:
             # A frame is kept as the next reference only if it is usable (else: the last good one).
             state.kps, state.desc, state.xyz, state.img8 = uv, desc, xyz, img8
         if first:
-            return StepResult("init", reason="first frame", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "init", reason="first frame", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter())
+            )
         if len(uv) < self.config.min_matches:
-            return StepResult("lost", reason=f"too few keypoints ({len(uv)})", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few keypoints ({len(uv)})",
+                n_keypoints=len(uv),
+                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+            )
         if n_depth < self.config.min_matches:
-            return StepResult("lost", reason=f"too few keypoints with depth ({n_depth})", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few keypoints with depth ({n_depth})",
+                n_keypoints=len(uv),
+                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+            )
         kp0, d0, xyz0, img0 = prev
         qi, ti, gam = self._match(d0, desc)
         t2 = time.perf_counter()
         n_matches = len(qi)
-        lost = lambda why, n_in=0: StepResult("lost", reason=why, n_keypoints=len(uv), n_matches=n_matches, n_inliers=n_in, timing_ms=_timing(t0, t1, t2, time.perf_counter()))  # noqa: E731
+
+        def lost(why: str, n_in: int = 0) -> StepResult:
+            return StepResult(
+                "lost",
+                reason=why,
+                n_keypoints=len(uv),
+                n_matches=n_matches,
+                n_inliers=n_in,
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+            )
+
         if n_matches < self.config.min_matches:
             return lost(f"too few matches ({n_matches})")
         # PROSAC: matches sorted by quality (ascending gamma), homography model (eq. (6)).
         src = kp0[qi].astype(np.float32)
         dst = uv[ti].astype(np.float32)
-        H, mask = cv2.findHomography(src, dst, cv2.USAC_PROSAC, self.config.prosac_threshold_px, maxIters=2000, confidence=0.999)
+        H, mask = cv2.findHomography(
+            src, dst, cv2.USAC_PROSAC, self.config.prosac_threshold_px, maxIters=2000, confidence=0.999
+        )
         if H is None or mask is None:
             return lost("PROSAC found no consistent homography")
         inl = mask.ravel().astype(bool)
@@ -197,8 +235,13 @@ class OrbIcp:
         w = self.config.refine_win_px
         if w > 0 and len(uv_prev):
             p1, st, _ = cv2.calcOpticalFlowPyrLK(
-                img0, img8, uv_prev.astype(np.float32).reshape(-1, 1, 2), uv_cur.astype(np.float32).reshape(-1, 1, 2).copy(),
-                winSize=(w, w), maxLevel=0, flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+                img0,
+                img8,
+                uv_prev.astype(np.float32).reshape(-1, 1, 2),
+                uv_cur.astype(np.float32).reshape(-1, 1, 2).copy(),
+                winSize=(w, w),
+                maxLevel=0,
+                flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
                 criteria=(cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001),
             )
             p1 = p1.reshape(-1, 2).astype(np.float64)
@@ -215,7 +258,15 @@ class OrbIcp:
         T[:3, :3], T[:3, 3] = R, t
         t3 = time.perf_counter()
         m_px = np.hstack([uv_prev[has_depth][keep], uv_cur[has_depth][keep]])
-        return StepResult("ok", T, n_keypoints=len(uv), n_matches=n_matches, n_inliers=int(keep.sum()), timing_ms=_timing(t0, t1, t2, t3), matches_px=m_px)
+        return StepResult(
+            "ok",
+            T,
+            n_keypoints=len(uv),
+            n_matches=n_matches,
+            n_inliers=int(keep.sum()),
+            timing_ms=_timing(t0, t1, t2, t3),
+            matches_px=m_px,
+        )
 
 
 def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:

@@ -123,7 +123,15 @@ class PhaseCorr:
     Config = PhaseCorrConfig
     requires = frozenset()
 
-    def __init__(self, config: PhaseCorrConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+    def __init__(
+        self,
+        config: PhaseCorrConfig,
+        camera: CameraModel,
+        *,
+        height_mm: float,
+        flatfield: np.ndarray | None = None,
+        **rig,
+    ):
         self.config = config
         self.camera = camera
         self.height_mm = float(height_mm)
@@ -136,7 +144,9 @@ class PhaseCorr:
         if bs < 16:
             from floorvo.errors import ConfigError
 
-            raise ConfigError(f"phase-corr: image {camera.width_px}x{camera.height_px} too small for a {g}x{g} grid of blocks")
+            raise ConfigError(
+                f"phase-corr: image {camera.width_px}x{camera.height_px} too small for a {g}x{g} grid of blocks"
+            )
         self.block = bs
         self.crop = bs * g
         self.x0 = int(round(camera.cx_px - self.crop / 2 + 0.5))
@@ -150,7 +160,9 @@ class PhaseCorr:
         if self.flatfield is not None:
             flat = np.asarray(self.flatfield, dtype=np.float32)
             if flat.shape != (camera.height_px, camera.width_px):
-                raise ValueError(f"flatfield shape {flat.shape} differs from the camera's {camera.height_px}x{camera.width_px}")
+                raise ValueError(
+                    f"flatfield shape {flat.shape} differs from the camera's {camera.height_px}x{camera.width_px}"
+                )
             flat = flat / (float(flat.max()) or 1.0)
             self.inv_flat = np.where(flat > 0.005, 1.0 / np.maximum(flat, 1e-6), 0.0).astype(np.float32)
         self.sp = _Spectral(bs, config.low_freq_fraction)
@@ -189,19 +201,27 @@ class PhaseCorr:
             x, y = int(A[0, 2]), int(A[1, 2])
             if 0 <= x and 0 <= y and x + self.crop <= cur.shape[1] and y + self.crop <= cur.shape[0]:
                 return cur[y : y + self.crop, x : x + self.crop]
-        return cv2.warpAffine(cur, A, (self.crop, self.crop), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT)
+        return cv2.warpAffine(
+            cur, A, (self.crop, self.crop), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT
+        )
 
     # ------------------------------------------------------------------ step
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
         img = np.asarray(frame.image)
         if img.size == 0 or float(img.std()) == 0.0:
-            return StepResult("lost", reason="empty frame (no texture)", timing_ms={"detect": 0.0, "match": 0.0, "estimate": 0.0, "total": 0.0})
+            return StepResult(
+                "lost",
+                reason="empty frame (no texture)",
+                timing_ms={"detect": 0.0, "match": 0.0, "estimate": 0.0, "total": 0.0},
+            )
         cur = self._normalised(img)
         t1 = time.perf_counter()
         if state.prev is None:
             state.prev = cur
-            crop = cur[self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop]
+            crop = cur[
+                self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
+            ]
             state.prev_blocks = self._blocks(crop)
             state.prev_crop = crop
             return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
@@ -211,13 +231,21 @@ class PhaseCorr:
             M, min_peak, resid = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
-        crop = cur[self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop]
+        crop = cur[
+            self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
+        ]
         new_blocks = self._blocks(crop)
         if self._failed(min_peak, resid):
             state.M_pred = np.eye(3)
             state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
-            why = f"weak correlation peak {min_peak:.3f}" if min_peak < self.config.min_peak else f"blocks disagree by {resid:.2f} px"
-            return StepResult("lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter()))
+            why = (
+                f"weak correlation peak {min_peak:.3f}"
+                if min_peak < self.config.min_peak
+                else f"blocks disagree by {resid:.2f} px"
+            )
+            return StepResult(
+                "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
+            )
         # M maps prev-centred px to cur-centred px: the floor's motion in the image.
         R_px, t_px = M[:2, :2], M[:2, 2]
         T = floor_rigid_to_T(R_px, t_px * self.mm_per_px)  # eq. (1) of paper 000 via the camera model
@@ -243,7 +271,7 @@ class PhaseCorr:
             M = M @ _translation(d)
         min_peak, resid = 0.0, np.inf
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
-        for it in range(cfg.iterations):
+        for _ in range(cfg.iterations):
             # Warp by whole pixels only: OpenCV quantises interpolated sample positions to
             # 1/32 px, which biased the measured shift by ~0.03 px per frame; the phase-slope
             # fit measures the whole fractional part instead (exact for a translation).
@@ -267,7 +295,11 @@ class PhaseCorr:
             min_peak = float(min(peaks))
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
-            same_warp = np.array_equal(np.round(M_new[:2, 2]), M[:2, 2]) and abs(np.arctan2(M_new[1, 0], M_new[0, 0])) <= exact_yaw and np.array_equal(M[:2, :2], np.eye(2))
+            same_warp = (
+                np.array_equal(np.round(M_new[:2, 2]), M[:2, 2])
+                and abs(np.arctan2(M_new[1, 0], M_new[0, 0])) <= exact_yaw
+                and np.array_equal(M[:2, :2], np.eye(2))
+            )
             M = M_new
             if same_warp:
                 break

@@ -15,7 +15,9 @@ import numpy as np
 __all__ = ["illumination_corrected", "to_uint8_contrast"]
 
 
-def illumination_corrected(image: np.ndarray, flatfield: np.ndarray | None = None, blur_sigma_px: float | None = None) -> np.ndarray:
+def illumination_corrected(
+    image: np.ndarray, flatfield: np.ndarray | None = None, blur_sigma_px: float | None = None
+) -> np.ndarray:
     """float32 (H, W) image with the LED falloff divided out, mean ~1 where lit.
 
     ``flatfield``: (H, W) frame of the rig over a flat uniform floor (any bit depth);
@@ -38,7 +40,9 @@ def illumination_corrected(image: np.ndarray, flatfield: np.ndarray | None = Non
     if f >= 2:
         # A wide blur is smooth: compute it on an f-times smaller image and scale it back up.
         small = cv2.resize(img, (max(1, img.shape[1] // f), max(1, img.shape[0] // f)), interpolation=cv2.INTER_AREA)
-        illum = cv2.resize(cv2.GaussianBlur(small, (0, 0), sigma / f), (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
+        illum = cv2.resize(
+            cv2.GaussianBlur(small, (0, 0), sigma / f), (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR
+        )
     else:
         illum = cv2.GaussianBlur(img, (0, 0), sigma)
     out = np.zeros_like(img)

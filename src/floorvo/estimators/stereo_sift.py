@@ -159,27 +159,48 @@ class StereoSift:
             return StepResult("lost", reason="frame has no right image", timing_ms=_timing(t0, t0, t0, t0))
         for im in (frame.image, frame.image_right):
             if np.asarray(im).size == 0 or float(np.asarray(im).std()) == 0.0:
-                return StepResult("lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+                return StepResult(
+                    "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
+                )
         cur = self._stereo(frame)
         t1 = time.perf_counter()
         prev = state.prev
         if prev is None:
             state.prev = cur
-            return StepResult("init", reason="first frame", n_keypoints=len(cur.uv), timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "init",
+                reason="first frame",
+                n_keypoints=len(cur.uv),
+                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+            )
         n_kp = len(cur.uv)
         if n_kp < self.config.min_matches:
-            return StepResult("lost", reason=f"too few stereo keypoints ({n_kp})", n_keypoints=n_kp, timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=f"too few stereo keypoints ({n_kp})",
+                n_keypoints=n_kp,
+                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+            )
         state.prev = cur
         qi, ti = self._ratio_match(prev.desc, cur.desc)  # M_1 (restricted to stereo-matched points)
         t2 = time.perf_counter()
         n_m = len(qi)
 
         def lost(why: str, n_in: int = 0) -> StepResult:
-            return StepResult("lost", reason=why, n_keypoints=n_kp, n_matches=n_m, n_inliers=n_in, timing_ms=_timing(t0, t1, t2, time.perf_counter()))
+            return StepResult(
+                "lost",
+                reason=why,
+                n_keypoints=n_kp,
+                n_matches=n_m,
+                n_inliers=n_in,
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+            )
 
         if n_m < self.config.min_matches:
             return lost(f"too few temporal matches ({n_m})")
-        H, mask = cv2.findHomography(prev.uv[qi].astype(np.float32), cur.uv[ti].astype(np.float32), cv2.RANSAC, self.config.ransac_threshold_px)
+        H, mask = cv2.findHomography(
+            prev.uv[qi].astype(np.float32), cur.uv[ti].astype(np.float32), cv2.RANSAC, self.config.ransac_threshold_px
+        )
         if H is None or mask is None:
             return lost("RANSAC found no consistent homography")
         inl = mask.ravel().astype(bool)
@@ -214,7 +235,12 @@ class StereoSift:
             n_in = int(keep.sum())
         t3 = time.perf_counter()
         return StepResult(
-            "ok", T, n_keypoints=n_kp, n_matches=n_m, n_inliers=n_in, timing_ms=_timing(t0, t1, t2, t3),
+            "ok",
+            T,
+            n_keypoints=n_kp,
+            n_matches=n_m,
+            n_inliers=n_in,
+            timing_ms=_timing(t0, t1, t2, t3),
             matches_px=np.hstack([prev.uv[qi[inl]], cur.uv[ti[inl]]]),
         )
 

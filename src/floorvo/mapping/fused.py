@@ -63,29 +63,53 @@ class MapFused:
     Config = MapFusedConfig
     requires = frozenset()
 
-    def __init__(self, config: MapFusedConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig):
+    def __init__(
+        self,
+        config: MapFusedConfig,
+        camera: CameraModel,
+        *,
+        height_mm: float,
+        flatfield: np.ndarray | None = None,
+        **rig,
+    ):
         from floorvo.mapping.localize import LocalizeConfig, Localizer  # here: floorvo.estimators imports this module
         from floorvo.mapping.map import load_map
 
         if not config.map:
-            raise ConfigError("map-fused.map = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`")
+            raise ConfigError(
+                "map-fused.map = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`"
+            )
         self.config = config
         self.map = load_map(config.map)
         if self.map.camera.size != camera.size:
-            raise ConfigError(f"map-fused.map: the map's camera is {self.map.camera.size}, the sequence's {camera.size}")
+            raise ConfigError(
+                f"map-fused.map: the map's camera is {self.map.camera.size}, the sequence's {camera.size}"
+            )
         if abs(self.map.height_mm - float(height_mm)) > 0.01 * self.map.height_mm:
-            raise ConfigError(f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm")
-        loc_cfg = LocalizeConfig(n_candidates=config.n_candidates, n_verify=config.n_verify,
-                                 min_block_fraction=config.min_block_fraction, min_corr=config.min_corr,
-                                 retrieval=config.retrieval)
+            raise ConfigError(
+                f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm"
+            )
+        loc_cfg = LocalizeConfig(
+            n_candidates=config.n_candidates,
+            n_verify=config.n_verify,
+            min_block_fraction=config.min_block_fraction,
+            min_corr=config.min_corr,
+            retrieval=config.retrieval,
+        )
         self.localizer = Localizer(self.map, loc_cfg, flatfield=flatfield)
         self.odometry = None
         if config.odometry != "none":
             if config.odometry == self.name:
                 raise ConfigError("map-fused.odometry = 'map-fused': must be another estimator or 'none'")
-            overrides = dict(kv.split("=", 1) for kv in config.odometry_set.split(";") if kv.strip()) if config.odometry_set else {}
+            overrides = (
+                dict(kv.split("=", 1) for kv in config.odometry_set.split(";") if kv.strip())
+                if config.odometry_set
+                else {}
+            )
             odo_cfg = make_config(config.odometry, overrides)
-            self.odometry = get_estimator(config.odometry)(odo_cfg, camera, height_mm=height_mm, flatfield=flatfield, **rig)
+            self.odometry = get_estimator(config.odometry)(
+                odo_cfg, camera, height_mm=height_mm, flatfield=flatfield, **rig
+            )
 
     def start(self) -> _State:
         return _State(odo_state=self.odometry.start() if self.odometry else None)
@@ -99,8 +123,12 @@ class MapFused:
             fix = self.localizer.localize(frame.image)
         t2 = time.perf_counter()
         timing = {"detect": 1e3 * (t1 - t0), "match": 0.0, "estimate": 1e3 * (t2 - t1), "total": 1e3 * (t2 - t0)}
-        counts = dict(n_keypoints=fix.n_keypoints if fix else 0, n_matches=fix.n_matches if fix else 0,
-                      n_inliers=fix.n_inliers if fix else 0, timing_ms=timing)
+        counts = dict(
+            n_keypoints=fix.n_keypoints if fix else 0,
+            n_matches=fix.n_matches if fix else 0,
+            n_inliers=fix.n_inliers if fix else 0,
+            timing_ms=timing,
+        )
         prev = state.T_world
         if fix is not None and fix.ok:
             new = fix.T_world_cam
@@ -117,7 +145,9 @@ class MapFused:
                 why = fix.reason if fix is not None else "no map fix yet"
                 return StepResult("lost", reason=f"not localised: {why}", **counts)
             state.T_world = new
-            return StepResult("init", reason="first pose" + (" from the map" if fix is not None and fix.ok else ""), **counts)
+            return StepResult(
+                "init", reason="first pose" + (" from the map" if fix is not None and fix.ok else ""), **counts
+            )
         if new is None:
             parts = []
             if fix is not None:
@@ -126,4 +156,6 @@ class MapFused:
                 parts.append(f"odometry: {odo.reason or odo.status}")
             return StepResult("lost", reason="; ".join(parts) or "no fix and no odometry", **counts)
         state.T_world = new
-        return StepResult("ok", invert_T(prev) @ new, reason="map fix" if fix is not None and fix.ok else "odometry", **counts)
+        return StepResult(
+            "ok", invert_T(prev) @ new, reason="map fix" if fix is not None and fix.ok else "odometry", **counts
+        )

@@ -24,8 +24,9 @@ onto frame i is the planar part of ``T_i_j`` after scaling by h / f (:func:`fit_
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
+from collections.abc import Sequence as Seq
 from dataclasses import dataclass
-from typing import Callable, Sequence as Seq
 
 import numpy as np
 

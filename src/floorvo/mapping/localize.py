@@ -92,9 +92,13 @@ class Localizer:
         self.config = config or LocalizeConfig()
         self.flatfield = flatfield
         self.sim_cfg = gmap.config.similarity
-        self.index = gmap.vote_index if self.config.retrieval == "vote" else gmap.index  # built now, not on the first query
+        self.index = (
+            gmap.vote_index if self.config.retrieval == "vote" else gmap.index
+        )  # built now, not on the first query
         if self.config.n_verify > self.config.n_candidates:
-            raise ConfigError(f"localize.n_verify = {self.config.n_verify}: must be <= n_candidates ({self.config.n_candidates})")
+            raise ConfigError(
+                f"localize.n_verify = {self.config.n_verify}: must be <= n_candidates ({self.config.n_candidates})"
+            )
 
     def localize(self, image: np.ndarray, rng: np.random.Generator | None = None) -> Localization:
         """Global pose of one raw (H, W) frame, using nothing but the frame and the map."""
@@ -103,7 +107,9 @@ class Localizer:
         t0 = time.perf_counter()
         cam = m.camera
         if image.shape != (cam.height_px, cam.width_px):
-            raise ConfigError(f"localize: frame size {image.shape[1]}x{image.shape[0]} differs from the map camera's {cam.width_px}x{cam.height_px}")
+            raise ConfigError(
+                f"localize: frame size {image.shape[1]}x{image.shape[0]} differs from the map camera's {cam.width_px}x{cam.height_px}"
+            )
         p = prepare_image(image, self.flatfield)
         feats = detect_features(p, sc)
         small = downscale(p, sc.sim_scale)
@@ -124,7 +130,12 @@ class Localizer:
             if best is None or s.value > best[1].value:
                 best = (k, s)
         t3 = time.perf_counter()
-        timing = {"detect": 1e3 * (t1 - t0), "match": 1e3 * (t2 - t1), "estimate": 1e3 * (t3 - t2), "total": 1e3 * (t3 - t0)}
+        timing = {
+            "detect": 1e3 * (t1 - t0),
+            "match": 1e3 * (t2 - t1),
+            "estimate": 1e3 * (t3 - t2),
+            "total": 1e3 * (t3 - t0),
+        }
         n_matches = max((f.n_matches for _, f in fits), default=0)
         n_inl = max((f.n_inliers for _, f in fits), default=0)
         common = dict(n_keypoints=len(feats), n_matches=n_matches, n_inliers=n_inl, timing_ms=timing)
@@ -140,8 +151,17 @@ class Localizer:
         elif s.corr < cfg.min_corr:
             fail = f"correlation {s.corr:.2f} < {cfg.min_corr}"
         if fail:
-            return Localization(False, reason=f"keyframe {k} not similar enough: {fail}", keyframe=k, similarity=s.value,
-                                block_fraction=s.block_fraction, corr=s.corr, **common)
+            return Localization(
+                False,
+                reason=f"keyframe {k} not similar enough: {fail}",
+                keyframe=k,
+                similarity=s.value,
+                block_fraction=s.block_fraction,
+                corr=s.corr,
+                **common,
+            )
         T_kf_live = fit_to_T_i_j(s.fit, cam, m.height_mm)
         T_world = m.T_world_kf[k] @ T_kf_live  # Eq. (24)
-        return Localization(True, T_world, keyframe=k, similarity=s.value, block_fraction=s.block_fraction, corr=s.corr, **common)
+        return Localization(
+            True, T_world, keyframe=k, similarity=s.value, block_fraction=s.block_fraction, corr=s.corr, **common
+        )

@@ -13,9 +13,9 @@ import io
 import logging
 import os
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -47,15 +47,20 @@ def localize_sequence(
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)
     if seq.height_mm is None:
-        raise FloorbenchError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
-    from floorvo.estimators.base import _convert  # string -> typed value, as make_config does
+        raise FloorbenchError(
+            f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
+        )
     import typing
+
+    from floorvo.estimators.base import _convert  # string -> typed value, as make_config does
 
     hints = typing.get_type_hints(MapFusedConfig)
     kw = {}
     for k, v in (overrides or {}).items():
         if k not in hints or k in ("map", "odometry"):
-            raise FloorbenchError(f"localize --set {k}: unknown key (known: {', '.join(sorted(set(hints) - {'map', 'odometry'}))})")
+            raise FloorbenchError(
+                f"localize --set {k}: unknown key (known: {', '.join(sorted(set(hints) - {'map', 'odometry'}))})"
+            )
         kw[k] = _convert(str(v), hints[k], f"localize.{k}")
     cfg = MapFusedConfig(map=str(map_dir), odometry=odometry, **kw)
     validate_config(cfg, "localize")
@@ -75,19 +80,49 @@ def localize_sequence(
         else:
             lost.append({"frame": i, "reason": res.reason})
         tm = res.timing_ms
-        rows.append([i, f"{tm.get('detect', 0):.3f}", f"{tm.get('match', 0):.3f}", f"{tm.get('estimate', 0):.3f}",
-                     f"{tm.get('total', 0):.3f}", res.status, res.n_keypoints, res.n_matches, res.n_inliers, res.reason])
+        rows.append(
+            [
+                i,
+                f"{tm.get('detect', 0):.3f}",
+                f"{tm.get('match', 0):.3f}",
+                f"{tm.get('estimate', 0):.3f}",
+                f"{tm.get('total', 0):.3f}",
+                res.status,
+                res.n_keypoints,
+                res.n_matches,
+                res.n_inliers,
+                res.reason,
+            ]
+        )
         if on_frame:
             on_frame(i + 1, n)
     wall = time.perf_counter() - t_run
     name = "map-fused" if odometry != "none" else "relocalise"
     if poses:
-        write_tum(out / "trajectory.txt", np.array(stamps), np.stack(poses), header=f"floorvo localize ({name}): T_world_cam from the map, metres")
+        write_tum(
+            out / "trajectory.txt",
+            np.array(stamps),
+            np.stack(poses),
+            header=f"floorvo localize ({name}): T_world_cam from the map, metres",
+        )
     else:
         atomic_write_text(out / "trajectory.txt", "# floorvo localize: no frame localised\n")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["frame", "detect_ms", "match_ms", "estimate_ms", "total_ms", "status", "n_keypoints", "n_matches", "n_inliers", "reason"])
+    w.writerow(
+        [
+            "frame",
+            "detect_ms",
+            "match_ms",
+            "estimate_ms",
+            "total_ms",
+            "status",
+            "n_keypoints",
+            "n_matches",
+            "n_inliers",
+            "reason",
+        ]
+    )
     w.writerows(rows)
     atomic_write_text(out / "timing.csv", buf.getvalue())
     counts = {s: sum(1 for r in rows if r[5] == s) for s in ("init", "ok", "lost")}
@@ -111,5 +146,12 @@ def localize_sequence(
         "last_frame": n - 1,
     }
     atomic_write_json(out / "result.json", result)
-    log.info("localize %s: %d of %d frames placed (%d by map fixes), %.1f frames/s", seq.root, len(poses), n, fixes, result["fps"])
+    log.info(
+        "localize %s: %d of %d frames placed (%d by map fixes), %.1f frames/s",
+        seq.root,
+        len(poses),
+        n,
+        fixes,
+        result["fps"],
+    )
     return result

@@ -24,9 +24,9 @@ import io
 import logging
 import os
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -64,17 +64,22 @@ class MapConfig:
     poses: str = "groundtruth"
 
     @classmethod
-    def from_overrides(cls, overrides: dict[str, str] | None) -> "MapConfig":
+    def from_overrides(cls, overrides: dict[str, str] | None) -> MapConfig:
         """Build from ``{"similarity.block_px": "12", "keyframes.window": "50", "vocab_words": "512"}``."""
         sim, kf, top = {}, {}, {}
         sim_fields = {f: type(getattr(SimilarityConfig(), f)) for f in asdict(SimilarityConfig())}
         kf_fields = {f: type(getattr(KeyframeConfig(), f)) for f in asdict(KeyframeConfig())}
         for key, value in (overrides or {}).items():
             group, _, name = key.rpartition(".")
-            table = {"similarity": (sim, sim_fields), "keyframes": (kf, kf_fields),
-                     "": (top, {"vocab_words": int, "seed": int, "poses": str})}
+            table = {
+                "similarity": (sim, sim_fields),
+                "keyframes": (kf, kf_fields),
+                "": (top, {"vocab_words": int, "seed": int, "poses": str}),
+            }
             if group not in table or name not in table[group][1]:
-                raise ConfigError(f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed, poses)")
+                raise ConfigError(
+                    f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed, poses)"
+                )
             dest, types = table[group]
             try:
                 dest[name] = types[name](value)
@@ -88,13 +93,23 @@ class MapConfig:
         return cfg
 
     def to_dict(self) -> dict:
-        return {"similarity": asdict(self.similarity), "keyframes": asdict(self.keyframes), "vocab_words": self.vocab_words,
-                "seed": self.seed, "poses": self.poses}
+        return {
+            "similarity": asdict(self.similarity),
+            "keyframes": asdict(self.keyframes),
+            "vocab_words": self.vocab_words,
+            "seed": self.seed,
+            "poses": self.poses,
+        }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "MapConfig":
-        return cls(SimilarityConfig(**d["similarity"]), KeyframeConfig(**d["keyframes"]), int(d["vocab_words"]), int(d.get("seed", 0)),
-                   str(d.get("poses", "chain")))
+    def from_dict(cls, d: dict) -> MapConfig:
+        return cls(
+            SimilarityConfig(**d["similarity"]),
+            KeyframeConfig(**d["keyframes"]),
+            int(d["vocab_words"]),
+            int(d.get("seed", 0)),
+            str(d.get("poses", "chain")),
+        )
 
 
 @dataclass
@@ -176,7 +191,9 @@ def build_map_from_images(
             return cache[i]
         img = get_image(i)
         if img.shape != (camera.height_px, camera.width_px):
-            raise SequenceError(f"frame {i}: size {img.shape[1]}x{img.shape[0]} differs from the camera's {camera.width_px}x{camera.height_px}")
+            raise SequenceError(
+                f"frame {i}: size {img.shape[1]}x{img.shape[0]} differs from the camera's {camera.width_px}x{camera.height_px}"
+            )
         p = prepare_image(img, flatfield)
         val = (downscale(p, sc.sim_scale), detect_features(p, sc))
         cache[i] = val
@@ -184,8 +201,17 @@ def build_map_from_images(
             cache.popitem(last=False)
         return val
 
-    res = extract_keyframes(lambda i: prepared(i)[0], lambda i: prepared(i)[1], n_frames, camera, height_mm, sc,
-                            cfg.keyframes, rng=np.random.default_rng(cfg.seed), on_progress=on_progress)
+    res = extract_keyframes(
+        lambda i: prepared(i)[0],
+        lambda i: prepared(i)[1],
+        n_frames,
+        camera,
+        height_mm,
+        sc,
+        cfg.keyframes,
+        rng=np.random.default_rng(cfg.seed),
+        on_progress=on_progress,
+    )
     gt = None if T_world_frames is None else np.asarray(T_world_frames, float).reshape(-1, 4, 4)
     if gt is not None and len(gt) != n_frames:
         raise ValueError(f"T_world_frames has {len(gt)} poses for {n_frames} frames")
@@ -201,23 +227,53 @@ def build_map_from_images(
     if gt is not None:
         T_gt = gt[np.asarray(res.indices)]
         d_mm = np.linalg.norm(T_chain[:, :2, 3] - T_gt[:, :2, 3], axis=1)
-        d_yaw = np.abs(np.angle(np.exp(1j * (np.arctan2(T_chain[:, 1, 0], T_chain[:, 0, 0])
-                                             - np.arctan2(T_gt[:, 1, 0], T_gt[:, 0, 0])))))
-        chain_vs_gt = {"max_mm": float(d_mm.max()), "rms_mm": float(np.sqrt(np.mean(d_mm ** 2))), "max_yaw_rad": float(d_yaw.max())}
-        log.info("map: eq. (24) chain against ground truth: max %.3f mm, rms %.3f mm", chain_vs_gt["max_mm"], chain_vs_gt["rms_mm"])
+        d_yaw = np.abs(
+            np.angle(
+                np.exp(1j * (np.arctan2(T_chain[:, 1, 0], T_chain[:, 0, 0]) - np.arctan2(T_gt[:, 1, 0], T_gt[:, 0, 0])))
+            )
+        )
+        chain_vs_gt = {
+            "max_mm": float(d_mm.max()),
+            "rms_mm": float(np.sqrt(np.mean(d_mm**2))),
+            "max_yaw_rad": float(d_yaw.max()),
+        }
+        log.info(
+            "map: eq. (24) chain against ground truth: max %.3f mm, rms %.3f mm",
+            chain_vs_gt["max_mm"],
+            chain_vs_gt["rms_mm"],
+        )
         if cfg.poses == "groundtruth":
             T_world_kf, pose_source = T_gt.copy(), "groundtruth"
     images = np.stack([prepared(i)[0] for i in res.indices])
     feats = [prepared(i)[1] for i in res.indices]
     vocab = BinaryVocabulary.train([f.desc for f in feats], n_words=cfg.vocab_words, seed=cfg.seed)
     ts = np.asarray(timestamps_s, float)[res.indices] if timestamps_s is not None else np.asarray(res.indices, float)
-    log.info("map: %d keyframes of %d frames (%.1f %%)", len(res.indices), n_frames, 100.0 * len(res.indices) / n_frames)
-    return GlobalMap(camera, float(height_mm), cfg, list(map(int, res.indices)), ts, T_world_kf, images, feats, vocab,
-                     n_mapping_frames=int(n_frames), source=source, pose_source=pose_source, chain_vs_groundtruth=chain_vs_gt)
+    log.info(
+        "map: %d keyframes of %d frames (%.1f %%)", len(res.indices), n_frames, 100.0 * len(res.indices) / n_frames
+    )
+    return GlobalMap(
+        camera,
+        float(height_mm),
+        cfg,
+        list(map(int, res.indices)),
+        ts,
+        T_world_kf,
+        images,
+        feats,
+        vocab,
+        n_mapping_frames=int(n_frames),
+        source=source,
+        pose_source=pose_source,
+        chain_vs_groundtruth=chain_vs_gt,
+    )
 
 
-def build_map(seq_path: str | os.PathLike, config: MapConfig | None = None, *,
-              on_progress: Callable[[int, int], None] | None = None) -> GlobalMap:
+def build_map(
+    seq_path: str | os.PathLike,
+    config: MapConfig | None = None,
+    *,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> GlobalMap:
     """Build a map from a sequence folder. With ground truth for every frame, the keyframes
     take their ground-truth poses (``config.poses == "groundtruth"``, the default) or the
     eq. (24) chain starts at the first frame's (``"chain"``), so map and ground truth share
@@ -226,13 +282,25 @@ def build_map(seq_path: str | os.PathLike, config: MapConfig | None = None, *,
 
     seq = Sequence.open(seq_path)
     if seq.height_mm is None:
-        raise SequenceError(f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)")
+        raise SequenceError(
+            f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
+        )
     gt = seq.groundtruth()
     T_frames = _groundtruth_per_frame(gt, seq.timestamps_s) if gt is not None else None
     T0 = gt[1][0] if T_frames is None and gt is not None and len(gt[1]) else None
-    return build_map_from_images(seq.image, seq.frame_count, seq.camera, seq.height_mm, timestamps_s=seq.timestamps_s,
-                                 T_world_first=T0, T_world_frames=T_frames, flatfield=seq.flatfield(), config=config, source=str(seq.root),
-                                 on_progress=on_progress)
+    return build_map_from_images(
+        seq.image,
+        seq.frame_count,
+        seq.camera,
+        seq.height_mm,
+        timestamps_s=seq.timestamps_s,
+        T_world_first=T0,
+        T_world_frames=T_frames,
+        flatfield=seq.flatfield(),
+        config=config,
+        source=str(seq.root),
+        on_progress=on_progress,
+    )
 
 
 def _groundtruth_per_frame(gt: tuple[np.ndarray, np.ndarray], ts_frames: np.ndarray) -> np.ndarray | None:
@@ -243,7 +311,11 @@ def _groundtruth_per_frame(gt: tuple[np.ndarray, np.ndarray], ts_frames: np.ndar
         return T_gt
     if len(ts_gt) == 0:
         return None
-    j = np.clip(np.searchsorted(ts_gt, ts_frames), 1, len(ts_gt) - 1) if len(ts_gt) > 1 else np.zeros(len(ts_frames), int)
+    j = (
+        np.clip(np.searchsorted(ts_gt, ts_frames), 1, len(ts_gt) - 1)
+        if len(ts_gt) > 1
+        else np.zeros(len(ts_frames), int)
+    )
     if len(ts_gt) > 1:
         j = np.where(np.abs(ts_gt[j - 1] - ts_frames) <= np.abs(ts_gt[j] - ts_frames), j - 1, j)
     if np.any(np.abs(ts_gt[j] - ts_frames) > 1e-3):
@@ -297,18 +369,24 @@ def load_map(path: str | os.PathLike) -> GlobalMap:
     root = Path(path)
     mj = root / "map.json"
     if not mj.is_file():
-        raise FloorbenchError(f"{root}: not a map folder (map.json is missing); build one with `floorvo map SEQ -o MAP`")
+        raise FloorbenchError(
+            f"{root}: not a map folder (map.json is missing); build one with `floorvo map SEQ -o MAP`"
+        )
     meta = read_json(mj, FloorbenchError)
     if meta.get("format") != MAP_FORMAT:
         raise FloorbenchError(f"{mj}: format {meta.get('format')!r} is not {MAP_FORMAT!r}")
     if meta.get("schema_version") != MAP_SCHEMA_VERSION:
-        raise FloorbenchError(f"{mj}: schema_version {meta.get('schema_version')!r} is not {MAP_SCHEMA_VERSION} (rebuild the map)")
+        raise FloorbenchError(
+            f"{mj}: schema_version {meta.get('schema_version')!r} is not {MAP_SCHEMA_VERSION} (rebuild the map)"
+        )
     npz = root / meta.get("arrays", {}).get("file", "keyframes.npz")
     if not npz.is_file():
         raise FloorbenchError(f"{npz}: keyframe arrays are missing")
     data = npz.read_bytes()
     if hashlib.sha256(data).hexdigest() != meta["arrays"].get("sha256"):
-        raise FloorbenchError(f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)")
+        raise FloorbenchError(
+            f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)"
+        )
     try:
         with np.load(io.BytesIO(data)) as z:
             arr = {k: z[k] for k in z.files}
@@ -333,10 +411,19 @@ def load_map(path: str | os.PathLike) -> GlobalMap:
         problems.append("no keyframes")
     if problems:
         raise FloorbenchError(f"{root}: inconsistent map: {problems[0]}")
-    feats = [Features(arr["kp_xy_px"][off[k]:off[k + 1]], arr["kp_desc"][off[k]:off[k + 1]]) for k in range(K)]
-    return GlobalMap(camera, float(meta["height_mm"]), cfg, [int(k["frame"]) for k in kfs],
-                     np.array([k["timestamp_s"] for k in kfs], float), T, arr["images"], feats,
-                     BinaryVocabulary(arr["vocab_words"], arr["vocab_idf"]),
-                     n_mapping_frames=int(meta.get("n_mapping_frames", 0)), source=str(meta.get("source", "")),
-                     pose_source=str(meta.get("pose_source", "chain")),
-                     chain_vs_groundtruth=dict(meta.get("chain_vs_groundtruth", {})))
+    feats = [Features(arr["kp_xy_px"][off[k] : off[k + 1]], arr["kp_desc"][off[k] : off[k + 1]]) for k in range(K)]
+    return GlobalMap(
+        camera,
+        float(meta["height_mm"]),
+        cfg,
+        [int(k["frame"]) for k in kfs],
+        np.array([k["timestamp_s"] for k in kfs], float),
+        T,
+        arr["images"],
+        feats,
+        BinaryVocabulary(arr["vocab_words"], arr["vocab_idf"]),
+        n_mapping_frames=int(meta.get("n_mapping_frames", 0)),
+        source=str(meta.get("source", "")),
+        pose_source=str(meta.get("pose_source", "chain")),
+        chain_vs_groundtruth=dict(meta.get("chain_vs_groundtruth", {})),
+    )

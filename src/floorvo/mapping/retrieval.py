@@ -32,8 +32,14 @@ class BinaryVocabulary:
     idf: np.ndarray
 
     @classmethod
-    def train(cls, descriptors: list[np.ndarray], n_words: int = 512, iterations: int = 4,
-              max_samples: int = 40000, seed: int = 0) -> "BinaryVocabulary":
+    def train(
+        cls,
+        descriptors: list[np.ndarray],
+        n_words: int = 512,
+        iterations: int = 4,
+        max_samples: int = 40000,
+        seed: int = 0,
+    ) -> BinaryVocabulary:
         """k-majority clustering of the descriptors of the documents (one array per keyframe);
         the idf is computed over those documents."""
         rng = np.random.default_rng(seed)
@@ -137,10 +143,16 @@ class VoteIndex:
             raise ConfigError(f"VoteIndex neighbours = {neighbours}: must be >= 1")
         self.max_hamming_bits = int(max_hamming_bits)
         self.neighbours = int(neighbours)
-        self.owner = np.concatenate([np.full(len(d), k, np.int64) for k, d in enumerate(keyframe_desc)]) if keyframe_desc else np.zeros(0, np.int64)
+        self.owner = (
+            np.concatenate([np.full(len(d), k, np.int64) for k, d in enumerate(keyframe_desc)])
+            if keyframe_desc
+            else np.zeros(0, np.int64)
+        )
         self.n_keyframes = len(keyframe_desc)
-        self.matcher = cv2.FlannBasedMatcher(dict(algorithm=6, table_number=self.LSH_TABLES, key_size=self.LSH_KEY_BITS,
-                                                     multi_probe_level=0), dict(checks=32))
+        self.matcher = cv2.FlannBasedMatcher(
+            dict(algorithm=6, table_number=self.LSH_TABLES, key_size=self.LSH_KEY_BITS, multi_probe_level=0),
+            dict(checks=32),
+        )
         allx = [np.ascontiguousarray(d) for d in keyframe_desc if len(d)]
         if allx:
             self.matcher.add([np.concatenate(allx)])

@@ -207,8 +207,14 @@ def detect_features(image_u8: np.ndarray, cfg: SimilarityConfig) -> Features:
     key = (cfg.n_features, cfg.fast_threshold)
     orb = _ORB_CACHE.get(key)
     if orb is None:
-        orb = cv2.ORB_create(nfeatures=cfg.n_features, scaleFactor=1.2, nlevels=2, edgeThreshold=19,
-                             patchSize=19, fastThreshold=cfg.fast_threshold)
+        orb = cv2.ORB_create(
+            nfeatures=cfg.n_features,
+            scaleFactor=1.2,
+            nlevels=2,
+            edgeThreshold=19,
+            patchSize=19,
+            fastThreshold=cfg.fast_threshold,
+        )
         _ORB_CACHE[key] = orb
     kps, desc = orb.detectAndCompute(image_u8, None)
     if desc is None or not kps:
@@ -233,7 +239,9 @@ def match_descriptors(fa: Features, fb: Features, ratio: float) -> np.ndarray:
     return pairs[np.sort(first)]
 
 
-def ransac_rigid(src: np.ndarray, dst: np.ndarray, cfg: SimilarityConfig, rng: np.random.Generator | None = None) -> RigidFit:
+def ransac_rigid(
+    src: np.ndarray, dst: np.ndarray, cfg: SimilarityConfig, rng: np.random.Generator | None = None
+) -> RigidFit:
     """Rigid fit ``dst = R src + t`` (eq. 5) by two-point RANSAC.
 
     A hypothesis is kept only if its two points pass the connect-line length check of
@@ -331,10 +339,10 @@ def content_similarity(
     r = cfg.search_px
     kernel = np.ones((2 * r + 3, 2 * r + 3), np.uint8)
     inner = cv2.erode(cover, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    inner[:r + 1, :] = 0
-    inner[h - r - 1:, :] = 0
-    inner[:, :r + 1] = 0
-    inner[:, w - r - 1:] = 0
+    inner[: r + 1, :] = 0
+    inner[h - r - 1 :, :] = 0
+    inner[:, : r + 1] = 0
+    inner[:, w - r - 1 :] = 0
     b = cfg.block_px
     nby, nbx = h // b, w // b
     H, W = nby * b, nbx * b
@@ -350,7 +358,7 @@ def content_similarity(
     sad = np.empty((n_sh, n_sh, nby, nbx), np.float32)
     for iy in range(n_sh):
         for ix in range(n_sh):
-            d = cv2.absdiff(Apad[iy:iy + H, ix:ix + W], Bc)
+            d = cv2.absdiff(Apad[iy : iy + H, ix : ix + W], Bc)
             sad[iy, ix] = cv2.resize(d, (nbx, nby), interpolation=cv2.INTER_AREA)
     flat = sad.reshape(n_sh * n_sh, nby, nbx)
     k = np.argmin(flat, axis=0)
@@ -372,11 +380,13 @@ def content_similarity(
     # Rebuild the overlap region of frame j (Fig. 7): each matched sub-block is moved to
     # its SAD position; compare it with frame i there (eq. 23).
     iy_b, ix_b = np.nonzero(matched)
-    rows = (iy_b[:, None] * b + np.arange(b)[None, :])  # (n, b)
-    cols = (ix_b[:, None] * b + np.arange(b)[None, :])
+    rows = iy_b[:, None] * b + np.arange(b)[None, :]  # (n, b)
+    cols = ix_b[:, None] * b + np.arange(b)[None, :]
     blk_j = Bc[rows[:, :, None], cols[:, None, :]]
-    blk_i = Apad[(rows + r + dy[iy_b, ix_b].astype(int)[:, None])[:, :, None],
-                 (cols + r + dx[iy_b, ix_b].astype(int)[:, None])[:, None, :]]
+    blk_i = Apad[
+        (rows + r + dy[iy_b, ix_b].astype(int)[:, None])[:, :, None],
+        (cols + r + dx[iy_b, ix_b].astype(int)[:, None])[:, None, :],
+    ]
     xj = blk_j.astype(np.float64).ravel()
     xi = blk_i.astype(np.float64).ravel()
     xj -= xj.mean()

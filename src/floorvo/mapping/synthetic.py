@@ -32,7 +32,7 @@ def floor_texture(size_px: int = 4000, seed: int = 0) -> np.ndarray:
     # Veins: thin dark lines where a smooth field crosses zero.
     field = _smooth_noise(rng, n, 40.0)
     field /= field.std() + 1e-9
-    out -= 0.8 * np.exp(-(field / 0.06) ** 2)
+    out -= 0.8 * np.exp(-((field / 0.06) ** 2))
     # Pores: sparse dark dots.
     pores = (rng.random((n, n)) < 0.002).astype(np.float32)
     out -= 1.5 * cv2.GaussianBlur(pores, (0, 0), 1.0) * 6.0
@@ -83,8 +83,9 @@ def view(
     c, s = np.cos(psi), np.sin(psi)
     cx, cy = camera.cx_px, camera.cy_px
     M = np.array([[c, s, Uc - c * cx - s * cy], [-s, c, Vc + s * cx - c * cy]])
-    img = cv2.warpAffine(texture, M, camera.size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                         borderMode=cv2.BORDER_REFLECT)
+    img = cv2.warpAffine(
+        texture, M, camera.size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT
+    )
     img = 30.0 + 200.0 * img
     if noise_std > 0:
         img = img + (rng or np.random.default_rng(0)).normal(0.0, noise_std, img.shape)
