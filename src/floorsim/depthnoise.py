@@ -15,26 +15,26 @@ Seeded: ``numpy.random.default_rng([seed, frame_index, 0xD3])``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from floorsim.params import rule
+from floorvo.config import Config, param
 
 __all__ = ["DepthNoise", "apply_depth_noise"]
 
 
 @dataclass(frozen=True)
-class DepthNoise:
+class DepthNoise(Config):
     """Parameters of :func:`apply_depth_noise` (``model = "none"`` keeps the exact depth)."""
 
-    model: str = field(default="none", metadata=rule(choices=("none", "structured_light")))
-    baseline_mm: float = field(default=50.0, metadata=rule(">0", "mm"))
-    focal_px: float = field(default=580.0, metadata=rule(">0", "px"))
-    subpixel: float = field(default=8.0, metadata=rule(">0", "steps per px"))
-    sigma_px: float = field(default=0.05, metadata=rule(">=0", "px"))
-    dropout: float = field(default=0.0, metadata=rule("[0,1]"))
-    edge_mm: float = field(default=5.0, metadata=rule(">0", "mm"))
+    model: str = param("none", choices=("none", "structured_light"), doc="none keeps the exact depth")
+    baseline_mm: float = param(50.0, unit="mm", gt=0, doc="projector-camera baseline B")
+    focal_px: float = param(580.0, unit="px", gt=0, doc="focal length f of the depth camera")
+    subpixel: float = param(8.0, unit="steps per px", gt=0, doc="disparity quantisation steps per pixel")
+    sigma_px: float = param(0.05, unit="px", min=0, doc="standard deviation of the disparity noise")
+    dropout: float = param(0.0, min=0, max=1, doc="probability of a pixel without measurement")
+    edge_mm: float = param(5.0, unit="mm", gt=0, doc="depth jump to a neighbour that drops a pixel")
 
 
 def apply_depth_noise(depth_mm: np.ndarray, p: DepthNoise, seed: int, frame_index: int) -> np.ndarray:

@@ -15,12 +15,12 @@ parameter dataclass (validated like scene sections) and a ``sample`` function::
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from floorsim.params import from_mapping, rule
+from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError
 
 __all__ = [
@@ -264,7 +264,7 @@ def sample_material(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Height (mm) and albedo grids (H, W) of material ``name`` at x (W,) and y (H,), with overlays."""
     mat = get_material(name)
-    p = params if isinstance(params, mat.Params) else from_mapping(mat.Params, params, f"floor.{name}")
+    p = params if isinstance(params, mat.Params) else build(mat.Params, params, f"floor.{name}")
     X = np.asarray(x_mm, dtype=np.float64)[None, :]
     Y = np.asarray(y_mm, dtype=np.float64)[:, None]
     h, a = mat.sample(X, Y, int(seed), p)
@@ -278,17 +278,17 @@ def sample_material(
 
 # ----------------------------------------------------------------------------- vinyl (paper 000)
 @dataclass(frozen=True)
-class VinylParams:
+class VinylParams(Config):
     """Vinyl tile: micro-bumps, veins, scratches, stains and mottling."""
 
-    base_albedo: float = field(default=0.55, metadata=rule("[0,1]"))
-    bump_amplitude_mm: float = field(default=0.03, metadata=rule(">=0", "mm", hi=1.0))
-    bump_cell_mm: float = field(default=0.6, metadata=rule(">0", "mm"))
-    vein_contrast: float = field(default=0.25, metadata=rule("[0,1]"))
-    vein_cell_mm: float = field(default=8.0, metadata=rule(">0", "mm"))
-    scratch_density: float = field(default=1.0, metadata=rule(">=0", "", hi=4.0))
-    scratch_depth_mm: float = field(default=0.010, metadata=rule(">=0", "mm", hi=1.0))
-    stain_contrast: float = field(default=0.12, metadata=rule("[0,1]"))
+    base_albedo: float = param(0.55, min=0, max=1, doc="albedo of the vinyl before veins and stains")
+    bump_amplitude_mm: float = param(0.03, unit="mm", min=0, max=1.0, doc="height scale of the fractal micro-bumps")
+    bump_cell_mm: float = param(0.6, unit="mm", gt=0, doc="size of the largest micro-bumps")
+    vein_contrast: float = param(0.25, min=0, max=1, doc="how much darker the veins are (fraction of the albedo)")
+    vein_cell_mm: float = param(8.0, unit="mm", gt=0, doc="size of the vein pattern")
+    scratch_density: float = param(1.0, min=0, max=4.0, doc="scratches per 5 mm cell")
+    scratch_depth_mm: float = param(0.01, unit="mm", min=0, max=1.0, doc="depth of a scratch groove")
+    stain_contrast: float = param(0.12, min=0, max=1, doc="albedo drop of the stains (fraction)")
 
 
 @register_material("vinyl", "vinyl tile of paper 000: micro-bumps, veins, scratches, stains", VinylParams)
@@ -318,15 +318,15 @@ def _vinyl(X, Y, seed, p: VinylParams):
 
 # ----------------------------------------------------------------------------- concrete
 @dataclass(frozen=True)
-class ConcreteParams:
+class ConcreteParams(Config):
     """Concrete: cement matrix, exposed aggregate, pores."""
 
-    base_albedo: float = field(default=0.45, metadata=rule("[0,1]"))
-    roughness_mm: float = field(default=0.02, metadata=rule(">=0", "mm", hi=1.0))
-    aggregate_cell_mm: float = field(default=1.5, metadata=rule(">0", "mm"))
-    aggregate_height_mm: float = field(default=0.03, metadata=rule(">=0", "mm", hi=1.0))
-    pore_probability: float = field(default=0.25, metadata=rule("[0,1]"))
-    pore_depth_mm: float = field(default=0.05, metadata=rule(">=0", "mm", hi=1.0))
+    base_albedo: float = param(0.45, min=0, max=1, doc="albedo of the cement matrix")
+    roughness_mm: float = param(0.02, unit="mm", min=0, max=1.0, doc="height scale of the fine surface roughness")
+    aggregate_cell_mm: float = param(1.5, unit="mm", gt=0, doc="size of the exposed aggregate stones")
+    aggregate_height_mm: float = param(0.03, unit="mm", min=0, max=1.0, doc="how far the aggregate stands out")
+    pore_probability: float = param(0.25, min=0, max=1, doc="fraction of 0.8 mm cells holding a pore")
+    pore_depth_mm: float = param(0.05, unit="mm", min=0, max=1.0, doc="depth of a pore")
 
 
 @register_material("concrete", "concrete: rough cement, exposed aggregate, pores", ConcreteParams)
@@ -347,15 +347,15 @@ def _concrete(X, Y, seed, p: ConcreteParams):
 
 # ----------------------------------------------------------------------------- wood
 @dataclass(frozen=True)
-class WoodParams:
+class WoodParams(Config):
     """Wood planks: growth-ring grain along x, grain grooves, plank joints, scratches."""
 
-    base_albedo: float = field(default=0.40, metadata=rule("[0,1]"))
-    grain_period_mm: float = field(default=1.2, metadata=rule(">0", "mm"))
-    grain_contrast: float = field(default=0.3, metadata=rule("[0,1]"))
-    groove_depth_mm: float = field(default=0.012, metadata=rule(">=0", "mm", hi=1.0))
-    plank_width_mm: float = field(default=90.0, metadata=rule(">0", "mm"))
-    scratch_depth_mm: float = field(default=0.01, metadata=rule(">=0", "mm", hi=1.0))
+    base_albedo: float = param(0.4, min=0, max=1, doc="albedo of the earlywood")
+    grain_period_mm: float = param(1.2, unit="mm", gt=0, doc="spacing of the growth rings across y")
+    grain_contrast: float = param(0.3, min=0, max=1, doc="albedo drop of the latewood bands (fraction)")
+    groove_depth_mm: float = param(0.012, unit="mm", min=0, max=1.0, doc="depth of the grain grooves")
+    plank_width_mm: float = param(90.0, unit="mm", gt=0, doc="plank width (joints along x)")
+    scratch_depth_mm: float = param(0.01, unit="mm", min=0, max=1.0, doc="depth of a scratch groove")
 
 
 @register_material("wood", "wood planks: grain along x, grooves, plank joints, scratches", WoodParams)
@@ -381,13 +381,13 @@ def _wood(X, Y, seed, p: WoodParams):
 
 # ----------------------------------------------------------------------------- asphalt
 @dataclass(frozen=True)
-class AsphaltParams:
+class AsphaltParams(Config):
     """Asphalt: dark binder, coarse bright aggregate with high relief."""
 
-    base_albedo: float = field(default=0.12, metadata=rule("[0,1]"))
-    stone_albedo: float = field(default=0.32, metadata=rule("[0,1]"))
-    stone_cell_mm: float = field(default=2.5, metadata=rule(">0", "mm"))
-    relief_mm: float = field(default=0.25, metadata=rule(">=0", "mm", hi=3.0))
+    base_albedo: float = param(0.12, min=0, max=1, doc="albedo of the binder")
+    stone_albedo: float = param(0.32, min=0, max=1, doc="mean albedo of the aggregate stones")
+    stone_cell_mm: float = param(2.5, unit="mm", gt=0, doc="size of the coarse aggregate cells")
+    relief_mm: float = param(0.25, unit="mm", min=0, max=3.0, doc="height of the stones above the binder")
 
 
 @register_material("asphalt", "asphalt: coarse aggregate in dark binder, high relief", AsphaltParams)
@@ -405,15 +405,15 @@ def _asphalt(X, Y, seed, p: AsphaltParams):
 
 # ----------------------------------------------------------------------------- ceramic tile
 @dataclass(frozen=True)
-class TileParams:
+class TileParams(Config):
     """Glazed ceramic tiles on a square grid with grout lines: repetitive, a hard case for matching."""
 
-    tile_mm: float = field(default=30.0, metadata=rule(">0", "mm"))
-    grout_mm: float = field(default=2.0, metadata=rule(">0", "mm"))
-    grout_depth_mm: float = field(default=0.4, metadata=rule(">=0", "mm", hi=3.0))
-    tile_albedo: float = field(default=0.7, metadata=rule("[0,1]"))
-    grout_albedo: float = field(default=0.35, metadata=rule("[0,1]"))
-    glaze_relief_mm: float = field(default=0.002, metadata=rule(">=0", "mm", hi=0.1))
+    tile_mm: float = param(30.0, unit="mm", gt=0, doc="side of a tile")
+    grout_mm: float = param(2.0, unit="mm", gt=0, doc="width of a grout line")
+    grout_depth_mm: float = param(0.4, unit="mm", min=0, max=3.0, doc="depth of the grout below the glaze")
+    tile_albedo: float = param(0.7, min=0, max=1, doc="albedo of the glaze")
+    grout_albedo: float = param(0.35, min=0, max=1, doc="albedo of the grout")
+    glaze_relief_mm: float = param(0.002, unit="mm", min=0, max=0.1, doc="height scale of the glaze's micro-relief")
 
 
 @register_material("ceramic_tile", "glazed ceramic tiles with grout lines (repetitive texture)", TileParams)
@@ -431,12 +431,12 @@ def _tile(X, Y, seed, p: TileParams):
 
 # ----------------------------------------------------------------------------- polished / wet
 @dataclass(frozen=True)
-class PolishedParams:
+class PolishedParams(Config):
     """Polished or wet floor: smooth micro-relief under a glossy coat (highlights at grazing light)."""
 
-    base_albedo: float = field(default=0.35, metadata=rule("[0,1]"))
-    relief_mm: float = field(default=0.003, metadata=rule(">=0", "mm", hi=0.1))
-    mottle: float = field(default=0.1, metadata=rule("[0,1]"))
+    base_albedo: float = param(0.35, min=0, max=1, doc="mean albedo")
+    relief_mm: float = param(0.003, unit="mm", min=0, max=0.1, doc="height scale of the smooth micro-relief")
+    mottle: float = param(0.1, min=0, max=1, doc="relative albedo variation")
 
 
 @register_material(
@@ -450,11 +450,11 @@ def _polished(X, Y, seed, p: PolishedParams):
 
 # ----------------------------------------------------------------------------- featureless
 @dataclass(frozen=True)
-class FeaturelessParams:
+class FeaturelessParams(Config):
     """A nearly featureless floor (the failure case): uniform albedo, sub-micrometre relief."""
 
-    base_albedo: float = field(default=0.5, metadata=rule("[0,1]"))
-    relief_mm: float = field(default=0.0003, metadata=rule(">=0", "mm", hi=0.01))
+    base_albedo: float = param(0.5, min=0, max=1, doc="the uniform albedo")
+    relief_mm: float = param(0.0003, unit="mm", min=0, max=0.01, doc="height scale of the faint relief")
 
 
 @register_material("featureless", "nearly featureless floor (the failure case)", FeaturelessParams)

@@ -49,11 +49,10 @@ key, the value and the rule. ``--set section.key=value`` overrides any key.
 
 from __future__ import annotations
 
-import copy
 import os
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -61,10 +60,10 @@ import numpy as np
 
 from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
-from floorsim.params import from_mapping, rule, to_plain
 from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError
+from floorvo.config import Config, apply_overrides, build, param, to_plain
+from floorvo.errors import ConfigError, ConfigFieldError
 
 __all__ = [
     "SCENE_SCHEMA_VERSION",
@@ -87,7 +86,7 @@ SCENE_SCHEMA_VERSION = 1
 
 
 @dataclass(frozen=True)
-class CameraSpec:
+class CameraSpec(Config):
     """Camera of the rig (defaults: paper 000, 1/3" CCD, 6 mm lens, 100 mm above the floor).
 
     ``distortion``: OpenCV (k1, k2, p1, p2, k3), applied to the rays, written to
@@ -95,40 +94,46 @@ class CameraSpec:
     by ``1 - v (1 - cos^4 theta)`` (theta: the pixel ray's angle to the optical axis).
     """
 
-    width_px: int = field(default=648, metadata=rule(">=1", "px", hi=8192))
-    height_px: int = field(default=494, metadata=rule(">=1", "px", hi=8192))
-    pixel_pitch_um: float = field(default=7.4, metadata=rule(">0", "um"))
-    focal_length_mm: float = field(default=6.0, metadata=rule(">0", "mm"))
-    height_mm: float = field(default=100.0, metadata=rule(">0", "mm", lo=5.0, hi=2000.0))
-    distortion: tuple[float, ...] = ()
-    vignetting: float = field(default=0.0, metadata=rule("[0,1]"))
+    width_px: int = param(648, unit="px", min=1, max=8192, doc="image width")
+    height_px: int = param(494, unit="px", min=1, max=8192, doc="image height")
+    pixel_pitch_um: float = param(7.4, unit="um", gt=0, doc="pixel size (square pixels)")
+    focal_length_mm: float = param(6.0, unit="mm", gt=0, doc="lens focal length")
+    height_mm: float = param(100.0, unit="mm", gt=0, min=5.0, max=2000.0, doc="camera above the mean floor plane")
+    distortion: tuple[float, ...] = param((), doc="OpenCV k1, k2, p1, p2, k3 (at most 5)")
+    vignetting: float = param(0.0, min=0, max=1, doc="strength v of the cos^4 lens falloff")
+
+    def validate(self) -> None:
+        if len(self.distortion) > 5:
+            raise ConfigFieldError(
+                "distortion", f" = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)"
+            )
 
     def model(self) -> CameraModel:
         dist = tuple(self.distortion) + (0.0,) * (5 - len(self.distortion))
-        if len(self.distortion) > 5:
-            raise ConfigError(
-                f"camera.distortion = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)"
-            )
         return CameraModel.from_sensor(self.width_px, self.height_px, self.pixel_pitch_um, self.focal_length_mm, dist)
 
 
 @dataclass(frozen=True)
-class FloorSpec:
+class FloorSpec(Config):
     """The floor: a registered material, its parameters, overlays of dirt and dust (their
     densities: fraction of cells holding a speck or grain), and how finely it is meshed."""
 
-    material: str = "vinyl"
-    seed: int | None = None
-    relief_scale: float = field(default=1.0, metadata=rule(">=0", "", hi=100.0))
-    spacing_mm: float | None = field(default=None, metadata=rule(">0", "mm"))
-    tile_length_mm: float = field(default=240.0, metadata=rule(">0", "mm", lo=20.0))
-    dirt_density: float = field(default=0.0, metadata=rule("[0,1]"))
-    dust_density: float = field(default=0.0, metadata=rule("[0,1]"))
-    params: dict = field(default_factory=dict)
+    material: str = param("vinyl", doc="a registered material (floorsim list)")
+    seed: int | None = param(None, doc="the floor's seed (none: the scene's)")
+    relief_scale: float = param(1.0, min=0, max=100.0, doc="multiplies the material's relief")
+    spacing_mm: float | None = param(
+        None, unit="mm", gt=0, doc="mesh vertex spacing (none: half the ground sample distance)"
+    )
+    tile_length_mm: float = param(
+        240.0, unit="mm", min=20.0, doc="length of the floor tile built per stretch of trajectory"
+    )
+    dirt_density: float = param(0.0, min=0, max=1, doc="fraction of 1 mm cells holding a dark speck")
+    dust_density: float = param(0.0, min=0, max=1, doc="fraction of 0.25 mm cells holding a dust grain")
+    params: dict = param(default_factory=dict, doc="the material's own parameters (see below)")
 
 
 @dataclass(frozen=True)
-class LightsSpec:
+class LightsSpec(Config):
     """Two LED bars on opposite sides of the hood (camera x axis), parallel to the floor.
 
     ``power`` is each bar's total radiant intensity (relative units, split evenly over
@@ -142,22 +147,32 @@ class LightsSpec:
     the power (:func:`floorsim.spectral.mono_response`), at equal luminous power.
     """
 
-    height_mm: float = field(default=3.0, metadata=rule(">0", "mm"))
-    distance_mm: float = field(default=70.0, metadata=rule(">0", "mm", hi=1000.0))
-    count: int = field(default=8, metadata=rule(">=1", "LEDs per bar", hi=256))
-    bar_length_mm: float = field(default=40.0, metadata=rule(">=0", "mm"))
-    power: float = field(default=1.0, metadata=rule(">=0", ""))
-    side: str = field(default="both", metadata=rule(choices=("both", "left", "right")))
-    lobe_exponent: float = field(default=1.0, metadata=rule(">0", ""))
-    flicker: float = field(default=0.0, metadata=rule(">=0", "relative std", hi=1.0))
-    ambient_leak: float = field(default=0.0, metadata=rule(">=0", "", hi=10.0))
-    aim_offset_mm: float = field(default=0.0, metadata=rule("any", "mm", lo=-500.0, hi=500.0))
-    aim_elevation_deg: float = field(default=0.0, metadata=rule("any", "deg", lo=-45.0, hi=45.0))
-    colour_temperature_k: float = field(default=5000.0, metadata=rule(">0", "K", lo=1500.0, hi=20000.0))
+    height_mm: float = param(3.0, unit="mm", gt=0, doc="LED emitters above the floor")
+    distance_mm: float = param(
+        70.0, unit="mm", gt=0, max=1000.0, doc="bar from the image centre, along the camera's x axis"
+    )
+    count: int = param(8, unit="LEDs", min=1, max=256, doc="LEDs per bar")
+    bar_length_mm: float = param(40.0, unit="mm", min=0, doc="length of a bar (along the camera's y axis)")
+    power: float = param(1.0, min=0, doc="radiant intensity of each bar (relative; 0 = off)")
+    side: str = param("both", choices=("both", "left", "right"), doc="which bars are lit")
+    lobe_exponent: float = param(1.0, gt=0, doc="cos^n emission lobe of an LED")
+    flicker: float = param(0.0, min=0, max=1.0, doc="per-frame relative standard deviation of the LED power")
+    ambient_leak: float = param(
+        0.0, min=0, max=10.0, doc="light leaking under the hood, relative to the LEDs' irradiance"
+    )
+    aim_offset_mm: float = param(
+        0.0, unit="mm", min=-500.0, max=500.0, doc="aim point beyond the image centre, away from the bar"
+    )
+    aim_elevation_deg: float = param(
+        0.0, unit="deg", min=-45.0, max=45.0, doc="aim raised above the line to the aim point"
+    )
+    colour_temperature_k: float = param(
+        5000.0, unit="K", min=1500.0, max=20000.0, doc="black-body spectrum of the LEDs"
+    )
 
 
 @dataclass(frozen=True)
-class SensorSpec:
+class SensorSpec(Config):
     """Sensor: exposure (0 = auto from the first frame), noise and quantisation.
 
     ``exposure_ms`` > 0 adds motion blur: the frame integrates ``blur_samples`` sub-frame
@@ -165,59 +180,77 @@ class SensorSpec:
     ground-truth pose is the one at the centre).
     """
 
-    bit_depth: int = field(default=8, metadata=rule(choices=(8, 16)))
-    exposure_gain: float = field(default=0.0, metadata=rule(">=0", "electrons per radiance unit"))
-    target_percentile: float = field(default=99.0, metadata=rule(">0", "%", hi=100.0))
-    target_level: float = field(default=0.8, metadata=rule("[0,1]"))
-    full_well_e: float = field(default=10000.0, metadata=rule(">0", "e-"))
-    read_noise_e: float = field(default=5.0, metadata=rule(">=0", "e-"))
-    shot_noise: bool = True
-    noise: bool = True
-    exposure_ms: float = field(default=0.0, metadata=rule(">=0", "ms", hi=1000.0))
-    blur_samples: int = field(default=8, metadata=rule(">=1", "", hi=256))
+    bit_depth: int = param(8, choices=(8, 16), doc="bits per pixel of the PNG frames")
+    exposure_gain: float = param(
+        0.0, unit="e-/radiance", min=0, doc="electrons per unit radiance; 0 = auto-exposure from the first frame"
+    )
+    target_percentile: float = param(99.0, unit="%", gt=0, max=100.0, doc="auto-exposure puts this percentile ...")
+    target_level: float = param(0.8, min=0, max=1, doc="... at this fraction of full scale")
+    full_well_e: float = param(10000.0, unit="e-", gt=0, doc="full-well capacity")
+    read_noise_e: float = param(5.0, unit="e-", min=0, doc="read noise")
+    shot_noise: bool = param(True, doc="Poisson photon noise")
+    noise: bool = param(True, doc="false: a noiseless sensor")
+    exposure_ms: float = param(0.0, unit="ms", min=0, max=1000.0, doc="exposure time; > 0 adds motion blur")
+    blur_samples: int = param(8, min=1, max=256, doc="sub-frame renders integrated over the exposure")
 
 
 @dataclass(frozen=True)
-class RenderSpec:
+class RenderSpec(Config):
     """Render quality: samples per pixel (stratified), the flat-field calibration frame,
     the depth output (exact depth along the optical axis at each pixel centre), and
     ``shadows``: False drops the relief's cast shadows (shading only; for studies that
     separate what the shadows do to an estimator from what the shading does)."""
 
-    spp: int = field(default=4, metadata=rule(">=1", "", hi=4096))
-    shadows: bool = True
-    flatfield: bool = True
-    flatfield_albedo: float = field(default=0.5, metadata=rule("[0,1]"))
-    depth: bool = False
-    depth_format: str = field(default="png16", metadata=rule(choices=("png16", "npy_float32_mm")))
+    spp: int = param(4, min=1, max=4096, doc="samples per pixel (stratified)")
+    shadows: bool = param(True, doc="cast shadows of the relief (false: shading only)")
+    flatfield: bool = param(True, doc="render the flat-field calibration frame")
+    flatfield_albedo: float = param(0.5, min=0, max=1, doc="albedo of the flat floor of the flat-field frame")
+    depth: bool = param(False, doc="write depth/NNNNNN (exact depth along the optical axis)")
+    depth_format: str = param(
+        "png16", choices=("png16", "npy_float32_mm"), doc="png16: 1/100 mm; npy_float32_mm: float mm"
+    )
 
 
 @dataclass(frozen=True)
-class StereoSpec:
+class StereoSpec(Config):
     """A second camera (cam1) under the same hood, ``baseline_mm`` along cam0's +x axis,
     same intrinsics and orientation (a rectified pair)."""
 
-    enabled: bool = False
-    baseline_mm: float = field(default=20.0, metadata=rule(">0", "mm", hi=200.0))
+    enabled: bool = param(False, doc="render cam1 as well")
+    baseline_mm: float = param(20.0, unit="mm", gt=0, max=200.0, doc="cam1 along cam0's +x axis")
 
 
 @dataclass(frozen=True)
-class Scene:
+class Scene(Config):
     """A resolved scene. ``trajectory`` holds ``type``, its parameters and ``disturbance``."""
 
-    name: str
-    schema_version: int = SCENE_SCHEMA_VERSION
-    description: str = ""
-    seed: int = field(default=0, metadata=rule(">=0"))
-    fps: float = field(default=30.0, metadata=rule(">0", "Hz"))
-    camera: CameraSpec = field(default_factory=CameraSpec)
-    floor: FloorSpec = field(default_factory=FloorSpec)
-    lights: LightsSpec = field(default_factory=LightsSpec)
-    sensor: SensorSpec = field(default_factory=SensorSpec)
-    render: RenderSpec = field(default_factory=RenderSpec)
-    stereo: StereoSpec = field(default_factory=StereoSpec)
-    depth_noise: DepthNoise = field(default_factory=DepthNoise)
-    trajectory: dict = field(default_factory=lambda: {"type": "uniform"})
+    name: str = param(doc="the scene's name (default: the file name)")
+    schema_version: int = param(SCENE_SCHEMA_VERSION, doc="scene file format version")
+    description: str = param("", doc="one line shown by floorsim list")
+    seed: int = param(0, min=0, doc="floor, sensor noise and pixel jitter derive from it")
+    fps: float = param(30.0, unit="Hz", gt=0, doc="frame rate")
+    camera: CameraSpec = param(default_factory=CameraSpec)
+    floor: FloorSpec = param(default_factory=FloorSpec)
+    lights: LightsSpec = param(default_factory=LightsSpec)
+    sensor: SensorSpec = param(default_factory=SensorSpec)
+    render: RenderSpec = param(default_factory=RenderSpec)
+    stereo: StereoSpec = param(default_factory=StereoSpec)
+    depth_noise: DepthNoise = param(default_factory=DepthNoise)
+    trajectory: dict = param(
+        default_factory=lambda: {"type": "uniform"}, doc="type = a trajectory type, plus its parameters (see below)"
+    )
+
+    def validate(self) -> None:
+        if self.schema_version != SCENE_SCHEMA_VERSION:
+            raise ConfigFieldError(
+                "schema_version",
+                f" = {self.schema_version}: this floorsim reads scene schema version {SCENE_SCHEMA_VERSION}",
+            )
+        if self.lights.height_mm >= self.camera.height_mm:
+            raise ConfigFieldError(
+                "lights.height_mm",
+                f" = {self.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {self.camera.height_mm} mm)",
+            )
 
     # ------------------------------------------------------------------ derived
     def camera_model(self) -> CameraModel:
@@ -273,66 +306,22 @@ class Scene:
         return to_plain(self)
 
 
-def _check_scene(scene: Scene) -> None:
-    if scene.schema_version != SCENE_SCHEMA_VERSION:
-        raise ConfigError(
-            f"schema_version = {scene.schema_version}: this floorsim reads scene schema version {SCENE_SCHEMA_VERSION}"
-        )
-    if scene.lights.height_mm >= scene.camera.height_mm:
-        raise ConfigError(
-            f"lights.height_mm = {scene.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {scene.camera.height_mm} mm)"
-        )
-    mat = get_material(scene.floor.material)
-    from_mapping(mat.Params, scene.floor.params, "floor.params")
-    scene.camera.model()
-    if not isinstance(scene.trajectory, Mapping) or "type" not in scene.trajectory:
-        raise ConfigError('trajectory.type: missing (e.g. type = "uniform")')
-    scene.build_trajectory()  # validates the type's parameters
-
-
 def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:
-    """Build and validate a :class:`Scene` from a plain dict (a parsed TOML file)."""
+    """Build and validate a :class:`Scene` from a plain dict (a parsed TOML file, overrides applied).
+
+    Each section loads into its dataclass (:func:`floorvo.config.build`); the floor's
+    ``params`` into its material's parameter class and the trajectory table into its type's,
+    so every key of the file is checked.
+    """
     d = dict(d)
     d.setdefault("name", default_name)
-    nested = {
-        "camera": CameraSpec,
-        "floor": FloorSpec,
-        "lights": LightsSpec,
-        "sensor": SensorSpec,
-        "render": RenderSpec,
-        "stereo": StereoSpec,
-        "depth_noise": DepthNoise,
-    }
-    if "trajectory" in d and not isinstance(d["trajectory"], Mapping):
-        raise ConfigError(f"trajectory: must be a table, got {d['trajectory']!r}")
-    floor = d.get("floor")
-    if isinstance(floor, Mapping) and "params" in floor and not isinstance(floor["params"], Mapping):
-        raise ConfigError(f"floor.params: must be a table, got {floor['params']!r}")
-    scene = from_mapping(Scene, d, "", nested)
-    _check_scene(scene)
+    scene = build(Scene, d)
+    build(get_material(scene.floor.material).Params, scene.floor.params, "floor.params")
+    if "type" not in scene.trajectory:
+        raise ConfigError('trajectory.type: missing (e.g. type = "uniform")')
+    scene.camera.model()
+    scene.build_trajectory()  # validates the type's parameters
     return scene
-
-
-def _parse_value(text: str) -> Any:
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
-def apply_overrides(d: dict, overrides: Mapping[str, str] | None) -> dict:
-    """Apply ``{"camera.height_mm": "80"}`` style overrides to a scene dict (a copy)."""
-    d = copy.deepcopy(d)
-    for key, raw in (overrides or {}).items():
-        parts = key.split(".")
-        node = d
-        for p in parts[:-1]:
-            nxt = node.setdefault(p, {})
-            if not isinstance(nxt, dict):
-                raise ConfigError(f"--set {key}: {p!r} is not a table")
-            node = nxt
-        node[parts[-1]] = _parse_value(raw) if isinstance(raw, str) else raw
-    return d
 
 
 def scenes_dir() -> Path:

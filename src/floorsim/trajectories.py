@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from floorsim.params import from_mapping, rule, to_plain
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError
+from floorvo.config import Config, build, param, to_plain
+from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.geometry import T_world_cam_down
 
 __all__ = [
@@ -53,7 +53,7 @@ PathFn = Callable[[np.ndarray], np.ndarray]  # t_s (M,) -> (M, 3): x_mm, y_mm, y
 
 # ----------------------------------------------------------------------------- disturbances
 @dataclass(frozen=True)
-class Disturbance:
+class Disturbance(Config):
     """Rig disturbances added to any trajectory (all zero = none).
 
     Height bounce (suspension): ``bounce_amp_mm * sin(2 pi bounce_freq_hz t)``.
@@ -62,19 +62,17 @@ class Disturbance:
     ``vibration_rms_mm`` on x, y and z (continuous in time, so blur integrates it).
     """
 
-    bounce_amp_mm: float = field(default=0.0, metadata=rule(">=0", "mm", lo=0.0, hi=20.0))
-    bounce_freq_hz: float = field(default=2.0, metadata=rule(">0", "Hz"))
-    tilt_amp_rad: float = field(default=0.0, metadata=rule(">=0", "rad", lo=0.0, hi=0.3))
-    tilt_freq_hz: float = field(default=1.5, metadata=rule(">0", "Hz"))
-    vibration_rms_mm: float = field(default=0.0, metadata=rule(">=0", "mm", lo=0.0, hi=5.0))
-    vibration_band_hz: tuple[float, ...] = (20.0, 80.0)
+    bounce_amp_mm: float = param(0.0, unit="mm", min=0.0, max=20.0, doc="amplitude of the height bounce (suspension)")
+    bounce_freq_hz: float = param(2.0, unit="Hz", gt=0, doc="frequency of the height bounce")
+    tilt_amp_rad: float = param(0.0, unit="rad", min=0.0, max=0.3, doc="amplitude of roll and pitch")
+    tilt_freq_hz: float = param(1.5, unit="Hz", gt=0, doc="frequency of roll and pitch")
+    vibration_rms_mm: float = param(0.0, unit="mm", min=0.0, max=5.0, doc="RMS of the vibration on x, y and z")
+    vibration_band_hz: tuple[float, ...] = param((20.0, 80.0), unit="Hz", doc="[low, high] band of the vibration")
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         band = self.vibration_band_hz
         if len(band) != 2 or not 0 < band[0] < band[1]:
-            raise ConfigError(
-                f"trajectory.disturbance.vibration_band_hz = {list(band)}: must be [low, high] with 0 < low < high"
-            )
+            raise ConfigFieldError("vibration_band_hz", f" = {list(band)}: must be [low, high] with 0 < low < high")
 
     @property
     def active(self) -> bool:
@@ -175,121 +173,130 @@ class Trajectory:
 
 # ----------------------------------------------------------------------------- parameter sets
 @dataclass(frozen=True)
-class UniformParams:
+class UniformParams(Config):
     """Paper 000 model I: constant speed along ``direction_rad``."""
 
-    distance_mm: float = field(default=100.0, metadata=rule(">0", "mm"))
-    step_mm: float = field(default=4.0, metadata=rule(">0", "mm"))
-    direction_rad: float = 0.0
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
-    yaw_rad: float = 0.0
+    distance_mm: float = param(100.0, unit="mm", gt=0, doc="path length")
+    step_mm: float = param(4.0, unit="mm", gt=0, doc="motion per frame")
+    direction_rad: float = param(0.0, unit="rad", doc="direction of travel from the x axis")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
+    yaw_rad: float = param(0.0, unit="rad", doc="camera yaw (fixed)")
 
-
-@dataclass(frozen=True)
-class SigmoidParams:
-    """Paper 000 models II and III: x(f) = total_mm / (1 + exp(-gain (f - f0)))."""
-
-    total_mm: float = field(default=10.0, metadata=rule(">0", "mm"))
-    gain: float = field(default=1.25, metadata=rule(">0", "1/frame"))
-    frames: int = field(default=20, metadata=rule(">=1", "frames", lo=2))
-    f0: float | None = None
-    direction_rad: float = 0.0
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
-
-
-@dataclass(frozen=True)
-class LineParams:
-    """Straight line at constant speed (paper 001: 3 m at 0.3 m/s)."""
-
-    length_mm: float = field(default=3000.0, metadata=rule(">0", "mm"))
-    speed_mm_s: float = field(default=300.0, metadata=rule(">0", "mm/s"))
-    direction_rad: float = 0.0
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
-
-
-@dataclass(frozen=True)
-class ArcParams:
-    """Constant-curvature arc; positive radius turns left (counter-clockwise)."""
-
-    radius_mm: float = field(default=200.0, metadata=rule("any", "mm"))
-    length_mm: float = field(default=100.0, metadata=rule(">0", "mm"))
-    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
-    start_yaw_rad: float = 0.0
-
-    def __post_init__(self) -> None:
-        if abs(self.radius_mm) < 1.0:
-            raise ConfigError(
-                f"trajectory.radius_mm = {self.radius_mm} mm: |radius| must be >= 1 mm (use spin for rotation in place)"
+    def validate(self) -> None:
+        n = round(self.distance_mm / self.step_mm)
+        if abs(n * self.step_mm - self.distance_mm) > 1e-9 * self.distance_mm:
+            raise ConfigFieldError(
+                "distance_mm", f" = {self.distance_mm}: must be a whole multiple of step_mm = {self.step_mm}"
             )
 
 
 @dataclass(frozen=True)
-class SpinParams:
+class SigmoidParams(Config):
+    """Paper 000 models II and III: x(f) = total_mm / (1 + exp(-gain (f - f0)))."""
+
+    total_mm: float = param(10.0, unit="mm", gt=0, doc="total displacement")
+    gain: float = param(1.25, unit="1/frame", gt=0, doc="slope g of the sigmoid")
+    frames: int = param(20, unit="frames", min=2, doc="frames in the sequence")
+    f0: float | None = param(None, unit="frame", doc="midpoint frame of the sigmoid (none: the middle)")
+    direction_rad: float = param(0.0, unit="rad", doc="direction of travel from the x axis")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
+
+
+@dataclass(frozen=True)
+class LineParams(Config):
+    """Straight line at constant speed (paper 001: 3 m at 0.3 m/s)."""
+
+    length_mm: float = param(3000.0, unit="mm", gt=0, doc="path length")
+    speed_mm_s: float = param(300.0, unit="mm/s", gt=0, doc="ground speed")
+    direction_rad: float = param(0.0, unit="rad", doc="direction of travel from the x axis")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
+
+
+@dataclass(frozen=True)
+class ArcParams(Config):
+    """Constant-curvature arc; positive radius turns left (counter-clockwise)."""
+
+    radius_mm: float = param(200.0, unit="mm", doc="turn radius, positive turns left; |radius| >= 1 mm")
+    length_mm: float = param(100.0, unit="mm", gt=0, doc="arc length")
+    speed_mm_s: float = param(120.0, unit="mm/s", gt=0, doc="ground speed")
+    start_yaw_rad: float = param(0.0, unit="rad", doc="heading at the start")
+
+    def validate(self) -> None:
+        if abs(self.radius_mm) < 1.0:
+            raise ConfigFieldError(
+                "radius_mm", f" = {self.radius_mm} mm: |radius| must be >= 1 mm (use spin for rotation in place)"
+            )
+
+
+@dataclass(frozen=True)
+class SpinParams(Config):
     """Rotation in place about the optical axis."""
 
-    angle_rad: float = field(default=float(np.pi / 2), metadata=rule("any", "rad"))
-    rate_rad_s: float = field(default=1.0, metadata=rule(">0", "rad/s"))
-    x_mm: float = 0.0
-    y_mm: float = 0.0
+    angle_rad: float = param(float(np.pi / 2), unit="rad", doc="total rotation, non-zero; positive turns left")
+    rate_rad_s: float = param(1.0, unit="rad/s", gt=0, doc="rotation speed")
+    x_mm: float = param(0.0, unit="mm", doc="centre x")
+    y_mm: float = param(0.0, unit="mm", doc="centre y")
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         if self.angle_rad == 0:
-            raise ConfigError("trajectory.angle_rad = 0: must be non-zero")
+            raise ConfigFieldError("angle_rad", " = 0: must be non-zero")
 
 
 @dataclass(frozen=True)
-class SCurveParams:
+class SCurveParams(Config):
     """x at constant ground speed, y = amplitude sin(2 pi x / wavelength)."""
 
-    length_mm: float = field(default=300.0, metadata=rule(">0", "mm"))
-    amplitude_mm: float = field(default=20.0, metadata=rule(">=0", "mm"))
-    wavelength_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
-    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
+    length_mm: float = param(300.0, unit="mm", gt=0, doc="length along x")
+    amplitude_mm: float = param(20.0, unit="mm", min=0, doc="lateral amplitude of the sine")
+    wavelength_mm: float = param(200.0, unit="mm", gt=0, doc="period of the sine along x")
+    speed_mm_s: float = param(120.0, unit="mm/s", gt=0, doc="ground speed")
 
 
 @dataclass(frozen=True)
-class LawnmowerParams:
+class LawnmowerParams(Config):
     """Back-and-forth lanes along x covering ``width_mm`` x ``depth_mm`` from (x0, y0).
 
     ``heading``: ``fixed`` keeps yaw 0 (a holonomic scan); ``follow`` turns the rig to
     face its motion (yaw 0 on even lanes, pi on odd lanes, a quarter turn on each step).
     """
 
-    width_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
-    depth_mm: float = field(default=120.0, metadata=rule(">0", "mm"))
-    lane_spacing_mm: float = field(default=40.0, metadata=rule(">0", "mm"))
-    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
-    heading: str = field(default="fixed", metadata=rule(choices=("fixed", "follow")))
+    width_mm: float = param(200.0, unit="mm", gt=0, doc="lane length along x")
+    depth_mm: float = param(120.0, unit="mm", gt=0, doc="extent of the lanes along y")
+    lane_spacing_mm: float = param(40.0, unit="mm", gt=0, doc="distance between lanes")
+    speed_mm_s: float = param(120.0, unit="mm/s", gt=0, doc="ground speed")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
+    heading: str = param("fixed", choices=("fixed", "follow"), doc="fixed: yaw 0; follow: face the motion")
 
 
 @dataclass(frozen=True)
-class KidnapParams:
+class KidnapParams(Config):
     """``segments`` straight segments of ``segment_length_mm`` with random start, heading and
     yaw inside the rectangle [x0, x0+width] x [y0, y0+depth], joined by teleports (seeded)."""
 
-    segments: int = field(default=4, metadata=rule(">=1", "", lo=1, hi=1000))
-    segment_length_mm: float = field(default=40.0, metadata=rule(">0", "mm"))
-    speed_mm_s: float = field(default=120.0, metadata=rule(">0", "mm/s"))
-    width_mm: float = field(default=200.0, metadata=rule(">0", "mm"))
-    depth_mm: float = field(default=120.0, metadata=rule(">0", "mm"))
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
-    max_yaw_rad: float = field(default=float(np.pi), metadata=rule(">=0", "rad", lo=0.0, hi=float(np.pi)))
+    segments: int = param(4, min=1, max=1000, doc="straight segments, joined by teleports")
+    segment_length_mm: float = param(40.0, unit="mm", gt=0, doc="length of each segment")
+    speed_mm_s: float = param(120.0, unit="mm/s", gt=0, doc="ground speed")
+    width_mm: float = param(200.0, unit="mm", gt=0, doc="extent of the start region along x")
+    depth_mm: float = param(120.0, unit="mm", gt=0, doc="extent of the start region along y")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
+    max_yaw_rad: float = param(
+        float(np.pi), unit="rad", min=0.0, max=float(np.pi), doc="largest random yaw of a segment"
+    )
 
 
 @dataclass(frozen=True)
-class StripParams:
+class StripParams(Config):
     """Paper-000 capture: ``count`` frames at ``spacing_mm`` along x."""
 
-    count: int = field(default=200, metadata=rule(">=1", "frames", lo=2))
-    spacing_mm: float = field(default=1.0, metadata=rule(">0", "mm"))
-    start_x_mm: float = 0.0
-    start_y_mm: float = 0.0
+    count: int = param(200, unit="frames", min=2, doc="frames in the strip")
+    spacing_mm: float = param(1.0, unit="mm", gt=0, doc="distance between frames along x")
+    start_x_mm: float = param(0.0, unit="mm", doc="start x")
+    start_y_mm: float = param(0.0, unit="mm", doc="start y")
 
 
 @dataclass(frozen=True)
@@ -321,10 +328,6 @@ def _straight(x0: float, y0: float, direction: float, speed: float, yaw: float =
 
 def _build_uniform(p: UniformParams, fps: float, seed: int):
     n = int(round(p.distance_mm / p.step_mm))
-    if abs(n * p.step_mm - p.distance_mm) > 1e-9 * p.distance_mm:
-        raise ConfigError(
-            f"trajectory.distance_mm = {p.distance_mm}: must be a whole multiple of step_mm = {p.step_mm}"
-        )
     return n + 1, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.step_mm * fps, p.yaw_rad), {}
 
 
@@ -503,11 +506,11 @@ def build_trajectory(
         raise ConfigError(f"camera.height_mm = {height_mm}: must be > 0 (the camera is above the floor)")
     if fps <= 0:
         raise ConfigError(f"fps = {fps}: must be > 0")
-    p = from_mapping(ttype.Params, params, "trajectory")
+    p = build(ttype.Params, params, "trajectory")
     dist = (
         disturbance
         if isinstance(disturbance, Disturbance)
-        else from_mapping(Disturbance, disturbance, "trajectory.disturbance")
+        else build(Disturbance, disturbance, "trajectory.disturbance")
     )
     n, path, events = ttype.build(p, float(fps), int(seed))
     if n < 1:

@@ -1,12 +1,12 @@
 """Procedural floor materials: world-coordinate reproducibility, seeds, relief scale, registry."""
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from floorsim.materials import MATERIALS, get_material, register_material, sample_material
-from floorsim.params import rule
+from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 
 SPACING = 0.0617
@@ -70,8 +70,8 @@ def test_material_params_refused_by_name():
 
 def test_registering_a_new_material():
     @dataclass(frozen=True)
-    class StripeParams:
-        period_mm: float = field(default=2.0, metadata=rule(">0", "mm"))
+    class StripeParams(Config):
+        period_mm: float = param(2.0, unit="mm", gt=0, doc="stripe period")
 
     @register_material("test_stripes", "test only: albedo stripes along x", StripeParams)
     def _stripes(X, Y, seed, p):

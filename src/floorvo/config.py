@@ -1,0 +1,508 @@
+"""The one configuration mechanism of floorbench: typed, frozen, self-describing dataclasses.
+
+Every configuration (an estimator's ``Config``, the mapping configs, each section of a
+floorsim scene, a material's or a trajectory type's parameters) is a frozen dataclass
+whose fields are declared with :func:`param`: type (the annotation), default, unit,
+bounds (``min``/``max`` inclusive, ``gt``/``lt`` exclusive), choices and a one-line doc::
+
+    @dataclass(frozen=True)
+    class LightsSpec(Config):
+        height_mm: float = param(3.0, unit="mm", gt=0, doc="LED emitters above the floor")
+        side: str = param("both", choices=("both", "left", "right"), doc="which bars are lit")
+
+* :func:`build` makes one from a plain mapping (a TOML table, nested tables for nested
+  dataclass fields), refusing unknown keys, wrong types and values that break a rule;
+  subclasses of :class:`Config` check their rules on every construction as well, and a
+  cross-field rule (``a <= b``) is the class's :meth:`Config.validate` method.
+* Every refusal is a one-line :class:`~floorvo.errors.ConfigFieldError` naming the key,
+  the value and the rule: ``camera.height_mm = -100.0 mm: must be > 0 mm``.
+* ``--set key=value`` strings are split by :func:`parse_set_args` (the one parser, used by
+  both CLIs) and placed by :func:`apply_overrides` (dotted keys reach nested tables). Each
+  value stays text (:class:`SetText`) until it lands in a field, where it is read by that
+  field's type (:func:`parse_text`): ``true/yes/on/1`` for a bool, ``none`` for an optional
+  field, a TOML array for a list; in a free-form table (a scene's ``trajectory``) it is read
+  as a TOML literal, or kept as text when it is not one.
+* :func:`describe_fields` and :func:`format_fields` list the fields (key, type, default,
+  unit, rule, doc) for ``floorvo list --config NAME`` and ``floorsim list --scene-keys``.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from floorvo.errors import ConfigError, ConfigFieldError
+
+__all__ = [
+    "Config",
+    "Rule",
+    "FieldInfo",
+    "SetText",
+    "param",
+    "build",
+    "from_overrides",
+    "check",
+    "parse_set_args",
+    "parse_text",
+    "apply_overrides",
+    "describe_fields",
+    "format_fields",
+    "to_plain",
+]
+
+_MISSING: Any = dataclasses.MISSING
+_META = "floorbench.rule"
+
+
+@dataclass(frozen=True)
+class Rule:
+    """What a field declares besides its type and default (see :func:`param`)."""
+
+    unit: str = ""
+    doc: str = ""
+    min: float | None = None
+    max: float | None = None
+    gt: float | None = None
+    lt: float | None = None
+    choices: tuple | None = None
+
+    def violation(self, value: Any) -> str | None:
+        """The broken part of the rule as ``"must be ..."`` (unit included), or None."""
+        if self.choices is not None and value not in self.choices:
+            return f"must be one of {', '.join(map(repr, self.choices))}"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return None
+        if isinstance(value, float) and not math.isfinite(value):
+            return "must be a finite number"
+        unit = f" {self.unit}" if self.unit else ""
+        for op, bound, ok in (
+            (">", self.gt, lambda b: value > b),
+            (">=", self.min, lambda b: value >= b),
+            ("<", self.lt, lambda b: value < b),
+            ("<=", self.max, lambda b: value <= b),
+        ):
+            if bound is not None and not ok(bound):
+                return f"must be {op} {bound}{unit}"
+        return None
+
+    def describe(self) -> str:
+        """The rule in a few characters (no unit): ``> 0``, ``[0, 1]``, ``one of 'a', 'b'``."""
+        if self.choices is not None:
+            return f"one of {', '.join(map(repr, self.choices))}"
+        lower = (self.gt, "(", ">") if self.gt is not None else (self.min, "[", ">=")
+        upper = (self.lt, ")", "<") if self.lt is not None else (self.max, "]", "<=")
+        parts = []
+        if self.gt is not None and self.min is not None:  # a positive quantity with a floor
+            parts.append(f"> {self.gt}")
+            lower = (self.min, "[", ">=")
+        if lower[0] is not None and upper[0] is not None:
+            parts.append(f"{lower[1]}{lower[0]}, {upper[0]}{upper[1]}")
+        elif lower[0] is not None:
+            parts.append(f"{lower[2]} {lower[0]}")
+        elif upper[0] is not None:
+            parts.append(f"{upper[2]} {upper[0]}")
+        return ", ".join(parts)
+
+
+def param(
+    default: Any = _MISSING,
+    *,
+    default_factory: Any = _MISSING,
+    unit: str = "",
+    doc: str = "",
+    min: float | None = None,
+    max: float | None = None,
+    gt: float | None = None,
+    lt: float | None = None,
+    choices: Iterable | None = None,
+) -> Any:
+    """A dataclass field with its rule: ``x_mm: float = param(1.0, unit="mm", gt=0, doc="...")``.
+
+    ``min``/``max`` are inclusive bounds, ``gt``/``lt`` exclusive ones; ``choices`` the
+    allowed values; ``unit`` is shown after the value in errors and listings; ``doc`` is the
+    field's one-line description.
+    """
+    rule = Rule(unit, doc, min, max, gt, lt, tuple(choices) if choices is not None else None)
+    return dataclasses.field(default=default, default_factory=default_factory, metadata={_META: rule})
+
+
+def rule_of(f: dataclasses.Field) -> Rule:
+    """The :class:`Rule` a field declared (an empty one for a plain field)."""
+    return f.metadata.get(_META) or Rule()
+
+
+class Config:
+    """Base of every configuration dataclass: its rules are checked on each construction.
+
+    ``config_name`` prefixes the keys of errors raised by a direct construction
+    (``SimilarityConfig(ratio=2)`` -> ``similarity.ratio = 2: must be <= 1``); :func:`build`
+    names them by where they were read instead. Override :meth:`validate` for a rule that
+    ties several fields together, raising :class:`~floorvo.errors.ConfigFieldError`.
+    """
+
+    config_name: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        try:
+            check(self)
+        except ConfigFieldError as exc:
+            raise exc.under(type(self).config_name) from None
+
+    def validate(self) -> None:
+        """Cross-field rules; the default has none."""
+
+
+class SetText(str):
+    """A ``--set`` value: text that is read by the type of the field it lands in."""
+
+
+# ----------------------------------------------------------------------------- types
+def _optional_inner(tp: Any) -> Any | None:
+    """X for ``X | None``, else None."""
+    origin = typing.get_origin(tp)
+    if origin is typing.Union or origin is types.UnionType:
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(tp)) == 2:
+            return args[0]
+    return None
+
+
+def _is_table(tp: Any) -> bool:
+    return tp is dict or typing.get_origin(tp) in (dict, Mapping)
+
+
+def type_name(tp: Any) -> str:
+    """The field type as a listing shows it: ``float``, ``int | none``, ``list of float``."""
+    inner = _optional_inner(tp)
+    if inner is not None:
+        return f"{type_name(inner)} | none"
+    if typing.get_origin(tp) is tuple:
+        args = [a for a in typing.get_args(tp) if a is not Ellipsis]
+        return f"list of {type_name(args[0])}" if args else "list"
+    if _is_table(tp):
+        return "table"
+    return getattr(tp, "__name__", str(tp))
+
+
+def _expected(tp: Any) -> str:
+    """The type in an error: ``must be a number``."""
+    inner = _optional_inner(tp)
+    if inner is not None:
+        return f"{_expected(inner)} or none"
+    if tp is float:
+        return "a number"
+    if tp is int:
+        return "integer"
+    if tp is bool:
+        return "true or false"
+    if tp is str:
+        return "a string"
+    if typing.get_origin(tp) is tuple:
+        return "a list"
+    if _is_table(tp) or dataclasses.is_dataclass(tp):
+        return "a table"
+    return type_name(tp)
+
+
+def _coerce(value: Any, tp: Any) -> tuple[bool, Any]:
+    """(ok, value converted to ``tp``) for a value read from a file or already parsed."""
+    if tp is Any:
+        return True, value
+    inner = _optional_inner(tp)
+    if inner is not None:
+        return (True, None) if value is None else _coerce(value, inner)
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return False, value
+        return True, float(value)
+    if tp is int:
+        if isinstance(value, bool):
+            return False, value
+        if isinstance(value, int):
+            return True, int(value)
+        if isinstance(value, float) and value.is_integer():
+            return True, int(value)
+        return False, value
+    if tp is bool:
+        return isinstance(value, bool), value
+    if tp is str:
+        return isinstance(value, str), str(value) if isinstance(value, str) else value
+    if typing.get_origin(tp) is tuple:
+        if not isinstance(value, (list, tuple)):
+            return False, value
+        args = [a for a in typing.get_args(tp) if a is not Ellipsis]
+        out = []
+        for v in value:
+            ok, cv = _coerce(v, args[0]) if args else (True, v)
+            if not ok:
+                return False, value
+            out.append(cv)
+        return True, tuple(out)
+    if _is_table(tp):
+        return isinstance(value, Mapping), dict(value) if isinstance(value, Mapping) else value
+    return isinstance(value, tp) if isinstance(tp, type) else True, value
+
+
+_TRUE = ("1", "true", "yes", "on")
+_FALSE = ("0", "false", "no", "off")
+
+
+def _toml_literal(text: str) -> Any:
+    """``text`` read as a TOML value (``80``, ``true``, ``[1, 2]``, ``"a"``), or the text itself."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return str(text)
+
+
+def parse_text(text: str, tp: Any = Any) -> Any:
+    """Read one ``--set`` value by the type ``tp`` of the field it sets.
+
+    ``none``/``null`` for an optional field; ``1/true/yes/on`` and ``0/false/no/off`` for a
+    bool; Python's int and float syntax (``8.0`` is an int 8); a string as it is (quotes
+    removed); anything else (lists, free-form tables, ``Any``) as a TOML literal, or as the
+    text when it is not one. Raises ValueError when the text is not of the type.
+    """
+    s = str(text).strip()
+    inner = _optional_inner(tp)
+    if inner is not None:
+        return None if s.lower() in ("none", "null") else parse_text(s, inner)
+    if tp is bool:
+        if s.lower() in _TRUE:
+            return True
+        if s.lower() in _FALSE:
+            return False
+        raise ValueError(s)
+    if tp is int:
+        try:
+            return int(s)
+        except ValueError:
+            f = float(s)
+            if not f.is_integer():
+                raise ValueError(s) from None
+            return int(f)
+    if tp is float:
+        return float(s)
+    if tp is str:
+        v = _toml_literal(s) if s[:1] in ("'", '"') else s
+        return v if isinstance(v, str) else s
+    return _toml_literal(s)
+
+
+def _plain_text(value: Any) -> Any:
+    """Every :class:`SetText` inside a free-form value read as a TOML literal (or kept as text)."""
+    if isinstance(value, SetText):
+        return _toml_literal(value)
+    if isinstance(value, Mapping):
+        return {k: _plain_text(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_plain_text(v) for v in value]
+    return value
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, str):
+        return repr(str(value))
+    if isinstance(value, tuple):
+        return repr(list(value))
+    return str(value)
+
+
+# ----------------------------------------------------------------------------- checking and building
+def check(obj: Any) -> None:
+    """Check every field of dataclass ``obj`` against its declared rule, then ``obj.validate()``.
+
+    Raises :class:`ConfigFieldError` with the field name as the key (the caller prefixes it).
+    """
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if value is None or dataclasses.is_dataclass(value):
+            continue
+        r = rule_of(f)
+        broken = r.violation(value)
+        if broken:
+            numeric = isinstance(value, (int, float)) and not isinstance(value, bool) and r.choices is None
+            unit = f" {r.unit}" if r.unit and numeric else ""
+            raise ConfigFieldError(f.name, f" = {_show(value)}{unit}: {broken}")
+    validate = getattr(obj, "validate", None)
+    if callable(validate):
+        validate()
+
+
+def _join(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key
+
+
+def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key") -> Any:
+    """Dataclass ``cls`` from a plain mapping, every key, type and rule checked.
+
+    ``data`` holds field values; a nested dataclass field takes a nested mapping; values
+    that are :class:`SetText` are read by their field's type. ``prefix`` names where the
+    mapping came from in errors (``camera`` -> ``camera.height_mm = ...``). ``unknown``:
+    the words after an unknown key in its error (``unknown key (known: a, b)``).
+    """
+    data = dict(data or {})
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    for key in data:
+        if key not in fields:
+            raise ConfigError(f"{_join(prefix, key)}: {unknown} (known: {', '.join(sorted(fields))})")
+    kwargs = {}
+    for key, value in data.items():
+        where, tp = _join(prefix, key), hints[key]
+        if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+            if isinstance(value, tp):
+                kwargs[key] = value
+                continue
+            if not isinstance(value, Mapping):
+                raise ConfigError(f"{where} = {_show(value)}: must be a table")
+            kwargs[key] = build(tp, value, where, unknown=unknown)
+            continue
+        if isinstance(value, SetText):
+            if _is_table(tp) or tp is Any:
+                value = _plain_text(value)
+            else:
+                try:
+                    value = parse_text(value, tp)
+                except ValueError:
+                    raise ConfigError(f"{where} = {_show(value)}: must be {_expected(tp)}") from None
+        elif _is_table(tp):
+            value = _plain_text(value)
+        ok, conv = _coerce(value, tp)
+        if not ok:
+            raise ConfigError(f"{where} = {_show(value)}: must be {_expected(tp)}")
+        kwargs[key] = conv
+    try:
+        obj = cls(**kwargs)
+        if not isinstance(obj, Config):
+            check(obj)
+    except ConfigFieldError as exc:
+        raise exc.under(prefix) from None
+    return obj
+
+
+def from_overrides(
+    cls: type, overrides: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key"
+) -> Any:
+    """``cls`` built from ``{"key": "text", "nested.key": "text"}`` overrides (``--set`` form).
+
+    String values are read by their field's type; other values are taken as they are.
+    """
+    return build(cls, apply_overrides({}, overrides), prefix, unknown=unknown)
+
+
+# ----------------------------------------------------------------------------- --set
+def parse_set_args(items: Iterable[str] | None) -> dict[str, SetText]:
+    """``["KEY=VALUE", ...]`` (``--set`` arguments) into ``{KEY: VALUE}``; values stay text."""
+    out: dict[str, SetText] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
+        key, value = item.split("=", 1)
+        key = key.strip()
+        if not key:
+            raise ConfigError(f"--set {item!r}: empty key")
+        out[key] = SetText(value.strip())
+    return out
+
+
+def apply_overrides(d: Mapping[str, Any], overrides: Mapping[str, Any] | None) -> dict:
+    """A copy of the table ``d`` with ``{"camera.height_mm": "80"}`` overrides placed in it.
+
+    A dotted key reaches into nested tables (made when missing); string values are marked
+    :class:`SetText`, to be read by the type of the field they land in when built.
+    """
+    out = copy.deepcopy(dict(d))
+    for key, raw in (overrides or {}).items():
+        parts = key.split(".")
+        node = out
+        for p in parts[:-1]:
+            nxt = node.setdefault(p, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"--set {key}: {p!r} is not a table")
+            node = nxt
+        node[parts[-1]] = SetText(raw) if isinstance(raw, str) else raw
+    return out
+
+
+# ----------------------------------------------------------------------------- listing
+@dataclass(frozen=True)
+class FieldInfo:
+    """One row of a config listing: dotted ``key``, ``type``, ``default``, ``unit``, ``rule``, ``doc``."""
+
+    key: str
+    type: str
+    default: str
+    unit: str
+    rule: str
+    doc: str
+
+
+def _default_text(value: Any) -> str:
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_default_text(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{k} = {_default_text(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def describe_fields(cls: type, prefix: str = "", exclude: Iterable[str] = ()) -> list[FieldInfo]:
+    """Every field of config class ``cls`` (nested dataclasses flattened to dotted keys)."""
+    hints = typing.get_type_hints(cls)
+    skip = set(exclude)
+    rows: list[FieldInfo] = []
+    for f in dataclasses.fields(cls):
+        if not f.init or f.name in skip:
+            continue
+        key, tp, r = _join(prefix, f.name), hints[f.name], rule_of(f)
+        if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+            rows.extend(describe_fields(tp, key))
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = _default_text(f.default)
+        elif f.default_factory is not dataclasses.MISSING:
+            default = _default_text(f.default_factory())
+        else:
+            default = "(required)"
+        rule = r.describe() or ("true or false" if tp is bool else "any")
+        rows.append(FieldInfo(key, type_name(tp), default, r.unit, rule, r.doc))
+    return rows
+
+
+def format_fields(rows: Iterable[FieldInfo], indent: str = "") -> str:
+    """Rows of :func:`describe_fields` as an aligned text table with a header line."""
+    head = FieldInfo("key", "type", "default", "unit", "rule", "description")
+    table = [head, *rows]
+    cols = ("key", "type", "default", "unit", "rule")
+    widths = {c: max(len(getattr(r, c)) for r in table) for c in cols}
+    lines = []
+    for r in table:
+        cells = [getattr(r, c).ljust(widths[c]) for c in cols]
+        lines.append((indent + "  ".join([*cells, r.doc])).rstrip())
+    return "\n".join(lines)
+
+
+def to_plain(obj: Any) -> Any:
+    """A config (possibly nested) as plain dicts and lists, for JSON and TOML."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, (list, tuple)):
+        return [to_plain(v) for v in obj]
+    if isinstance(obj, Mapping):
+        return {k: to_plain(v) for k, v in obj.items()}
+    if isinstance(obj, SetText):
+        return str(obj)
+    return obj
