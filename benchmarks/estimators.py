@@ -32,7 +32,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from floorvo.estimators import REGISTRY, list_estimators  # noqa: E402
+from floorvo.estimators import get_estimator, list_estimators  # noqa: E402
 from floorvo.metrics import score_run  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
@@ -137,7 +137,7 @@ def main() -> None:
     for sname, sdir in seqs.items():
         seq = Sequence.open(sdir)
         for name in names:
-            req = set(REGISTRY[name].requires)
+            req = set(get_estimator(name).requires)
             if ("depth" in req and not seq.has_depth) or ("stereo" in req and not seq.has_stereo):
                 continue
             run = out / "runs" / sname / name

@@ -4,6 +4,7 @@ Never imports Mitsuba, so it runs on real data. Layers:
 
 * data model: :mod:`floorvo.camera`, :mod:`floorvo.geometry`, :mod:`floorvo.tum`,
   :mod:`floorvo.sequence`;
+* configuration: :mod:`floorvo.config` (typed frozen dataclasses, one ``--set`` parser);
 * estimators: :mod:`floorvo.estimators` (one protocol, a registry by name);
 * metrics: :mod:`floorvo.metrics`;
 * CLI: :mod:`floorvo.cli` (thin calls to the functions above).

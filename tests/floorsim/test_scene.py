@@ -2,11 +2,12 @@
 
 import subprocess
 import sys
+import tomllib
 
 import pytest
 from _tiny import TINY_SCENE, tiny_scene
 
-from floorsim.scene import load_scene, scene_from_dict
+from floorsim.scene import load_scene, scene_from_dict, scenes_dir
 from floorvo.errors import ConfigError
 
 
@@ -81,3 +82,51 @@ def test_scene_dict_round_trip():
     again = scene_from_dict(s.to_dict())
     assert again == s
     assert TINY_SCENE["camera"]["width_px"] == 162  # the template is not mutated
+
+
+def test_set_text_lands_as_the_same_value_a_scene_file_holds():
+    """--set text is read by the field's type in a section, as a TOML literal in a free-form table."""
+    via_set = load_scene(
+        "paper000_uniform",
+        {
+            "camera.height_mm": "80",
+            "sensor.noise": "no",
+            "floor.seed": "none",
+            "camera.distortion": "[0.1, 0.0]",
+            "trajectory.step_mm": "2",
+            "floor.params.bump_amplitude_mm": "0.05",
+        },
+    )
+    # The same values written into the file's tables as TOML would hold them.
+    d = tomllib.loads((scenes_dir() / "paper000_uniform.toml").read_text())
+    d["camera"] |= {"height_mm": 80, "distortion": [0.1, 0.0]}
+    d.setdefault("sensor", {})["noise"] = False
+    d["floor"] |= {"params": {"bump_amplitude_mm": 0.05}}  # seed: TOML has no none, a missing key is the default
+    d["trajectory"]["step_mm"] = 2
+    assert via_set.to_dict() == scene_from_dict(d, "paper000_uniform").to_dict()
+    with pytest.raises(ConfigError, match=r"sensor.noise = 'maybe': must be true or false"):
+        load_scene("paper000_uniform", {"sensor.noise": "maybe"})
+    with pytest.raises(ConfigError, match=r"stereo.baseline_mm = 250.0 mm: must be <= 200.0 mm"):
+        load_scene("paper000_uniform", {"stereo.baseline_mm": "250"})
+
+
+def test_list_scene_keys_prints_every_section_type_and_material(capsys):
+    from floorsim.cli import main
+    from floorsim.materials import MATERIALS
+    from floorsim.trajectories import TRAJECTORIES
+    from floorvo.config import describe_fields
+
+    assert main(["list", "--scene-keys"]) == 0
+    out = capsys.readouterr().out
+    lines = {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith("  ") and ln.split()}
+    for section in ("camera", "floor", "lights", "sensor", "render", "stereo", "depth_noise"):
+        assert any(k.startswith(f"{section}.") for k in lines), section
+    height = lines["camera.height_mm"].split()
+    assert height[1:4] == ["float", "100.0", "mm"] and "[5.0, 2000.0]" in lines["camera.height_mm"]
+    assert "one of 'both', 'left', 'right'" in lines["lights.side"]
+    for name, t in TRAJECTORIES.items():
+        assert f"  {name}: {t.description}" in out
+    for name, m in MATERIALS.items():
+        assert f"  {name}: {m.description}" in out
+        for row in describe_fields(m.Params, "floor.params"):
+            assert row.key in out

@@ -159,13 +159,12 @@ def _mono_sequence(root, n=2, depth=False):
 
 
 def test_missing_depth_or_stereo_refused_before_any_frame(tmp_path, monkeypatch):
-    from floorvo.estimators import REGISTRY
     from floorvo.run import run_estimator
 
     seq = _mono_sequence(tmp_path / "seq")
     calls = []
     for name in ("orb-icp", "stereo-sift"):
-        monkeypatch.setattr(REGISTRY[name], "step", lambda self, st, fr: calls.append(fr) or None)
+        monkeypatch.setattr(get_estimator(name), "step", lambda self, st, fr: calls.append(fr) or None)
     with pytest.raises(FloorbenchError, match="orb-icp needs depth images"):
         run_estimator(seq, "orb-icp", tmp_path / "run1")
     with pytest.raises(FloorbenchError, match="stereo-sift needs a stereo sequence"):

@@ -238,7 +238,7 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
 
 
 def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, lane):
-    from floorvo.estimators.base import Frame, get_estimator, make_config
+    from floorvo.estimators import Frame, get_estimator, make_config
 
     _, _, m = lane
     save_map(m, tmp_path / "map")

@@ -15,7 +15,12 @@ def add_parser(sub) -> None:
     p.add_argument("--scale", type=float, help="resolution scale (0.25 = quarter size; intrinsics scaled to match)")
     p.add_argument("--spp", type=int, help="samples per pixel")
     p.add_argument("--seed", type=int, help="scene seed (floor, pixel jitter, sensor noise)")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene key, e.g. camera.height_mm=80")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a scene key, e.g. camera.height_mm=80 (floorsim list --scene-keys)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace a different sequence already in OUT")
     p.set_defaults(func=run)
 

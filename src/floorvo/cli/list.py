@@ -1,18 +1,58 @@
-"""``floorvo list``: the registered estimators, a line each."""
+"""``floorvo list``: the registered estimators, a line each; ``--config NAME``: a config's fields."""
 
 from __future__ import annotations
 
+from floorvo.errors import ConfigError
+
+#: Configurations that are not an estimator's: the ``--set`` keys of ``floorvo map`` and
+#: ``floorvo localize``.
+COMMAND_CONFIGS = {
+    "map": "floorvo map --set KEY=VALUE",
+    "localize": "floorvo localize --set KEY=VALUE (--map and --odometry are options)",
+}
+
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("list", help="list the registered estimators")
+    p = sub.add_parser("list", help="list the registered estimators, or the fields of one configuration")
+    p.add_argument(
+        "--config",
+        metavar="NAME",
+        help="print the fields of an estimator's config (NAME: an estimator), or of 'map' or 'localize': "
+        "key, type, default, unit and rule",
+    )
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    from floorvo.estimators import REGISTRY, list_estimators
+def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
+    """(config class, heading, keys left out) for ``floorvo list --config NAME``."""
+    from floorvo.estimators import get_estimator, list_estimators
 
+    if name == "map":
+        from floorvo.mapping.map import MapConfig
+
+        return MapConfig, COMMAND_CONFIGS[name], ()
+    if name == "localize":
+        from floorvo.mapping.localize_run import SET_BY_OPTIONS, MapFusedConfig
+
+        return MapFusedConfig, COMMAND_CONFIGS[name], SET_BY_OPTIONS
+    if name not in list_estimators():
+        known = ", ".join([*list_estimators(), *COMMAND_CONFIGS])
+        raise ConfigError(f"--config {name!r}: no such configuration (known: {known})")
+    cls = get_estimator(name)
+    return cls.Config, f"{name}: {cls.description} (floorvo run -e {name} --set KEY=VALUE)", ()
+
+
+def run(args) -> int:
+    from floorvo.config import describe_fields, format_fields
+    from floorvo.estimators import get_estimator, list_estimators
+
+    if args.config:
+        cls, heading, exclude = _config_class(args.config)
+        print(heading)
+        print(format_fields(describe_fields(cls, exclude=exclude), indent="  "))
+        return 0
     for name in list_estimators():
-        cls = REGISTRY[name]
+        cls = get_estimator(name)
         req = f" [needs {', '.join(sorted(cls.requires))}]" if cls.requires else ""
         print(f"{name:<18} {cls.description}{req}")
     return 0

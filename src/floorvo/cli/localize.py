@@ -22,7 +22,7 @@ def add_parser(sub) -> None:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="localiser setting: fix_every, n_candidates, n_verify, min_block_fraction, min_corr, retrieval (vote|bow), odometry_set",
+        help="localiser setting, e.g. fix_every=4, retrieval=bow (floorvo list --config localize shows them all)",
     )
     p.set_defaults(func=run)
 

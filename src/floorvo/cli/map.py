@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="parameter, e.g. keyframes.window=50, keyframes.ratio=0.5, similarity.block_px=12, vocab_words=512, poses=chain",
+        help="parameter, e.g. keyframes.window=50, poses=chain (floorvo list --config map shows them all)",
     )
     p.set_defaults(func=run)
 

@@ -10,7 +10,12 @@ def add_parser(sub) -> None:
     p.add_argument("sequence", help="sequence folder (sequence.json, cam0/...)")
     p.add_argument("--estimator", "-e", required=True, help="estimator name (floorvo list)")
     p.add_argument("-o", "--out", required=True, help="run folder for trajectory.txt, timing.csv, result.json")
-    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="estimator config override, e.g. grid=3")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="estimator config override, e.g. grid=3 (floorvo list --config NAME shows the keys)",
+    )
     p.add_argument(
         "--scale-calibration",
         metavar="FILE",

@@ -1,24 +1,15 @@
 """Odometry estimators behind one interface (:mod:`floorvo.estimators.base`).
 
-Importing this package registers the built-in estimators; :func:`list_estimators` names
-them and :func:`get_estimator` returns a class by name.
+:func:`list_estimators` names them and :func:`get_estimator` returns a class by name
+(:mod:`floorvo.estimators.registry`, where every built-in is declared); :func:`make_config`
+builds an estimator's configuration from ``--set`` style overrides.
 """
 
-from floorvo.estimators import akaze, orb_icp, phase_corr, stereo_sift  # noqa: F401  (registers them)
-from floorvo.estimators.base import (
-    REGISTRY,
-    Estimator,
-    Frame,
-    StepResult,
-    get_estimator,
-    list_estimators,
-    make_config,
-    register,
-)
-from floorvo.mapping import fused as _map_fused  # noqa: F401,E402  (registers map-fused, paper 003)
+from floorvo.estimators.base import Estimator, Frame, StepResult
+from floorvo.estimators.registry import BUILTIN_ESTIMATORS, get_estimator, list_estimators, make_config, register
 
 __all__ = [
-    "REGISTRY",
+    "BUILTIN_ESTIMATORS",
     "Estimator",
     "Frame",
     "StepResult",

@@ -27,14 +27,15 @@ are matched by brute force (as ``akaze-bruteforce`` does) to bootstrap.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
 from floorvo.camera import CameraModel
-from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T, pixels_to_floor_mm, register
+from floorvo.config import Config, param
+from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T, pixels_to_floor_mm
 from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
 from floorvo.geometry import rigid_fit_2d
 
@@ -73,7 +74,7 @@ def mean_std_filter(movement: np.ndarray, passes: int = 2) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class AkazeConfig:
+class AkazeConfig(Config):
     """AKAZE detector threshold, keypoint budget, guided-matching and filter settings.
 
     ``search_radius_px`` and ``max_candidates`` bound the guided search around each
@@ -82,14 +83,14 @@ class AkazeConfig:
     by more bits than under diffuse light; the nearest-first order keeps geometry first.
     """
 
-    akaze_threshold: float = field(default=0.0005, metadata={"gt": 0.0})
-    max_keypoints: int = field(default=1500, metadata={"min": 10})
-    hamming_threshold: int = field(default=200, metadata={"min": 1, "max": 512})
-    search_radius_px: float = field(default=12.0, metadata={"gt": 0.0})
-    max_candidates: int = field(default=8, metadata={"min": 1, "max": 64})
-    filter_passes: int = field(default=2, metadata={"min": 0, "max": 10})
-    min_matches: int = field(default=6, metadata={"min": 2})
-    use_flatfield: bool = True
+    akaze_threshold: float = param(0.0005, gt=0.0, doc="AKAZE detector response threshold")
+    max_keypoints: int = param(1500, min=10, doc="strongest keypoints kept per frame")
+    hamming_threshold: int = param(200, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
+    search_radius_px: float = param(12.0, unit="px", gt=0.0, doc="guided search radius around each predicted position")
+    max_candidates: int = param(8, min=1, max=64, doc="nearest candidates tried per keypoint in the guided search")
+    filter_passes: int = param(2, min=0, max=10, doc="passes of the mean +/- one std movement filter (section II-C)")
+    min_matches: int = param(6, min=2, doc="fewer matches: the frame is lost")
+    use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
 
 
 @dataclass
@@ -225,7 +226,6 @@ class _AkazeBase:
         )
 
 
-@register
 class AkazeGuided(_AkazeBase):
     name = "akaze-guided"
     description = (
@@ -234,7 +234,6 @@ class AkazeGuided(_AkazeBase):
     guided = True
 
 
-@register
 class AkazeBruteforce(_AkazeBase):
     name = "akaze-bruteforce"
     description = "paper 000's baseline: AKAZE with brute-force Hamming matching (cross-checked), same filter and fit"

@@ -18,8 +18,6 @@ last good one.
 
 from __future__ import annotations
 
-import dataclasses
-import typing
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
@@ -27,18 +25,11 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError
 
 __all__ = [
     "Frame",
     "StepResult",
     "Estimator",
-    "REGISTRY",
-    "register",
-    "get_estimator",
-    "list_estimators",
-    "make_config",
-    "validate_config",
     "floor_rigid_to_T",
     "pixels_to_floor_mm",
 ]
@@ -93,88 +84,6 @@ class Estimator(Protocol):
     def start(self) -> Any: ...
 
     def step(self, state: Any, frame: Frame) -> StepResult: ...
-
-
-REGISTRY: dict[str, type] = {}
-
-
-def register(cls: type) -> type:
-    """Class decorator: add an estimator to :data:`REGISTRY` under ``cls.name``."""
-    for attr in ("name", "description", "Config", "requires"):
-        if not hasattr(cls, attr):
-            raise TypeError(f"estimator {cls.__name__} lacks {attr!r}")
-    REGISTRY[cls.name] = cls
-    return cls
-
-
-def get_estimator(name: str) -> type:
-    from floorvo import estimators  # noqa: F401  (registers the built-in estimators)
-
-    if name not in REGISTRY:
-        raise ConfigError(f"estimator {name!r}: unknown (known: {', '.join(sorted(REGISTRY))})")
-    return REGISTRY[name]
-
-
-def list_estimators() -> list[str]:
-    from floorvo import estimators  # noqa: F401
-
-    return sorted(REGISTRY)
-
-
-def _convert(value: str, tp: Any, key: str) -> Any:
-    origin = typing.get_origin(tp)
-    if origin is typing.Union or str(origin) == "types.UnionType":
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if value.lower() in ("none", "null"):
-            return None
-        tp = args[0]
-    try:
-        if tp is bool:
-            if value.lower() in ("1", "true", "yes", "on"):
-                return True
-            if value.lower() in ("0", "false", "no", "off"):
-                return False
-            raise ValueError
-        if tp is int:
-            return int(value)
-        if tp is float:
-            return float(value)
-        return value
-    except ValueError:
-        raise ConfigError(f"{key} = {value!r}: must be {tp.__name__}") from None
-
-
-def validate_config(cfg: Any, prefix: str) -> None:
-    """Check each field against its metadata ``{"min": .., "max": .., "choices": ..}``."""
-    for f in dataclasses.fields(cfg):
-        v = getattr(cfg, f.name)
-        m = f.metadata
-        key = f"{prefix}.{f.name}"
-        if v is None:
-            continue
-        if "choices" in m and v not in m["choices"]:
-            raise ConfigError(f"{key} = {v!r}: must be one of {', '.join(map(repr, m['choices']))}")
-        if "min" in m and v < m["min"]:
-            raise ConfigError(f"{key} = {v}: must be >= {m['min']}")
-        if "gt" in m and v <= m["gt"]:
-            raise ConfigError(f"{key} = {v}: must be > {m['gt']}")
-        if "max" in m and v > m["max"]:
-            raise ConfigError(f"{key} = {v}: must be <= {m['max']}")
-
-
-def make_config(name: str, overrides: Mapping[str, str] | None = None) -> Any:
-    """The estimator's Config with ``{"field": "value"}`` string overrides applied and validated."""
-    cls = get_estimator(name)
-    hints = typing.get_type_hints(cls.Config)
-    names = {f.name for f in dataclasses.fields(cls.Config)}
-    kwargs = {}
-    for key, value in (overrides or {}).items():
-        if key not in names:
-            raise ConfigError(f"{name}.{key}: unknown config key (known: {', '.join(sorted(names))})")
-        kwargs[key] = _convert(str(value), hints[key], f"{name}.{key}") if isinstance(value, str) else value
-    cfg = cls.Config(**kwargs)
-    validate_config(cfg, name)
-    return cfg
 
 
 def pixels_to_floor_mm(uv_px: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:

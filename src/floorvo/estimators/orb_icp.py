@@ -24,13 +24,14 @@ The estimator needs depth (``requires = {"depth"}``); a run refuses a sequence w
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.estimators.base import Frame, StepResult, register
+from floorvo.config import Config, param
+from floorvo.estimators.base import Frame, StepResult
 from floorvo.estimators.icp import icp_svd_robust
 from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
 
@@ -38,7 +39,7 @@ __all__ = ["OrbIcp", "OrbIcpConfig", "homogenise_keypoints"]
 
 
 @dataclass(frozen=True)
-class OrbIcpConfig:
+class OrbIcpConfig(Config):
     """``fast_threshold``: FAST threshold on the normalised 8-bit frame (low, the grid picks
     the strongest); ``grid_cols x grid_rows`` cells keeping ``per_cell`` corners each
     (homogenisation); ``ratio``: FLANN-LSH ratio-test threshold gamma; ``prosac_threshold_px``:
@@ -49,18 +50,20 @@ class OrbIcpConfig:
     OpenCV's RNG is seeded with it before each FLANN-LSH match (the LSH tables draw their bits
     from it), so a frame pair gives the same matches whatever ran before."""
 
-    fast_threshold: int = field(default=8, metadata={"min": 1, "max": 100})
-    grid_cols: int = field(default=8, metadata={"min": 1, "max": 64})
-    grid_rows: int = field(default=6, metadata={"min": 1, "max": 64})
-    per_cell: int = field(default=25, metadata={"min": 1})
-    n_levels: int = field(default=4, metadata={"min": 1, "max": 12})
-    ratio: float = field(default=0.8, metadata={"gt": 0.0, "max": 1.0})
-    prosac_threshold_px: float = field(default=2.0, metadata={"gt": 0.0})
-    icp_iterations: int = field(default=3, metadata={"min": 0, "max": 20})
-    min_matches: int = field(default=8, metadata={"min": 4})
-    refine_win_px: int = field(default=15, metadata={"min": 0, "max": 63})
-    use_flatfield: bool = True
-    seed: int = field(default=0, metadata={"min": 0})
+    fast_threshold: int = param(8, min=1, max=100, doc="FAST threshold on the normalised 8-bit frame")
+    grid_cols: int = param(8, min=1, max=64, doc="grid columns of the keypoint homogenisation")
+    grid_rows: int = param(6, min=1, max=64, doc="grid rows of the keypoint homogenisation")
+    per_cell: int = param(25, min=1, doc="strongest corners kept per grid cell")
+    n_levels: int = param(4, min=1, max=12, doc="ORB pyramid levels")
+    ratio: float = param(0.8, gt=0.0, max=1.0, doc="FLANN-LSH ratio-test threshold gamma")
+    prosac_threshold_px: float = param(2.0, unit="px", gt=0.0, doc="PROSAC reprojection threshold")
+    icp_iterations: int = param(3, min=0, max=20, doc="SVD re-solves with residual rejection")
+    min_matches: int = param(8, min=4, doc="fewer matches: the frame is lost")
+    refine_win_px: int = param(
+        15, unit="px", min=0, max=63, doc="window of the sub-pixel (Lucas-Kanade) refinement; 0 = off"
+    )
+    use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
+    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each FLANN-LSH match")
 
 
 def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int, per_cell: int) -> list:
@@ -92,7 +95,6 @@ class _State:
     img8: np.ndarray | None = None  # normalised previous frame
 
 
-@register
 class OrbIcp:
     """ORB + FLANN-LSH ratio test + PROSAC + ICP-SVD on depth (paper 001)."""
 

@@ -25,7 +25,9 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T, register
+from floorvo.config import Config, param
+from floorvo.errors import ConfigError
+from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T
 from floorvo.estimators.preprocess import illumination_corrected
 from floorvo.geometry import rigid_fit_2d
 
@@ -33,7 +35,7 @@ __all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
 
 
 @dataclass(frozen=True)
-class PhaseCorrConfig:
+class PhaseCorrConfig(Config):
     """``crop_px``: side of the central square crop that is correlated (a power of two is
     fastest; capped at 90 % of the shorter image side); ``margin_px``: extra border of the
     current frame normalised around the crop (the largest expected motion per frame);
@@ -43,16 +45,22 @@ class PhaseCorrConfig:
     ``exact_yaw_max_deg``: up to this yaw per frame the last round is measured without an
     interpolating warp (exact), above it through a rotating warp."""
 
-    crop_px: int = field(default=384, metadata={"min": 32, "max": 4096})
-    margin_px: int = field(default=128, metadata={"min": 0, "max": 1024})
-    grid: int = field(default=2, metadata={"min": 2, "max": 8})
-    iterations: int = field(default=2, metadata={"min": 1, "max": 10})
-    min_peak: float = field(default=0.02, metadata={"min": 0.0, "max": 1.0})
-    max_residual_px: float = field(default=1.5, metadata={"gt": 0.0})
-    low_freq_fraction: float = field(default=0.3, metadata={"gt": 0.0, "max": 0.5})
-    exact_yaw_max_deg: float = field(default=1.0, metadata={"min": 0.0, "max": 45.0})
-    use_flatfield: bool = True
-    predict: bool = True
+    crop_px: int = param(384, unit="px", min=32, max=4096, doc="side of the central square crop that is correlated")
+    margin_px: int = param(
+        128, unit="px", min=0, max=1024, doc="border normalised around the crop (largest motion per frame)"
+    )
+    grid: int = param(2, min=2, max=8, doc="blocks per side")
+    iterations: int = param(2, min=1, max=10, doc="warp-and-measure rounds")
+    min_peak: float = param(0.02, min=0.0, max=1.0, doc="lowest phase-correlation peak accepted")
+    max_residual_px: float = param(1.5, unit="px", gt=0.0, doc="largest block disagreement with the rigid fit")
+    low_freq_fraction: float = param(
+        0.3, gt=0.0, max=0.5, doc="fraction of the frequencies used for the sub-pixel phase fit"
+    )
+    exact_yaw_max_deg: float = param(
+        1.0, unit="deg", min=0.0, max=45.0, doc="up to this yaw per frame the last round has no interpolating warp"
+    )
+    use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
+    predict: bool = param(True, doc="start each frame from the last motion")
 
 
 def _hann2(h: int, w: int) -> np.ndarray:
@@ -114,7 +122,6 @@ class _State:
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
 
 
-@register
 class PhaseCorr:
     """Windowed phase correlation with sub-pixel phase-slope fit and block-wise yaw."""
 
@@ -142,8 +149,6 @@ class PhaseCorr:
         bs = crop // g
         bs -= bs % 2
         if bs < 16:
-            from floorvo.errors import ConfigError
-
             raise ConfigError(
                 f"phase-corr: image {camera.width_px}x{camera.height_px} too small for a {g}x{g} grid of blocks"
             )

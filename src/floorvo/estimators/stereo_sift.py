@@ -27,14 +27,15 @@ Requires a stereo sequence (``requires = {"stereo"}``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
+from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, register
+from floorvo.estimators.base import Frame, StepResult
 from floorvo.estimators.icp import icp_svd_robust
 from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
 from floorvo.geometry import invert_T, rigid_fit_2d
@@ -43,21 +44,27 @@ __all__ = ["StereoSift", "StereoSiftConfig"]
 
 
 @dataclass(frozen=True)
-class StereoSiftConfig:
+class StereoSiftConfig(Config):
     """``n_features``: SIFT keypoint budget per image; ``contrast_threshold``: SIFT's DoG
     threshold; ``ratio``: Lowe ratio test; ``epipolar_px``: largest distance of a right
     keypoint from its epipolar line; ``ransac_threshold_px``: RANSAC homography threshold;
     ``update``: ``planar`` (SVD fit of the 3D sets restricted to a rotation about the optical
     axis, plus the mean height change), ``rigid`` (full 3D SVD fit) or ``mean`` (paper 002's DP_L)."""
 
-    n_features: int = field(default=1000, metadata={"min": 10})
-    contrast_threshold: float = field(default=0.02, metadata={"gt": 0.0})
-    ratio: float = field(default=0.8, metadata={"gt": 0.0, "max": 1.0})
-    epipolar_px: float = field(default=1.5, metadata={"gt": 0.0})
-    ransac_threshold_px: float = field(default=2.0, metadata={"gt": 0.0})
-    min_matches: int = field(default=8, metadata={"min": 4})
-    update: str = field(default="planar", metadata={"choices": ("planar", "rigid", "mean")})
-    use_flatfield: bool = True
+    n_features: int = param(1000, min=10, doc="SIFT keypoint budget per image")
+    contrast_threshold: float = param(0.02, gt=0.0, doc="SIFT's DoG contrast threshold")
+    ratio: float = param(0.8, gt=0.0, max=1.0, doc="Lowe ratio test")
+    epipolar_px: float = param(
+        1.5, unit="px", gt=0.0, doc="largest distance of a right keypoint from its epipolar line"
+    )
+    ransac_threshold_px: float = param(2.0, unit="px", gt=0.0, doc="RANSAC homography threshold")
+    min_matches: int = param(8, min=4, doc="fewer matches: the frame is lost")
+    update: str = param(
+        "planar",
+        choices=("planar", "rigid", "mean"),
+        doc="planar: rotation about the optical axis; rigid: full 3D; mean: paper 002's DP_L",
+    )
+    use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
 
 
 @dataclass
@@ -72,7 +79,6 @@ class _State:
     prev: _Side | None = None
 
 
-@register
 class StereoSift:
     """SIFT left/right at i and i+1, LR + temporal matching, RANSAC, triangulation, 3D update (paper 002)."""
 

@@ -17,34 +17,32 @@ map poses themselves.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from floorvo.camera import CameraModel
+from floorvo.config import param, parse_set_args
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, get_estimator, make_config, register
+from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.registry import get_estimator, make_config
 from floorvo.geometry import invert_T
+from floorvo.mapping.localize import LocalizeConfig, Localizer
+from floorvo.mapping.map import load_map
 
 __all__ = ["MapFused", "MapFusedConfig"]
 
 
 @dataclass(frozen=True)
-class MapFusedConfig:
-    """``map``: map folder (``floorvo map``); ``odometry``: estimator between fixes (``none``:
-    fixes only); ``odometry_set``: its overrides as ``key=value;key=value``; ``fix_every``:
-    localise every N-th frame; the rest tune the localiser, with :class:`LocalizeConfig`'s defaults
-    (repeated: importing floorvo.mapping.localize here would be circular; a test keeps them equal)."""
+class MapFusedConfig(LocalizeConfig):
+    """The localiser's parameters (:class:`LocalizeConfig`) and how fixes and odometry are fused."""
 
-    map: str = ""
-    odometry: str = "phase-corr"
-    odometry_set: str = ""
-    fix_every: int = field(default=1, metadata={"min": 1})
-    n_candidates: int = field(default=8, metadata={"min": 1, "max": 1000})
-    n_verify: int = field(default=3, metadata={"min": 1, "max": 100})
-    min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
-    min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
-    retrieval: str = field(default="vote", metadata={"choices": ("vote", "bow")})
+    config_name = "map-fused"
+
+    map: str = param("", doc="map folder (floorvo map SEQ -o MAP)")
+    odometry: str = param("phase-corr", doc="estimator between fixes; none: fixes only")
+    odometry_set: str = param("", doc="the odometry's overrides as key=value;key=value")
+    fix_every: int = param(1, unit="frames", min=1, doc="localise every N-th frame against the map")
 
 
 @dataclass
@@ -54,7 +52,6 @@ class _State:
     last_fix: object = None  # floorvo.mapping.localize.Localization
 
 
-@register
 class MapFused:
     """Odometry between keyframe-map fixes (paper 003 relocalisation)."""
 
@@ -72,9 +69,6 @@ class MapFused:
         flatfield: np.ndarray | None = None,
         **rig,
     ):
-        from floorvo.mapping.localize import LocalizeConfig, Localizer  # here: floorvo.estimators imports this module
-        from floorvo.mapping.map import load_map
-
         if not config.map:
             raise ConfigError(
                 "map-fused.map = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`"
@@ -89,23 +83,12 @@ class MapFused:
             raise ConfigError(
                 f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm"
             )
-        loc_cfg = LocalizeConfig(
-            n_candidates=config.n_candidates,
-            n_verify=config.n_verify,
-            min_block_fraction=config.min_block_fraction,
-            min_corr=config.min_corr,
-            retrieval=config.retrieval,
-        )
-        self.localizer = Localizer(self.map, loc_cfg, flatfield=flatfield)
+        self.localizer = Localizer(self.map, config, flatfield=flatfield)  # a MapFusedConfig is a LocalizeConfig
         self.odometry = None
         if config.odometry != "none":
             if config.odometry == self.name:
                 raise ConfigError("map-fused.odometry = 'map-fused': must be another estimator or 'none'")
-            overrides = (
-                dict(kv.split("=", 1) for kv in config.odometry_set.split(";") if kv.strip())
-                if config.odometry_set
-                else {}
-            )
+            overrides = parse_set_args(kv for kv in config.odometry_set.split(";") if kv.strip())
             odo_cfg = make_config(config.odometry, overrides)
             self.odometry = get_estimator(config.odometry)(
                 odo_cfg, camera, height_mm=height_mm, flatfield=flatfield, **rig

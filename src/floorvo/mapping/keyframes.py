@@ -31,7 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.config import Config, param
+from floorvo.errors import FloorbenchError
 from floorvo.mapping.similarity import Features, RigidFit, Similarity, SimilarityConfig, frame_similarity
 
 __all__ = ["KeyframeConfig", "KeyframeResult", "extract_keyframes", "fit_to_T_i_j", "chain_poses"]
@@ -40,19 +41,15 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class KeyframeConfig:
+class KeyframeConfig(Config):
     """``window``: frames compared after each keyframe (paper: 50); ``ratio``: the next
     keyframe is where the similarity falls to this fraction of the window's maximum
     (paper: 0.5)."""
 
-    window: int = 50
-    ratio: float = 0.5
+    config_name = "keyframes"
 
-    def __post_init__(self) -> None:
-        if not (1 <= self.window <= 10000):
-            raise ConfigError(f"keyframes.window = {self.window!r}: must be in [1, 10000]")
-        if not (0 < self.ratio < 1):
-            raise ConfigError(f"keyframes.ratio = {self.ratio!r}: must be in (0, 1)")
+    window: int = param(50, unit="frames", min=1, max=10000, doc="frames compared after each keyframe")
+    ratio: float = param(0.5, gt=0, lt=1, doc="next keyframe where the similarity falls to this fraction")
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from floorvo.errors import ConfigError
+from floorvo.config import Config, param
+from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.mapping.keyframes import fit_to_T_i_j
 from floorvo.mapping.map import GlobalMap
 from floorvo.mapping.similarity import (
@@ -40,27 +41,29 @@ __all__ = ["LocalizeConfig", "Localization", "Localizer"]
 
 
 @dataclass(frozen=True)
-class LocalizeConfig:
-    """``n_candidates``: keyframes retrieved by the bag of words; ``n_verify``: of those, how
-    many (most rigid inliers first) get the content similarity, those with at least
-    ``verify_inlier_ratio`` times the best candidate's inliers; ``min_block_fraction``: the
-    share of the overlap's sub-blocks that must pass the mismatch check (eq. 22);
-    ``min_corr``: least correlation coefficient (eq. 23); ``min_blocks``: least matched
-    sub-blocks; ``retrieval``: ``vote`` (descriptor voting through an LSH index) or ``bow``
-    (tf-idf bag of binary words)."""
+class LocalizeConfig(Config):
+    """The localiser's parameters (steps 1-3 of the module docstring): how many candidate
+    keyframes are retrieved and verified, and the similarity a fix must reach."""
 
-    n_candidates: int = field(default=8, metadata={"min": 1, "max": 1000})
-    n_verify: int = field(default=3, metadata={"min": 1, "max": 100})
-    min_block_fraction: float = field(default=0.5, metadata={"min": 0.0, "max": 1.0})
-    min_corr: float = field(default=0.6, metadata={"min": -1.0, "max": 1.0})
-    min_blocks: int = field(default=20, metadata={"min": 1})
-    verify_inlier_ratio: float = field(default=0.7, metadata={"min": 0.0, "max": 1.0})
-    retrieval: str = field(default="vote", metadata={"choices": ("vote", "bow")})
+    config_name = "localize"
 
-    def __post_init__(self) -> None:
-        from floorvo.estimators.base import validate_config
+    n_candidates: int = param(8, min=1, max=1000, doc="keyframes retrieved per frame")
+    n_verify: int = param(3, min=1, max=100, doc="candidates (most inliers first) given the content similarity")
+    min_block_fraction: float = param(
+        0.5, min=0.0, max=1.0, doc="share of the overlap's sub-blocks that must match (eq. 22)"
+    )
+    min_corr: float = param(0.6, min=-1.0, max=1.0, doc="least correlation coefficient (eq. 23)")
+    min_blocks: int = param(20, min=1, doc="least matched sub-blocks")
+    verify_inlier_ratio: float = param(
+        0.7, min=0.0, max=1.0, doc="verify candidates with this share of the best one's inliers"
+    )
+    retrieval: str = param(
+        "vote", choices=("vote", "bow"), doc="vote: descriptor votes (LSH); bow: tf-idf bag of words"
+    )
 
-        validate_config(self, "localize")
+    def validate(self) -> None:
+        if self.n_verify > self.n_candidates:
+            raise ConfigFieldError("n_verify", f" = {self.n_verify}: must be <= n_candidates ({self.n_candidates})")
 
 
 @dataclass(frozen=True)
@@ -95,10 +98,6 @@ class Localizer:
         self.index = (
             gmap.vote_index if self.config.retrieval == "vote" else gmap.index
         )  # built now, not on the first query
-        if self.config.n_verify > self.config.n_candidates:
-            raise ConfigError(
-                f"localize.n_verify = {self.config.n_verify}: must be <= n_candidates ({self.config.n_candidates})"
-            )
 
     def localize(self, image: np.ndarray, rng: np.random.Generator | None = None) -> Localization:
         """Global pose of one raw (H, W) frame, using nothing but the frame and the map."""

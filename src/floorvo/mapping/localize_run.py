@@ -16,19 +16,35 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from floorvo.errors import FloorbenchError
-from floorvo.estimators.base import Frame, validate_config
+from floorvo.config import from_overrides
+from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.estimators.base import Frame
 from floorvo.io import atomic_write_json, atomic_write_text, ensure_writable_dir
 from floorvo.mapping.fused import MapFused, MapFusedConfig
 from floorvo.sequence import Sequence
 from floorvo.tum import write_tum
 
-__all__ = ["localize_sequence"]
+__all__ = ["localize_sequence", "localize_config", "SET_BY_OPTIONS"]
 
 log = logging.getLogger(__name__)
+
+
+#: Fields of :class:`MapFusedConfig` that ``floorvo localize`` takes as options, not ``--set``.
+SET_BY_OPTIONS = ("map", "odometry")
+
+
+def localize_config(
+    map_dir: str | os.PathLike, odometry: str = "none", overrides: Mapping[str, Any] | None = None
+) -> MapFusedConfig:
+    """The configuration of a localize run: the map, the odometry and ``--set`` overrides."""
+    for key in overrides or {}:
+        if key in SET_BY_OPTIONS:
+            raise ConfigError(f"localize.{key}: set by the --{key} option, not --set")
+    return from_overrides(MapFusedConfig, {**(overrides or {}), "map": str(map_dir), "odometry": odometry}, "localize")
 
 
 def localize_sequence(
@@ -50,20 +66,7 @@ def localize_sequence(
         raise FloorbenchError(
             f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
         )
-    import typing
-
-    from floorvo.estimators.base import _convert  # string -> typed value, as make_config does
-
-    hints = typing.get_type_hints(MapFusedConfig)
-    kw = {}
-    for k, v in (overrides or {}).items():
-        if k not in hints or k in ("map", "odometry"):
-            raise FloorbenchError(
-                f"localize --set {k}: unknown key (known: {', '.join(sorted(set(hints) - {'map', 'odometry'}))})"
-            )
-        kw[k] = _convert(str(v), hints[k], f"localize.{k}")
-    cfg = MapFusedConfig(map=str(map_dir), odometry=odometry, **kw)
-    validate_config(cfg, "localize")
+    cfg = localize_config(map_dir, odometry, overrides)
     est = MapFused(cfg, seq.camera, height_mm=seq.height_mm, flatfield=seq.flatfield())
     out = ensure_writable_dir(out_dir)
     state = est.start()

@@ -24,19 +24,22 @@ import io
 import logging
 import os
 from collections import OrderedDict
-from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError
+from floorvo.config import Config, build, from_overrides, param, to_plain
+from floorvo.errors import FloorbenchError, SequenceError
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, read_json
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
 from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
+from floorvo.sequence import Sequence
 
 __all__ = ["MAP_SCHEMA_VERSION", "MapConfig", "GlobalMap", "build_map", "build_map_from_images", "load_map", "save_map"]
 
@@ -50,66 +53,35 @@ POSE_SOURCES = ("groundtruth", "chain")
 
 
 @dataclass(frozen=True)
-class MapConfig:
-    """All map parameters: similarity (section 3.1), keyframes (3.2), vocabulary size."""
+class MapConfig(Config):
+    """All map parameters: similarity (section 3.1), keyframes (3.2), vocabulary size.
 
-    similarity: SimilarityConfig = field(default_factory=SimilarityConfig)
-    keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
-    vocab_words: int = 512
-    seed: int = 0
-    #: Keyframe poses: ``"groundtruth"`` takes each keyframe's ground-truth pose when the
-    #: mapping sequence has one (a map is built on a surveyed run, so the surveyed poses are
-    #: the better map; the eq. (24) chain is still computed and its disagreement recorded),
-    #: and falls back to the chain otherwise; ``"chain"`` always uses eq. (24).
-    poses: str = "groundtruth"
+    ``poses``: ``"groundtruth"`` takes each keyframe's ground-truth pose when the mapping
+    sequence has one (a map is built on a surveyed run, so the surveyed poses are the better
+    map; the eq. (24) chain is still computed and its disagreement recorded), and falls back
+    to the chain otherwise; ``"chain"`` always uses eq. (24).
+    """
+
+    config_name = "map"
+
+    similarity: SimilarityConfig = param(default_factory=SimilarityConfig)
+    keyframes: KeyframeConfig = param(default_factory=KeyframeConfig)
+    vocab_words: int = param(512, min=2, doc="words of the binary bag-of-words vocabulary")
+    seed: int = param(0, min=0, doc="seeds the vocabulary and the LSH tables")
+    poses: str = param("groundtruth", choices=POSE_SOURCES, doc="keyframe poses: surveyed, or chained by eq. (24)")
 
     @classmethod
-    def from_overrides(cls, overrides: dict[str, str] | None) -> MapConfig:
+    def from_overrides(cls, overrides: Mapping[str, Any] | None) -> MapConfig:
         """Build from ``{"similarity.block_px": "12", "keyframes.window": "50", "vocab_words": "512"}``."""
-        sim, kf, top = {}, {}, {}
-        sim_fields = {f: type(getattr(SimilarityConfig(), f)) for f in asdict(SimilarityConfig())}
-        kf_fields = {f: type(getattr(KeyframeConfig(), f)) for f in asdict(KeyframeConfig())}
-        for key, value in (overrides or {}).items():
-            group, _, name = key.rpartition(".")
-            table = {
-                "similarity": (sim, sim_fields),
-                "keyframes": (kf, kf_fields),
-                "": (top, {"vocab_words": int, "seed": int, "poses": str}),
-            }
-            if group not in table or name not in table[group][1]:
-                raise ConfigError(
-                    f"map --set {key}: unknown key (known: similarity.*, keyframes.window, keyframes.ratio, vocab_words, seed, poses)"
-                )
-            dest, types = table[group]
-            try:
-                dest[name] = types[name](value)
-            except ValueError:
-                raise ConfigError(f"map --set {key}={value!r}: must be {types[name].__name__}") from None
-        cfg = cls(SimilarityConfig(**sim), KeyframeConfig(**kf), **top)
-        if cfg.vocab_words < 2:
-            raise ConfigError(f"map vocab_words = {cfg.vocab_words}: must be >= 2")
-        if cfg.poses not in POSE_SOURCES:
-            raise ConfigError(f"map poses = {cfg.poses!r}: must be one of {', '.join(POSE_SOURCES)}")
-        return cfg
+        return from_overrides(cls, overrides, "map")
 
     def to_dict(self) -> dict:
-        return {
-            "similarity": asdict(self.similarity),
-            "keyframes": asdict(self.keyframes),
-            "vocab_words": self.vocab_words,
-            "seed": self.seed,
-            "poses": self.poses,
-        }
+        return to_plain(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> MapConfig:
-        return cls(
-            SimilarityConfig(**d["similarity"]),
-            KeyframeConfig(**d["keyframes"]),
-            int(d["vocab_words"]),
-            int(d.get("seed", 0)),
-            str(d.get("poses", "chain")),
-        )
+    def from_dict(cls, d: Mapping[str, Any]) -> MapConfig:
+        """From :meth:`to_dict`'s output (a map.json); maps written before ``poses`` existed chained."""
+        return build(cls, {"poses": "chain", **d}, "map")
 
 
 @dataclass
@@ -278,8 +250,6 @@ def build_map(
     take their ground-truth poses (``config.poses == "groundtruth"``, the default) or the
     eq. (24) chain starts at the first frame's (``"chain"``), so map and ground truth share
     the world frame; without ground truth the chain starts at the origin."""
-    from floorvo.sequence import Sequence
-
     seq = Sequence.open(seq_path)
     if seq.height_mm is None:
         raise SequenceError(

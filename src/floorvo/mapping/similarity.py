@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from floorvo.errors import ConfigError
+from floorvo.config import Config, param
 from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
 from floorvo.geometry import rigid_fit_2d
 
@@ -64,7 +64,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class SimilarityConfig:
+class SimilarityConfig(Config):
     """Parameters of the content-based matching (section 3.1 of paper 003).
 
     ``n_features``: ORB keypoints per frame (binary descriptors: matching and the bag of
@@ -78,37 +78,24 @@ class SimilarityConfig:
     mismatched sub-block check (eq. 22).
     """
 
-    n_features: int = 600
-    fast_threshold: int = 10
-    ratio: float = 0.8
-    ransac_iters: int = 200
-    ransac_tol_px: float = 2.0
-    length_tol: float = 0.03
-    min_inliers: int = 12
-    sim_scale: float = 0.5
-    block_px: int = 12
-    search_px: int = 3
-    thresh_t_px: float = 1.0
-    thresh_rot_rad: float = 0.004
+    config_name = "similarity"
 
-    def __post_init__(self) -> None:
-        checks = [
-            ("n_features", self.n_features >= 50, ">= 50"),
-            ("fast_threshold", 1 <= self.fast_threshold <= 100, "in [1, 100]"),
-            ("ratio", 0 < self.ratio <= 1, "in (0, 1]"),
-            ("ransac_iters", self.ransac_iters >= 10, ">= 10"),
-            ("ransac_tol_px", self.ransac_tol_px > 0, "> 0"),
-            ("length_tol", 0 < self.length_tol < 1, "in (0, 1)"),
-            ("min_inliers", self.min_inliers >= 3, ">= 3"),
-            ("sim_scale", 0.1 <= self.sim_scale <= 1.0, "in [0.1, 1]"),
-            ("block_px", 4 <= self.block_px <= 128, "in [4, 128]"),
-            ("search_px", 1 <= self.search_px <= 16, "in [1, 16]"),
-            ("thresh_t_px", self.thresh_t_px >= 0, ">= 0"),
-            ("thresh_rot_rad", self.thresh_rot_rad >= 0, ">= 0"),
-        ]
-        for name, ok, rule in checks:
-            if not ok:
-                raise ConfigError(f"similarity.{name} = {getattr(self, name)!r}: must be {rule}")
+    n_features: int = param(600, min=50, doc="ORB keypoints per frame")
+    fast_threshold: int = param(10, min=1, max=100, doc="FAST threshold of the ORB detector")
+    ratio: float = param(0.8, gt=0, max=1, doc="Lowe ratio test of descriptor matches")
+    ransac_iters: int = param(200, min=10, doc="two-point RANSAC iterations of the rigid fit (eq. 5)")
+    ransac_tol_px: float = param(2.0, unit="px", gt=0, doc="RANSAC inlier tolerance")
+    length_tol: float = param(0.03, gt=0, lt=1, doc="relative tolerance of the connect-line length check (eqs. 17-19)")
+    min_inliers: int = param(12, min=3, doc="fewer inliers: no overlap")
+    sim_scale: float = param(0.5, min=0.1, max=1.0, doc="the sub-block stage runs on frames resized by this factor")
+    block_px: int = param(12, unit="px", min=4, max=128, doc="sub-block side at sim_scale")
+    search_px: int = param(3, unit="px", min=1, max=16, doc="SAD search radius of a sub-block (eq. 20)")
+    thresh_t_px: float = param(
+        1.0, unit="px", min=0, doc="translation threshold of the mismatched sub-block check (eq. 22)"
+    )
+    thresh_rot_rad: float = param(
+        0.004, unit="rad", min=0, doc="rotation threshold of the mismatched sub-block check (eq. 22)"
+    )
 
 
 @dataclass(frozen=True)
