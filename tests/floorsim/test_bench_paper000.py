@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from floorsim.bench.paper000 import matching_modes, run_paper000
+from floorsim.bench.protocols.paper000 import matching_modes, run_paper000
 from floorsim.trajectories import paper000_subsequences
 from floorvo.camera import CameraModel
 from floorvo.geometry import T_world_cam_down, make_T

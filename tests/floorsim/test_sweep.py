@@ -10,7 +10,7 @@ import _bench_doubles as D
 import pytest
 
 from floorsim.bench.bench import read_results_csv
-from floorsim.sweep import load_sweep, run_sweep, sweep_jobs
+from floorsim.bench.sweep import load_sweep, run_sweep, sweep_jobs
 from floorvo.errors import ConfigError
 
 
@@ -73,7 +73,7 @@ def test_sweep_file_errors_name_the_key(tmp_path):
 
 def test_shipped_sweep_files_vary_only_keys_the_scene_has():
     from floorsim.scene import load_scene
-    from floorsim.sweep import _as_override
+    from floorsim.bench.sweep import _as_override
 
     files = sorted((Path(__file__).resolve().parents[2] / "scenes" / "sweeps").glob("*.toml"))
     assert files

@@ -3,8 +3,8 @@
 * :mod:`floorsim.bench.bench`: :func:`run_bench` (``floorsim bench``), the render cache;
 * :mod:`floorsim.bench.report`: the self-contained HTML report and Markdown summary;
 * :mod:`floorsim.bench.gates`: baselines and the regression gate;
-* :mod:`floorsim.bench.paper000`: paper 000's strip protocol (Figs. 8 and 9);
-* :mod:`floorsim.bench.paper003`: keyframe map and relocalisation after kidnapping.
+* :mod:`floorsim.bench.protocols.paper000`: paper 000's strip protocol (Figs. 8 and 9);
+* :mod:`floorsim.bench.protocols.paper003`: keyframe map and relocalisation after kidnapping.
 """
 
 from floorsim.bench.bench import BenchResult, render_cached, run_bench

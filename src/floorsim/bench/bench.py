@@ -435,7 +435,7 @@ def run_bench(
                 records.append(RunRecord(label, name, rep, seq_dir, run_dir))
                 write_results_csv(results_csv, rows)
             if rep == 0 and _trajectory_type(scene) == "strip":
-                from floorsim.bench.paper000 import run_paper000
+                from floorsim.bench.protocols.paper000 import run_paper000
 
                 p0 = run_paper000(
                     seq_dir,
@@ -450,7 +450,7 @@ def run_bench(
             sections.append(_paper001_section([r for r in rows if r["scene"] == label]))
 
     # Paper 003: a map from each lawnmower scene, the kidnap scenes over its floor localised on it.
-    from floorsim.bench.paper003 import pair_map_and_kidnap, run_paper003
+    from floorsim.bench.protocols.paper003 import pair_map_and_kidnap, run_paper003
 
     pairs, p3_notes = pair_map_and_kidnap([(lab, v[1]) for lab, v in first_rendered.items()])
     notes.extend(p3_notes)

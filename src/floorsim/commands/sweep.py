@@ -1,6 +1,6 @@
 """``floorsim sweep SWEEP.toml -o DIR``: run a robustness sweep (locally or on Dask).
 
-Thin call to :func:`floorsim.sweep.run_sweep`.
+Thin call to :func:`floorsim.bench.sweep.run_sweep`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from floorsim.sweep import run_sweep
+    from floorsim.bench.sweep import run_sweep
 
     bar = None
 

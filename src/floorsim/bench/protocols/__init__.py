@@ -1,0 +1,1 @@
+"""Paper protocols the bench runs on the scenes that ask for them."""
