@@ -2,14 +2,21 @@
 
 Every output of the project goes through :func:`atomic_write_bytes` (write a temporary
 file in the same folder, fsync, rename), so an interrupted render or run never leaves a
-half-written file under the final name.
+half-written file under the final name. Every number a JSON or CSV writer writes goes
+through :func:`plain` first, so numpy scalars come out as ``100.0``, never as numpy 2's
+repr ``np.float64(100.0)``.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
+import math
 import os
 import tempfile
+from collections.abc import Iterable, Mapping
+from collections.abc import Sequence as SequenceT
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +29,9 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "atomic_write_json",
+    "atomic_write_csv",
+    "plain",
+    "csv_cell",
     "write_png",
     "read_png",
     "read_json",
@@ -53,9 +63,50 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def plain(obj: Any) -> Any:
+    """``obj`` as plain Python data for a JSON or CSV writer.
+
+    numpy scalars become ``int`` / ``float`` / ``bool`` / ``str`` (``np.float64(100.0)``
+    -> ``100.0``), arrays and tuples become lists, paths become strings; mappings and
+    lists are converted item by item. Anything else is returned as it is.
+    """
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return [plain(v) for v in obj.tolist()]
+    if isinstance(obj, Mapping):
+        return {k: plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    return obj
+
+
+def csv_cell(value: Any) -> str:
+    """One CSV cell: numbers as plain decimals that ``float()`` reads back exactly
+    (``repr`` of the Python float: ``100.0``, ``nan``, ``inf``), None as an empty cell."""
+    value = plain(value)
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    return str(value)
+
+
 def atomic_write_json(path: str | os.PathLike, obj: Any) -> None:
-    """Write ``obj`` as indented JSON to ``path`` atomically."""
-    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+    """Write ``obj`` as indented JSON to ``path`` atomically (numbers made plain by :func:`plain`)."""
+    atomic_write_text(path, json.dumps(plain(obj), indent=2, sort_keys=False) + "\n")
+
+
+def atomic_write_csv(path: str | os.PathLike, header: SequenceT[str], rows: Iterable[Iterable[Any]]) -> None:
+    """Write a CSV file atomically: the ``header`` row, then ``rows`` (sequences of cells,
+    each written by :func:`csv_cell`)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows([csv_cell(v) for v in row] for row in rows)
+    atomic_write_text(path, buf.getvalue())
 
 
 def write_png(path: str | os.PathLike, image: np.ndarray) -> None:

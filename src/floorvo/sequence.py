@@ -28,7 +28,15 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
-from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, read_json, read_png, write_png
+from floorvo.io import (
+    atomic_write_bytes,
+    atomic_write_json,
+    ensure_writable_dir,
+    plain,
+    read_json,
+    read_png,
+    write_png,
+)
 from floorvo.tum import read_tum, write_tum
 
 __all__ = ["SCHEMA_VERSION", "Sequence", "SequenceWriter", "frame_name", "DEPTH_PNG_SCALE_PER_MM"]
@@ -44,19 +52,9 @@ def frame_name(index: int, ext: str = "png") -> str:
     return f"{index:06d}.{ext}"
 
 
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
 def _canonical(obj: Any) -> Any:
     """JSON round trip, so in-memory metadata compares equal to what is on disk."""
-    return json.loads(json.dumps(obj, default=_json_default))
+    return json.loads(json.dumps(plain(obj)))
 
 
 class SequenceWriter:
