@@ -1,12 +1,15 @@
 """``floorsim`` command line: one subcommand per module in :data:`COMMANDS`.
 
 Each module under ``floorsim.commands`` defines ``add_parser(subparsers)`` and a
-``run(args) -> int`` that is a thin call to a library function.
+``run(args) -> int`` that is a thin call to a library function. Flags and logging as in
+:mod:`floorvo.cli` (``-o/--output``, ``-v`` / ``-q`` before or after the subcommand).
 """
 
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
+from typing import Any
 
 from floorsim import __version__
 from floorvo.cli import build_parser, run_cli
@@ -15,7 +18,9 @@ from floorvo.cli import build_parser, run_cli
 COMMANDS: list[str] = ["render", "list", "bench", "sweep", "export", "gallery"]
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, collaborators: Mapping[str, Any] | None = None) -> int:
+    """Run the CLI on ``argv``; ``collaborators`` (tests: doubles of the renderer, the scene
+    loader and the estimator runner) go to ``bench`` and ``sweep``."""
     parser = build_parser(
         "floorsim",
         "floorsim.commands",
@@ -23,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
         "Render the floor-camera rig and run the odometry bench.",
         __version__,
     )
-    return run_cli(parser, argv, "floorsim")
+    return run_cli(parser, argv, "floorsim", collaborators)
 
 
 if __name__ == "__main__":  # pragma: no cover

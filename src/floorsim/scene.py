@@ -43,6 +43,9 @@ A scene file (``scenes/NAME.toml``)::
     [trajectory.disturbance]
     bounce_amp_mm = 0.0
 
+    [bench]             # what `floorsim bench` runs on it besides the estimators
+    protocols = ["paper000-strip"]   # paper protocols (floorsim list); default: by trajectory type
+
 Unknown keys, wrong types and impossible values are refused with one line naming the
 key, the value and the rule. ``--set section.key=value`` overrides any key.
 """
@@ -74,6 +77,7 @@ __all__ = [
     "SensorSpec",
     "RenderSpec",
     "StereoSpec",
+    "BenchSpec",
     "load_scene",
     "scene_from_dict",
     "apply_overrides",
@@ -221,6 +225,21 @@ class StereoSpec(Config):
 
 
 @dataclass(frozen=True)
+class BenchSpec(Config):
+    """What ``floorsim bench`` does with the scene besides running the estimators.
+
+    ``protocols``: names of paper protocols (:mod:`floorsim.bench.protocols`, ``floorsim
+    list``) to run on it; None (the key left out): those registered as the default for the
+    scene's trajectory type; ``[]``: none. The bench checks the names; the renderer ignores
+    this section.
+    """
+
+    protocols: tuple[str, ...] | None = param(
+        None, doc="paper protocols floorsim bench runs on it (floorsim list); default: by trajectory type"
+    )
+
+
+@dataclass(frozen=True)
 class Scene(Config):
     """A resolved scene. ``trajectory`` holds ``type``, its parameters and ``disturbance``."""
 
@@ -239,6 +258,7 @@ class Scene(Config):
     trajectory: dict = param(
         default_factory=lambda: {"type": "uniform"}, doc="type = a trajectory type, plus its parameters (see below)"
     )
+    bench: BenchSpec = param(default_factory=BenchSpec)
 
     def validate(self) -> None:
         if self.schema_version != SCENE_SCHEMA_VERSION:

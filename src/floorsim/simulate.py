@@ -27,6 +27,7 @@ import floorsim
 import floorvo
 from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import get_material, sample_material
+from floorsim.render import FloorRenderer, LedArray, backend_info
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.spectral import mono_response
@@ -112,8 +113,6 @@ def plan_tiles(
 
 def _leds(scene: Scene, T_world_cam: np.ndarray, frame_index: int | None = None):
     """The rig's LEDs at pose ``T_world_cam``; ``frame_index`` applies that frame's flicker."""
-    from floorsim.render import LedArray
-
     pos, aim = scene_T_world_leds(scene, T_world_cam)
     n_per_bar = scene.lights.count
     power = scene.lights.power * mono_response(scene.lights.colour_temperature_k)
@@ -182,8 +181,6 @@ def _versions() -> dict:
         "python": platform.python_version(),
     }
     try:
-        from floorsim.render import backend_info
-
         v.update(backend_info())
     except Exception as exc:  # noqa: BLE001 - informational only
         v["backend"] = f"unavailable: {exc}"
@@ -222,8 +219,6 @@ def render_sequence(
     Frames already on disk from an interrupted render of the same resolved scene are
     kept; only missing frames are rendered. ``on_frame(done, total)`` reports progress.
     """
-    from floorsim.render import FloorRenderer
-
     scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)
     traj = _trajectory_of(scene)
     cam = scene.camera_model()
@@ -303,7 +298,6 @@ def render_sequence(
     )
     if gain <= 0:
         # Exposure from the first frame's radiance (rendered again here if it is on disk).
-        first_box = next(b for idx, b in tiles if 0 in idx)
         _load_tile(renderer, scene, footprint_bounds_mm(T_all[:1], cam, margin), spacing)
         rad0 = _render_frame(renderer, scene, traj, 0, None, scene.seed)
         vig0 = vignetting_factor(cam, scene.camera.vignetting)
@@ -313,7 +307,6 @@ def render_sequence(
             raise ConfigError(
                 f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
             )
-        del first_box
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
     sensor = SensorModel(
         gain, scene.sensor.full_well_e, scene.sensor.read_noise_e, scene.sensor.shot_noise, scene.sensor.bit_depth

@@ -1,8 +1,9 @@
 """Test doubles for the bench's collaborators: a scene loader, a renderer and estimators.
 
 The bench's own work (cache, results.csv, scoring, report, gates, sweeps) is tested with
-these; the doubles have known errors so the scores can be checked against hand values:
-estimator ``scaled`` measures every step ``1 + scale_error`` too long, where
+these, passed in as ``run_bench(..., **D.COLLABORATORS)`` (``load_scene``, ``render``,
+``runner``); the doubles have known errors so the scores can be checked against hand
+values: estimator ``scaled`` measures every step ``1 + scale_error`` too long, where
 ``scale_error = 0.001 * lights.height_mm`` (so a sweep over the LED height gives a known
 drift curve) unless ``--est-set scaled.scale=S`` fixes it; ``lossy`` loses two frames;
 ``needs_depth`` requires depth and must be skipped on mono sequences.
@@ -11,16 +12,15 @@ drift curve) unless ``--est-set scaled.scale=S`` fixes it; ``lossy`` loses two f
 from __future__ import annotations
 
 import json
-import sys
 import tomllib
-import types
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from _bench_data import write_run, write_sequence
 
-from floorvo.estimators.base import Frame, StepResult
+from floorsim.bench.estimators import EstimatorRunner
+from floorvo.estimators.base import StepResult
 
 SCENE_TOML = """name = "{name}"
 seed = {seed}
@@ -32,8 +32,11 @@ power = 1.0
 """
 
 
-def write_scene(path: Path, name: str = "tiny", seed: int = 7, frames: int = 12, height: float = 3.0) -> Path:
-    path.write_text(SCENE_TOML.format(name=name, seed=seed, frames=frames, height=height))
+def write_scene(
+    path: Path, name: str = "tiny", seed: int = 7, frames: int = 12, height: float = 3.0, extra: str = ""
+) -> Path:
+    """A scene file for :func:`load_scene`; ``extra``: more TOML tables (e.g. ``[bench]``)."""
+    path.write_text(SCENE_TOML.format(name=name, seed=seed, frames=frames, height=height) + extra)
     return path
 
 
@@ -78,38 +81,15 @@ def render(scene, out, *, frames=None, scale=None, spp=None, seed=None, on_frame
     return Path(out)
 
 
-class _Est:
-    requires: set = set()
+#: What each double estimator needs besides mono frames.
+REQUIRES = {"scaled": set(), "lossy": set(), "needs_depth": {"depth"}}
 
-
-class _DepthEst:
-    requires = {"depth"}
-
-
-ESTIMATORS = {"scaled": _Est, "lossy": _Est, "needs_depth": _DepthEst}
-
-
-#: (estimator, ScaleCalibration or None) of every run_estimator call.
+#: (estimator, ScaleCalibration or None) of every run.
 CALIBRATIONS: list = []
 
 
-def run_estimator(seq, name, out_dir, overrides=None, frames=None, scale_calibration=None):
-    CALIBRATIONS.append((name, scale_calibration))
-    meta = json.loads((Path(seq) / "sequence.json").read_text())
-    height = float(meta["scene"]["lights"]["height_mm"])
-    if name == "scaled":
-        scale = float((overrides or {}).get("scale", 1.0 + 0.001 * height))
-        if scale_calibration is not None:  # the sequences travel along the camera's x axis
-            scale /= scale_calibration.scale_x
-        write_run(Path(out_dir), Path(seq), scale=scale, estimator=name)
-    elif name == "lossy":
-        write_run(Path(out_dir), Path(seq), scale=1.0, lost=(3, 4), estimator=name)
-    else:
-        raise AssertionError(f"{name} must not run on a mono sequence")
-
-
 class _Stepper:
-    """What ``build_estimator`` gives for the keypoint samples: ``scaled`` exposes 5 matches, 2 px apart."""
+    """What ``FakeRunner.build`` gives for the keypoint samples: ``scaled`` exposes 5 matches, 2 px apart."""
 
     requires: set = set()
 
@@ -127,35 +107,38 @@ class _Stepper:
         return StepResult("ok", np.eye(4), matches_px=m)
 
 
-def build_estimator(seq, name, overrides=None):
-    return _Stepper(name), None
+class FakeRunner(EstimatorRunner):
+    """The double estimators: their runs write trajectories with known errors (see the module doc)."""
+
+    def names(self):
+        return list(REQUIRES)
+
+    def requires(self, name):
+        return set(REQUIRES[name])
+
+    def build(self, seq, name, overrides=None):
+        return _Stepper(name), None
+
+    def run(self, seq_dir, name, run_dir, overrides=None, scale_calibration=None):
+        CALIBRATIONS.append((name, scale_calibration))
+        meta = json.loads((Path(seq_dir) / "sequence.json").read_text())
+        height = float(meta["scene"]["lights"]["height_mm"])
+        if name == "scaled":
+            scale = float((overrides or {}).get("scale", 1.0 + 0.001 * height))
+            if scale_calibration is not None:  # the sequences travel along the camera's x axis
+                scale /= scale_calibration.scale_x
+            write_run(Path(run_dir), Path(seq_dir), scale=scale, estimator=name)
+        elif name == "lossy":
+            write_run(Path(run_dir), Path(seq_dir), scale=1.0, lost=(3, 4), estimator=name)
+        else:
+            raise AssertionError(f"{name} must not run on a mono sequence")
 
 
-def install(monkeypatch) -> None:
-    """Put the doubles where the bench imports its collaborators from."""
-    import floorsim
-    import floorvo
+#: The collaborators ``run_bench`` / ``run_sweep`` / ``floorsim.cli.main`` take.
+COLLABORATORS = {"load_scene": load_scene, "render": render, "runner": FakeRunner()}
 
+
+def reset() -> None:
+    """Forget the renders and runs of earlier tests."""
     RENDER_CALLS.clear()
     CALIBRATIONS.clear()
-    scene = types.ModuleType("floorsim.scene")
-    scene.load_scene = load_scene
-    simulate = types.ModuleType("floorsim.simulate")
-    simulate.render_sequence = render
-    run = types.ModuleType("floorvo.run")
-    run.run_estimator = run_estimator
-    run.build_estimator = build_estimator
-    est = types.ModuleType("floorvo.estimators")
-    est.list_estimators = lambda: list(ESTIMATORS)
-    est.get_estimator = lambda n: ESTIMATORS[n]
-    base = types.ModuleType("floorvo.estimators.base")
-    base.Frame, base.StepResult = Frame, StepResult
-    monkeypatch.setitem(sys.modules, "floorvo.estimators.base", base)
-    for name, mod, parent in (
-        ("floorsim.scene", scene, floorsim),
-        ("floorsim.simulate", simulate, floorsim),
-        ("floorvo.run", run, floorvo),
-        ("floorvo.estimators", est, floorvo),
-    ):
-        monkeypatch.setitem(sys.modules, name, mod)
-        monkeypatch.setattr(parent, name.split(".")[1], mod, raising=False)

@@ -1,18 +1,26 @@
-"""The bench's bookkeeping with test doubles for the renderer and the estimators:
-render cache, results.csv, skipping unsupported estimators, the CLI and its gate."""
+"""The bench's bookkeeping with test doubles for the renderer and the estimators (passed in
+as collaborators): render cache, results.csv, skipping unsupported estimators, the CLI and
+its gate."""
 
+import csv
 import json
+from functools import partial
 
 import _bench_doubles as D
 import pytest
 
-from floorsim.bench import run_bench
-from floorsim.bench.bench import read_results_csv, scene_cache_key
+from floorsim.bench import run_bench as real_run_bench
+from floorsim.bench.bench import scene_cache_key
+from floorsim.bench.results import TEXT_COLUMNS, read_results_csv
+from floorsim.cli import main as real_main
+
+run_bench = partial(real_run_bench, **D.COLLABORATORS)
+main = partial(real_main, collaborators=D.COLLABORATORS)
 
 
 @pytest.fixture
-def doubles(monkeypatch):
-    D.install(monkeypatch)
+def doubles():
+    D.reset()
     return D
 
 
@@ -33,6 +41,12 @@ def test_bench_scores_every_supported_estimator_and_reuses_renders(tmp_path, dou
     assert all(r["lost_frames"] == 2 and r["loss_events"] == 1 for r in lossy)
     # repetition k renders with seed + k: two sequences, each rendered once
     assert len(D.RENDER_CALLS) == 2 and {r["seed"] for r in rows} == {7, 8}
+    # every number of results.csv is a plain decimal that csv + float read back
+    with (out / "results.csv").open(newline="") as fh:
+        for raw, typed in zip(csv.DictReader(fh), rows):
+            for k, v in raw.items():
+                if k not in TEXT_COLUMNS and v != "":
+                    assert float(v) == pytest.approx(typed[k], nan_ok=True), (k, v)
     assert json.loads((out / "runs" / "tiny" / "scaled" / "rep1" / "score.json").read_text())["estimator"] == "scaled"
     # matched keypoints sampled for the report from the estimator that exposes them (repetition 0 only)
     assert len(list((out / "runs" / "tiny" / "scaled" / "rep0" / "matches").glob("*.npz"))) == 3
@@ -58,7 +72,8 @@ def test_cache_key_follows_scene_seed_and_settings():
 
 
 def test_paper001_scene_is_compared_with_0783_percent(tmp_path, doubles):
-    scene = D.write_scene(tmp_path / "p1.toml", name="paper001_line", height=3.0)
+    extra = '\n[trajectory]\ntype = "line"\n\n[bench]\nprotocols = ["paper001-line"]\n'
+    scene = D.write_scene(tmp_path / "p1.toml", name="line_3m", height=3.0, extra=extra)
     res = run_bench([scene], ["scaled"], tmp_path / "out")
     assert res.rows[0]["paper_ref_error_pct"] == 0.783
     page = res.report_html.read_text()
@@ -66,8 +81,6 @@ def test_paper001_scene_is_compared_with_0783_percent(tmp_path, doubles):
 
 
 def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
-    from floorsim.cli import main
-
     scene = D.write_scene(tmp_path / "tiny.toml")
     base = tmp_path / "baseline.json"
     assert (
@@ -108,7 +121,6 @@ def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
 
 def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, doubles, capsys):
     """--scale-calibration NAME=FILE reaches that estimator's runs (only), and the row names the file."""
-    from floorsim.cli import main
     from floorvo.calibration import ScaleCalibration, save_scale_calibration
 
     scene = D.write_scene(tmp_path / "tiny.toml", height=3.0)  # 'scaled' reads 0.3 % long

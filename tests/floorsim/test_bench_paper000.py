@@ -1,19 +1,22 @@
-"""Paper-000 protocol on a synthetic strip, with a phase-correlation estimator double.
+"""Paper-000 protocol on a synthetic strip, with two phase-correlation estimator doubles.
 
 The strip is a random texture seen through a window that moves 2 px (one strip step) per
-frame, so the measured distance of every run must equal the ground truth.
+frame, so the measured distance of every run must equal the ground truth. The doubles, a
+guided and a brute-force variant that differ only in the matching time they report, come
+in through the protocol's ``runner`` (the bench's estimator collaborator).
 """
 
-import sys
-import types
-from dataclasses import dataclass, field
+import csv
 
 import numpy as np
 import pytest
 
-from floorsim.bench.protocols.paper000 import matching_modes, run_paper000
+from floorsim.bench.estimators import EstimatorRunner
+from floorsim.bench.protocols.paper000 import run_paper000
+from floorsim.bench.report import Report
 from floorsim.trajectories import paper000_subsequences
 from floorvo.camera import CameraModel
+from floorvo.estimators import StepResult
 from floorvo.geometry import T_world_cam_down, make_T
 from floorvo.sequence import SequenceWriter
 
@@ -31,35 +34,13 @@ def _strip(root, n=16):
     return root, gsd, spacing
 
 
-@dataclass(frozen=True)
-class Frame:
-    index: int
-    timestamp_s: float
-    image: np.ndarray
-    image_right: object = None
-    depth_mm: object = None
-
-
-@dataclass(frozen=True)
-class StepResult:
-    T_prev_cur: object
-    status: str
-    reason: str = ""
-    timing_ms: dict = field(default_factory=dict)
-
-
 class PhaseCorr:
-    """Integer-pixel phase correlation along u; ``matching`` picks the timing label only."""
+    """Integer-pixel phase correlation along u; ``match_ms`` is the matching time it reports."""
 
-    name = "phasecorr"
-    requires: set = set()
+    requires: frozenset = frozenset()
 
-    @dataclass(frozen=True)
-    class Config:
-        matching: str = field(default="guided", metadata={"choices": ("guided", "brute_force")})
-
-    def __init__(self, config, camera, *, height_mm, flatfield=None, **_):
-        self.config, self.gsd = config, camera.gsd_mm_per_px(height_mm)
+    def __init__(self, camera, height_mm, match_ms):
+        self.gsd, self.match_ms = camera.gsd_mm_per_px(height_mm), match_ms
 
     def start(self):
         return {"prev": None}
@@ -67,41 +48,47 @@ class PhaseCorr:
     def step(self, state, frame):
         prev, state["prev"] = state["prev"], frame.image.astype(float)
         if prev is None:
-            return StepResult(None, "init")
+            return StepResult("init")
         F = np.fft.fft2(prev) * np.conj(np.fft.fft2(state["prev"]))
         corr = np.fft.ifft2(F / (np.abs(F) + 1e-9)).real
         du = int(np.argmax(corr.max(axis=0)))
         du = du - corr.shape[1] if du > corr.shape[1] // 2 else du
-        ms = 1.0 if self.config.matching == "guided" else 3.0
-        return StepResult(make_T(np.eye(3), [du * self.gsd, 0, 0]), "ok", timing_ms={"match": ms, "total": ms})
+        ms = self.match_ms
+        return StepResult("ok", make_T(np.eye(3), [du * self.gsd, 0, 0]), timing_ms={"match": ms, "total": ms})
 
 
-def test_protocol_measures_every_run_and_compares_matching_modes(tmp_path, monkeypatch):
-    import floorvo
+class PhaseCorrRunner(EstimatorRunner):
+    """Builds the doubles by name: guided matching reports 1 ms, brute force 3 ms."""
 
-    est = types.ModuleType("floorvo.estimators")
-    est.get_estimator = lambda n: PhaseCorr
-    est.make_config = lambda n, over: PhaseCorr.Config(**over)
-    base = types.ModuleType("floorvo.estimators.base")
-    base.Frame = Frame
-    monkeypatch.setitem(sys.modules, "floorvo.estimators", est)
-    monkeypatch.setitem(sys.modules, "floorvo.estimators.base", base)
-    monkeypatch.setattr(floorvo, "estimators", est, raising=False)
+    MATCH_MS = {"phasecorr-guided": 1.0, "phasecorr-bruteforce": 3.0}
 
+    def names(self):
+        return list(self.MATCH_MS)
+
+    def build(self, seq, name, overrides=None):
+        return PhaseCorr(seq.camera, seq.height_mm, self.MATCH_MS[name]), None
+
+
+def test_protocol_measures_every_run_and_compares_matching_modes(tmp_path):
     seq, gsd, spacing = _strip(tmp_path / "strip")
-    assert matching_modes("phasecorr") == ("matching", ["guided", "brute_force"])
-    res = run_paper000(seq, ["phasecorr"], tmp_path / "p0")
+    res = run_paper000(seq, ["phasecorr-guided", "phasecorr-bruteforce"], tmp_path / "p0", runner=PhaseCorrRunner())
     n_sig = len(paper000_subsequences("sigmoid_g125", 16, spacing))
     assert n_sig > 0 and len(paper000_subsequences("uniform", 16, spacing)) == 0  # too short a strip for model I
     assert len(res.runs) == 2 * 2 * n_sig  # two sigmoid models x two matching modes
     for r in res.runs:
         assert r["measured_mm"] == pytest.approx(r["true_mm"], abs=1e-5) and r["lost"] == 0
     by = {(s["estimator"], s["model"]): s for s in res.summary}
-    assert by[("phasecorr (guided)", "sigmoid_g125")]["match_ms_mean"] == 1.0
-    assert by[("phasecorr (brute_force)", "sigmoid_g175")]["match_ms_mean"] == 3.0
+    assert by[("phasecorr-guided", "sigmoid_g125")]["match_ms_mean"] == 1.0
+    assert by[("phasecorr-bruteforce", "sigmoid_g175")]["match_ms_mean"] == 3.0
     assert (tmp_path / "p0" / "runs.csv").is_file() and (tmp_path / "p0" / "summary.csv").is_file()
-
-    from floorsim.bench.report import Report
+    # numbers written as plain decimals (numpy 2 wrote np.float64(...)): csv + float reads them back
+    for name, text in (("runs.csv", {"scene", "estimator", "model"}), ("summary.csv", {"estimator", "model"})):
+        with (tmp_path / "p0" / name).open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        assert len(rows) == len(res.runs if name == "runs.csv" else res.summary)
+        for row, mem in zip(rows, res.runs if name == "runs.csv" else res.summary):
+            for k, v in row.items():
+                assert (v == mem[k]) if k in text else float(v) == pytest.approx(mem[k], nan_ok=True), (name, k, v)
 
     rep = Report("t", tmp_path / "rep")
     res.report_section(rep)

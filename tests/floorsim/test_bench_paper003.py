@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from floorsim.bench import run_bench
-from floorsim.bench.bench import read_results_csv
+from floorsim.bench.results import read_results_csv
 from floorvo.mapping import synthetic as syn
 from floorvo.sequence import SequenceWriter
 

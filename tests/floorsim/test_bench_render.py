@@ -3,7 +3,7 @@
 import pytest
 
 from floorsim.bench import run_bench
-from floorsim.bench.bench import read_results_csv
+from floorsim.bench.results import read_results_csv
 from floorvo.estimators import get_estimator, list_estimators
 
 pytestmark = pytest.mark.render

@@ -1,17 +1,22 @@
 """Sweeps: a 2x2 grid on a two-worker local Dask cluster, streaming, restart, curves.
 
-The renderer and the estimators are the test doubles of ``_bench_doubles`` (the
-``scaled`` estimator's drift is 0.1 % per mm of LED height), so the drift of every row
-is known."""
+The scene loader, the renderer and the estimators are the test doubles of
+``_bench_doubles``, passed in as collaborators (the ``scaled`` estimator's drift is 0.1 %
+per mm of LED height), so the drift of every row is known."""
 
+from functools import partial
 from pathlib import Path
 
 import _bench_doubles as D
 import pytest
 
-from floorsim.bench.bench import read_results_csv
-from floorsim.bench.sweep import load_sweep, run_sweep, sweep_jobs
+from floorsim.bench.results import read_results_csv, write_results_csv
+from floorsim.bench.sweep import _as_override, load_sweep, sweep_jobs
+from floorsim.bench.sweep import run_sweep as real_run_sweep
+from floorsim.scene import load_scene
 from floorvo.errors import ConfigError
+
+run_sweep = partial(real_run_sweep, **D.COLLABORATORS)
 
 
 def _sweep_file(tmp_path: Path) -> Path:
@@ -24,14 +29,13 @@ def _sweep_file(tmp_path: Path) -> Path:
     return p
 
 
-def test_two_by_two_sweep_on_two_dask_workers_streams_and_restarts(tmp_path, monkeypatch):
-    D.install(monkeypatch)
+def test_two_by_two_sweep_on_two_dask_workers_streams_and_restarts(tmp_path):
+    D.reset()
     sweep = _sweep_file(tmp_path)
     spec = load_sweep(sweep)
     assert len(sweep_jobs(spec)) == 4
     out = tmp_path / "out"
-    small_render = D.render
-    res = run_sweep(sweep, out, workers=2, processes=False, render=small_render)
+    res = run_sweep(sweep, out, workers=2, processes=False)
     assert res.errors == [] and res.ran == 4
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 4 * 2 and {r["job"] for r in rows} == {j["job"] for j in sweep_jobs(spec)}
@@ -47,13 +51,11 @@ def test_two_by_two_sweep_on_two_dask_workers_streams_and_restarts(tmp_path, mon
     assert html.count("data:image/png;base64,") == 2  # one robustness figure per varied key
     assert "operating point 3.0" in html  # the base scene's LED height is the paper rig's
     # Restart: nothing to do; drop one job's rows and only that job runs again.
-    again = run_sweep(sweep, out, workers=2, processes=False, render=small_render)
+    again = run_sweep(sweep, out, workers=2, processes=False)
     assert again.ran == 0 and again.skipped == 4
     first = rows[0]["job"]
-    from floorsim.bench.bench import write_results_csv
-
     write_results_csv(out / "results.csv", [r for r in rows if r["job"] != first])
-    third = run_sweep(sweep, out, workers=2, processes=False, render=small_render)
+    third = run_sweep(sweep, out, workers=2, processes=False)
     assert third.ran == 1 and len(read_results_csv(out / "results.csv")) == len(rows)
 
 
@@ -72,9 +74,6 @@ def test_sweep_file_errors_name_the_key(tmp_path):
 
 
 def test_shipped_sweep_files_vary_only_keys_the_scene_has():
-    from floorsim.scene import load_scene
-    from floorsim.bench.sweep import _as_override
-
     files = sorted((Path(__file__).resolve().parents[2] / "scenes" / "sweeps").glob("*.toml"))
     assert files
     for f in files:

@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from floorvo.io import atomic_write_bytes, atomic_write_text
+from floorvo.metrics import associate, read_timing_csv, translation_error_along_path
+from floorvo.sequence import Sequence
+from floorvo.tum import read_tum
 
 __all__ = ["Report", "RunRecord", "SUMMARY_COLUMNS", "build_bench_report", "format_table"]
 
@@ -46,6 +49,7 @@ SUMMARY_COLUMNS: list[tuple[str, str]] = [
 
 
 def _plt():
+    """matplotlib's pyplot on the Agg backend; imported on the first plot (heavy, and only reports need it)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -159,9 +163,6 @@ class Report:
 
 # ----------------------------------------------------------------------------- plots
 def _load_pair(rec: RunRecord):
-    from floorvo.metrics import associate
-    from floorvo.tum import read_tum
-
     try:
         t_ref, T_ref = read_tum(rec.seq_dir / "groundtruth.txt")
         t_est, T_est = read_tum(rec.run_dir / "trajectory.txt")
@@ -200,8 +201,6 @@ def _trajectory_figure(scene: str, recs: list[RunRecord]):
 
 
 def _error_figure(scene: str, recs: list[RunRecord]):
-    from floorvo.metrics import translation_error_along_path
-
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5))
     drawn = False
@@ -222,8 +221,6 @@ def _error_figure(scene: str, recs: list[RunRecord]):
 
 
 def _timing_figure(recs: list[RunRecord]):
-    from floorvo.metrics import read_timing_csv
-
     plt = _plt()
     stages = ("detect_ms", "match_ms", "estimate_ms", "total_ms")
     per_est: dict[str, dict[str, list[float]]] = {}
@@ -253,8 +250,6 @@ def _timing_figure(recs: list[RunRecord]):
 
 def _keypoint_figure(recs: list[RunRecord], max_frames: int = 3):
     """Frames with matched keypoints from ``RUN/matches/*.npz``; None when no run has any."""
-    from floorvo.sequence import Sequence
-
     plt = _plt()
     for rec in recs:
         mdir = rec.run_dir / "matches"

@@ -21,8 +21,9 @@ A sweep file (TOML)::
 
 Keys are scene keys in ``--set`` form (``section.key``), so a sweep can vary only what the
 scene file format has. One job is one grid point and repetition: it renders the scene (the
-render cache of :func:`floorsim.bench.render_cached` reuses an identical sequence) and runs
-and scores every estimator on it, giving one row per estimator.
+render cache of :func:`floorsim.bench.bench.render_cached` reuses an identical sequence) and
+runs and scores every estimator on it, giving one row per estimator (paper protocols are
+the bench's, not the sweep's).
 
 Execution: local processes by default (``jobs`` of them); ``scheduler="tcp://HOST:PORT"``
 sends the same jobs to a Dask distributed cluster; ``workers=N`` starts a local Dask
@@ -47,6 +48,18 @@ from typing import Any
 
 import numpy as np
 
+from floorsim.bench.bench import (
+    RenderFn,
+    SceneLoader,
+    render_cached,
+    run_one,
+    scene_seed,
+    supported_estimators,
+)
+from floorsim.bench.estimators import EstimatorRunner
+from floorsim.bench.report import Report, _plt
+from floorsim.bench.results import read_results_csv, write_results_csv
+from floorsim.scene import load_scene as load_scene_file
 from floorvo.errors import ConfigError, FloorbenchError
 
 log = logging.getLogger(__name__)
@@ -143,30 +156,35 @@ def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
 
 
 def run_sweep_job(
-    job: Mapping[str, Any], spec: SweepSpec, out_dir: str, cache_dir: str, render: Callable | None = None
+    job: Mapping[str, Any],
+    spec: SweepSpec,
+    out_dir: str,
+    cache_dir: str,
+    render: RenderFn | None = None,
+    load_scene: SceneLoader = load_scene_file,
+    runner: EstimatorRunner | None = None,
 ) -> list[dict[str, Any]]:
     """Render one grid point and run and score every estimator on it; returns its rows.
 
-    Runs in a worker (a local process or a Dask worker): takes and returns plain data.
+    Runs in a worker (a local process or a Dask worker): takes and returns plain data (the
+    collaborators ``render``, ``load_scene`` and ``runner`` are picklable: module-level
+    functions and an :class:`~floorsim.bench.estimators.EstimatorRunner`).
     A user error (bad scene value, a failed run) becomes a row with ``status`` saying why.
     """
-    from floorsim.bench.bench import _scene_seed, render_cached, run_one, supported_estimators
-    from floorsim.scene import load_scene
-
-    out_dir, cache_dir = Path(out_dir), Path(cache_dir)
+    out, cache = Path(out_dir), Path(cache_dir)
     base_row = {"job": job["job"], "repetition": job["repetition"], **{k: job["params"][k] for k in spec.vary}}
     overrides = {**spec.fixed, **{k: _as_override(v) for k, v in job["params"].items()}}
     try:
         scene = load_scene(spec.base, overrides)
-        seed = _scene_seed(scene) + int(job["repetition"])
-        seq_dir = render_cached(scene, cache_dir, seed=seed, render=render, **spec.render)
-        names, skipped = supported_estimators(seq_dir, spec.estimators)
+        seed = scene_seed(scene) + int(job["repetition"])
+        seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
+        names, skipped = supported_estimators(seq_dir, spec.estimators, runner)
     except FloorbenchError as exc:
         return [{**base_row, "scene": spec.name, "estimator": "", "status": f"failed: {exc}"}]
     rows = []
     safe = "".join(c if c.isalnum() or c in "-_.=" else "_" for c in job["job"])
     for name in names:
-        run_dir = out_dir / "runs" / safe / name
+        run_dir = out / "runs" / safe / name
         row = {
             **base_row,
             "scene": scene.name,
@@ -176,7 +194,7 @@ def run_sweep_job(
             "run_dir": str(run_dir),
         }
         try:
-            row.update(run_one(seq_dir, name, run_dir))
+            row.update(run_one(seq_dir, name, run_dir, runner=runner))
             row["status"] = "ok"
         except FloorbenchError as exc:
             row["status"] = f"failed: {exc}"
@@ -207,17 +225,18 @@ def run_sweep(
     cache_dir: str | os.PathLike | None = None,
     processes: bool = True,
     report: bool = True,
-    render: Callable | None = None,
     on_job: Callable[[int, int], None] | None = None,
+    render: RenderFn | None = None,
+    load_scene: SceneLoader = load_scene_file,
+    runner: EstimatorRunner | None = None,
 ) -> SweepResult:
     """Run a sweep file's grid (see the module doc); returns the rows and where things are.
 
     ``scheduler``: a Dask scheduler address; ``workers``: start a local Dask cluster of
     that many workers (``processes=False`` makes them threads, for tests); neither: a local
-    process pool of ``jobs`` workers. ``render`` replaces the renderer in every job.
+    process pool of ``jobs`` workers. Collaborators of every job (defaults: the real ones,
+    as in :func:`floorsim.bench.bench.run_bench`): ``render``, ``load_scene``, ``runner``.
     """
-    from floorsim.bench.bench import read_results_csv, write_results_csv
-
     if scheduler is not None and workers is not None:
         raise ConfigError("--scheduler and --workers: give one of them (a cluster to join, or a local one to start)")
     if workers is not None and workers < 1:
@@ -253,14 +272,14 @@ def run_sweep(
             on_job(finished, len(todo))
 
     if todo:
-        args = (spec, str(out_dir.resolve()), cache, render)
+        args = (spec, str(out_dir.resolve()), cache, render, load_scene, runner)
         if scheduler is not None or workers is not None:
             _run_dask(todo, args, collect, scheduler, workers, processes)
         else:
             _run_local(todo, args, collect, jobs)
     res = SweepResult(rows, results_csv, len(todo), len(all_jobs) - len(todo), errors)
     if report and rows:
-        res.report_html, res.report_md = plot_sweep(spec, rows, out_dir)
+        res.report_html, res.report_md = plot_sweep(spec, rows, out_dir, load_scene=load_scene)
     return res
 
 
@@ -281,7 +300,7 @@ def _run_local(todo, args, collect, jobs: int) -> None:
 
 
 def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, processes: bool) -> None:
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, LocalCluster, as_completed  # heavy, and only for Dask runs
 
     cluster = None
     try:
@@ -312,12 +331,10 @@ def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, p
 
 
 # ----------------------------------------------------------------------------- robustness curves
-def _operating_value(spec: SweepSpec, key: str) -> Any:
+def _operating_value(spec: SweepSpec, key: str, load_scene: SceneLoader) -> Any:
     if key in spec.operating_point:
         return spec.operating_point[key]
     try:
-        from floorsim.scene import load_scene
-
         d = load_scene(spec.base, dict(spec.fixed)).to_dict()
         for part in key.split("."):
             d = d[part]
@@ -333,11 +350,12 @@ def _num(v: Any) -> float:
         return float("nan")
 
 
-def plot_sweep(spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.PathLike) -> tuple[Path, Path]:
+def plot_sweep(
+    spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.PathLike, load_scene: SceneLoader = load_scene_file
+) -> tuple[Path, Path]:
     """Write ``sweep.html`` / ``sweep.md``: per varied key, drift and tracking loss against
-    its values (mean over the other keys and repetitions), one line per estimator."""
-    from floorsim.bench.report import Report, _plt
-
+    its values (mean over the other keys and repetitions), one line per estimator; the
+    operating point is the sweep's, else the base scene's value (read with ``load_scene``)."""
     plt = _plt()
     rep = Report(f"floorbench sweep: {spec.name}", Path(out_dir), stem="sweep")
     ok = [r for r in rows if r.get("status") == "ok"]
@@ -369,7 +387,7 @@ def plot_sweep(spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.Pa
             x = [pos[_as_override(v)] for v in xs_sorted]
             axes[0].plot(x, drift, "o-", label=est)
             axes[1].plot(x, lost, "o-", label=est)
-        op = _operating_value(spec, key)
+        op = _operating_value(spec, key, load_scene)
         for ax, ylabel in zip(axes, ("end-point drift [% of distance]", "lost frames")):
             if op is not None and _as_override(op) in pos:
                 ax.axvline(pos[_as_override(op)], color="k", ls="--", lw=1, label="paper rig")

@@ -7,10 +7,9 @@ path. With ``--baseline FILE`` it prints what got worse and exits 1 if anything 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from floorvo.cli.common import parse_set_args
+from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
 from floorvo.errors import ConfigError
 
 __all__ = ["add_parser", "run", "parse_estimator_sets"]
@@ -26,7 +25,7 @@ def add_parser(subparsers) -> None:
         "got worse than the baseline's tolerance allows.",
     )
     p.add_argument("scenes", metavar="SCENE", nargs="+", type=Path, help="scene TOML files")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
+    add_output_argument(p, "output folder DIR", type=Path)
     p.add_argument(
         "--estimators",
         default=None,
@@ -51,7 +50,13 @@ def add_parser(subparsers) -> None:
         "--baseline", type=Path, default=None, help="compare with this baseline; exit 1 if anything got worse"
     )
     p.add_argument("--save-baseline", type=Path, default=None, metavar="FILE", help="write the results as a baseline")
-    p.add_argument("--paper000-runs", type=int, default=None, help="at most N runs per paper-000 model (default: all)")
+    p.add_argument(
+        "--paper000-runs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="at most N runs per model of the paper000-strip protocol (default: all)",
+    )
     p.add_argument("--no-report", action="store_true", help="skip the HTML/Markdown report")
     p.add_argument(
         "--scale-calibration",
@@ -85,42 +90,31 @@ def parse_scale_calibrations(items: list[str] | None) -> dict[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported when the command runs, as in every command module: `floorsim --help` stays quick.
     from floorsim.bench import run_bench
     from floorsim.bench.report import format_table
 
     estimators = [e.strip() for e in args.estimators.split(",") if e.strip()] if args.estimators else None
-    bars: dict[str, object] = {}
-
-    def on_frame(scene: str, i: int, n: int) -> None:
-        if not sys.stderr.isatty():
-            return
-        bar = bars.get(scene)
-        if bar is None:
-            from tqdm import tqdm
-
-            bar = bars[scene] = tqdm(total=n, desc=f"render {scene}", unit="frame", leave=False)
-        bar.update(max(0, i - bar.n))  # i frames of n are done
-
-    res = run_bench(
-        args.scenes,
-        estimators,
-        args.output,
-        repetitions=args.repeat,
-        scene_overrides=parse_set_args(args.scene_set),
-        estimator_overrides=parse_estimator_sets(args.est_set),
-        frames=args.frames,
-        scale=args.scale,
-        spp=args.spp,
-        cache_dir=args.cache,
-        baseline=args.baseline,
-        save_baseline_to=args.save_baseline,
-        report=not args.no_report,
-        paper000_runs=args.paper000_runs,
-        on_frame=on_frame,
-        scale_calibrations=parse_scale_calibrations(args.scale_calibration),
-    )
-    for bar in bars.values():
-        bar.close()
+    with progress_callback("render", "frame") as bar:
+        res = run_bench(
+            args.scenes,
+            estimators,
+            args.output,
+            repetitions=args.repeat,
+            scene_overrides=parse_set_args(args.scene_set),
+            estimator_overrides=parse_estimator_sets(args.est_set),
+            frames=args.frames,
+            scale=args.scale,
+            spp=args.spp,
+            cache_dir=args.cache,
+            baseline=args.baseline,
+            save_baseline_to=args.save_baseline,
+            report=not args.no_report,
+            paper000_runs=args.paper000_runs,
+            on_frame=lambda scene, done, n: bar(done, n, desc=f"render {scene}"),
+            scale_calibrations=parse_scale_calibrations(args.scale_calibration),
+            **args.collaborators,
+        )
     for note in res.notes:
         print(note)
     print(format_table(res.rows))

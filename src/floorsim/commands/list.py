@@ -1,10 +1,11 @@
-"""``floorsim list``: materials, trajectory types and shipped scenes; ``--scene-keys``: every scene key."""
+"""``floorsim list``: materials, trajectory types, bench protocols and shipped scenes; ``--scene-keys``: every
+scene key."""
 
 from __future__ import annotations
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("list", help="list materials, trajectory types and shipped scenes")
+    p = sub.add_parser("list", help="list materials, trajectory types, bench protocols and shipped scenes")
     p.add_argument(
         "--scene-keys",
         action="store_true",
@@ -34,8 +35,10 @@ def print_scene_keys() -> None:
 
 
 def run(args) -> int:
+    # Imported when the command runs, as in every command module: `floorsim --help` stays quick.
     import tomllib
 
+    from floorsim.bench.protocols import PROTOCOLS
     from floorsim.materials import MATERIALS
     from floorsim.scene import list_scenes
     from floorsim.trajectories import TRAJECTORIES
@@ -49,6 +52,9 @@ def run(args) -> int:
     print("trajectories:")
     for name, t in TRAJECTORIES.items():
         print(f"  {name:<14} {t.description}")
+    print("bench protocols (a scene's [bench] protocols = [NAME]):")
+    for name, proto in PROTOCOLS.items():
+        print(f"  {name:<24} {proto.description}")
     print("scenes:")
     for path in list_scenes():
         try:

@@ -8,6 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from floorvo.cli.common import add_output_argument, progress_callback
+
 __all__ = ["add_parser", "run"]
 
 
@@ -20,7 +22,7 @@ def add_parser(subparsers) -> None:
         "the jobs already there. Robustness curves go to DIR/sweep.html and DIR/sweep.md.",
     )
     p.add_argument("sweep", metavar="SWEEP", type=Path, help="sweep TOML file (see scenes/sweeps/)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder DIR")
+    add_output_argument(p, "output folder DIR", type=Path)
     where = p.add_mutually_exclusive_group()
     where.add_argument(
         "--scheduler", metavar="tcp://HOST:PORT", default=None, help="send the jobs to this Dask scheduler"
@@ -36,33 +38,19 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
+    from floorsim.bench.sweep import run_sweep  # when the command runs: keeps `floorsim --help` quick
 
-    from floorsim.bench.sweep import run_sweep
-
-    bar = None
-
-    def on_job(i: int, n: int) -> None:
-        nonlocal bar
-        if not sys.stderr.isatty():
-            return
-        if bar is None:
-            from tqdm import tqdm
-
-            bar = tqdm(total=n, desc="sweep", unit="job", leave=False)
-        bar.update(1)
-
-    res = run_sweep(
-        args.sweep,
-        args.output,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        jobs=args.jobs,
-        cache_dir=args.cache,
-        on_job=on_job,
-    )
-    if bar is not None:
-        bar.close()
+    with progress_callback("sweep", "job") as on_job:
+        res = run_sweep(
+            args.sweep,
+            args.output,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            jobs=args.jobs,
+            cache_dir=args.cache,
+            on_job=on_job,
+            **args.collaborators,
+        )
     print(f"sweep: {res.ran} job(s) run, {res.skipped} already done; {len(res.rows)} row(s) in {res.results_csv}")
     for e in res.errors:
         print(f"job failed: {e}")

@@ -4,42 +4,109 @@ Each command module defines ``add_parser(subparsers)`` (registering its argument
 ``set_defaults(func=run)``) and ``run(args) -> int``, a thin call to a library function.
 A :class:`~floorvo.errors.FloorbenchError` becomes one line on stderr and exit code 1;
 any other exception keeps its traceback.
+
+Flags that mean the same in every command of both CLIs (``floorvo``, ``floorsim``):
+``-o/--output`` (the output file or folder; ``--out`` is accepted as a hidden alias, see
+:func:`floorvo.cli.common.add_output_argument`), ``--set KEY=VALUE``, and ``-v/--verbose``
+(debug logging of floorvo and floorsim) and ``-q/--quiet`` (warnings and errors only),
+which work before or after the subcommand.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import importlib
 import logging
 import sys
+from collections.abc import Mapping
+from typing import Any
 
 from floorvo import __version__
 from floorvo.errors import FloorbenchError
 
+__all__ = ["COMMANDS", "build_parser", "run_cli", "main"]
+
+log = logging.getLogger(__name__)
+
 #: Command modules under ``floorvo.cli``, in the order ``--help`` lists them.
 COMMANDS: list[str] = ["run", "list", "score", "calibrate", "map", "localize"]
+
+#: Loggers whose level ``-v`` / ``-q`` set.
+PACKAGE_LOGGERS = ("floorvo", "floorsim")
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Leaves an option's ``hidden_aliases`` (e.g. ``--out`` of ``-o/--output``) out of the help."""
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        hidden = getattr(action, "hidden_aliases", ())
+        if hidden:
+            action = copy.copy(action)
+            action.option_strings = [s for s in action.option_strings if s not in hidden]
+        return super()._format_action_invocation(action)
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The parser of both CLIs and of each subcommand (help without hidden aliases)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+
+def _add_verbosity(parser: argparse.ArgumentParser, suffix: str = "") -> None:
+    parser.add_argument(
+        "-v", "--verbose", dest=f"verbose{suffix}", action="count", default=0, help="debug logging of floorvo/floorsim"
+    )
+    parser.add_argument("-q", "--quiet", dest=f"quiet{suffix}", action="store_true", help="only warnings and errors")
 
 
 def build_parser(
     prog: str, package: str, commands: list[str], description: str, version: str
 ) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog=prog, description=description)
+    """The CLI ``prog``: a subcommand per module ``package.NAME`` of ``commands``; ``-v`` / ``-q``
+    are accepted before and after the subcommand."""
+    parser = CommandParser(prog=prog, description=description)
     parser.add_argument("--version", action="version", version=f"%(prog)s {version}")
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
-    parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_verbosity(parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=CommandParser)
     sub.required = True
     for name in commands:
         importlib.import_module(f"{package}.{name}").add_parser(sub)
+    for command_parser in sub.choices.values():
+        _add_verbosity(command_parser, "_after")
     return parser
 
 
-def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None, prog: str) -> int:
+def _log_level(args: argparse.Namespace) -> int:
+    if args.quiet or getattr(args, "quiet_after", False):
+        return logging.WARNING
+    if args.verbose + getattr(args, "verbose_after", 0) > 0:
+        return logging.DEBUG
+    return logging.INFO
+
+
+def run_cli(
+    parser: argparse.ArgumentParser,
+    argv: list[str] | None,
+    prog: str,
+    collaborators: Mapping[str, Any] | None = None,
+) -> int:
+    """Parse ``argv``, set the log level, run the command; returns the exit code.
+
+    ``collaborators`` reach the commands that take them (``floorsim bench`` and ``sweep``
+    pass them to their library function: a renderer, a scene loader, an estimator runner)
+    as ``args.collaborators``; tests use it to run the CLI on doubles.
+    """
     args = parser.parse_args(argv)
-    level = logging.WARNING if args.quiet else (logging.INFO if args.verbose <= 1 else logging.DEBUG)
-    if args.verbose == 0 and not args.quiet:
-        level = logging.INFO
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    args.collaborators = dict(collaborators or {})
+    level = _log_level(args)
+    logging.basicConfig(level=max(level, logging.INFO), format="%(levelname)s %(name)s: %(message)s")
+    previous = {name: logging.getLogger(name).level for name in PACKAGE_LOGGERS}
+    for name in PACKAGE_LOGGERS:
+        logging.getLogger(name).setLevel(level)
+    log.debug("%s %s: debug logging on", prog, args.command)
     try:
         return int(args.func(args) or 0)
     except FloorbenchError as exc:
@@ -48,13 +115,16 @@ def run_cli(parser: argparse.ArgumentParser, argv: list[str] | None, prog: str) 
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; what was written is kept, run the same command again to resume", file=sys.stderr)
         return 130
+    finally:
+        for name, lvl in previous.items():  # a process that runs several commands (tests) starts each afresh
+            logging.getLogger(name).setLevel(lvl)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, collaborators: Mapping[str, Any] | None = None) -> int:
     parser = build_parser(
         "floorvo", "floorvo.cli", COMMANDS, "Odometry for downward-looking floor cameras.", __version__
     )
-    return run_cli(parser, argv, "floorvo")
+    return run_cli(parser, argv, "floorvo", collaborators)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,43 +2,56 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
+from typing import Any
 
 from floorvo.config import parse_set_args  # the one --set parser, re-exported for the command modules
 
-__all__ = ["parse_set_args", "progress", "progress_callback"]
+__all__ = ["add_output_argument", "parse_set_args", "progress_callback"]
 
 
-def progress(iterable, total: int | None = None, desc: str = "", unit: str = "frame"):
-    """A tqdm progress bar on a terminal; the plain iterable otherwise."""
-    if not sys.stderr.isatty():
-        return iterable
-    from tqdm import tqdm
+def add_output_argument(parser: argparse.ArgumentParser, help: str, **kwargs: Any) -> argparse.Action:
+    """``-o/--output`` (``args.output``), the one output flag of every command.
 
-    return tqdm(iterable, total=total, desc=desc, unit=unit, leave=False)
+    ``--out``, the older spelling of four commands, is accepted as a hidden alias (left out
+    of the help). ``kwargs`` go to ``add_argument`` (default ``required=True``).
+    """
+    kwargs.setdefault("required", True)
+    action = parser.add_argument("-o", "--output", "--out", dest="output", help=help, **kwargs)
+    action.hidden_aliases = ("--out",)  # type: ignore[attr-defined]  # read by the CLI's help formatter
+    return action
 
 
 class progress_callback:
-    """Context manager giving an ``on_progress(done, total)`` callback that drives a tqdm bar.
+    """Context manager giving an ``on_progress(done, total, desc=None)`` callback that drives a
+    tqdm bar: the one progress bar of both CLIs.
 
-    On a non-terminal stderr the callback does nothing (no progress bar in logs).
+    ``desc`` names what is counted; a call with another ``desc`` (the next scene of a bench)
+    closes the bar and starts a new one. On a non-terminal stderr the callback does nothing
+    (no progress bars in logs).
     """
 
     def __init__(self, desc: str = "", unit: str = "frame"):
-        self.desc, self.unit, self.bar = desc, unit, None
+        self.desc, self.unit = desc, unit
+        self.bar: Any = None
+
+    def update(self, done: int, total: int, desc: str | None = None) -> None:
+        if not sys.stderr.isatty():
+            return
+        desc = self.desc if desc is None else desc
+        if self.bar is not None and (self.bar.desc != desc or self.bar.total != total):
+            self.bar.close()
+            self.bar = None
+        if self.bar is None:
+            from tqdm import tqdm  # imported only when a bar is drawn: keeps the CLI's start quick
+
+            self.bar = tqdm(total=total, desc=desc, unit=self.unit, leave=False)
+        self.bar.n = done
+        self.bar.refresh()
 
     def __enter__(self):
-        def cb(done: int, total: int) -> None:
-            if not sys.stderr.isatty():
-                return
-            if self.bar is None:
-                from tqdm import tqdm
-
-                self.bar = tqdm(total=total, desc=self.desc, unit=self.unit, leave=False)
-            self.bar.n = done
-            self.bar.refresh()
-
-        return cb
+        return self.update
 
     def __exit__(self, *exc) -> None:
         if self.bar is not None:

@@ -8,11 +8,13 @@ frame-to-frame motions from the first ground-truth pose and records the measured
 distance per frame against the ground truth (the paper's Fig. 8) and the time the
 estimator spent matching (``timing_ms["match"]``, the paper's Fig. 9).
 
-An estimator whose config has a field with the choices ``guided`` and a brute-force
-option (a name containing ``brute``) is run once per matching mode, so guided matching
-(the paper's proposal) and brute-force matching (its baseline) are compared on the same
-runs. Outputs under ``OUT/``: ``runs.csv`` (one row per estimator x mode x model x start
-frame) and ``summary.csv``; the plots and the table go into the bench report.
+Every estimator runs the same runs, so ``akaze-guided`` (the paper's guided matching)
+and ``akaze-bruteforce`` (its brute-force baseline) are compared run for run. Outputs
+under ``OUT/``: ``runs.csv`` (one row per estimator x model x start frame) and
+``summary.csv``; the plots and the table go into the bench report.
+
+In the bench this is the protocol ``paper000-strip`` (:class:`Paper000Strip`), the default
+for a scene whose trajectory is the ``strip``.
 """
 
 from __future__ import annotations
@@ -25,37 +27,26 @@ from collections.abc import Callable, Mapping
 from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
+from floorsim.bench.protocols.base import BenchContext, BenchProtocol, ProtocolOutput, SceneRun
+from floorsim.bench.report import Report, _plt
+from floorsim.bench.results import write_results_csv
 from floorsim.trajectories import paper000_subsequences
 from floorvo.calibration import apply_scale
-from floorvo.errors import FloorbenchError
+from floorvo.errors import FloorbenchError, SequenceError
+from floorvo.estimators.base import Frame
+from floorvo.sequence import Sequence
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MODELS", "Paper000Result", "matching_modes", "run_subsequence", "run_paper000"]
+__all__ = ["MODELS", "Paper000Result", "Paper000Strip", "run_subsequence", "run_paper000"]
 
 #: The paper's three motion models, in its order (I, II, III).
 MODELS = ("uniform", "sigmoid_g125", "sigmoid_g175")
-
-
-def matching_modes(estimator: str) -> tuple[str | None, list[str]]:
-    """``(config field, [guided mode, brute-force mode])`` of an estimator, or ``(None, [])``."""
-    from floorvo.estimators import get_estimator
-
-    cls = get_estimator(estimator)
-    Config = getattr(cls, "Config", None)
-    if Config is None or not dataclasses.is_dataclass(Config):
-        return None, []
-    for f in dataclasses.fields(Config):
-        choices = tuple((f.metadata or {}).get("choices") or ())
-        if "guided" in choices:
-            brute = [c for c in choices if "brute" in str(c)]
-            if brute:
-                return f.name, ["guided", brute[0]]
-    return None, []
 
 
 def run_subsequence(
@@ -65,6 +56,7 @@ def run_subsequence(
     overrides: Mapping[str, str] | None = None,
     images: dict[int, np.ndarray] | None = None,
     scale_calibration=None,
+    runner: EstimatorRunner = DEFAULT_RUNNER,
 ) -> dict[str, Any]:
     """Run ``estimator`` over the strip frames ``indices`` (in order; repeats allowed).
 
@@ -73,14 +65,10 @@ def run_subsequence(
 
     Returns ``measured_mm`` (K,) (distance from the run's first pose, per frame),
     ``true_mm`` (K,), ``match_ms`` (K,) and ``lost`` (count). The run's frame k gets
-    timestamp ``k / fps``; a lost step keeps the previous pose.
+    timestamp ``k / fps``; a lost step keeps the previous pose. ``runner`` builds the
+    estimator (:class:`floorsim.bench.estimators.EstimatorRunner`).
     """
-    from floorvo.estimators import get_estimator, make_config
-    from floorvo.estimators.base import Frame
-
-    cls = get_estimator(estimator)
-    cfg = make_config(estimator, dict(overrides or {}))
-    est = cls(cfg, seq.camera, height_mm=seq.height_mm or 100.0, flatfield=seq.flatfield())
+    est, _ = runner.build(seq, estimator, overrides)
     state = est.start()
     gt = seq.groundtruth()
     T_gt = gt[1]
@@ -125,21 +113,18 @@ def run_paper000(
     estimator_overrides: Mapping[str, Mapping[str, str]] | None = None,
     on_run: Callable[[int, int], None] | None = None,
     scale_calibrations: Mapping[str, Any] | None = None,
+    runner: EstimatorRunner = DEFAULT_RUNNER,
 ) -> Paper000Result:
     """Run the paper-000 protocol on the strip sequence ``seq_dir`` (see the module doc).
 
     ``max_runs`` keeps at most that many runs per model, spread evenly over the start
     frames (None: 100 uniform and 190 per sigmoid model on a 200-frame strip).
     ``scale_calibrations``: ``{estimator: ScaleCalibration}`` divided out of its steps.
+    ``runner``: builds the estimators (the bench's; a double in tests).
     """
-    from floorsim.bench.bench import write_results_csv
-    from floorvo.sequence import Sequence
-
     seq = Sequence.open(seq_dir)
     gt = seq.groundtruth()
     if gt is None:
-        from floorvo.errors import SequenceError
-
         raise SequenceError(f"{seq_dir}: the paper-000 protocol needs ground truth (groundtruth.txt)")
     xs = gt[1][:, 0, 3]
     spacing = float(np.median(np.diff(xs))) if len(xs) > 1 else 1.0
@@ -157,54 +142,48 @@ def run_paper000(
             plans.append((model, subs))
         else:
             log.warning("paper 000: the strip of %d frames is too short for any %s run", seq.frame_count, model)
-    total = sum(len(s) for _, s in plans) * sum(max(1, len(matching_modes(e)[1])) for e in estimators)
+    total = sum(len(s) for _, s in plans) * len(estimators)
     done = 0
     skipped: list[str] = []
     for name in estimators:
+        over = dict((estimator_overrides or {}).get(name, {}))
         try:
-            run_subsequence(seq, name, [0, 1], (estimator_overrides or {}).get(name), images)
+            run_subsequence(seq, name, [0, 1], over, images, runner=runner)
         except FloorbenchError as exc:
             skipped.append(f"{name}: {exc}")
             log.warning("paper 000: %s skipped: %s", name, exc)
             continue
-        field, modes = matching_modes(name)
-        for mode in modes or [None]:
-            over = dict((estimator_overrides or {}).get(name, {}))
-            if field is not None:
-                over[field] = mode
-            label = name if mode is None else f"{name} ({mode})"
-            for model, subs in plans:
-                measured, true, times = [], [], []
-                for sub in subs:
-                    r = run_subsequence(
-                        seq, name, [int(i) for i in sub], over, images, (scale_calibrations or {}).get(name)
-                    )
-                    measured.append(r["measured_mm"])
-                    true.append(r["true_mm"])
-                    times.append(np.nanmean(r["match_ms"][1:]) if len(r["match_ms"]) > 1 else float("nan"))
-                    runs.append(
-                        {
-                            "scene": seq.root.name,
-                            "estimator": name,
-                            "mode": mode or "",
-                            "model": model,
-                            "start_frame": int(sub[0]),
-                            "frames": len(sub),
-                            "true_mm": r["true_mm"][-1],
-                            "measured_mm": r["measured_mm"][-1],
-                            "error_mm": r["measured_mm"][-1] - r["true_mm"][-1],
-                            "match_ms_mean": times[-1],
-                            "lost": r["lost"],
-                        }
-                    )
-                    done += 1
-                    if on_run:
-                        on_run(done, total)
-                curves[(label, model)] = {
-                    "measured": np.array(measured),
-                    "true": np.array(true),
-                    "match_ms": np.array(times),
-                }
+        for model, subs in plans:
+            measured, true, times = [], [], []
+            for sub in subs:
+                r = run_subsequence(
+                    seq, name, [int(i) for i in sub], over, images, (scale_calibrations or {}).get(name), runner
+                )
+                measured.append(r["measured_mm"])
+                true.append(r["true_mm"])
+                times.append(np.nanmean(r["match_ms"][1:]) if len(r["match_ms"]) > 1 else float("nan"))
+                runs.append(
+                    {
+                        "scene": seq.root.name,
+                        "estimator": name,
+                        "model": model,
+                        "start_frame": int(sub[0]),
+                        "frames": len(sub),
+                        "true_mm": r["true_mm"][-1],
+                        "measured_mm": r["measured_mm"][-1],
+                        "error_mm": r["measured_mm"][-1] - r["true_mm"][-1],
+                        "match_ms_mean": times[-1],
+                        "lost": r["lost"],
+                    }
+                )
+                done += 1
+                if on_run:
+                    on_run(done, total)
+            curves[(name, model)] = {
+                "measured": np.array(measured),
+                "true": np.array(true),
+                "match_ms": np.array(times),
+            }
     summary = []
     for (label, model), c in curves.items():
         err = c["measured"][:, -1] - c["true"][:, -1]
@@ -229,9 +208,33 @@ def run_paper000(
     return Paper000Result(runs, summary, curves, out_dir, skipped)
 
 
-def _report(res: Paper000Result, rep) -> None:
-    from floorsim.bench.report import _plt
+class Paper000Strip(BenchProtocol):
+    """``paper000-strip``: :func:`run_paper000` on repetition 0's strip, into ``DIR/paper000/SCENE``.
 
+    Option ``max_runs`` (``floorsim bench --paper000-runs N``): at most N runs per model.
+    """
+
+    name: ClassVar[str] = "paper000-strip"
+    description: ClassVar[str] = (
+        "paper 000: 100 uniform and 2 x 190 sigmoid runs from every start frame of a 1 mm strip (Figs. 8 and 9)"
+    )
+    trajectory_types: ClassVar[tuple[str, ...]] = ("strip",)
+    default_for: ClassVar[tuple[str, ...]] = ("strip",)
+
+    def run_scene(self, ctx: BenchContext, scene: SceneRun) -> ProtocolOutput:
+        res = run_paper000(
+            scene.seq_dir,
+            scene.estimators,
+            ctx.out_dir / "paper000" / scene.label,
+            max_runs=ctx.options_for(self.name).get("max_runs"),
+            estimator_overrides=ctx.estimator_overrides,
+            scale_calibrations=ctx.scale_calibrations,
+            runner=ctx.runner,
+        )
+        return ProtocolOutput(sections=[res.report_section])
+
+
+def _report(res: Paper000Result, rep: Report) -> None:
     plt = _plt()
     rep.heading("Paper 000 reproduction: the 200-frame strip")
     rep.text(

@@ -16,6 +16,9 @@ floor (equal ``floor`` and ``camera`` sections) is localised against its map:
   frames localised, localisation RMSE and maximum (mm, planar, no alignment), the share
   within 1 mm, frames to recover after each kidnap (0: the first frame after landing), and
   the time per query (median and 95th percentile of the localiser's total ms per frame).
+
+In the bench this is the protocol ``paper003-relocalisation`` (:class:`Paper003Relocalisation`),
+the default for ``lawnmower`` and ``kidnap`` scenes.
 """
 
 from __future__ import annotations
@@ -26,15 +29,36 @@ from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from floorsim.bench.protocols.base import (
+    BenchContext,
+    BenchProtocol,
+    ProtocolOutput,
+    SceneRun,
+    trajectory_type,
+)
+from floorsim.bench.report import Report, RunRecord, _plt
+from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_json
+from floorvo.mapping.localize_run import localize_sequence
+from floorvo.mapping.map import build_map, load_map, save_map
+from floorvo.metrics import associate, read_timing_csv, score_run
+from floorvo.sequence import Sequence
+from floorvo.tum import read_tum
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MODES", "Paper003Result", "pair_map_and_kidnap", "relocalisation_metrics", "run_paper003"]
+__all__ = [
+    "MODES",
+    "Paper003Relocalisation",
+    "Paper003Result",
+    "pair_map_and_kidnap",
+    "relocalisation_metrics",
+    "run_paper003",
+]
 
 #: Localisation modes run in the bench: name -> odometry between map fixes.
 MODES = {"relocalise": "none", "map-fused": "phase-corr"}
@@ -44,20 +68,16 @@ PAPER003_KEYFRAME_PCT = 5.0
 RELOCALISED_WITHIN_MM = 1.0
 
 
-def _traj_type(scene) -> str | None:
-    return (scene.to_dict().get("trajectory") or {}).get("type")
-
-
 def pair_map_and_kidnap(scenes: SequenceT[tuple[str, Any]]) -> tuple[list[tuple[str, str]], list[str]]:
     """Pair each ``kidnap`` scene with a ``lawnmower`` scene over the same floor and camera.
 
     ``scenes``: (label, scene) pairs. Returns ``[(map_label, kidnap_label)]`` and notes for
     kidnap scenes that have no mapping scene in the bench.
     """
-    maps = [(lab, sc) for lab, sc in scenes if _traj_type(sc) == "lawnmower"]
+    maps = [(lab, sc) for lab, sc in scenes if trajectory_type(sc) == "lawnmower"]
     pairs, notes = [], []
     for lab, sc in scenes:
-        if _traj_type(sc) != "kidnap":
+        if trajectory_type(sc) != "kidnap":
             continue
         d = sc.to_dict()
         match = next(
@@ -90,10 +110,6 @@ def relocalisation_metrics(
     within ``within_mm``; None if never), ``recovered_first_frame`` (how many were 0),
     ``query_ms_median`` / ``query_ms_p95`` (``timing.csv`` total_ms).
     """
-    from floorvo.metrics import associate, read_timing_csv
-    from floorvo.sequence import Sequence
-    from floorvo.tum import read_tum
-
     seq = Sequence.open(seq_dir)
     run_dir = Path(run_dir)
     t_ref, T_ref = read_tum(Path(seq_dir) / "groundtruth.txt")
@@ -160,11 +176,6 @@ def run_paper003(
     ``row_base``: columns every row gets (scene_file, seed, ...); ``scene``, ``estimator``,
     ``sequence`` and ``run_dir`` are set here.
     """
-    from floorsim.bench.report import RunRecord
-    from floorvo.mapping.localize_run import localize_sequence
-    from floorvo.mapping.map import build_map, save_map
-    from floorvo.metrics import score_run
-
     out_dir = Path(out_dir)
     map_dir = out_dir / map_label / "map"
     gmap = build_map(map_seq)
@@ -219,11 +230,44 @@ def run_paper003(
     return Paper003Result(rows, map_summary, out_dir, records)
 
 
-def _report(res: Paper003Result, rep) -> None:
-    from floorsim.bench.report import _plt
-    from floorvo.mapping.map import load_map
-    from floorvo.tum import read_tum
+class Paper003Relocalisation(BenchProtocol):
+    """``paper003-relocalisation``: each ``kidnap`` scene of the bench localised on the map of a
+    ``lawnmower`` scene over the same floor and camera (:func:`pair_map_and_kidnap`,
+    :func:`run_paper003`), rows ``relocalise`` and ``map-fused``, into ``DIR/paper003``."""
 
+    name: ClassVar[str] = "paper003-relocalisation"
+    description: ClassVar[str] = (
+        "paper 003: keyframe map from a lawnmower scene, a kidnap scene over the same floor localised on it"
+    )
+    trajectory_types: ClassVar[tuple[str, ...]] = ("lawnmower", "kidnap")
+    default_for: ClassVar[tuple[str, ...]] = ("lawnmower", "kidnap")
+
+    def run_bench(self, ctx: BenchContext, scenes: SequenceT[SceneRun]) -> ProtocolOutput:
+        out = ProtocolOutput()
+        by_label = {s.label: s for s in scenes}
+        pairs, out.notes = pair_map_and_kidnap([(s.label, s.scene) for s in scenes])
+        for map_label, kid_label in pairs:
+            kid = by_label[kid_label]
+            try:
+                p3 = run_paper003(
+                    by_label[map_label].seq_dir,
+                    kid.seq_dir,
+                    ctx.out_dir / "paper003",
+                    map_label=map_label,
+                    kidnap_label=kid_label,
+                    row_base={"scene_file": str(kid.scene_file), "seed": kid.seed},
+                )
+            except FloorbenchError as exc:
+                out.notes.append(f"{kid_label}: relocalisation against the map of {map_label} failed: {exc}")
+                log.warning("paper 003 (%s on %s): %s", kid_label, map_label, exc)
+                continue
+            out.rows.extend(p3.rows)
+            out.records.extend(p3.records)
+            out.sections.append(p3.report_section)
+        return out
+
+
+def _report(res: Paper003Result, rep: Report) -> None:
     m = res.map_summary
     rep.heading("Paper 003 reproduction: keyframe map and relocalisation after kidnapping")
     rep.text(
