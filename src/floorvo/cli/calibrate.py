@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from floorvo.cli.common import add_output_argument
+
 __all__ = ["add_parser", "run"]
 
 
@@ -16,7 +18,7 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
     p.add_argument("--gt", metavar="SEQ", type=Path, required=True, help="sequence folder (or a TUM ground-truth file)")
-    p.add_argument("-o", "--output", metavar="FILE", type=Path, required=True, help="calibration file to write (JSON)")
+    add_output_argument(p, "calibration file to write (JSON)", metavar="FILE", type=Path)
     p.add_argument(
         "--min-travel-mm", type=float, default=10.0, help="an axis with less travel keeps scale 1 (default 10)"
     )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from floorvo.cli.common import parse_set_args, progress_callback
+from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
 
 
 def add_parser(sub) -> None:
@@ -16,7 +16,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("sequence", help="sequence folder")
     p.add_argument("--map", required=True, help="map folder written by `floorvo map`")
-    p.add_argument("-o", "--out", required=True, help="run folder")
+    add_output_argument(p, "run folder")
     p.add_argument("--odometry", default="none", help="estimator between map fixes (floorvo list), default none")
     p.add_argument(
         "--set",
@@ -32,7 +32,12 @@ def run(args) -> int:
 
     with progress_callback("localize") as cb:
         res = localize_sequence(
-            args.sequence, args.map, args.out, odometry=args.odometry, overrides=parse_set_args(args.set), on_frame=cb
+            args.sequence,
+            args.map,
+            args.output,
+            odometry=args.odometry,
+            overrides=parse_set_args(args.set),
+            on_frame=cb,
         )
     placed = res["ok"] + res["status_counts"]["init"]
     print(

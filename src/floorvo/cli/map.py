@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
-from floorvo.cli.common import parse_set_args, progress_callback
+from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "map",
         help="build a keyframe global map of the floor from a sequence (paper 003)",
-        description="Extract keyframes by content-based similarity (50 %% of the maximum over the next 50 frames), "
+        description="Extract keyframes by content-based similarity (50 % of the maximum over the next 50 frames), "
         "chain their poses (eq. 24 of paper 003) and write MAP/map.json and MAP/keyframes.npz. The map's world frame "
         "is the sequence's: with ground truth (a surveyed mapping run) the keyframes take their ground-truth poses "
         "and the chain's disagreement is recorded (--set poses=chain keeps the chained poses, anchored at the first "
         "ground-truth pose).",
     )
     p.add_argument("sequence", help="mapping sequence folder")
-    p.add_argument("-o", "--out", required=True, help="map folder to write")
+    add_output_argument(p, "map folder to write")
     p.add_argument(
         "--set",
         action="append",
@@ -32,7 +32,7 @@ def run(args) -> int:
     cfg = MapConfig.from_overrides(parse_set_args(args.set))
     with progress_callback("map") as cb:
         m = build_map(args.sequence, cfg, on_progress=cb)
-    out = save_map(m, args.out)
+    out = save_map(m, args.output)
     print(
         f"map: {m.n_keyframes} keyframes of {m.n_mapping_frames} frames ({100 * m.keyframe_fraction:.1f} %), poses: {m.pose_source} -> {out}"
     )

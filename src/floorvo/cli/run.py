@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from floorvo.cli.common import parse_set_args, progress_callback
+from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run an estimator over a sequence folder")
     p.add_argument("sequence", help="sequence folder (sequence.json, cam0/...)")
     p.add_argument("--estimator", "-e", required=True, help="estimator name (floorvo list)")
-    p.add_argument("-o", "--out", required=True, help="run folder for trajectory.txt, timing.csv, result.json")
+    add_output_argument(p, "run folder for trajectory.txt, timing.csv, result.json")
     p.add_argument(
         "--set",
         action="append",
@@ -32,7 +32,7 @@ def run(args) -> int:
     cal = None if args.scale_calibration is None else load_scale_calibration(args.scale_calibration)
     with progress_callback(args.estimator) as cb:
         res = run_estimator(
-            args.sequence, args.estimator, args.out, parse_set_args(args.set), on_frame=cb, scale_calibration=cal
+            args.sequence, args.estimator, args.output, parse_set_args(args.set), on_frame=cb, scale_calibration=cal
         )
     print(
         f"{res.estimator}: {res.frames} frames, {res.ok} tracked, {res.lost} lost, "

@@ -9,6 +9,7 @@ import argparse
 import math
 from pathlib import Path
 
+from floorvo.cli.common import add_output_argument
 from floorvo.io import atomic_write_json
 from floorvo.metrics import Score, score_run
 
@@ -20,7 +21,7 @@ def add_parser(subparsers) -> None:
         "score",
         help="score a run (trajectory.txt, timing.csv) against a sequence's ground truth",
         description="Score RUN/trajectory.txt against SEQ/groundtruth.txt: ATE (no/origin/SE(2)/SE(3) alignment), "
-        "RPE per frame and per distance, drift in %% of distance (end point and KITTI segments), tracking loss, "
+        "RPE per frame and per distance, drift in % of distance (end point and KITTI segments), tracking loss, "
         "timing. Prints a table and writes RUN/score.json.",
     )
     p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
@@ -28,7 +29,9 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)"
     )
-    p.add_argument("-o", "--output", type=Path, default=None, help="where to write score.json (default RUN/score.json)")
+    add_output_argument(
+        p, "where to write score.json (default RUN/score.json)", type=Path, default=None, required=False
+    )
     p.set_defaults(func=run)
 
 

@@ -1,0 +1,92 @@
+"""Flags mean the same in every command of both CLIs: -o/--output (with --out accepted),
+-v/-q before or after the subcommand (and -v gives debug logging), help without stray %%."""
+
+import argparse
+import logging
+
+import pytest
+
+from floorsim import __version__ as floorsim_version
+from floorsim.cli import COMMANDS as FLOORSIM_COMMANDS
+from floorsim.cli import main as floorsim_main
+from floorvo import __version__ as floorvo_version
+from floorvo.camera import CameraModel
+from floorvo.cli import COMMANDS as FLOORVO_COMMANDS
+from floorvo.cli import build_parser
+from floorvo.cli import main as floorvo_main
+from floorvo.synthetic import line_poses, write_synthetic_sequence
+
+PARSERS = {
+    "floorvo": lambda: build_parser("floorvo", "floorvo.cli", FLOORVO_COMMANDS, "", floorvo_version),
+    "floorsim": lambda: build_parser("floorsim", "floorsim.commands", FLOORSIM_COMMANDS, "", floorsim_version),
+}
+
+
+def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(sub.choices)
+
+
+@pytest.mark.parametrize("prog", sorted(PARSERS))
+def test_help_of_every_command_is_clean_and_names_output_the_same_way(prog):
+    parser = PARSERS[prog]()
+    texts = {"": parser.format_help()}
+    texts.update({name: p.format_help() for name, p in _commands(parser).items()})
+    with_output = 0
+    for name, text in texts.items():
+        assert "%%" not in text, (prog, name)
+        assert "--out " not in text and "--out," not in text, (prog, name)  # the alias stays hidden
+        if "--output" in text:
+            with_output += 1
+            assert "-o OUTPUT, --output OUTPUT" in text or "-o FILE, --output FILE" in text, (prog, name, text)
+        if name:
+            assert "-v, --verbose" in text and "-q, --quiet" in text, (prog, name)
+    # floorvo: run, score, calibrate, map, localize; floorsim: render, bench, sweep, export, gallery
+    assert with_output == 5
+
+
+@pytest.mark.parametrize("prog", sorted(PARSERS))
+def test_out_is_an_alias_of_output_in_every_command_that_writes(prog):
+    parser = PARSERS[prog]()
+    positional = {
+        "run": ["SEQ", "-e", "phase-corr"],
+        "score": ["RUN", "--gt", "SEQ"],
+        "calibrate": ["RUN", "--gt", "SEQ"],
+    }
+    positional |= {"map": ["SEQ"], "localize": ["SEQ", "--map", "MAP"], "render": ["demo"], "bench": ["s.toml"]}
+    positional |= {"sweep": ["w.toml"], "export": ["SEQ", "--format", "euroc"], "gallery": []}
+    for name, sub in _commands(parser).items():
+        if not any(a.dest == "output" for a in sub._actions):
+            continue
+        for flag in ("-o", "--output", "--out"):
+            args = parser.parse_args([name, *positional[name], flag, "x/y"])
+            assert str(args.output) == "x/y", (prog, name, flag)
+
+
+def _debug_records(caplog):
+    return [r for r in caplog.records if r.levelno == logging.DEBUG and r.name.startswith(("floorvo", "floorsim"))]
+
+
+@pytest.mark.parametrize("main", [floorvo_main, floorsim_main])
+def test_verbose_before_or_after_the_command_turns_on_debug_logging(main, caplog, capsys):
+    caplog.set_level(logging.DEBUG)  # the handler takes all; the CLI sets its packages' levels
+    for argv in (["-v", "list"], ["list", "-v"], ["list", "--verbose"]):
+        caplog.clear()
+        assert main(argv) == 0
+        assert _debug_records(caplog), argv
+    caplog.clear()
+    assert main(["list"]) == 0
+    assert not _debug_records(caplog)
+    # the levels are the process's own again after the command
+    assert logging.getLogger("floorvo").level == logging.NOTSET and logging.getLogger("floorsim").level == 0
+
+
+def test_quiet_after_the_command_keeps_only_warnings(tmp_path, caplog, capsys):
+    caplog.set_level(logging.DEBUG)
+    cam = CameraModel.from_sensor().scaled(0.25)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    for argv, info in (([], True), (["-q"], False), (["--quiet"], False)):
+        caplog.clear()
+        assert floorvo_main(["run", str(seq), "-e", "phase-corr", "--out", str(tmp_path / "run"), *argv]) == 0
+        logged = [r for r in caplog.records if r.name.startswith("floorvo") and r.levelno == logging.INFO]
+        assert bool(logged) == info, argv
