@@ -8,8 +8,6 @@ is matched against the last good one).
 
 from __future__ import annotations
 
-import csv
-import io
 import logging
 import os
 import time
@@ -21,7 +19,7 @@ import numpy as np
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError
 from floorvo.estimators import Frame, get_estimator, make_config
-from floorvo.io import atomic_write_json, atomic_write_text, ensure_writable_dir
+from floorvo.io import atomic_write_csv, atomic_write_json, atomic_write_text, ensure_writable_dir
 from floorvo.sequence import Sequence
 from floorvo.tum import write_tum
 
@@ -136,13 +134,21 @@ def run_estimator(
         )
     else:
         atomic_write_text(out / "trajectory.txt", f"# floorvo {name}: no frame tracked\n")
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(
-        ["frame", "detect_ms", "match_ms", "estimate_ms", "total_ms", "status", "n_keypoints", "n_matches", "n_inliers"]
+    atomic_write_csv(
+        out / "timing.csv",
+        [
+            "frame",
+            "detect_ms",
+            "match_ms",
+            "estimate_ms",
+            "total_ms",
+            "status",
+            "n_keypoints",
+            "n_matches",
+            "n_inliers",
+        ],
+        rows,
     )
-    w.writerows(rows)
-    atomic_write_text(out / "timing.csv", buf.getvalue())
     totals = [float(r[4]) for r in rows]
     counts = {s: sum(1 for r in rows if r[5] == s) for s in ("init", "ok", "lost")}
     result = RunResult(

@@ -8,8 +8,6 @@ Frames not localised are left out of ``trajectory.txt`` and listed with their re
 
 from __future__ import annotations
 
-import csv
-import io
 import logging
 import os
 import time
@@ -23,7 +21,7 @@ import numpy as np
 from floorvo.config import from_overrides
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators.base import Frame
-from floorvo.io import atomic_write_json, atomic_write_text, ensure_writable_dir
+from floorvo.io import atomic_write_csv, atomic_write_json, atomic_write_text, ensure_writable_dir
 from floorvo.mapping.fused import MapFused, MapFusedConfig
 from floorvo.sequence import Sequence
 from floorvo.tum import write_tum
@@ -110,9 +108,8 @@ def localize_sequence(
         )
     else:
         atomic_write_text(out / "trajectory.txt", "# floorvo localize: no frame localised\n")
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(
+    atomic_write_csv(
+        out / "timing.csv",
         [
             "frame",
             "detect_ms",
@@ -124,10 +121,9 @@ def localize_sequence(
             "n_matches",
             "n_inliers",
             "reason",
-        ]
+        ],
+        rows,
     )
-    w.writerows(rows)
-    atomic_write_text(out / "timing.csv", buf.getvalue())
     counts = {s: sum(1 for r in rows if r[5] == s) for s in ("init", "ok", "lost")}
     totals = [float(r[4]) for r in rows]
     result = {
