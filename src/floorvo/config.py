@@ -38,7 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.errors import ConfigError, ConfigFieldError, shown
 
 __all__ = [
     "Config",
@@ -307,14 +307,6 @@ def _plain_text(value: Any) -> Any:
     return value
 
 
-def _show(value: Any) -> str:
-    if isinstance(value, str):
-        return repr(str(value))
-    if isinstance(value, tuple):
-        return repr(list(value))
-    return str(value)
-
-
 # ----------------------------------------------------------------------------- checking and building
 def check(obj: Any) -> None:
     """Check every field of dataclass ``obj`` against its declared rule, then ``obj.validate()``.
@@ -330,7 +322,7 @@ def check(obj: Any) -> None:
         if broken:
             numeric = isinstance(value, (int, float)) and not isinstance(value, bool) and r.choices is None
             unit = f" {r.unit}" if r.unit and numeric else ""
-            raise ConfigFieldError(f.name, f" = {_show(value)}{unit}: {broken}")
+            raise ConfigFieldError(f.name, f" = {shown(value)}{unit}: {broken}")
     validate = getattr(obj, "validate", None)
     if callable(validate):
         validate()
@@ -362,7 +354,7 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
                 kwargs[key] = value
                 continue
             if not isinstance(value, Mapping):
-                raise ConfigError(f"{where} = {_show(value)}: must be a table")
+                raise ConfigError(f"{where} = {shown(value)}: must be a table")
             kwargs[key] = build(tp, value, where, unknown=unknown)
             continue
         if isinstance(value, SetText):
@@ -372,12 +364,12 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
                 try:
                     value = parse_text(value, tp)
                 except ValueError:
-                    raise ConfigError(f"{where} = {_show(value)}: must be {_expected(tp)}") from None
+                    raise ConfigError(f"{where} = {shown(value)}: must be {_expected(tp)}") from None
         elif _is_table(tp):
             value = _plain_text(value)
         ok, conv = _coerce(value, tp)
         if not ok:
-            raise ConfigError(f"{where} = {_show(value)}: must be {_expected(tp)}")
+            raise ConfigError(f"{where} = {shown(value)}: must be {_expected(tp)}")
         kwargs[key] = conv
     try:
         obj = cls(**kwargs)
@@ -404,11 +396,11 @@ def parse_set_args(items: Iterable[str] | None) -> dict[str, SetText]:
     out: dict[str, SetText] = {}
     for item in items or []:
         if "=" not in item:
-            raise ConfigError(f"--set {item!r}: expected KEY=VALUE")
+            raise ConfigError(f"--set {shown(item)}: expected KEY=VALUE")
         key, value = item.split("=", 1)
         key = key.strip()
         if not key:
-            raise ConfigError(f"--set {item!r}: empty key")
+            raise ConfigError(f"--set {shown(item)}: empty key")
         out[key] = SetText(value.strip())
     return out
 

@@ -8,6 +8,35 @@ keeps its traceback.
 
 from __future__ import annotations
 
+from typing import Any
+
+__all__ = ["FloorbenchError", "ConfigError", "ConfigFieldError", "SequenceError", "MAX_SHOWN_CHARS", "shown", "shorten"]
+
+#: The most characters of a value an error message quotes; a longer value is cut with an ellipsis.
+MAX_SHOWN_CHARS = 80
+#: Every character ``str.splitlines`` breaks a line at, and how a message shows it.
+_LINE_BREAKS = {ord(c): repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
+def shown(value: Any, limit: int = MAX_SHOWN_CHARS) -> str:
+    """``value`` as an error message quotes it: text in quotes (``'80mm'``), a tuple as a list,
+    anything else as ``str``; cut to ``limit`` characters with an ellipsis (a 100,000-character
+    value must not become a 100,000-character message line), newlines escaped (one line)."""
+    if isinstance(value, str):
+        text = repr(str(value))
+    elif isinstance(value, tuple):
+        text = repr(list(value))
+    else:
+        text = str(value)
+    return shorten(text, limit)
+
+
+def shorten(text: str, limit: int = MAX_SHOWN_CHARS) -> str:
+    """``text`` (a name, a key, a path read from a file) on one line and cut to ``limit``
+    characters with an ellipsis, as error messages quote it."""
+    text = str(text).translate(_LINE_BREAKS)
+    return text if len(text) <= limit else text[: max(0, limit - 3)] + "..."
+
 
 class FloorbenchError(Exception):
     """A user-facing error with a one-line message naming the thing and the rule."""

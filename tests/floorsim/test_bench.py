@@ -119,6 +119,31 @@ def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
     assert err.count("\n") == 1 and "nope" in err
 
 
+def test_cli_gate_fails_on_a_new_estimator_unless_allowed_and_refuses_a_bad_baseline(tmp_path, doubles, capsys):
+    from floorsim.cli import main
+
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    base = tmp_path / "baseline.json"
+    bench = ["bench", str(scene), "-o", str(tmp_path / "a")]
+    assert main([*bench, "--estimators", "scaled", "--save-baseline", str(base)]) == 0
+    capsys.readouterr()
+    # lossy has no baseline entry: the gate fails and says so, and how much it checked
+    assert main([*bench, "--estimators", "scaled,lossy", "--baseline", str(base)]) == 1
+    text = capsys.readouterr().out
+    assert "tiny/lossy: no baseline entry" in text and "checked 8 of 16 expected" in text and "FAILED" in text
+    assert main([*bench, "--estimators", "scaled,lossy", "--baseline", str(base), "--allow-new"]) == 0
+    assert "regression gate passed: 0 metric(s) worse; checked 8 of 16 expected" in capsys.readouterr().out
+    # a malformed baseline is refused in one line before anything is rendered
+    b = json.loads(base.read_text())
+    b["tolerances"]["end_drift_pct"]["rel"] = "5%"
+    base.write_text(json.dumps(b))
+    calls = len(D.RENDER_CALLS)
+    assert main([*bench, "--estimators", "scaled", "-o", str(tmp_path / "c"), "--baseline", str(base)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tolerances.end_drift_pct.rel = '5%': must be a finite number >= 0" in err
+    assert len(D.RENDER_CALLS) == calls and not (tmp_path / "c").exists()
+
+
 def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, doubles, capsys):
     """--scale-calibration NAME=FILE reaches that estimator's runs (only), and the row names the file."""
     from floorvo.calibration import ScaleCalibration, save_scale_calibration

@@ -5,7 +5,7 @@ import json
 import pytest
 from _bench_data import write_run, write_sequence
 
-from floorsim.bench.gates import DEFAULT_TOLERANCES, compare, load_baseline, save_baseline
+from floorsim.bench.gates import DEFAULT_TOLERANCES, compare, load_baseline, parse_baseline, save_baseline
 from floorvo.errors import ConfigError
 from floorvo.metrics import score_run
 
@@ -19,6 +19,11 @@ def _rows(tmp_path, tag, **run_kw):
         run = write_run(tmp_path / tag / f"rep{rep}", seq, **run_kw)
         rows.append({"scene": "demo", "estimator": "fake", "repetition": rep, **score_run(run, seq).flat()})
     return rows
+
+
+def _baseline(tolerances, entries, **extra):
+    """A baseline file's content."""
+    return {"format": "floorbench-baseline", "version": 1, "tolerances": tolerances, "entries": entries, **extra}
 
 
 def test_gate_passes_on_an_equal_run_and_fails_on_a_worse_one(tmp_path):
@@ -42,13 +47,21 @@ def test_gate_passes_on_an_equal_run_and_fails_on_a_worse_one(tmp_path):
 
 def test_tolerance_decides(tmp_path):
     rows = [{"scene": "s", "estimator": "e", "end_drift_pct": 1.0}]
-    baseline = {"tolerances": {"end_drift_pct": {"abs": 0.0, "rel": 0.1}}, "entries": {"s/e": {"end_drift_pct": 1.0}}}
+    baseline = _baseline({"end_drift_pct": {"abs": 0.0, "rel": 0.1}}, {"s/e": {"end_drift_pct": 1.0}})
     assert compare([{**rows[0], "end_drift_pct": 1.099}], baseline).ok
     assert not compare([{**rows[0], "end_drift_pct": 1.101}], baseline).ok
     # A metric that was finite and is now missing (the run failed) is worse.
     assert not compare([{"scene": "s", "estimator": "e", "end_drift_pct": float("nan")}], baseline).ok
-    r = compare([{"scene": "t", "estimator": "e", "end_drift_pct": 9.0}], baseline)
-    assert r.ok and r.only_in_baseline == ["s/e"] and r.only_in_bench == ["t/e"]
+    r = compare([{"scene": "t", "estimator": "e", "end_drift_pct": 9.0}, *rows], baseline, allow_new=True)
+    assert r.ok and r.only_in_baseline == [] and r.only_in_bench == ["t/e"]
+    r = compare(
+        [{"scene": "t", "estimator": "e", "end_drift_pct": 9.0}, *rows],
+        _baseline(
+            {"end_drift_pct": {"abs": 0.0, "rel": 0.1}}, {"s/e": {"end_drift_pct": 1.0}, "u/e": {"end_drift_pct": 1.0}}
+        ),
+        allow_new=True,
+    )
+    assert r.ok and r.only_in_baseline == ["u/e"] and r.only_in_bench == ["t/e"]
 
 
 def test_bad_baseline_files_are_refused_by_name(tmp_path):
@@ -58,3 +71,109 @@ def test_bad_baseline_files_are_refused_by_name(tmp_path):
     p.write_text(json.dumps({"format": "other"}))
     with pytest.raises(ConfigError, match="not a floorbench baseline"):
         load_baseline(p)
+
+
+TOL = {"end_drift_pct": {"abs": 0.0, "rel": 0.1}, "lost_frames": {"abs": 0.0, "rel": 0.0}}
+ROW = {"scene": "s", "estimator": "e", "end_drift_pct": 1.0, "lost_frames": 0.0}
+
+
+def _refused(tmp_path, content, *words):
+    """The baseline file holding ``content`` is refused by load_baseline in one line with ``words``."""
+    p = tmp_path / "b.json"
+    p.write_text(content if isinstance(content, str) else json.dumps(content))
+    with pytest.raises(ConfigError) as info:
+        load_baseline(p)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"--baseline {p}: ")
+    for w in words:
+        assert w in msg
+    return msg
+
+
+def test_malformed_baselines_are_refused_in_one_line(tmp_path):
+    entries = {"s/e": {"end_drift_pct": 1.0, "lost_frames": 0.0}}
+    # a NaN tolerance would pass a metric that got worse (NaN comparisons are false)
+    _refused(
+        tmp_path,
+        '{"format": "floorbench-baseline", "version": 1, "tolerances": '
+        '{"end_drift_pct": {"abs": NaN, "rel": 0.1}}, "entries": {"s/e": {"end_drift_pct": 1.0}}}',
+        "tolerances.end_drift_pct.abs = nan",
+        "finite",
+    )
+    _refused(tmp_path, _baseline({"end_drift_pct": {"abs": -1}}, entries), "must be a finite number >= 0")
+    _refused(tmp_path, _baseline({"end_drift_pct": {"abs": "0.1"}}, entries), "end_drift_pct.abs = '0.1'")
+    _refused(tmp_path, _baseline({"end_drift_pct": {"abs": 0.1, "rell": 0.1}}, entries), "end_drift_pct")
+    _refused(tmp_path, _baseline({"end_drift_pct": 0.1}, entries), "tolerances.end_drift_pct = 0.1")
+    # nothing to check: no tolerances, no entries, entries as a list
+    _refused(tmp_path, _baseline({}, entries), "tolerances: empty")
+    _refused(tmp_path, {k: v for k, v in _baseline(TOL, entries).items() if k != "tolerances"}, "tolerances = None")
+    _refused(tmp_path, _baseline(TOL, {}), "entries: empty")
+    _refused(tmp_path, _baseline(TOL, [["s/e", {"end_drift_pct": 1.0}]]), "entries = [[", "must be a table")
+    # values that are text, lists, NaN, or an entry that is a number
+    for bad, shown_as in (("0.3", "'0.3'"), ([0.3], "[0.3]"), (float("nan"), "nan"), (True, "True")):
+        msg = _refused(tmp_path, _baseline(TOL, {"s/e": {"end_drift_pct": bad, "lost_frames": 0}}), "must be a finite")
+        assert f"entries.s/e.end_drift_pct = {shown_as}" in msg
+    _refused(tmp_path, _baseline(TOL, {"s/e": 1.5}), "entries.s/e = 1.5: must be a table")
+    _refused(tmp_path, _baseline(TOL, {"s/e": {"end_drift_pct": 1.0}}), "entries.s/e: lacks lost_frames")
+    _refused(tmp_path, _baseline(TOL, {"s/e": {**entries["s/e"], "ate": 1}}), "entries.s/e.ate: not a gated metric")
+    _refused(tmp_path, _baseline(TOL, {"se": entries["s/e"]}), "entries.se: an entry is named SCENE/ESTIMATOR")
+    _refused(tmp_path, [1], "not a floorbench baseline")
+    _refused(tmp_path, _baseline(TOL, entries, version=2), "version 2 is not supported")
+    _refused(tmp_path, _baseline(TOL, entries, extra=1), "unknown key 'extra'")
+    # a 100,000-character value is not echoed whole
+    msg = _refused(tmp_path, _baseline(TOL, {"s/e": {"end_drift_pct": "x" * 100_000, "lost_frames": 0}}), "...")
+    assert len(msg) < 300
+    # a well-formed one loads, and null (no value in the baseline run) is kept as None
+    p = tmp_path / "ok.json"
+    p.write_text(json.dumps(_baseline(TOL, {"s/e": {"end_drift_pct": None, "lost_frames": 2}})))
+    b = load_baseline(p)
+    assert b.entries == {"s/e": {"end_drift_pct": None, "lost_frames": 2.0}}
+    assert b.tolerances["end_drift_pct"].rel == 0.1 and b.tolerances["lost_frames"].abs == 0.0
+
+
+def test_a_scene_estimator_without_baseline_entry_fails_unless_allowed():
+    baseline = parse_baseline(_baseline(TOL, {"s/e": {"end_drift_pct": 1.0, "lost_frames": 0}}))
+    new = {**ROW, "estimator": "f"}
+    r = compare([ROW, new], baseline)
+    assert not r.ok and r.only_in_bench == ["s/f"] and r.checked == 2 and r.expected == 4
+    text = r.summary()
+    assert "s/f: no baseline entry" in text and "--allow-new" in text
+    assert text.splitlines()[-1] == "regression gate FAILED: 0 metric(s) worse; checked 2 of 4 expected"
+    r = compare([ROW, new], baseline, allow_new=True)
+    assert r.ok and "checked 2 of 4 expected" in r.summary() and "s/f: new, no baseline" in r.summary()
+    # a baseline of other scenes only: nothing checked, which fails even with --allow-new
+    for allow in (False, True):
+        r = compare([{**ROW, "scene": "t"}], baseline, allow_new=allow)
+        assert not r.ok and r.checked == 0 and r.expected == 2 and r.only_in_baseline == ["s/e"]
+        assert "checked 0 of 2 expected" in r.summary() and "FAILED" in r.summary()
+
+
+def test_null_baseline_values_are_counted_and_named_not_dropped():
+    baseline = parse_baseline(_baseline(TOL, {"s/e": {"end_drift_pct": None, "lost_frames": 0}}))
+    r = compare([{**ROW, "end_drift_pct": 50.0}], baseline)
+    assert r.ok and r.checked == 1 and r.expected == 2 and r.no_baseline_value == [("s/e", "end_drift_pct")]
+    assert "s/e: 1 metric(s) not checked, the baseline run had no value (end_drift_pct)" in r.summary()
+    assert "checked 1 of 2 expected" in r.summary()
+    # the one that is checked still fails when it gets worse
+    assert not compare([{**ROW, "lost_frames": 1.0}], baseline).ok
+
+
+def test_worse_metric_fails_whatever_the_tolerance_written():
+    """Property: for any valid tolerance, a value beyond baseline + max(abs, rel |b|) fails and
+    the baseline value itself passes (hand computation of the rule in the module doc)."""
+    for abs_, rel, base in ((0.0, 0.0, 1.0), (0.5, 0.0, -2.0), (0.0, 1e6, 3.0), (1e-9, 0.25, 0.0)):
+        b = parse_baseline(_baseline({"m": {"abs": abs_, "rel": rel}}, {"s/e": {"m": base}}))
+        allowed = base + max(abs_, rel * abs(base))
+        assert compare([{"scene": "s", "estimator": "e", "m": base}], b).ok
+        assert compare([{"scene": "s", "estimator": "e", "m": allowed}], b).ok
+        worse = compare([{"scene": "s", "estimator": "e", "m": allowed + 1e-6 * max(1.0, abs(allowed))}], b)
+        assert not worse.ok and worse.regressions[0].allowed == pytest.approx(allowed)
+
+
+def test_save_baseline_refuses_rows_that_give_nothing_to_check(tmp_path):
+    with pytest.raises(ConfigError, match="entries: empty"):
+        save_baseline(tmp_path / "b.json", [])
+    assert not (tmp_path / "b.json").exists()
+    with pytest.raises(ConfigError, match="must be a finite number >= 0"):
+        save_baseline(tmp_path / "b.json", [ROW], {"end_drift_pct": {"abs": float("nan"), "rel": 0}})
+    assert not (tmp_path / "b.json").exists()

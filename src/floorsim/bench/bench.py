@@ -311,6 +311,7 @@ def run_bench(
     cache_dir: str | os.PathLike | None = None,
     baseline: str | os.PathLike | None = None,
     save_baseline_to: str | os.PathLike | None = None,
+    allow_new: bool = False,
     report: bool = True,
     paper000_runs: int | None = None,
     on_frame: Callable[[str, int, int], None] | None = None,
@@ -322,6 +323,7 @@ def run_bench(
     """Render, run, score, run the scenes' protocols, report and gate (see the module doc).
 
     ``estimators``: names, or None for every registered estimator each sequence supports.
+    ``allow_new``: a scene/estimator without a ``baseline`` entry does not fail the gate.
     ``paper000_runs`` limits the number of runs per paper-000 model (None: all of them).
     ``on_frame(scene_name, done, n)`` reports render progress (frames done of n).
     ``scale_calibrations``: ``{estimator: calibration file}`` (``floorvo calibrate``); that
@@ -434,7 +436,7 @@ def run_bench(
     res = BenchResult(rows, records, results_csv, notes=notes)
     gate_text = None
     if baseline_data is not None:
-        res.gate = compare(rows, baseline_data)
+        res.gate = compare(rows, baseline_data, allow_new=allow_new)
         gate_text = res.gate.summary()
     if save_baseline_to is not None:
         save_baseline(save_baseline_to, rows)

@@ -1,15 +1,30 @@
 """Regression gates: compare a bench's metrics with a stored baseline.
 
-A baseline file (JSON, written by :func:`save_baseline`) holds, per ``scene/estimator``,
-the mean of each gated metric over the repetitions, and per metric a tolerance
-``{"abs": a, "rel": r}``. A metric got worse when
+A baseline file (JSON, written by :func:`save_baseline`, read by :func:`load_baseline`)::
+
+    {"format": "floorbench-baseline", "version": 1,
+     "tolerances": {"end_drift_pct": {"abs": 0.05, "rel": 0.05}, ...},
+     "entries": {"SCENE/ESTIMATOR": {"end_drift_pct": 0.31, ...}, ...}}
+
+``tolerances`` names the gated metrics (every one "lower is better") with a finite,
+non-negative ``abs`` and ``rel``; ``entries`` holds, per ``scene/estimator``, the mean of
+each gated metric over the repetitions: a finite number, or ``null`` when the baseline run
+had no value for it (it failed or lost track). Anything else (an entry that is not a table,
+a value that is text, a list or NaN, a missing metric, no tolerances or no entries) is
+refused in one line by :func:`parse_baseline`, the one reader of the format, so a
+malformed baseline can never pass by checking nothing.
+
+A metric got worse when
 
     value > baseline + max(abs, rel * |baseline|)
 
-(every gated metric is "lower is better"), or when it was finite in the baseline and is
-missing or NaN now (the run lost track or failed). Entries only in the baseline or only
-in the bench are listed but fail nothing. Edit the tolerances in the file to tighten or
-loosen a gate.
+or when it was finite in the baseline and is missing or NaN now (the run lost track or
+failed). Every ``scene/estimator`` of the current bench is expected in the baseline: one
+without an entry fails the gate unless ``allow_new`` (``floorsim bench --allow-new``), and
+a gate that checked no metric at all fails. The summary says how many metrics were checked
+of how many expected (every gated metric of every ``scene/estimator`` of the bench).
+Entries only in the baseline are listed but fail nothing (a bench may run fewer scenes).
+Edit the tolerances in the file to tighten or loosen a gate.
 """
 
 from __future__ import annotations
@@ -21,16 +36,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, shorten, shown
 from floorvo.io import atomic_write_json, read_json
 
 __all__ = [
     "DEFAULT_TOLERANCES",
+    "Tolerance",
+    "Baseline",
     "Regression",
     "GateResult",
     "aggregate",
     "make_baseline",
     "save_baseline",
+    "parse_baseline",
     "load_baseline",
     "compare",
 ]
@@ -59,7 +77,7 @@ def _key(row: Mapping[str, Any]) -> str:
 def _num(v: Any) -> float:
     try:
         f = float(v)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return float("nan")
     return f
 
@@ -79,6 +97,97 @@ def aggregate(rows: Iterable[Mapping[str, Any]], metrics: Iterable[str]) -> dict
     return out
 
 
+@dataclass(frozen=True)
+class Tolerance:
+    """How much worse a metric may get: ``max(abs, rel * |baseline|)`` (both finite, >= 0)."""
+
+    abs: float = 0.0
+    rel: float = 0.0
+
+    def allowed(self, base: float) -> float:
+        """The largest value that still passes against ``base``."""
+        return base + max(self.abs, self.rel * abs(base))
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A checked baseline: gated metrics with their tolerances, and per ``scene/estimator``
+    the baseline value of each (None: the baseline run had no value)."""
+
+    tolerances: dict[str, Tolerance]
+    entries: dict[str, dict[str, float | None]]
+
+    def to_dict(self) -> dict:
+        """The file's content (format, version, tolerances, entries)."""
+        return {
+            "format": BASELINE_FORMAT,
+            "version": BASELINE_VERSION,
+            "tolerances": {m: {"abs": t.abs, "rel": t.rel} for m, t in self.tolerances.items()},
+            "entries": {k: dict(v) for k, v in self.entries.items()},
+        }
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _table(d: Any, where: str, what: str) -> Mapping[str, Any]:
+    if not isinstance(d, Mapping):
+        raise ConfigError(f"{where} = {shown(d)}: must be a table of {what}")
+    if not d:
+        raise ConfigError(f"{where}: empty; a baseline that names no {what} would check nothing")
+    return d
+
+
+def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
+    """The one reader of the baseline format: ``obj`` (parsed JSON) checked in full.
+
+    Raises :class:`~floorvo.errors.ConfigError` with one line naming ``label``, the part of
+    the file and the rule (see the module doc for the format).
+    """
+    if not isinstance(obj, Mapping) or obj.get("format") != BASELINE_FORMAT:
+        raise ConfigError(f"{label}: not a floorbench baseline (format must be {BASELINE_FORMAT!r})")
+    if obj.get("version") != BASELINE_VERSION:
+        raise ConfigError(
+            f"{label}: version {shown(obj.get('version'))} is not supported (expected {BASELINE_VERSION})"
+        )
+    unknown = sorted(set(obj) - {"format", "version", "tolerances", "entries"})
+    if unknown:
+        raise ConfigError(f"{label}: unknown key {shown(unknown[0])} (known: entries, format, tolerances, version)")
+    tolerances: dict[str, Tolerance] = {}
+    for metric, t in _table(obj.get("tolerances"), f"{label}: tolerances", "gated metrics").items():
+        where = f"{label}: tolerances.{shorten(metric)}"
+        if not isinstance(t, Mapping) or set(t) - {"abs", "rel"} or not t:
+            raise ConfigError(f'{where} = {shown(t)}: must be {{"abs": >= 0, "rel": >= 0}}')
+        for k, v in t.items():
+            if not _is_number(v) or v < 0:
+                raise ConfigError(f"{where}.{k} = {shown(v)}: must be a finite number >= 0")
+        tolerances[str(metric)] = Tolerance(float(t.get("abs", 0.0)), float(t.get("rel", 0.0)))
+    entries: dict[str, dict[str, float | None]] = {}
+    for key, entry in _table(obj.get("entries"), f"{label}: entries", "scene/estimator entries").items():
+        where = f"{label}: entries.{shorten(key)}"
+        if not isinstance(key, str) or "/" not in key:
+            raise ConfigError(f"{where}: an entry is named SCENE/ESTIMATOR")
+        if not isinstance(entry, Mapping):
+            raise ConfigError(f"{where} = {shown(entry)}: must be a table of metric values")
+        for metric, v in entry.items():
+            if metric not in tolerances:
+                raise ConfigError(
+                    f"{where}.{shorten(metric)}: not a gated metric (tolerances has: {', '.join(tolerances)})"
+                )
+            if v is not None and not _is_number(v):
+                raise ConfigError(
+                    f"{where}.{metric} = {shown(v)}: must be a finite number (or null: no value in the baseline run)"
+                )
+        missing = [m for m in tolerances if m not in entry]
+        if missing:
+            raise ConfigError(
+                f"{where}: lacks {missing[0]} (every gated metric needs a value, null when the baseline run had none)"
+            )
+        entries[str(key)] = {m: (None if entry[m] is None else float(entry[m])) for m in tolerances}
+    return Baseline(tolerances, entries)
+
+
 def make_baseline(
     rows: Iterable[Mapping[str, Any]], tolerances: Mapping[str, Mapping[str, float]] | None = None
 ) -> dict:
@@ -90,30 +199,24 @@ def make_baseline(
 
 
 def save_baseline(path: str | os.PathLike, rows: Iterable[Mapping[str, Any]], tolerances=None) -> dict:
-    """Write a baseline file atomically; returns its content."""
+    """Write a baseline file atomically; returns its content.
+
+    The content is checked by :func:`parse_baseline` before anything is written, so a
+    baseline that could not be read back (no rows, bad tolerances) is refused.
+    """
     b = make_baseline(rows, tolerances)
+    parse_baseline(b, f"--save-baseline {path}")
     atomic_write_json(path, b)
     return b
 
 
-def load_baseline(path: str | os.PathLike) -> dict:
+def load_baseline(path: str | os.PathLike) -> Baseline:
     """Read and check a baseline file (ConfigError naming the file and the problem)."""
     path = Path(path)
+    label = f"--baseline {path}"
     if not path.is_file():
-        raise ConfigError(f"--baseline {path}: file does not exist (write one with --save-baseline)")
-    b = read_json(path, ConfigError, label=f"--baseline {path}")
-    if not isinstance(b, dict) or b.get("format") != BASELINE_FORMAT:
-        raise ConfigError(f"--baseline {path}: not a floorbench baseline (format must be {BASELINE_FORMAT!r})")
-    if b.get("version") != BASELINE_VERSION:
-        raise ConfigError(
-            f"--baseline {path}: version {b.get('version')!r} is not supported (expected {BASELINE_VERSION})"
-        )
-    for m, t in b.get("tolerances", {}).items():
-        if not isinstance(t, dict) or any(
-            not isinstance(t.get(k, 0), (int, float)) or t.get(k, 0) < 0 for k in ("abs", "rel")
-        ):
-            raise ConfigError(f'--baseline {path}: tolerance of {m} = {t!r}: must be {{"abs": >= 0, "rel": >= 0}}')
-    return b
+        raise ConfigError(f"{label}: file does not exist (write one with --save-baseline)")
+    return parse_baseline(read_json(path, ConfigError, label=label), label)
 
 
 @dataclass(frozen=True)
@@ -137,45 +240,76 @@ class Regression:
 
 @dataclass
 class GateResult:
-    """Outcome of :func:`compare`: ``ok`` is False when anything got worse."""
+    """Outcome of :func:`compare`.
+
+    ``ok`` is False when a metric got worse, when a ``scene/estimator`` of the bench has no
+    baseline entry (unless new ones were allowed), or when no metric was checked at all.
+    ``checked`` of ``expected`` (every gated metric of every ``scene/estimator`` of the
+    bench); ``no_baseline_value`` lists the ``(key, metric)`` pairs whose baseline is null.
+    """
 
     regressions: list[Regression] = field(default_factory=list)
     improved: list[str] = field(default_factory=list)
     only_in_baseline: list[str] = field(default_factory=list)
     only_in_bench: list[str] = field(default_factory=list)
+    no_baseline_value: list[tuple[str, str]] = field(default_factory=list)
     checked: int = 0
+    expected: int = 0
+    allow_new: bool = False
 
     @property
     def ok(self) -> bool:
-        return not self.regressions
+        return not self.regressions and (self.allow_new or not self.only_in_bench) and self.checked > 0
 
     def summary(self) -> str:
         lines = [r.describe() for r in self.regressions]
         for k in self.only_in_baseline:
             lines.append(f"{k}: in the baseline but not in this bench (not checked)")
         for k in self.only_in_bench:
-            lines.append(f"{k}: new, no baseline (not checked)")
-        verdict = "FAILED" if self.regressions else "passed"
-        lines.append(f"regression gate {verdict}: {len(self.regressions)} metric(s) worse of {self.checked} checked")
+            if self.allow_new:
+                lines.append(f"{k}: new, no baseline (not checked; --allow-new)")
+            else:
+                lines.append(f"{k}: no baseline entry (add it with --save-baseline, or pass --allow-new)")
+        by_key: dict[str, list[str]] = {}
+        for k, m in self.no_baseline_value:
+            by_key.setdefault(k, []).append(m)
+        for k, ms in by_key.items():
+            lines.append(f"{k}: {len(ms)} metric(s) not checked, the baseline run had no value ({', '.join(ms)})")
+        if self.checked == 0:
+            lines.append("no metric was checked: a gate that checks nothing passes nothing")
+        verdict = "passed" if self.ok else "FAILED"
+        lines.append(
+            f"regression gate {verdict}: {len(self.regressions)} metric(s) worse; "
+            f"checked {self.checked} of {self.expected} expected"
+        )
         return "\n".join(lines)
 
 
-def compare(rows: Iterable[Mapping[str, Any]], baseline: Mapping[str, Any]) -> GateResult:
-    """Compare bench rows with a baseline (see the module doc for the rule)."""
-    tol = baseline.get("tolerances", {})
+def compare(
+    rows: Iterable[Mapping[str, Any]], baseline: Baseline | Mapping[str, Any], *, allow_new: bool = False
+) -> GateResult:
+    """Compare bench rows with a baseline (see the module doc for the rule).
+
+    ``baseline``: a :class:`Baseline`, or its file content (checked by :func:`parse_baseline`).
+    ``allow_new``: a ``scene/estimator`` without a baseline entry does not fail the gate.
+    """
+    if not isinstance(baseline, Baseline):
+        baseline = parse_baseline(baseline)
+    tol = baseline.tolerances
     current = aggregate(rows, tol)
-    entries = baseline.get("entries", {})
-    res = GateResult()
+    entries = baseline.entries
+    res = GateResult(allow_new=allow_new)
     res.only_in_baseline = sorted(set(entries) - set(current))
     res.only_in_bench = sorted(set(current) - set(entries))
+    res.expected = len(current) * len(tol)
     for key in sorted(set(entries) & set(current)):
         for metric, t in tol.items():
-            base = entries[key].get(metric)
-            if base is None or not math.isfinite(_num(base)):
+            base = entries[key][metric]
+            if base is None:
+                res.no_baseline_value.append((key, metric))
                 continue
-            base = float(base)
-            value = current[key].get(metric, float("nan"))
-            allowed = base + max(float(t.get("abs", 0.0)), float(t.get("rel", 0.0)) * abs(base))
+            value = current[key][metric]
+            allowed = t.allowed(base)
             res.checked += 1
             if not math.isfinite(value) or value > allowed:
                 res.regressions.append(Regression(key, metric, base, value, allowed))

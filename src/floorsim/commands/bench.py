@@ -1,7 +1,9 @@
 """``floorsim bench SCENES... [--estimators A,B] -o DIR``: render, run, score, report, gate.
 
 Thin call to :func:`floorsim.bench.run_bench`; prints the score table and the report's
-path. With ``--baseline FILE`` it prints what got worse and exits 1 if anything did.
+path. With ``--baseline FILE`` it prints what got worse and how many metrics it checked of how
+many expected, and exits 1 if anything got worse or a scene/estimator has no baseline
+entry (unless ``--allow-new``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ def add_parser(subparsers) -> None:
         description="Render each scene (reusing a sequence already rendered with the same resolved scene, seed and "
         "settings), run each estimator, score it, and write DIR/results.csv (one row per scene x estimator x "
         "repetition), DIR/report.html (self-contained) and DIR/report.md. With --baseline, exit 1 when a metric "
-        "got worse than the baseline's tolerance allows.",
+        "got worse than the baseline's tolerance allows, or a scene/estimator has no baseline entry (unless --allow-new).",
     )
     p.add_argument("scenes", metavar="SCENE", nargs="+", type=Path, help="scene TOML files")
     add_output_argument(p, "output folder DIR", type=Path)
@@ -48,6 +50,11 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument(
         "--baseline", type=Path, default=None, help="compare with this baseline; exit 1 if anything got worse"
+    )
+    p.add_argument(
+        "--allow-new",
+        action="store_true",
+        help="a scene/estimator without a baseline entry does not fail the gate (default: it does)",
     )
     p.add_argument("--save-baseline", type=Path, default=None, metavar="FILE", help="write the results as a baseline")
     p.add_argument(
@@ -109,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
             cache_dir=args.cache,
             baseline=args.baseline,
             save_baseline_to=args.save_baseline,
+            allow_new=args.allow_new,
             report=not args.no_report,
             paper000_runs=args.paper000_runs,
             on_frame=lambda scene, done, n: bar(done, n, desc=f"render {scene}"),
