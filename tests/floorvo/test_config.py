@@ -198,6 +198,37 @@ def test_every_field_declares_a_doc_and_its_rule_reads_without_none():
             assert row.rule and "None" not in row.rule, f"{name}: {row.key}: {row.rule!r}"
 
 
+def test_every_bound_refusal_names_the_bound_it_broke_and_a_long_value_is_cut():
+    """Issue 16 item 10: no "must be within [None, 200.0] mm"; a 100,000-character value is not echoed."""
+    import typing
+
+    from floorvo.config import rule_of
+
+    checked = 0
+    for name, cls in _all_config_classes().items():
+        hints = typing.get_type_hints(cls)
+        base = {r.key: "x" for r in describe_fields(cls) if r.default == "(required)"}
+        for f in dataclasses.fields(cls):
+            r = rule_of(f)
+            if hints[f.name] not in (float, int, float | None, int | None) or r.choices is not None:
+                continue
+            for bound, beyond in ((r.max, 1), (r.lt, 0), (r.min, -1), (r.gt, 0)):
+                if bound is None:
+                    continue
+                with pytest.raises(ConfigError) as info:
+                    from_overrides(cls, {**base, f.name: str(bound + beyond)}, name)
+                msg = str(info.value)
+                assert "None" not in msg and "\n" not in msg and f"{bound}" in msg, msg
+                checked += 1
+            with pytest.raises(ConfigError) as info:
+                from_overrides(cls, {**base, f.name: "9x" * 50_000}, name)
+            assert len(str(info.value)) < 300 and "..." in str(info.value)
+    assert checked > 50
+    with pytest.raises(ConfigError) as info:
+        build(Probe, {"mode": "x" * 100_000})
+    assert len(str(info.value)) < 300 and str(info.value).startswith("mode = 'xxx")
+
+
 # ----------------------------------------------------------------------------- estimators and mapping
 def test_estimator_and_mapping_configs_go_through_the_mechanism():
     cfg = make_config("akaze-guided", {"hamming_threshold": "180", "use_flatfield": "off"})
