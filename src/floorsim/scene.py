@@ -87,6 +87,13 @@ __all__ = [
 ]
 
 SCENE_SCHEMA_VERSION = 1
+#: The most floor one frame may see (longer side of the image footprint, mm): the floor's
+#: scratches, veins and dirt are drawn per unit area, so a camera that sees hectares
+#: (``camera.pixel_pitch_um = 8193``) would allocate tens of gigabytes before the first frame.
+MAX_FOOTPRINT_MM = 4000.0
+#: The most mesh vertices one floor tile may hold (a tile of the default rig at full size
+#: holds about 4.2 M; 11 M triangles took 1.8 GB, DESIGN.md).
+MAX_TILE_VERTICES = 80e6
 
 
 @dataclass(frozen=True)
@@ -123,7 +130,7 @@ class FloorSpec(Config):
     densities: fraction of cells holding a speck or grain), and how finely it is meshed."""
 
     material: str = param("vinyl", doc="a registered material (floorsim list)")
-    seed: int | None = param(None, doc="the floor's seed (none: the scene's)")
+    seed: int | None = param(None, min=0, doc="the floor's seed (none: the scene's)")
     relief_scale: float = param(1.0, min=0, max=100.0, doc="multiplies the material's relief")
     spacing_mm: float | None = param(
         None, unit="mm", gt=0, doc="mesh vertex spacing (none: half the ground sample distance)"
@@ -270,6 +277,32 @@ class Scene(Config):
             raise ConfigFieldError(
                 "lights.height_mm",
                 f" = {self.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {self.camera.height_mm} mm)",
+            )
+        self._check_floor_size()
+
+    def _check_floor_size(self) -> None:
+        """Refuse a scene whose floor could not be held in memory (see :data:`MAX_FOOTPRINT_MM`)."""
+        c = self.camera
+        cam = c.model()
+        fp_w, fp_h = cam.width_px * c.height_mm / cam.fx_px, cam.height_px * c.height_mm / cam.fy_px
+        if max(fp_w, fp_h) > MAX_FOOTPRINT_MM:
+            raise ConfigFieldError(
+                "camera",
+                f": {c.width_px} x {c.height_px} px of {c.pixel_pitch_um:g} um behind a {c.focal_length_mm:g} mm lens "
+                f"at height_mm = {c.height_mm:g} see {fp_w:.0f} x {fp_h:.0f} mm of floor; at most {MAX_FOOTPRINT_MM:g} mm",
+            )
+        spacing = self.floor_spacing_mm()
+        margin = 2.0 + 2.0 * spacing
+        long_mm = max(self.floor.tile_length_mm, fp_w, fp_h) + 2 * margin
+        short_mm = min(fp_w, fp_h) + 2 * margin + (self.stereo.baseline_mm if self.stereo.enabled else 0.0)
+        vertices = long_mm * short_mm / spacing**2
+        if vertices > MAX_TILE_VERTICES:
+            which = "floor.spacing_mm" if self.floor.spacing_mm is not None else "floor.spacing_mm (none: half the GSD)"
+            raise ConfigFieldError(
+                "floor",
+                f": a floor tile of {long_mm:.0f} x {short_mm:.0f} mm at {which} = {spacing:.3g} mm holds "
+                f"{vertices:.2g} mesh vertices; at most {MAX_TILE_VERTICES:.2g} (a larger spacing or a shorter "
+                "floor.tile_length_mm)",
             )
 
     # ------------------------------------------------------------------ derived

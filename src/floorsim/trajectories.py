@@ -34,7 +34,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, build, param, to_plain
-from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.geometry import T_world_cam_down
 
 __all__ = [
@@ -47,6 +47,9 @@ __all__ = [
     "footprint_bounds_mm",
     "paper000_subsequences",
 ]
+
+#: The most frames a trajectory may have (the poses of every frame are held in memory).
+MAX_FRAMES = 1_000_000
 
 PathFn = Callable[[np.ndarray], np.ndarray]  # t_s (M,) -> (M, 3): x_mm, y_mm, yaw_rad
 
@@ -312,8 +315,15 @@ class TrajectoryType:
     build: Callable[[Any, float, int], tuple[int, PathFn, dict]]
 
 
+def _frame_count(n: float, what: str = "frames") -> int:
+    """``n`` frames (or lanes) as an int, refused beyond :data:`MAX_FRAMES` before anything is allocated."""
+    if not n <= MAX_FRAMES:  # NaN and inf too
+        raise ConfigError(f"trajectory: these parameters give {n:.3g} {what}; at most {MAX_FRAMES}")
+    return int(n)
+
+
 def _n_frames(duration_s: float, fps: float) -> int:
-    return int(np.floor(duration_s * fps + 1e-9)) + 1
+    return _frame_count(np.floor(duration_s * fps + 1e-9) + 1)
 
 
 def _straight(x0: float, y0: float, direction: float, speed: float, yaw: float = 0.0) -> PathFn:
@@ -327,8 +337,8 @@ def _straight(x0: float, y0: float, direction: float, speed: float, yaw: float =
 
 
 def _build_uniform(p: UniformParams, fps: float, seed: int):
-    n = int(round(p.distance_mm / p.step_mm))
-    return n + 1, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.step_mm * fps, p.yaw_rad), {}
+    n = _frame_count(round(p.distance_mm / p.step_mm) + 1)
+    return n, _straight(p.start_x_mm, p.start_y_mm, p.direction_rad, p.step_mm * fps, p.yaw_rad), {}
 
 
 def _build_sigmoid(p: SigmoidParams, fps: float, seed: int):
@@ -406,7 +416,7 @@ def _polyline_path(vertices: np.ndarray, yaws: np.ndarray, speed: float) -> tupl
 
 
 def _build_lawnmower(p: LawnmowerParams, fps: float, seed: int):
-    lanes = int(np.floor(p.depth_mm / p.lane_spacing_mm + 1e-9)) + 1
+    lanes = _frame_count(np.floor(p.depth_mm / p.lane_spacing_mm + 1e-9) + 1, "lanes")
     verts, yaws = [], []
     for i in range(lanes):
         y = p.start_y_mm + i * p.lane_spacing_mm
@@ -482,8 +492,8 @@ def trajectory_param_fields(type_name: str) -> list[str]:
 
 
 def _get_type(type_name: str) -> TrajectoryType:
-    if type_name not in TRAJECTORIES:
-        raise ConfigError(f"trajectory.type = {type_name!r}: unknown type (known: {', '.join(TRAJECTORIES)})")
+    if not isinstance(type_name, str) or type_name not in TRAJECTORIES:
+        raise ConfigError(f"trajectory.type = {shown(type_name)}: unknown type (known: {', '.join(TRAJECTORIES)})")
     return TRAJECTORIES[type_name]
 
 
@@ -515,6 +525,7 @@ def build_trajectory(
     n, path, events = ttype.build(p, float(fps), int(seed))
     if n < 1:
         raise ConfigError(f"trajectory: type {type_name!r} with these parameters has no frames")
+    _frame_count(n)
     return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
 
 

@@ -40,6 +40,14 @@ def test_set_overrides():
         ({"floor.material": "lava"}, r"floor.material = 'lava': unknown material"),
         ({"lights.side": "top"}, r"lights.side = 'top': must be one of"),
         ({"schema_version": 2}, r"schema_version = 2"),
+        # issue 16: a negative floor seed (--seed -1 is refused), a list as the type, sizes that cannot be held
+        ({"floor.seed": "-3"}, r"floor.seed = -3: must be >= 0"),
+        ({"floor.seed": "1.5"}, r"floor.seed = '1.5': must be integer"),
+        ({"trajectory.type": '["uniform"]'}, r"trajectory.type = \['uniform'\]: unknown type"),
+        ({"camera.pixel_pitch_um": "8193"}, r"camera: .* see \d+ x \d+ mm of floor; at most 4000 mm"),
+        ({"camera.pixel_pitch_um": "0.0001"}, r"floor: a floor tile .* mesh vertices; at most 8e\+07"),
+        ({"floor.spacing_mm": "1e-6"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-06 mm holds"),
+        ({"trajectory.step_mm": "1e-9"}, r"trajectory: these parameters give 4e\+09 frames; at most 1000000"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):
