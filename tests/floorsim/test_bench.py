@@ -120,8 +120,6 @@ def test_cli_prints_table_and_report_and_gates(tmp_path, doubles, capsys):
 
 
 def test_cli_gate_fails_on_a_new_estimator_unless_allowed_and_refuses_a_bad_baseline(tmp_path, doubles, capsys):
-    from floorsim.cli import main
-
     scene = D.write_scene(tmp_path / "tiny.toml")
     base = tmp_path / "baseline.json"
     bench = ["bench", str(scene), "-o", str(tmp_path / "a")]
