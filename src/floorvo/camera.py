@@ -6,11 +6,13 @@ pixel at (0, 0). ``K`` is the 3x3 intrinsic matrix in pixels.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, shown
 
 __all__ = ["CameraModel"]
 
@@ -38,8 +40,16 @@ class CameraModel:
     distortion: tuple[float, ...] = field(default=(0.0, 0.0, 0.0, 0.0, 0.0))
 
     def __post_init__(self) -> None:
-        if self.width_px <= 0 or self.height_px <= 0:
-            raise ConfigError(f"camera: image size must be positive, got {self.width_px}x{self.height_px}")
+        size = (self.width_px, self.height_px)
+        if not all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n > 0 for n in size):
+            raise ConfigError(
+                f"camera: image size must be positive whole pixels, got {shown(self.width_px)}x{shown(self.height_px)}"
+            )
+        values = (self.fx_px, self.fy_px, self.cx_px, self.cy_px, *self.distortion)
+        if not all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool) for v in values):
+            raise ConfigError(f"camera: intrinsics and distortion must be numbers, got {shown(values)}")
+        if not np.isfinite(np.asarray(values, dtype=float)).all():
+            raise ConfigError(f"camera: intrinsics and distortion must be finite, got {shown(values)}")
         if self.fx_px <= 0 or self.fy_px <= 0:
             raise ConfigError(f"camera: focal lengths must be positive, got fx={self.fx_px}, fy={self.fy_px}")
         object.__setattr__(self, "distortion", tuple(float(d) for d in self.distortion))
@@ -66,21 +76,27 @@ class CameraModel:
         return cls(width_px, height_px, f_px, f_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0, tuple(distortion))
 
     @classmethod
-    def from_dict(cls, d: dict) -> CameraModel:
-        """Inverse of :meth:`to_dict` (the ``camera`` block of ``sequence.json``)."""
+    def from_dict(cls, d: Mapping[str, Any]) -> CameraModel:
+        """Inverse of :meth:`to_dict` (the ``camera`` block of ``sequence.json`` and ``map.json``).
+
+        A block that is not a table, lacks ``width_px``, ``height_px`` or ``K``, has a ``K``
+        that is not a 3x3 matrix of numbers, or values :class:`CameraModel` refuses raises a
+        one-line :class:`~floorvo.errors.ConfigError`.
+        """
+        if not isinstance(d, Mapping) or not {"width_px", "height_px", "K"} <= set(d):
+            raise ConfigError(f"camera: {shown(d)}: need a table with width_px, height_px and K")
         try:
             K = np.asarray(d["K"], dtype=float)
-            return cls(
-                int(d["width_px"]),
-                int(d["height_px"]),
-                float(K[0, 0]),
-                float(K[1, 1]),
-                float(K[0, 2]),
-                float(K[1, 2]),
-                tuple(d.get("distortion", (0.0,) * 5)),
-            )
-        except (KeyError, IndexError, TypeError, ValueError) as exc:
-            raise ConfigError(f"camera: malformed camera block ({exc!r}); need width_px, height_px, K") from None
+        except (TypeError, ValueError):
+            K = np.zeros(0)
+        if K.shape != (3, 3):
+            raise ConfigError(f"camera: K = {shown(d['K'])}: must be a 3x3 matrix of numbers")
+        distortion = d.get("distortion", (0.0,) * 5)
+        if not isinstance(distortion, (list, tuple)):
+            raise ConfigError(f"camera: distortion = {shown(distortion)}: must be a list of numbers")
+        return cls(
+            d["width_px"], d["height_px"], float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), distortion
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready dict: ``K`` (3x3 list), ``width_px``, ``height_px``, ``distortion``."""

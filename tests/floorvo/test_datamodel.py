@@ -43,6 +43,27 @@ def test_bad_camera_refused():
         CameraModel(10, 10, 0.0, 1.0, 5, 5)
 
 
+@pytest.mark.parametrize(
+    "block, message",
+    [
+        ({"width_px": 10, "height_px": 10, "K": [[float("nan"), 0, 5], [0, 1, 5], [0, 0, 1]]}, "must be finite"),
+        ({"width_px": 10.7, "height_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}, "whole pixels, got 10.7x10"),
+        ({"width_px": "80mm", "height_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}, "got '80mm'x10"),
+        ({"width_px": 10, "height_px": 10, "K": [[1, 0, 5], [0, 1, 5]]}, "K = .*: must be a 3x3 matrix"),
+        ({"width_px": 10, "height_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, "x"]]}, "must be a 3x3 matrix"),
+        ({"width_px": 10, "height_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, 1]], "distortion": 5}, "distortion = 5"),
+        ({"width_px": 10, "height_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, 1]], "distortion": "ab"}, "numbers"),
+        ([1], r"camera: \[1\]: need a table"),
+        ({"width_px": 10, "K": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}, "need a table with width_px, height_px and K"),
+    ],
+)
+def test_malformed_camera_blocks_are_refused_in_one_line(block, message):
+    """Issue 16: a NaN K gave LinAlgError later, 20.7 px was read as 20, text gave a ValueError repr."""
+    with pytest.raises(ConfigError, match=message) as info:
+        CameraModel.from_dict(block)
+    assert "\n" not in str(info.value)
+
+
 def test_camera_moving_plus_x_moves_floor_point_minus_u():
     cam = CameraModel.from_sensor()
     p_world = np.array([0.0, 0.0, 0.0, 1.0])
