@@ -34,6 +34,7 @@ __all__ = [
     "csv_cell",
     "write_png",
     "read_png",
+    "read_image",
     "read_json",
     "ensure_writable_dir",
 ]
@@ -126,13 +127,22 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
     Raises :class:`SequenceError` with a one-line message if the file is missing or is
     not a readable PNG.
     """
+    return read_image(path, "frame file", "PNG")
+
+
+def read_image(path: str | os.PathLike, noun: str = "image file", kind: str = "image") -> np.ndarray:
+    """Read an image file unchanged (whatever OpenCV decodes: PNG, JPEG, TIFF, BMP; 8- or 16-bit).
+
+    A missing file raises :class:`SequenceError` "PATH: NOUN is missing", an undecodable
+    one "PATH: not a readable KIND (corrupt or truncated)".
+    """
     path = Path(path)
     if not path.is_file():
-        raise SequenceError(f"{path}: frame file is missing")
+        raise SequenceError(f"{path}: {noun} is missing")
     data = np.fromfile(path, dtype=np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:
-        raise SequenceError(f"{path}: not a readable PNG (corrupt or truncated)")
+        raise SequenceError(f"{path}: not a readable {kind} (corrupt or truncated)")
     return img
 
 

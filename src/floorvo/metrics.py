@@ -35,7 +35,6 @@ Conventions
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from collections.abc import Sequence as SequenceT
@@ -612,11 +611,12 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     timing = read_timing_csv(run_dir / "timing.csv")
     statuses = list(timing["status"]) if timing and "status" in timing else None
     if timing and "frame" in timing and len(timing["frame"]):
-        # The estimator saw only these frames: cut the reference to their time span.
-        fps = _fps_of(seq_dir, t_ref)
+        # The estimator saw only these frames: cut the reference to the poses taken at their times.
         frames = timing["frame"].astype(int)
-        keep = np.isin(np.round(t_ref * fps).astype(int), frames)
-        if keep.sum() >= 2:
+        t_frames = _frame_times_of(seq_dir, t_ref, frames)
+        i_ref, _ = associate(t_ref, t_frames, max_diff_s)
+        if len(i_ref) >= 2:
+            keep = np.sort(i_ref)
             t_ref, T_ref = t_ref[keep], T_ref[keep]
     score = score_trajectories(
         t_ref,
@@ -636,12 +636,14 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     return score
 
 
-def _fps_of(seq_dir: Path, t_ref: np.ndarray) -> float:
-    meta = seq_dir / "sequence.json"
-    if meta.is_file():
-        try:
-            return float(json.loads(meta.read_text())["fps"])
-        except (KeyError, ValueError, json.JSONDecodeError):
-            pass
+def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Times (s) of the sequence's ``frames``: from the sequence folder (``timestamps.txt`` or
+    ``i / fps``), or, for a bare ground-truth file, frame i at i over its median rate."""
+    if (seq_dir / "sequence.json").is_file():
+        from floorvo.sequence import Sequence
+
+        ts = Sequence.open(seq_dir).timestamps_s
+        return ts[frames[(frames >= 0) & (frames < len(ts))]]
     d = np.diff(t_ref)
-    return float(1.0 / np.median(d)) if len(d) else 1.0
+    fps = float(1.0 / np.median(d)) if len(d) else 1.0
+    return frames / fps

@@ -1,9 +1,11 @@
 """Run an estimator over a sequence folder and write RUN/trajectory.txt, timing.csv, result.json.
 
-``trajectory.txt`` (TUM, metres) starts at the sequence's first ground-truth pose when it
-has one, at the identity otherwise; frames where the track was lost are left out, so the
-gap shows in the file, and the chain continues from the last good pose (the next frame
-is matched against the last good one).
+``trajectory.txt`` (TUM, metres, stamped with the sequence's frame times) starts at the
+ground-truth pose of the first frame run (the nearest in time, within
+:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`) when there is one, at the identity
+otherwise; frames where the track was lost are left out, so the gap shows in the file,
+and the chain continues from the last good pose (the next frame is matched against the
+last good one).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError
 from floorvo.estimators import Frame, get_estimator, make_config
 from floorvo.io import atomic_write_csv, atomic_write_json, atomic_write_text, ensure_writable_dir
-from floorvo.sequence import Sequence
+from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 from floorvo.tum import write_tum
 
 __all__ = ["run_estimator", "RunResult", "build_estimator"]
@@ -88,9 +90,17 @@ def run_estimator(
     indices = list(range(seq.frame_count) if frames is None else frames)
     if not indices:
         raise FloorbenchError(f"{name}: no frames to run on")
-    gt = seq.groundtruth()
-    ts_all = seq.timestamps_s if gt is None or len(gt[0]) != seq.frame_count else gt[0]
-    T_world = gt[1][indices[0]].copy() if gt is not None and len(gt[1]) > indices[0] else np.eye(4)
+    ts_all = seq.timestamps_s
+    T_start, found = seq.groundtruth_at(ts_all[indices[:1]])
+    T_world = T_start[0]
+    if not found[0] and seq.groundtruth() is not None:
+        log.warning(
+            "%s: no ground-truth pose within %.3f s of frame %d (t = %.6f s); the trajectory starts at the identity",
+            seq.root,
+            GROUNDTRUTH_MAX_DIFF_S,
+            indices[0],
+            ts_all[indices[0]],
+        )
     state = est.start()
     poses, stamps, rows, lost = [], [], [], []
     t_run = time.perf_counter()

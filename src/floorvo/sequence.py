@@ -9,7 +9,12 @@
       cam1/000000.png   right camera when the rig is stereo
       depth/000000.png  16-bit depth in 1/100 mm (or depth/000000.npy, float32 mm)
       calib/cam0_flatfield.png   flat-field frame (same rig, flat uniform floor), optional
+      timestamps.txt    per-frame times (s), one line per frame in frame order; optional
       groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
+
+Frame ``i`` was taken at line ``i`` of ``timestamps.txt`` when the folder has one (a
+recording: camera clock times, any spacing), at ``i / fps`` otherwise (a render). Schema
+version 2 added ``timestamps.txt``; version 1 folders (no such file) still load.
 
 Every file is written atomically, so a frame file that exists is complete; a render that
 is interrupted and restarted skips the frames already on disk (:meth:`SequenceWriter.has_frame`).
@@ -20,7 +25,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +36,7 @@ from floorvo.errors import SequenceError
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
+    atomic_write_text,
     ensure_writable_dir,
     plain,
     read_json,
@@ -39,10 +45,27 @@ from floorvo.io import (
 )
 from floorvo.tum import read_tum, write_tum
 
-__all__ = ["SCHEMA_VERSION", "Sequence", "SequenceWriter", "frame_name", "DEPTH_PNG_SCALE_PER_MM"]
+__all__ = [
+    "SCHEMA_VERSION",
+    "READABLE_SCHEMA_VERSIONS",
+    "TIMESTAMPS_FILE",
+    "GROUNDTRUTH_MAX_DIFF_S",
+    "Sequence",
+    "SequenceWriter",
+    "frame_name",
+    "check_timestamps",
+    "DEPTH_PNG_SCALE_PER_MM",
+]
 
-#: Version of the on-disk format; a reader refuses any other.
-SCHEMA_VERSION = 1
+#: Version of the on-disk format written here (2: optional per-frame ``timestamps.txt``).
+SCHEMA_VERSION = 2
+#: Versions a reader accepts; it refuses any other.
+READABLE_SCHEMA_VERSIONS = (1, 2)
+#: Per-frame timestamps (s), one line per frame; absent: frame i at i / fps.
+TIMESTAMPS_FILE = "timestamps.txt"
+#: Largest gap (s) between a frame's time and the ground-truth pose taken for it; the
+#: same as the default association tolerance of ``floorvo score``.
+GROUNDTRUTH_MAX_DIFF_S = 0.01
 #: 16-bit depth PNGs store depth in 1/100 mm.
 DEPTH_PNG_SCALE_PER_MM = 100.0
 
@@ -93,6 +116,8 @@ class SequenceWriter:
             same = old is not None and _strip_volatile(old) == _strip_volatile(meta)
             if same and resume:
                 self.resumed = True
+                if old.get("schema_version") != SCHEMA_VERSION:  # an older version of the same sequence
+                    atomic_write_json(meta_path, meta)
                 return
             if not overwrite:
                 raise SequenceError(
@@ -104,7 +129,7 @@ class SequenceWriter:
                 if d.is_dir():
                     for f in d.iterdir():
                         f.unlink()
-            for f in ("groundtruth.txt",):
+            for f in ("groundtruth.txt", TIMESTAMPS_FILE):
                 (self.root / f).unlink(missing_ok=True)
         self.resumed = False
         atomic_write_json(meta_path, meta)
@@ -160,10 +185,34 @@ class SequenceWriter:
         """Write ``groundtruth.txt`` (TUM, metres) for cam0."""
         write_tum(self.root / "groundtruth.txt", timestamps_s, T_world_cam)
 
+    def write_timestamps(self, timestamps_s: np.ndarray) -> None:
+        """Write ``timestamps.txt``: the time (s) of each of the ``frame_count`` frames, increasing."""
+        ts = check_timestamps(np.asarray(timestamps_s, dtype=float), int(self.meta["frame_count"]), "timestamps")
+        lines = ["# timestamp_s of each frame, in frame order (cam0/000000.png first)"]
+        lines += [f"{t:.9f}" for t in ts]
+        atomic_write_text(self.root / TIMESTAMPS_FILE, "\n".join(lines) + "\n")
+
 
 def _strip_volatile(meta: dict) -> dict:
-    """Metadata without fields that may differ between identical renders (timings)."""
-    return {k: v for k, v in meta.items() if k not in ("render_stats",)}
+    """Metadata without fields that may differ between identical renders (timings) or that a
+    readable older schema version of the same sequence differs in."""
+    volatile = ("render_stats",) + (
+        ("schema_version",) if meta.get("schema_version") in READABLE_SCHEMA_VERSIONS else ()
+    )
+    return {k: v for k, v in meta.items() if k not in volatile}
+
+
+def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
+    """``ts`` if it holds ``frame_count`` finite, strictly increasing times; else a one-line SequenceError."""
+    if ts.ndim != 1 or len(ts) != frame_count:
+        raise SequenceError(f"{what}: {len(ts)} timestamp(s) for {frame_count} frame(s); need one per frame")
+    if not np.isfinite(ts).all():
+        raise SequenceError(f"{what}: timestamp of frame {int(np.argmin(np.isfinite(ts)))} is not a finite number")
+    bad = np.nonzero(np.diff(ts) <= 0)[0]
+    if len(bad):
+        k = int(bad[0]) + 1
+        raise SequenceError(f"{what}: timestamps must increase, frame {k} at {ts[k]:.9f} s follows {ts[k - 1]:.9f} s")
+    return ts
 
 
 @dataclass
@@ -176,6 +225,7 @@ class Sequence:
 
     root: Path
     meta: dict
+    _timestamps_s: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def open(cls, root: str | os.PathLike) -> Sequence:
@@ -187,9 +237,10 @@ class Sequence:
             raise SequenceError(f"{root}: not a sequence (no sequence.json)")
         meta = read_json(meta_path, SequenceError)
         version = meta.get("schema_version") if isinstance(meta, dict) else None
-        if version != SCHEMA_VERSION:
+        if version not in READABLE_SCHEMA_VERSIONS or isinstance(version, bool):
             raise SequenceError(
-                f"{meta_path}: schema_version {version!r} is not supported (this floorvo reads version {SCHEMA_VERSION})"
+                f"{meta_path}: schema_version {version!r} is not supported "
+                f"(this floorvo reads versions {', '.join(map(str, READABLE_SCHEMA_VERSIONS))})"
             )
         for key in ("camera", "fps", "frame_count"):
             if key not in meta:
@@ -198,6 +249,7 @@ class Sequence:
         _ = seq.camera  # validate the camera block now
         if seq.frame_count <= 0:
             raise SequenceError(f"{meta_path}: frame_count must be >= 1, got {seq.frame_count}")
+        _ = seq.timestamps_s  # validate timestamps.txt now
         return seq
 
     # ----------------------------------------------------------------- metadata
@@ -232,7 +284,14 @@ class Sequence:
 
     @property
     def timestamps_s(self) -> np.ndarray:
-        return np.arange(self.frame_count) / self.fps
+        """(frame_count,) time of each frame in s: ``timestamps.txt`` when present, else ``i / fps``."""
+        if self._timestamps_s is None:
+            path = self.root / TIMESTAMPS_FILE
+            if path.is_file():
+                self._timestamps_s = check_timestamps(_read_timestamps(path), self.frame_count, str(path))
+            else:
+                self._timestamps_s = np.arange(self.frame_count) / self.fps
+        return self._timestamps_s.copy()
 
     @property
     def has_stereo(self) -> bool:
@@ -293,6 +352,27 @@ class Sequence:
         p = self.root / "groundtruth.txt"
         return read_tum(p) if p.is_file() else None
 
+    def groundtruth_at(
+        self, timestamps_s: np.ndarray, max_diff_s: float = GROUNDTRUTH_MAX_DIFF_S
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Ground-truth pose at each of ``timestamps_s`` (M,): ``(T_world_cam0 (M, 4, 4) mm, found (M,) bool)``.
+
+        A time takes the ground-truth pose nearest to it when that is at most ``max_diff_s``
+        away (:func:`floorvo.metrics.associate`, the pairing ``floorvo score`` uses); where
+        none is, ``found`` is False and the pose is the identity. No ground truth: none found.
+        """
+        from floorvo.metrics import associate
+
+        ts = np.atleast_1d(np.asarray(timestamps_s, dtype=float))
+        T = np.tile(np.eye(4), (len(ts), 1, 1))
+        found = np.zeros(len(ts), bool)
+        gt = self.groundtruth()
+        if gt is not None:
+            i_ref, i_q = associate(gt[0], ts, max_diff_s)
+            T[i_q] = gt[1][i_ref]
+            found[i_q] = True
+        return T, found
+
     def frames(self, cam: str = "cam0") -> Iterator[tuple[int, float, np.ndarray]]:
         """Iterate ``(index, timestamp_s, image)`` over all frames of ``cam``."""
         ts = self.timestamps_s
@@ -302,3 +382,17 @@ class Sequence:
     def _check_index(self, index: int) -> None:
         if not 0 <= index < self.frame_count:
             raise SequenceError(f"{self.root}: frame index {index} out of range 0..{self.frame_count - 1}")
+
+
+def _read_timestamps(path: Path) -> np.ndarray:
+    """The numbers of a ``timestamps.txt`` (one per line; ``#`` comments and blank lines skipped)."""
+    out = []
+    for lineno, line in enumerate(path.read_text().splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        try:
+            out.append(float(line))
+        except ValueError:
+            raise SequenceError(f"{path}:{lineno}: not a timestamp in seconds: {line!r}") from None
+    return np.array(out, dtype=float)

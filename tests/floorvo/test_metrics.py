@@ -142,7 +142,9 @@ def _fake_run(tmp_path, *, scale=1.01, lost=(7, 8)):
     est = line_traj(n, scale=scale)
     seq.mkdir()
     write_tum(seq / "groundtruth.txt", ts, ref)
-    (seq / "sequence.json").write_text(json.dumps({"fps": 10.0}))
+    camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
+    meta = {"schema_version": 2, "camera": camera, "fps": 10.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+    (seq / "sequence.json").write_text(json.dumps(meta))
     keep = np.array([i not in lost for i in range(n)])
     run.mkdir()
     write_tum(run / "trajectory.txt", ts[keep], est[keep])

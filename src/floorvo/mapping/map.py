@@ -256,7 +256,11 @@ def build_map(
             f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
         )
     gt = seq.groundtruth()
-    T_frames = _groundtruth_per_frame(gt, seq.timestamps_s) if gt is not None else None
+    T_frames, found = seq.groundtruth_at(seq.timestamps_s, max_diff_s=1e-3)
+    if not found.all():
+        if gt is not None:
+            log.warning("map: ground truth does not cover every frame; keyframe poses are chained (eq. 24)")
+        T_frames = None
     T0 = gt[1][0] if T_frames is None and gt is not None and len(gt[1]) else None
     return build_map_from_images(
         seq.image,
@@ -271,27 +275,6 @@ def build_map(
         source=str(seq.root),
         on_progress=on_progress,
     )
-
-
-def _groundtruth_per_frame(gt: tuple[np.ndarray, np.ndarray], ts_frames: np.ndarray) -> np.ndarray | None:
-    """Ground-truth pose of each frame (nearest timestamp within 1 ms), or None when some frame has none."""
-    ts_gt, T_gt = gt
-    ts_frames = np.asarray(ts_frames, float)
-    if len(ts_gt) == len(ts_frames):
-        return T_gt
-    if len(ts_gt) == 0:
-        return None
-    j = (
-        np.clip(np.searchsorted(ts_gt, ts_frames), 1, len(ts_gt) - 1)
-        if len(ts_gt) > 1
-        else np.zeros(len(ts_frames), int)
-    )
-    if len(ts_gt) > 1:
-        j = np.where(np.abs(ts_gt[j - 1] - ts_frames) <= np.abs(ts_gt[j] - ts_frames), j - 1, j)
-    if np.any(np.abs(ts_gt[j] - ts_frames) > 1e-3):
-        log.warning("map: ground truth does not cover every frame; keyframe poses are chained (eq. 24)")
-        return None
-    return T_gt[j]
 
 
 # --------------------------------------------------------------------------- disk
