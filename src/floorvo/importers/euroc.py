@@ -1,0 +1,131 @@
+"""A EuRoC/ASL folder as a recording (what ``floorsim export --format euroc`` writes, too).
+
+::
+
+    SOURCE/mav0/cam0/data.csv          #timestamp [ns],filename
+    SOURCE/mav0/cam0/data/<t_ns>.png
+    SOURCE/mav0/cam0/sensor.yaml       T_BS (body <- camera, m), intrinsics, resolution, distortion
+    SOURCE/mav0/cam1/...               right camera, optional
+    SOURCE/mav0/state_groundtruth_estimate0/data.csv   T_world_body: t_ns, p (m), q (w, x, y, z), ...
+
+``SOURCE`` may be the folder holding ``mav0`` or ``mav0`` itself. Frame times are the
+image stamps (ns -> s). The ground truth is the body's pose; it becomes the camera's,
+``T_world_cam0 = T_world_body @ T_BS(cam0)``. The right camera's pose in cam0 is
+``T_BS(cam0)^-1 @ T_BS(cam1)``; cam1 frames pair with cam0 frames of the same stamp.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from floorvo.errors import SequenceError
+from floorvo.geometry import invert_T
+from floorvo.importers.camera_files import CameraCalibration, load_yaml, read_camera_file, transform_m_to_mm
+from floorvo.importers.recording import FrameImages, Recording, read_image_file
+from floorvo.importers.times import read_euroc_groundtruth
+
+__all__ = ["detect", "read", "mav0_of"]
+
+log = logging.getLogger(__name__)
+
+
+def mav0_of(source: Path) -> Path | None:
+    """The ``mav0`` folder of ``source`` (itself or its child), or None."""
+    for cand in (source / "mav0", source):
+        if cand.is_dir() and (cand / "cam0" / "data.csv").is_file():
+            return cand
+    return None
+
+
+def detect(source: Path) -> bool:
+    return source.is_dir() and mav0_of(source) is not None
+
+
+def _camera_stream(cam_dir: Path) -> tuple[np.ndarray, list[Path]]:
+    """``(stamps_ns (N,) int64, files)`` of ``cam_dir/data.csv``, in time order."""
+    csv_path = cam_dir / "data.csv"
+    stamps, files = [], []
+    for lineno, line in enumerate(csv_path.read_text().splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) < 2:
+            raise SequenceError(f"{csv_path}:{lineno}: a row is 'timestamp_ns,filename'")
+        try:
+            stamps.append(int(parts[0]))
+        except ValueError:
+            raise SequenceError(f"{csv_path}:{lineno}: {parts[0]!r} is not a timestamp in ns") from None
+        files.append(cam_dir / "data" / parts[1])
+    if not stamps:
+        raise SequenceError(f"{csv_path}: lists no frames")
+    order = np.argsort(stamps, kind="stable")
+    st = np.asarray(stamps, dtype=np.int64)[order]
+    if np.any(np.diff(st) <= 0):
+        raise SequenceError(f"{csv_path}: two frames share the timestamp {int(st[np.argmin(np.diff(st))])} ns")
+    return st, [files[i] for i in order]
+
+
+def _T_BS_mm(cam_dir: Path) -> np.ndarray:
+    """Pose of the camera in the body frame (mm) from ``sensor.yaml``'s ``T_BS``; identity if absent."""
+    sensor = cam_dir / "sensor.yaml"
+    if not sensor.is_file():
+        return np.eye(4)
+    d = load_yaml(sensor, "EuRoC sensor.yaml")
+    if not isinstance(d, dict) or "T_BS" not in d:
+        return np.eye(4)
+    return transform_m_to_mm(d["T_BS"], f"{sensor} T_BS")
+
+
+def read(source: Path, options=None) -> Recording:
+    mav = mav0_of(source)
+    if mav is None:
+        raise SequenceError(f"{source}: not a EuRoC/ASL folder (no mav0/cam0/data.csv)")
+    st0, files0 = _camera_stream(mav / "cam0")
+    cal0 = read_camera_file(mav / "cam0" / "sensor.yaml") if (mav / "cam0" / "sensor.yaml").is_file() else None
+    T_B0 = _T_BS_mm(mav / "cam0")
+    files1: list[Path] | None = None
+    cal = cal0
+    if (mav / "cam1" / "data.csv").is_file():
+        st1, f1 = _camera_stream(mav / "cam1")
+        if len(st1) == len(st0) and np.array_equal(st1, st0):
+            files1 = f1
+            if cal0 is not None and (mav / "cam1" / "sensor.yaml").is_file():
+                cam1 = read_camera_file(mav / "cam1" / "sensor.yaml").cam0
+                cal = CameraCalibration(cal0.cam0, cam1, invert_T(T_B0) @ _T_BS_mm(mav / "cam1"))
+        else:
+            log.warning("%s: cam1 frames do not share cam0's timestamps; cam1 left out", mav)
+    first = read_image_file(files0[0])
+    gt = None
+    gt_csv = mav / "state_groundtruth_estimate0" / "data.csv"
+    if gt_csv.is_file():
+        t_gt, T_world_body = read_euroc_groundtruth(gt_csv)
+        gt = (t_gt, T_world_body @ T_B0)
+
+    def frames() -> Iterator[FrameImages]:
+        for i, f in enumerate(files0):
+            yield FrameImages(read_image_file(f), None if files1 is None else read_image_file(files1[i]))
+
+    rate = None
+    if cal0 is not None:
+        d = load_yaml(mav / "cam0" / "sensor.yaml", "EuRoC sensor.yaml")
+        r = d.get("rate_hz") if isinstance(d, dict) else None
+        rate = float(r) if isinstance(r, (int, float)) and not isinstance(r, bool) and r > 0 else None
+    return Recording(
+        format="euroc",
+        source=source,
+        frame_count=len(files0),
+        size_px=(first.shape[1], first.shape[0]),
+        bit_depth=8 * first.itemsize,
+        frames=frames,
+        timestamps_s=st0 * 1e-9,
+        fps=rate,
+        calibration=cal,
+        has_right=files1 is not None,
+        groundtruth=gt,
+        details={"first_stamp_ns": int(st0[0])},
+    )

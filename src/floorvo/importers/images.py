@@ -1,0 +1,94 @@
+"""A folder of image files, or a text file listing them, as a recording.
+
+* A folder: every PNG, JPEG, TIFF or BMP file in it (not in subfolders), in natural order
+  (``img_2.jpg`` before ``img_10.jpg``).
+* A list file (``.txt``): one image a line, a path relative to the list's folder, or
+  ``TIMESTAMP PATH`` (seconds, as in a TUM ``rgb.txt``), in frame order.
+
+Frames may be 8- or 16-bit; colour frames are converted to mono. The folder states no
+times: they come from the list, a ``--timestamps`` file or ``--fps``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from floorvo.errors import SequenceError
+from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file
+
+__all__ = ["IMAGE_SUFFIXES", "detect", "read", "list_images"]
+
+log = logging.getLogger(__name__)
+
+#: File suffixes read as frames (case-insensitive).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+
+
+def detect(source: Path) -> bool:
+    """True for a folder holding image files or a ``.txt`` list file."""
+    if source.is_file():
+        return source.suffix.lower() == ".txt"
+    return source.is_dir() and any(p.suffix.lower() in IMAGE_SUFFIXES for p in source.iterdir())
+
+
+def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
+    """The frame files of ``source`` in frame order, and their times (s) when a list file gives them."""
+    if source.is_dir():
+        files = sorted(
+            (p for p in source.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES),
+            key=lambda p: natural_key(p.name),
+        )
+        if not files:
+            raise SequenceError(f"{source}: holds no image files ({', '.join(IMAGE_SUFFIXES)})")
+        return files, None
+    if not source.is_file():
+        raise SequenceError(f"{source}: does not exist")
+    files, times = [], []
+    for lineno, line in enumerate(source.read_text().splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split(maxsplit=1)
+        if len(parts) == 2:
+            try:
+                times.append(float(parts[0]))
+                name = parts[1].strip()
+            except ValueError:
+                name = line
+        else:
+            name = line
+        path = Path(name)
+        files.append(path if path.is_absolute() else source.parent / path)
+        if not files[-1].is_file():
+            raise SequenceError(f"{source}:{lineno}: image {name!r} does not exist")
+    if not files:
+        raise SequenceError(f"{source}: lists no images")
+    if times and len(times) != len(files):
+        raise SequenceError(f"{source}: some lines have a timestamp and some do not (TIMESTAMP PATH or PATH)")
+    return files, (np.array(times) if times else None)
+
+
+def read(source: Path, options=None) -> Recording:
+    """The frames of ``source`` (a folder or a list file), read lazily."""
+    files, times = list_images(source)
+    first = read_image_file(files[0])
+
+    def frames() -> Iterator[FrameImages]:
+        for f in files:
+            yield FrameImages(read_image_file(f))
+
+    log.info("%s: %d image files", source, len(files))
+    return Recording(
+        format="images",
+        source=source,
+        frame_count=len(files),
+        size_px=(first.shape[1], first.shape[0]),
+        bit_depth=8 * first.itemsize,
+        frames=frames,
+        timestamps_s=times,
+        details={"first_file": files[0].name, "last_file": files[-1].name},
+    )

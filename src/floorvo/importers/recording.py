@@ -1,0 +1,339 @@
+"""What an importer reads from a recording, and the one place it becomes a sequence folder.
+
+Every format reader (:mod:`.images`, :mod:`.video`, :mod:`.euroc`, :mod:`.rosbag2`) returns
+a :class:`Recording`: the frames (read lazily, so a long video is never held in memory),
+their timestamps as the source states them, and whatever calibration and ground truth the
+source carries. :func:`write_recording` resolves what the user gave on the command line
+against it (their camera, height, timestamps and ground truth win) and writes the
+sequence through :class:`floorvo.sequence.SequenceWriter`, the writer floorsim's renders
+use, so every file is written atomically and an interrupted import resumes.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from floorvo import __version__
+from floorvo.errors import ConfigError, SequenceError
+from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
+from floorvo.io import read_image
+from floorvo.sequence import SequenceWriter, check_timestamps
+
+__all__ = [
+    "FrameImages",
+    "Recording",
+    "ImportOptions",
+    "ImportResult",
+    "to_mono",
+    "read_image_file",
+    "natural_key",
+    "median_rate_hz",
+    "write_recording",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class FrameImages:
+    """One frame of a recording: ``image`` (H, W) uint8/uint16 mono, optional right image and depth (mm)."""
+
+    image: np.ndarray
+    image_right: np.ndarray | None = None
+    depth_mm: np.ndarray | None = None
+
+
+@dataclass
+class Recording:
+    """A source as a reader found it.
+
+    Attributes
+    ----------
+    format:
+        Reader name (``images``, ``video``, ``euroc``, ``rosbag2``).
+    source:
+        What was read.
+    frame_count:
+        Number of frames ``frames()`` yields.
+    size_px:
+        ``(width_px, height_px)`` of every frame.
+    bit_depth:
+        8 or 16: the pixel depth of every frame.
+    frames:
+        Called once, yields ``frame_count`` :class:`FrameImages` in time order.
+    timestamps_s:
+        (frame_count,) times the source states (s), or None when it states none.
+    fps:
+        Nominal frame rate the source states (Hz), or None.
+    calibration:
+        Camera calibration the source carries, or None.
+    has_right, has_depth:
+        Whether ``frames()`` fills ``image_right`` / ``depth_mm``.
+    groundtruth:
+        ``(timestamps_s (M,), T_world_cam0 (M, 4, 4) mm)`` the source carries, or None.
+    details:
+        Provenance written under ``source`` in ``sequence.json`` (topics, files).
+    """
+
+    format: str
+    source: Path
+    frame_count: int
+    size_px: tuple[int, int]
+    bit_depth: int
+    frames: Callable[[], Iterator[FrameImages]]
+    timestamps_s: np.ndarray | None = None
+    fps: float | None = None
+    calibration: CameraCalibration | None = None
+    has_right: bool = False
+    has_depth: bool = False
+    groundtruth: tuple[np.ndarray, np.ndarray] | None = None
+    details: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ImportOptions:
+    """What the user gives beside the source (the flags of ``floorvo import``).
+
+    Attributes
+    ----------
+    calibration:
+        The camera from ``--camera FILE``; overrides the source's.
+    intrinsics:
+        ``(fx, fy, cx, cy)`` px from ``--fx --fy --cx --cy`` (the image size is the frames');
+        overrides the source's camera. ``distortion``: its k1, k2, p1, p2[, k3].
+    height_mm:
+        Camera height above the floor (mm); written as ``rig.height_mm``.
+    timestamps_s:
+        Per-frame times (s) from a timestamps file; override the source's.
+    groundtruth:
+        ``(timestamps_s, T_world_cam0 mm)`` from a ground-truth file; overrides the source's.
+    fps:
+        Frame rate (Hz) for sources without times (an image folder); nominal otherwise.
+    flatfield:
+        A flat-field image of cam0 (same rig over a flat uniform floor), copied to ``calib/``.
+    topics:
+        ROS 2 bag topics by role (``image``, ``right``, ``depth``, ``camera_info``,
+        ``right_camera_info``, ``groundtruth``); roles not given are found by type and name.
+    overwrite:
+        Replace an existing, different sequence at the output path.
+    """
+
+    calibration: CameraCalibration | None = None
+    intrinsics: tuple[float | None, float | None, float | None, float | None] | None = None
+    distortion: tuple[float, ...] | None = None
+    height_mm: float | None = None
+    timestamps_s: np.ndarray | None = None
+    groundtruth: tuple[np.ndarray, np.ndarray] | None = None
+    fps: float | None = None
+    flatfield: Path | None = None
+    topics: dict[str, str] = field(default_factory=dict)
+    overwrite: bool = False
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    """Summary of an import: the sequence folder and what it holds."""
+
+    sequence: Path
+    format: str
+    frames: int
+    width_px: int
+    height_px: int
+    bit_depth: int
+    fps: float
+    duration_s: float
+    stereo: bool
+    depth: bool
+    groundtruth_poses: int
+    height_mm: float | None
+
+
+def natural_key(name: str) -> list:
+    """Sort key that orders ``img_2`` before ``img_10`` (digit runs compared as numbers)."""
+    return [(0, int(t), "") if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", name) if t]
+
+
+def to_mono(image: np.ndarray, what: str) -> np.ndarray:
+    """(H, W) uint8/uint16 of a mono, BGR or BGRA image as OpenCV decodes it (colour: luma, BT.601)."""
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise SequenceError(f"{what}: {img.dtype} pixels are not supported (need 8- or 16-bit integers)")
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    elif img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2GRAY)
+    elif img.ndim != 2:
+        raise SequenceError(f"{what}: image of shape {img.shape} is neither mono nor colour")
+    return np.ascontiguousarray(img)
+
+
+def read_image_file(path: str | os.PathLike) -> np.ndarray:
+    """Read a PNG/JPEG/TIFF/BMP file unchanged (8- or 16-bit) and make it mono; one-line error if unreadable."""
+    return to_mono(read_image(path, "image file", "image (PNG, JPEG, TIFF or BMP)"), str(path))
+
+
+def median_rate_hz(timestamps_s: np.ndarray) -> float | None:
+    """Frame rate (Hz) from the median spacing of increasing times (6 significant digits), or None for fewer than two."""
+    d = np.diff(np.asarray(timestamps_s, dtype=float))
+    return float(f"{1.0 / np.median(d):.6g}") if len(d) and np.median(d) > 0 else None
+
+
+def _positive(value: float | None, what: str) -> float | None:
+    if value is None:
+        return None
+    v = float(value)
+    if not np.isfinite(v) or v <= 0:
+        raise ConfigError(f"{what} {value!r}: must be a finite number > 0")
+    return v
+
+
+def _camera_for(cal: CameraCalibration | None, size_px: tuple[int, int], what: str) -> CameraCalibration:
+    if cal is None:
+        raise ConfigError(
+            f"{what}: holds no camera calibration; give --camera FILE (ROS camera_info, OpenCV or Kalibr YAML) "
+            "or --fx --fy --cx --cy"
+        )
+    for name, cam in (("cam0", cal.cam0), ("cam1", cal.cam1)):
+        if cam is not None and cam.size != tuple(size_px):
+            raise ConfigError(
+                f"camera {name}: calibrated for {cam.width_px}x{cam.height_px} px, "
+                f"the frames of {what} are {size_px[0]}x{size_px[1]} px"
+            )
+    return cal
+
+
+def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptions | None = None) -> ImportResult:
+    """Write ``rec`` as a sequence folder at ``out`` (``sequence.json``, frames, ``timestamps.txt``, ground truth).
+
+    The user's ``options`` override what the source states: calibration, timestamps,
+    ground truth; ``options.fps`` is the rate of a source without times. Frame times come
+    from ``options.timestamps_s``, else the source, else ``i / fps``.
+    """
+    opts = options or ImportOptions()
+    what = str(rec.source)
+    if opts.intrinsics is not None and opts.calibration is not None:
+        raise ConfigError("camera: give --camera FILE or --fx --fy --cx --cy, not both")
+    if opts.distortion is not None and opts.intrinsics is None:
+        raise ConfigError("--distortion: goes with --fx --fy --cx --cy (a camera file has its own)")
+    given = opts.calibration
+    if opts.intrinsics is not None:
+        given = CameraCalibration(camera_from_flags(rec.size_px, *opts.intrinsics, opts.distortion))
+    cal = _camera_for(given or rec.calibration, rec.size_px, what)
+    height_mm = _positive(opts.height_mm, "--height-mm")
+    fps_given = _positive(opts.fps, "--fps")
+    n = rec.frame_count
+    if n < 1:
+        raise SequenceError(f"{what}: no frames found")
+    if opts.timestamps_s is not None:
+        ts = np.asarray(opts.timestamps_s, dtype=float)
+        if len(ts) != n:
+            raise SequenceError(f"timestamps file: {len(ts)} timestamp(s) for the {n} frame(s) of {what}")
+        time_source = "timestamps file"
+    elif rec.timestamps_s is not None:
+        ts, time_source = np.asarray(rec.timestamps_s, dtype=float), rec.format
+    elif fps_given is not None:
+        ts, time_source = np.arange(n) / fps_given, "--fps"
+    else:
+        raise ConfigError(f"{what}: the source states no frame times; give --timestamps FILE or --fps HZ")
+    fps = fps_given or rec.fps or median_rate_hz(ts) or 1.0
+    if not np.isfinite(fps) or fps <= 0:
+        fps = median_rate_hz(ts) or 1.0
+    stereo = rec.has_right and cal.cam1 is not None and cal.T_cam0_cam1 is not None
+    if rec.has_right and not stereo:
+        log.warning("%s: right images found but no right camera calibration and pose; imported mono", what)
+    gt = opts.groundtruth if opts.groundtruth is not None else rec.groundtruth
+    gt_source = "groundtruth file" if opts.groundtruth is not None else rec.format
+    rig: dict = {}
+    if height_mm is not None:
+        rig["height_mm"] = height_mm
+    else:
+        log.warning("%s: no --height-mm; `floorvo run` needs rig.height_mm in sequence.json", what)
+    meta: dict = {
+        "name": rec.source.stem or rec.source.name,
+        "camera": cal.cam0.to_dict(),
+        "fps": float(fps),
+        "frame_count": int(n),
+        "rig": rig,
+        "stereo": bool(stereo),
+        "bit_depth": int(rec.bit_depth),
+        "source": {
+            "format": rec.format,
+            "path": str(rec.source.resolve()),
+            "timestamps": time_source,
+            "groundtruth": None if gt is None else gt_source,
+            **rec.details,
+        },
+        "versions": {"floorvo": __version__},
+    }
+    if stereo:
+        meta["cameras"] = {"cam1": cal.cam1.to_dict()}  # type: ignore[union-attr]
+        rig["T_cam0_cam1"] = np.asarray(cal.T_cam0_cam1, dtype=float).tolist()
+    if rec.has_depth:
+        meta["depth"] = {"format": "npy_float32_mm", "content": "depth along the optical axis, mm"}
+    flat = None
+    if opts.flatfield is not None:
+        flat = read_image_file(opts.flatfield)
+        if flat.shape != (cal.cam0.height_px, cal.cam0.width_px):
+            raise ConfigError(
+                f"--flatfield {opts.flatfield}: image is {flat.shape[1]}x{flat.shape[0]} px, "
+                f"the frames are {cal.cam0.width_px}x{cal.cam0.height_px} px"
+            )
+        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flat.itemsize}
+    check_timestamps(ts, n, f"timestamps ({time_source})")
+    writer = SequenceWriter(out, meta, overwrite=opts.overwrite)
+    writer.write_timestamps(ts)
+    count = 0
+    for i, fr in enumerate(rec.frames()):
+        if i >= n:
+            raise SequenceError(f"{what}: yields more frames than the {n} it announced")
+        if 8 * fr.image.itemsize != rec.bit_depth:
+            raise SequenceError(f"{what}: frame {i} is {8 * fr.image.itemsize}-bit, frame 0 is {rec.bit_depth}-bit")
+        for img, label in ((fr.image, "image"), (fr.image_right, "right image"), (fr.depth_mm, "depth")):
+            if img is not None and img.shape != (cal.cam0.height_px, cal.cam0.width_px):
+                raise SequenceError(
+                    f"{what}: {label} of frame {i} is {img.shape[1]}x{img.shape[0]} px, "
+                    f"frame 0 is {cal.cam0.width_px}x{cal.cam0.height_px} px"
+                )
+        count = i + 1
+        if writer.resumed and writer.has_frame(i):
+            continue
+        writer.write_frame(i, fr.image)
+        if stereo:
+            if fr.image_right is None:
+                raise SequenceError(f"{what}: frame {i} has no right image")
+            writer.write_frame(i, fr.image_right, "cam1")
+        if rec.has_depth:
+            if fr.depth_mm is None:
+                raise SequenceError(f"{what}: frame {i} has no depth image")
+            writer.write_depth(i, fr.depth_mm)
+    if count != n:
+        raise SequenceError(f"{what}: yielded {count} frame(s), announced {n}")
+    if flat is not None:
+        writer.write_calib("cam0_flatfield", flat)
+    if gt is not None:
+        writer.write_groundtruth(gt[0], gt[1])
+    log.info("imported %d frames of %s (%s) -> %s", n, what, rec.format, writer.root)
+    return ImportResult(
+        sequence=writer.root,
+        format=rec.format,
+        frames=n,
+        width_px=cal.cam0.width_px,
+        height_px=cal.cam0.height_px,
+        bit_depth=int(rec.bit_depth),
+        fps=float(fps),
+        duration_s=float(ts[-1] - ts[0]),
+        stereo=bool(stereo),
+        depth=rec.has_depth,
+        groundtruth_poses=0 if gt is None else len(gt[0]),
+        height_mm=height_mm,
+    )

@@ -1,0 +1,408 @@
+"""A ROS 2 bag as a recording (read with ``rosbags``, sqlite3 or MCAP storage).
+
+Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message type and name:
+
+* ``image``: ``sensor_msgs/Image`` or ``CompressedImage`` (mono8/16, 8UC1/16UC1,
+  rgb/bgr(a) 8/16; colour converted to mono); the one image topic without ``depth`` in
+  its name, or the one named ``left``/``cam0`` among several;
+* ``right``: the image topic named ``right``/``cam1`` (a stereo rig);
+* ``depth``: the image topic named ``depth`` (32FC1 metres or 16UC1 millimetres, raw or
+  ``compressedDepth`` PNG);
+* ``camera_info``, ``right_camera_info``: ``sensor_msgs/CameraInfo`` in the image topic's
+  namespace (``/cam0/image_raw`` -> ``/cam0/camera_info``); its first message gives the
+  camera (plumb_bob); the right camera's pose in the left's comes from ``/tf_static``
+  (left frame -> right frame) or else from the right projection matrix (``P[0,3] = -fx B``);
+* ``groundtruth``: ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
+  ``TransformStamped`` or ``nav_msgs/Odometry`` (its pose is taken as the camera's,
+  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame).
+
+Frame times are the image headers' stamps (the bag's receive time where a stamp is zero).
+A right or depth image belongs to the left image whose stamp is within 1 ms of its own;
+left images without their partner are left out (with a warning). The bag is read twice
+(stamps and calibration first, images when written), so it is never held in memory.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from floorvo.camera import CameraModel
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError
+from floorvo.geometry import T_from_xyz_quat, invert_T
+from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from
+from floorvo.importers.recording import FrameImages, Recording, to_mono
+
+__all__ = ["ROLES", "detect", "read", "decode_image"]
+
+log = logging.getLogger(__name__)
+
+#: Topic roles of ``--topic ROLE=NAME``.
+ROLES = ("image", "right", "depth", "camera_info", "right_camera_info", "groundtruth")
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+POSE_TYPES = (
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "geometry_msgs/msg/TransformStamped",
+    "nav_msgs/msg/Odometry",
+)
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+#: Largest stamp difference (ns) between a left image and its right or depth partner.
+PAIR_TOLERANCE_NS = 1_000_000
+
+#: Raw ``sensor_msgs/Image`` encodings: (numpy dtype, channels, channel order).
+_ENCODINGS = {
+    "mono8": ("u1", 1, ""),
+    "8uc1": ("u1", 1, ""),
+    "mono16": ("u2", 1, ""),
+    "16uc1": ("u2", 1, ""),
+    "bgr8": ("u1", 3, "bgr"),
+    "rgb8": ("u1", 3, "rgb"),
+    "bgra8": ("u1", 4, "bgr"),
+    "rgba8": ("u1", 4, "rgb"),
+    "bgr16": ("u2", 3, "bgr"),
+    "rgb16": ("u2", 3, "rgb"),
+    "bgra16": ("u2", 4, "bgr"),
+    "rgba16": ("u2", 4, "rgb"),
+    "32fc1": ("f4", 1, ""),
+}
+
+
+def detect(source: Path) -> bool:
+    """True for a bag folder (``metadata.yaml``) or a ``.db3``/``.mcap`` file."""
+    if source.is_dir():
+        return (source / "metadata.yaml").is_file()
+    return source.is_file() and source.suffix.lower() in (".db3", ".mcap")
+
+
+def _stamp_ns(msg: Any, bag_ns: int) -> int:
+    h = getattr(msg, "header", None)
+    if h is None:
+        return int(bag_ns)
+    ns = int(h.stamp.sec) * 1_000_000_000 + int(h.stamp.nanosec)
+    return ns if ns > 0 else int(bag_ns)
+
+
+def decode_image(msg: Any, msgtype: str, what: str) -> np.ndarray:
+    """Pixels of an Image or CompressedImage message: (H, W) mono uint8/uint16, or float32 for 32FC1.
+
+    Colour is returned as (H, W, C) in BGR(A) order, for :func:`to_mono`.
+    """
+    if msgtype.endswith("CompressedImage"):
+        fmt = str(msg.format).lower()
+        data = np.asarray(msg.data, dtype=np.uint8)
+        if "compresseddepth" in fmt:
+            if "32fc1" in fmt:
+                raise SequenceError(f"{what}: 32FC1 compressedDepth (inverse-depth quantised) is not supported")
+            data = data[12:]  # compressed_depth_image_transport's 12-byte config header
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        if img is None:
+            raise SequenceError(f"{what}: compressed image ({msg.format!r}) could not be decoded")
+        return img
+    enc = str(msg.encoding).lower()
+    if enc not in _ENCODINGS:
+        raise SequenceError(
+            f"{what}: image encoding {msg.encoding!r} is not supported (mono8/16, 8UC1/16UC1, rgb/bgr(a)8/16, 32FC1)"
+        )
+    kind, ch, order = _ENCODINGS[enc]
+    dt = np.dtype(kind).newbyteorder(">" if msg.is_bigendian else "<")
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    row_bytes = w * ch * dt.itemsize
+    raw = np.asarray(msg.data, dtype=np.uint8)
+    if step < row_bytes or raw.size < h * step:
+        raise SequenceError(f"{what}: {raw.size} data bytes do not hold {h} rows of step {step} ({msg.encoding})")
+    rows = raw[: h * step].reshape(h, step)[:, :row_bytes]
+    img = np.ascontiguousarray(rows).view(dt).astype(dt.newbyteorder("="))
+    img = img.reshape(h, w, ch) if ch > 1 else img.reshape(h, w)
+    if order == "rgb":
+        img = np.ascontiguousarray(img[:, :, [2, 1, 0] + ([3] if ch == 4 else [])])
+    return img
+
+
+def _depth_mm(img: np.ndarray, what: str) -> np.ndarray:
+    """Depth in mm (float32, 0 = none) from 32FC1 metres or 16UC1 millimetres."""
+    if img.dtype == np.float32:
+        d = img.astype(np.float64) * 1000.0
+    elif img.dtype == np.uint16:
+        d = img.astype(np.float64)
+    else:
+        raise SequenceError(f"{what}: depth of {img.dtype} pixels is not supported (32FC1 m or 16UC1 mm)")
+    return np.nan_to_num(d, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
+
+
+def _camera_of_info(msg: Any, what: str) -> CameraModel | None:
+    K = np.asarray(msg.k, dtype=float).reshape(3, 3)
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        return None  # an uncalibrated camera publishes zeros
+    dist = distortion_from(np.asarray(msg.d, dtype=float), msg.distortion_model, what)
+    return camera_from_parts(msg.width, msg.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist, what)
+
+
+def _T_of(position: Any, orientation: Any) -> np.ndarray:
+    xyz = np.array([position.x, position.y, position.z], dtype=float) * 1000.0
+    q = np.array([orientation.x, orientation.y, orientation.z, orientation.w], dtype=float)
+    n = float(np.linalg.norm(q))
+    if not np.isfinite(xyz).all() or not np.isfinite(q).all() or n < 1e-9:
+        raise SequenceError("ground-truth pose with a non-finite value or a zero quaternion")
+    return T_from_xyz_quat(xyz, q / n)
+
+
+def _pose_of(msg: Any, msgtype: str) -> np.ndarray:
+    """T (mm) of a pose-like message (see :data:`POSE_TYPES`)."""
+    if msgtype.endswith("TransformStamped"):
+        return _T_of(msg.transform.translation, msg.transform.rotation)
+    pose = msg.pose.pose if msgtype.endswith(("Odometry", "PoseWithCovarianceStamped")) else msg.pose
+    return _T_of(pose.position, pose.orientation)
+
+
+def _namespace(topic: str) -> str:
+    return topic.rsplit("/", 1)[0]
+
+
+def _pick(cands: list[str], words: tuple[str, ...]) -> list[str]:
+    return [t for t in cands if any(w in t.lower() for w in words)]
+
+
+def choose_topics(types: dict[str, str], given: dict[str, str]) -> dict[str, str]:
+    """Topic of each role (roles found by type and name where not ``given``); one-line errors."""
+    for role, topic in given.items():
+        if role not in ROLES:
+            raise ConfigError(f"--topic {role}={topic}: unknown role (known: {', '.join(ROLES)})")
+        if topic not in types:
+            raise ConfigError(f"--topic {role}={topic}: no such topic in the bag (topics: {', '.join(sorted(types))})")
+        want = {
+            "camera_info": (INFO_TYPE,),
+            "right_camera_info": (INFO_TYPE,),
+            "groundtruth": POSE_TYPES + (TF_TYPE,),
+        }.get(role, IMAGE_TYPES)
+        if types[topic] not in want:
+            raise ConfigError(f"--topic {role}={topic}: is {types[topic]}, a {role} topic is one of {', '.join(want)}")
+    out = dict(given)
+    images = sorted(t for t, ty in types.items() if ty in IMAGE_TYPES)
+    depth_like = _pick(images, ("depth",))
+    plain = [t for t in images if t not in depth_like and t not in out.values()]
+    if "image" not in out:
+        if len(plain) == 1:
+            out["image"] = plain[0]
+        elif len(_pick(plain, ("left", "cam0"))) == 1:
+            out["image"] = _pick(plain, ("left", "cam0"))[0]
+        elif not plain:
+            raise SequenceError(f"bag has no image topic (topics: {', '.join(sorted(types))})")
+        else:
+            raise ConfigError(f"bag has several image topics ({', '.join(plain)}); choose one with --topic image=NAME")
+    rest = [t for t in plain if t != out["image"]]
+    if "right" not in out and len(_pick(rest, ("right", "cam1"))) == 1:
+        out["right"] = _pick(rest, ("right", "cam1"))[0]
+    if "depth" not in out and len(depth_like) == 1:
+        out["depth"] = depth_like[0]
+    infos = sorted(t for t, ty in types.items() if ty == INFO_TYPE)
+    for role, img_role in (("camera_info", "image"), ("right_camera_info", "right")):
+        if role in out or img_role not in out:
+            continue
+        same_ns = [t for t in infos if _namespace(t) == _namespace(out[img_role])]
+        if len(same_ns) == 1:
+            out[role] = same_ns[0]
+        elif role == "camera_info" and len(infos) == 1:
+            out[role] = infos[0]
+    if "groundtruth" not in out:
+        poses = sorted(t for t, ty in types.items() if ty in POSE_TYPES)
+        named = _pick(poses, ("groundtruth", "ground_truth", "gt"))
+        if len(poses) == 1:
+            out["groundtruth"] = poses[0]
+        elif len(named) == 1:
+            out["groundtruth"] = named[0]
+        elif len(poses) > 1:
+            log.warning("bag has several pose topics (%s); no ground truth taken (--topic groundtruth=NAME)", poses)
+        elif "/tf" in types and types["/tf"] == TF_TYPE:
+            out["groundtruth"] = "/tf"
+    return out
+
+
+def _open_reader(source: Path):
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise FloorbenchError("ROS 2 bag import needs the 'rosbags' package: pip install rosbags") from None
+    path = source.parent if source.is_file() else source
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as exc:  # rosbags raises its own types for every kind of unreadable bag
+        raise SequenceError(
+            f"{source}: not a readable ROS 2 bag ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+        ) from None
+    return reader
+
+
+def _pair(left_ns: np.ndarray, other_ns: np.ndarray) -> dict[int, int]:
+    """``{other stamp: left stamp}`` for each left stamp with an other stamp within tolerance (nearest)."""
+    other = np.sort(np.asarray(other_ns, dtype=np.int64))
+    out: dict[int, int] = {}
+    if not len(other):
+        return out
+    pos = np.clip(np.searchsorted(other, left_ns), 0, len(other) - 1)
+    for k, t in enumerate(left_ns):
+        best = None
+        for j in (pos[k] - 1, pos[k]):
+            if 0 <= j < len(other) and (best is None or abs(other[j] - t) < abs(best - t)):
+                best = int(other[j])
+        if best is not None and abs(best - int(t)) <= PAIR_TOLERANCE_NS and best not in out:
+            out[best] = int(t)
+    return out
+
+
+def read(source: Path, options=None) -> Recording:
+    topics_given = dict(getattr(options, "topics", None) or {})
+    reader = _open_reader(source)
+    try:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        topics = choose_topics(types, topics_given)
+        by_topic: dict[str, list] = {}
+        for c in reader.connections:
+            by_topic.setdefault(c.topic, []).append(c)
+        roles_of = {}
+        for role, t in topics.items():
+            roles_of.setdefault(t, []).append(role)
+        conns = [c for t in set(topics.values()) | {"/tf_static"} for c in by_topic.get(t, [])]
+        stamps: dict[str, list[int]] = {"image": [], "right": [], "depth": []}
+        infos: dict[str, Any] = {}
+        gt_t, gt_T, tf_static = [], [], {}
+        frame_id, size, dtype, tf_parent = None, None, None, None
+        tf_pending: list[tuple[int, str, str, np.ndarray]] = []
+        for conn, bag_ns, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, conn.msgtype)
+            roles = roles_of.get(conn.topic, [])
+            for role in roles:
+                if role in stamps:
+                    stamps[role].append(_stamp_ns(msg, bag_ns))
+                    if role == "image" and size is None:
+                        img = decode_image(msg, conn.msgtype, f"{source} {conn.topic}")
+                        img = to_mono(img, f"{source} {conn.topic}")
+                        size, dtype, frame_id = (img.shape[1], img.shape[0]), img.dtype, msg.header.frame_id
+                elif role in ("camera_info", "right_camera_info") and role not in infos:
+                    infos[role] = msg
+                elif role == "groundtruth" and conn.msgtype in POSE_TYPES:
+                    gt_t.append(_stamp_ns(msg, bag_ns))
+                    gt_T.append(_pose_of(msg, conn.msgtype))
+                elif role == "groundtruth":
+                    for tr in msg.transforms:
+                        T = _T_of(tr.transform.translation, tr.transform.rotation)
+                        tf_pending.append((_stamp_ns(tr, bag_ns), tr.header.frame_id, tr.child_frame_id, T))
+            if conn.topic == "/tf_static" and conn.msgtype == TF_TYPE:
+                for tr in msg.transforms:
+                    tf_static[(tr.header.frame_id, tr.child_frame_id)] = _T_of(
+                        tr.transform.translation, tr.transform.rotation
+                    )
+    finally:
+        reader.close()
+    what = f"{source} {topics['image']}"
+    if size is None:
+        raise SequenceError(f"{what}: the image topic has no messages")
+    left = np.asarray(stamps["image"], dtype=np.int64)
+    if np.any(np.diff(left) <= 0):
+        order = np.argsort(left, kind="stable")
+        left = left[order]
+        if np.any(np.diff(left) == 0):
+            raise SequenceError(f"{what}: two images share the stamp {int(left[np.argmin(np.diff(left))])} ns")
+    keep = np.ones(len(left), bool)
+    partners: dict[str, dict[int, int]] = {}
+    for role in ("right", "depth"):
+        if role in topics:
+            partners[role] = _pair(left, np.asarray(stamps[role], dtype=np.int64))
+            keep &= np.isin(left, list(partners[role].values()))
+    if not keep.any():
+        raise SequenceError(f"{what}: no image has a right/depth partner within {PAIR_TOLERANCE_NS / 1e6:g} ms")
+    if not keep.all():
+        log.warning("%s: %d image(s) without their right/depth partner left out", what, int((~keep).sum()))
+    frames_ns = left[keep]
+    index_of = {int(t): k for k, t in enumerate(frames_ns)}
+
+    cal = None
+    if "camera_info" in infos:
+        cam0 = _camera_of_info(infos["camera_info"], f"{source} {topics['camera_info']}")
+        if cam0 is not None:
+            cal = CameraCalibration(cam0)
+    right_frame = None
+    if "right" in topics and cal is not None and "right_camera_info" in infos:
+        info1 = infos["right_camera_info"]
+        cam1 = _camera_of_info(info1, f"{source} {topics['right_camera_info']}")
+        right_frame = info1.header.frame_id
+        T01 = None
+        if (frame_id, right_frame) in tf_static:
+            T01 = tf_static[(frame_id, right_frame)]
+        elif (right_frame, frame_id) in tf_static:
+            T01 = invert_T(tf_static[(right_frame, frame_id)])
+        else:
+            P = np.asarray(info1.p, dtype=float).reshape(3, 4)
+            if P[0, 0] > 0 and P[0, 3] != 0:
+                T01 = np.eye(4)
+                T01[0, 3] = -P[0, 3] / P[0, 0] * 1000.0
+        if cam1 is not None and T01 is not None:
+            cal = CameraCalibration(cal.cam0, cam1, T01)
+    if tf_pending:
+        to_cam = [(t, p, T) for t, p, c, T in tf_pending if c == frame_id]
+        if not to_cam:
+            raise SequenceError(f"{source} /tf: no transform to the image frame {frame_id!r}; no ground truth")
+        tf_parent = to_cam[0][1]
+        for t, p, T in to_cam:
+            if p == tf_parent:
+                gt_t.append(t)
+                gt_T.append(T)
+    gt = None
+    if gt_t:
+        t_arr = np.asarray(gt_t, dtype=np.int64)
+        order = np.argsort(t_arr, kind="stable")
+        t_sorted = t_arr[order]
+        first = np.concatenate([[True], np.diff(t_sorted) > 0])
+        gt = (t_sorted[first] * 1e-9, np.stack(gt_T)[order][first])
+    has_right = "right" in topics
+    has_depth = "depth" in topics
+    img_topics = {topics[r]: r for r in ("image", "right", "depth") if r in topics}
+
+    def frames() -> Iterator[FrameImages]:
+        pending: dict[int, dict[str, np.ndarray]] = {}
+        need = {"image"} | ({"right"} if has_right else set()) | ({"depth"} if has_depth else set())
+        nxt = 0
+        rd = _open_reader(source)
+        try:
+            cs = [c for c in rd.connections if c.topic in img_topics]
+            for conn, bag_ns, raw in rd.messages(connections=cs):
+                role = img_topics[conn.topic]
+                msg = rd.deserialize(raw, conn.msgtype)
+                t = _stamp_ns(msg, bag_ns)
+                t_left = t if role == "image" else partners[role].get(t)
+                if t_left is None or t_left not in index_of:
+                    continue
+                label = f"{source} {conn.topic} at {t} ns"
+                img = decode_image(msg, conn.msgtype, label)
+                pending.setdefault(t_left, {})[role] = _depth_mm(img, label) if role == "depth" else to_mono(img, label)
+                while nxt < len(frames_ns) and need <= set(pending.get(int(frames_ns[nxt]), {})):
+                    parts = pending.pop(int(frames_ns[nxt]))
+                    yield FrameImages(parts["image"], parts.get("right"), parts.get("depth"))
+                    nxt += 1
+        finally:
+            rd.close()
+        if nxt != len(frames_ns):
+            raise SequenceError(f"{what}: frame {nxt} at {int(frames_ns[nxt])} ns was not found when read again")
+
+    return Recording(
+        format="rosbag2",
+        source=source,
+        frame_count=len(frames_ns),
+        size_px=size,
+        bit_depth=8 * np.dtype(dtype).itemsize,
+        frames=frames,
+        timestamps_s=frames_ns * 1e-9,
+        calibration=cal,
+        has_right=has_right,
+        has_depth=has_depth,
+        groundtruth=gt,
+        details={"topics": dict(sorted(topics.items())), "camera_frame": frame_id},
+    )

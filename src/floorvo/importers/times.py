@@ -1,0 +1,113 @@
+"""Timestamps files and ground-truth files given beside a recording.
+
+* ``--timestamps FILE``: one frame a line, in frame order; the first number of each line
+  (whitespace- or comma-separated, so a TUM ``rgb.txt`` or a EuRoC ``data.csv`` works as
+  it is) is the frame's time in ``unit`` (``s``, ``ms``, ``us`` or ``ns``); ``#`` lines
+  and blank lines are skipped.
+* ``--groundtruth FILE``: TUM (``t tx ty tz qx qy qz qw``, seconds and metres) or EuRoC
+  CSV (``t_ns, px, py, pz, qw, qx, qy, qz, ...``, nanoseconds and metres; a ``.csv`` file
+  or one whose header names ``[ns]``). The pose is ``T_world_cam0``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from floorvo.errors import ConfigError, SequenceError
+from floorvo.geometry import T_from_xyz_quat
+from floorvo.tum import read_tum
+
+__all__ = ["TIME_UNITS_S", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
+
+#: Seconds per unit of a timestamps file.
+TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+def _rows(path: Path, what: str) -> list[tuple[int, list[str]]]:
+    """``(line number, fields)`` of the data lines of a text file (``#`` and blank lines skipped)."""
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SequenceError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    out = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.strip()
+        if line and not line.startswith("#"):
+            out.append((lineno, line.replace(",", " ").split()))
+    return out
+
+
+def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray:
+    """(N,) frame times in seconds from ``path`` (format in the module docstring)."""
+    path = Path(path)
+    if unit not in TIME_UNITS_S:
+        raise ConfigError(f"--time-unit {unit!r}: unknown (known: {', '.join(TIME_UNITS_S)})")
+    if not path.is_file():
+        raise SequenceError(f"timestamps file {path}: does not exist")
+    vals = []
+    for lineno, fields in _rows(path, "timestamps file"):
+        try:
+            v = float(fields[0]) if unit != "ns" else int(fields[0]) * 1e-9
+        except ValueError:
+            raise SequenceError(f"{path}:{lineno}: {fields[0]!r} is not a timestamp in {unit}") from None
+        if not np.isfinite(v):
+            raise SequenceError(f"{path}:{lineno}: timestamp {fields[0]!r} is not a finite number")
+        vals.append(v if unit == "ns" else v * TIME_UNITS_S[unit])
+    if not vals:
+        raise SequenceError(f"timestamps file {path}: holds no timestamps")
+    return np.array(vals, dtype=float)
+
+
+def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """EuRoC/ASL pose CSV: ``(timestamps_s (N,), T_world_body (N, 4, 4) mm)``.
+
+    Columns: ``timestamp [ns], p_x, p_y, p_z [m], q_w, q_x, q_y, q_z``, then anything
+    (velocities, biases). Quaternions are normalised; a zero one is refused.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SequenceError(f"ground-truth file {path}: does not exist")
+    ts, Ts = [], []
+    for lineno, f in _rows(path, "ground-truth file"):
+        if len(f) < 8:
+            raise SequenceError(f"{path}:{lineno}: a EuRoC pose row has >= 8 fields (t_ns px py pz qw qx qy qz)")
+        try:
+            t_ns = int(f[0])
+            v = np.array([float(x) for x in f[1:8]])
+        except ValueError:
+            raise SequenceError(f"{path}:{lineno}: not a number in EuRoC pose row {','.join(f[:8])!r}") from None
+        q = v[[4, 5, 6, 3]]  # (x, y, z, w)
+        n = float(np.linalg.norm(q))
+        if not np.isfinite(v).all() or n < 1e-9:
+            raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
+        ts.append(t_ns * 1e-9)
+        Ts.append(T_from_xyz_quat(v[:3] * 1000.0, q / n))
+    if not ts:
+        raise SequenceError(f"ground-truth file {path}: holds no poses")
+    return np.array(ts), np.stack(Ts)
+
+
+def _is_euroc_csv(path: Path) -> bool:
+    if path.suffix.lower() == ".csv":
+        return True
+    try:
+        with open(path) as fh:
+            head = fh.readline()
+    except OSError:
+        return False
+    return head.startswith("#") and "[ns]" in head
+
+
+def read_groundtruth_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """``(timestamps_s (N,), T_world_cam0 (N, 4, 4) mm)`` from a TUM or EuRoC CSV file."""
+    path = Path(path)
+    if not path.is_file():
+        raise SequenceError(f"ground-truth file {path}: does not exist")
+    t, T = read_euroc_groundtruth(path) if _is_euroc_csv(path) else read_tum(path)
+    if np.any(np.diff(t) <= 0):
+        k = int(np.nonzero(np.diff(t) <= 0)[0][0]) + 1
+        raise SequenceError(f"ground-truth file {path}: timestamps must increase (pose {k} at {t[k]:.9f} s)")
+    return t, T

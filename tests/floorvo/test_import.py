@@ -1,0 +1,458 @@
+"""floorvo import: image folders, videos, hand-made ROS 2 bags, camera files; each imports and runs.
+
+Inputs are made in the test from a synthetic sequence (:mod:`floorvo.synthetic`), whose
+ground truth is exact, so an imported sequence is checked frame by frame against what was
+written and its run against the same ground truth.
+"""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.cli import main
+from floorvo.errors import ConfigError, SequenceError
+from floorvo.geometry import xyz_quat_from_T
+from floorvo.importers import ImportOptions, detect_format, import_sequence
+from floorvo.importers.camera_files import read_camera_file
+from floorvo.importers.recording import natural_key
+from floorvo.sequence import Sequence
+from floorvo.synthetic import line_poses, write_synthetic_sequence
+from floorvo.tum import read_tum, write_tum
+
+CAM = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)  # GSD 0.4933 mm at 100 mm
+FLAGS = ["--fx", str(CAM.fx_px), "--fy", str(CAM.fy_px), "--cx", str(CAM.cx_px), "--cy", str(CAM.cy_px)]
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory):
+    """A 7-frame synthetic line (4 mm steps, turning 0.5 deg a frame) with exact ground truth."""
+    root = tmp_path_factory.mktemp("synth") / "seq"
+    T = line_poses(24.0, 4.0, 100.0, yaw_step_rad=np.radians(0.5))
+    write_synthetic_sequence(root, CAM, T, seed=3)
+    seq = Sequence.open(root)
+    return seq, [seq.image(i) for i in range(seq.frame_count)], T
+
+
+def _one_line_error(capsys, argv) -> str:
+    rc = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert rc == 1, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def _end_error_mm(run_dir, T_true) -> float:
+    _, Te = read_tum(run_dir / "trajectory.txt")
+    return float(np.linalg.norm(Te[-1][:3, 3] - T_true[-1][:3, 3]))
+
+
+# ----------------------------------------------------------------------------- image folders
+def test_natural_order():
+    names = ["img_10.png", "img_2.png", "img_1.png", "IMG_0003.png", "img_1b.png"]
+    assert sorted(names, key=natural_key) == ["img_1.png", "img_1b.png", "img_2.png", "IMG_0003.png", "img_10.png"]
+
+
+def test_image_folder_with_timestamps_file_imports_and_runs(tmp_path, synth, capsys):
+    """Names like img_1.png .. img_7.png (unpadded: natural order), a timestamps file with uneven spacing."""
+    seq, frames, T = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"img_{i + 1}.png"), img)
+    (src / "notes.txt").write_text("not a frame")
+    stamps = 1700000000.0 + np.cumsum([0.0, 0.031, 0.035, 0.033, 0.030, 0.036, 0.034])
+    (tmp_path / "times.txt").write_text("# t [s]\n" + "".join(f"{t:.6f}\n" for t in stamps))
+    write_tum(tmp_path / "gt.txt", stamps, T)  # the synthetic ground truth, on the recording's clock
+    out = tmp_path / "imp"
+    argv = ["import", str(src), "-o", str(out), *FLAGS, "--height-mm", "100"]
+    argv += ["--timestamps", str(tmp_path / "times.txt"), "--groundtruth", str(tmp_path / "gt.txt")]
+    assert main(argv) == 0
+    assert "images: 7 frames 162x124 8-bit" in capsys.readouterr().out
+    imp = Sequence.open(out)
+    assert imp.meta["source"]["format"] == "images" and imp.frame_count == 7
+    np.testing.assert_allclose(imp.timestamps_s, stamps, atol=1e-6)
+    for i in range(7):
+        np.testing.assert_array_equal(imp.image(i), frames[i])
+    np.testing.assert_allclose(imp.camera.K, CAM.K)
+    assert main(["run", str(out), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 0
+    t_run, T_run = read_tum(tmp_path / "run" / "trajectory.txt")
+    np.testing.assert_allclose(t_run, stamps, atol=1e-6)  # the run is stamped with the recording's times
+    np.testing.assert_allclose(T_run[0], T[0], atol=1e-9)  # and starts at its ground truth
+    assert _end_error_mm(tmp_path / "run", T) < 0.2
+    assert main(["score", str(tmp_path / "run"), "--gt", str(out)]) == 0
+    score = json.loads((tmp_path / "run" / "score.json").read_text())
+    assert score["n_matched"] == 7
+
+
+def test_list_file_colour_jpeg_and_16_bit(tmp_path, synth):
+    """A TUM-style list (TIMESTAMP PATH) of colour frames; a 16-bit TIFF folder keeps 16 bits."""
+    _, frames, _ = synth
+    rgb = [np.dstack([f, np.roll(f, 3, axis=1), 255 - f]) for f in frames[:3]]
+    (tmp_path / "rgb").mkdir()
+    lines = []
+    for i, img in enumerate(rgb):
+        cv2.imwrite(str(tmp_path / "rgb" / f"{i}.bmp"), img)
+        lines.append(f"{10 + 0.1 * i:.1f} rgb/{i}.bmp")
+    (tmp_path / "rgb.txt").write_text("# timestamp filename\n" + "\n".join(lines) + "\n")
+    assert detect_format(tmp_path / "rgb.txt") == "images"
+    res = import_sequence(
+        tmp_path / "rgb.txt",
+        tmp_path / "a",
+        options=ImportOptions(calibration=None, fps=None, intrinsics=(200.0, 200.0, 80.5, 61.5)),
+    )
+    a = Sequence.open(tmp_path / "a")
+    assert res.bit_depth == 8 and a.frame_count == 3
+    np.testing.assert_allclose(a.timestamps_s, [10.0, 10.1, 10.2])
+    np.testing.assert_array_equal(a.image(1), cv2.cvtColor(rgb[1], cv2.COLOR_BGR2GRAY))
+
+    (tmp_path / "deep").mkdir()
+    deep = [f.astype(np.uint16) * 257 + i for i, f in enumerate(frames[:3])]
+    for i, img in enumerate(deep):
+        cv2.imwrite(str(tmp_path / "deep" / f"f{i:04d}.tif"), img)
+    res = import_sequence(
+        tmp_path / "deep", tmp_path / "b", options=ImportOptions(intrinsics=(200.0, 200.0, 80.5, 61.5), fps=25.0)
+    )
+    b = Sequence.open(tmp_path / "b")
+    assert res.bit_depth == 16 and b.meta["bit_depth"] == 16
+    np.testing.assert_array_equal(b.image(2), deep[2])
+    np.testing.assert_allclose(b.timestamps_s, np.arange(3) / 25.0)
+
+
+def test_jpeg_folder_imports_and_runs(tmp_path, synth):
+    """Lossy JPEG frames still track (the codec changes pixels, not the geometry)."""
+    _, frames, T = synth
+    (tmp_path / "jpg").mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(tmp_path / "jpg" / f"img_{i:04d}.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    import_sequence(
+        tmp_path / "jpg",
+        tmp_path / "s",
+        options=ImportOptions(intrinsics=(CAM.fx_px, CAM.fy_px, CAM.cx_px, CAM.cy_px), height_mm=100.0, fps=30.0),
+    )
+    from floorvo.run import run_estimator
+
+    res = run_estimator(tmp_path / "s", "phase-corr", tmp_path / "run")
+    assert res.ok == len(T) - 1
+    _, Te = read_tum(tmp_path / "run" / "trajectory.txt")
+    step = np.linalg.norm(Te[-1][:3, 3] - Te[0][:3, 3])  # no ground truth: starts at the identity
+    assert step == pytest.approx(np.linalg.norm(T[-1][:3, 3] - T[0][:3, 3]), rel=0.01)
+
+
+# ----------------------------------------------------------------------------- video
+def test_video_imports_with_its_frame_times_and_runs(tmp_path, synth):
+    _, frames, T = synth
+    path = tmp_path / "clip.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), 10.0, (CAM.width_px, CAM.height_px), isColor=False)
+    assert w.isOpened()
+    for f in frames:
+        w.write(f)
+    w.release()
+    assert detect_format(path) == "video"
+    res = import_sequence(
+        path,
+        tmp_path / "s",
+        options=ImportOptions(intrinsics=(CAM.fx_px, CAM.fy_px, CAM.cx_px, CAM.cy_px), height_mm=100.0),
+    )
+    s = Sequence.open(tmp_path / "s")
+    assert res.frames == 7 and s.fps == 10.0
+    np.testing.assert_allclose(s.timestamps_s, np.arange(7) / 10.0, atol=1e-6)
+    for i in (0, 6):
+        np.testing.assert_array_equal(s.image(i), frames[i])  # FFV1 is lossless
+    from floorvo.run import run_estimator
+
+    run_estimator(s, "phase-corr", tmp_path / "run")
+    t_run, Te = read_tum(tmp_path / "run" / "trajectory.txt")
+    np.testing.assert_allclose(t_run, np.arange(7) / 10.0, atol=1e-6)
+    moved = np.linalg.norm(Te[-1][:3, 3] - Te[0][:3, 3])
+    assert moved == pytest.approx(np.linalg.norm(T[-1][:3, 3] - T[0][:3, 3]), rel=0.005)
+
+
+# ----------------------------------------------------------------------------- camera files
+def test_camera_files_ros_opencv_kalibr(tmp_path):
+    (tmp_path / "ros.yaml").write_text(
+        "image_width: 162\nimage_height: 124\ncamera_name: floor\n"
+        "camera_matrix: {rows: 3, cols: 3, data: [200.5, 0, 80.25, 0, 201.5, 61.75, 0, 0, 1]}\n"
+        "distortion_model: plumb_bob\n"
+        "distortion_coefficients: {rows: 1, cols: 5, data: [-0.1, 0.01, 0.001, -0.002, 0.003]}\n"
+    )
+    ros = read_camera_file(tmp_path / "ros.yaml").cam0
+    assert (ros.fx_px, ros.fy_px, ros.cx_px, ros.cy_px) == (200.5, 201.5, 80.25, 61.75)
+    assert ros.distortion == (-0.1, 0.01, 0.001, -0.002, 0.003) and ros.size == (162, 124)
+
+    fs = cv2.FileStorage(str(tmp_path / "cv.yml"), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", 640)
+    fs.write("image_height", 480)
+    fs.write("camera_matrix", np.array([[500.0, 0, 319.5], [0, 501.0, 239.5], [0, 0, 1]]))
+    fs.write("distortion_coefficients", np.array([[0.1, -0.2, 0.0, 0.0, 0.05]]))
+    fs.release()
+    assert (tmp_path / "cv.yml").read_text().startswith("%YAML:1.0")
+    cv = read_camera_file(tmp_path / "cv.yml").cam0
+    assert (cv.width_px, cv.height_px, cv.fx_px, cv.fy_px, cv.cx_px, cv.cy_px) == (640, 480, 500.0, 501.0, 319.5, 239.5)
+    assert cv.distortion == (0.1, -0.2, 0.0, 0.0, 0.05)
+
+    (tmp_path / "camchain.yaml").write_text(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [400.0, 401.0, 320.0, 240.0]\n"
+        "  distortion_model: radtan\n  distortion_coeffs: [0.01, -0.02, 0.0, 0.0]\n  resolution: [640, 480]\n"
+        "cam1:\n  camera_model: pinhole\n  intrinsics: [402.0, 403.0, 321.0, 241.0]\n"
+        "  distortion_model: radtan\n  distortion_coeffs: [0.0, 0.0, 0.0, 0.0]\n  resolution: [640, 480]\n"
+        "  T_cn_cnm1:\n  - [1.0, 0.0, 0.0, -0.05]\n  - [0.0, 1.0, 0.0, 0.0]\n  - [0.0, 0.0, 1.0, 0.0]\n"
+        "  - [0.0, 0.0, 0.0, 1.0]\n"
+    )
+    kal = read_camera_file(tmp_path / "camchain.yaml")
+    assert kal.cam0.fx_px == 400.0 and kal.cam0.distortion == (0.01, -0.02, 0.0, 0.0, 0.0) and kal.cam1.cx_px == 321.0
+    # T_cn_cnm1 maps cam0 points into cam1: cam1 sits 50 mm along cam0's +x.
+    np.testing.assert_allclose(kal.T_cam0_cam1[:3, 3], [50.0, 0.0, 0.0])
+
+
+def test_camera_file_refusals(tmp_path):
+    (tmp_path / "fish.yaml").write_text(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [400, 400, 320, 240]\n"
+        "  distortion_model: equidistant\n  distortion_coeffs: [0.1, 0, 0, 0]\n  resolution: [640, 480]\n"
+    )
+    with pytest.raises(ConfigError, match="distortion model 'equidistant' is not supported"):
+        read_camera_file(tmp_path / "fish.yaml")
+    (tmp_path / "k.yaml").write_text("image_width: 64\nimage_height: 48\ncamera_matrix: [1, 2, 3]\n")
+    with pytest.raises(ConfigError, match="camera matrix: needs 9 numbers, got 3"):
+        read_camera_file(tmp_path / "k.yaml")
+    (tmp_path / "bad.yaml").write_text("a: [1, 2\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        read_camera_file(tmp_path / "bad.yaml")
+
+
+# ----------------------------------------------------------------------------- ROS 2 bags made here
+def _write_bag(path, frames, T, stamps_ns, *, compressed: bool, gt: str):
+    """A bag as a driver would record it: mono or compressed images, 16UC1 depth, a pose or TF topic."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    M = ts.types
+    Header, Time = M["std_msgs/msg/Header"], M["builtin_interfaces/msg/Time"]
+    Image, Compressed = M["sensor_msgs/msg/Image"], M["sensor_msgs/msg/CompressedImage"]
+    Odometry, PoseWC, Pose = (
+        M["nav_msgs/msg/Odometry"],
+        M["geometry_msgs/msg/PoseWithCovariance"],
+        M["geometry_msgs/msg/Pose"],
+    )
+    TwistWC, Twist, V3 = (
+        M["geometry_msgs/msg/TwistWithCovariance"],
+        M["geometry_msgs/msg/Twist"],
+        M["geometry_msgs/msg/Vector3"],
+    )
+    Point, Quat = M["geometry_msgs/msg/Point"], M["geometry_msgs/msg/Quaternion"]
+    TFMessage, TS, Tr = (
+        M["tf2_msgs/msg/TFMessage"],
+        M["geometry_msgs/msg/TransformStamped"],
+        M["geometry_msgs/msg/Transform"],
+    )
+
+    def header(ns, frame):
+        return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
+
+    with Writer(path, version=9) as w:
+        img_t = Compressed.__msgtype__ if compressed else Image.__msgtype__
+        c_img = w.add_connection("/camera/image" + ("/compressed" if compressed else ""), img_t, typestore=ts)
+        c_depth = w.add_connection("/camera/depth/image_rect", Image.__msgtype__, typestore=ts)
+        c_gt = w.add_connection(
+            "/odom" if gt == "odometry" else "/tf",
+            Odometry.__msgtype__ if gt == "odometry" else TFMessage.__msgtype__,
+            typestore=ts,
+        )
+        for i, (img, Ti, ns) in enumerate(zip(frames, T, stamps_ns)):
+            ns = int(ns)
+            if compressed:
+                ok, buf = cv2.imencode(".png", img)
+                msg = Compressed(
+                    header=header(ns, "camera_optical"),
+                    format="mono8; png compressed mono8",
+                    data=np.frombuffer(buf.tobytes(), np.uint8),
+                )
+            else:
+                msg = Image(
+                    header=header(ns, "camera_optical"),
+                    height=img.shape[0],
+                    width=img.shape[1],
+                    encoding="mono8",
+                    is_bigendian=0,
+                    step=img.shape[1],
+                    data=img.ravel(),
+                )
+            w.write(c_img, ns + 5_000_000, ts.serialize_cdr(msg, msg.__msgtype__))  # received 5 ms after the stamp
+            depth = np.full(img.shape, 100 + i, "<u2")
+            dmsg = Image(
+                header=header(ns + 200_000, "camera_optical"),
+                height=img.shape[0],
+                width=img.shape[1],
+                encoding="16UC1",
+                is_bigendian=0,
+                step=img.shape[1] * 2,
+                data=np.frombuffer(depth.tobytes(), np.uint8),
+            )
+            w.write(c_depth, ns + 6_000_000, ts.serialize_cdr(dmsg, dmsg.__msgtype__))
+            xyz, q = xyz_quat_from_T(Ti)
+            xyz = xyz / 1000.0
+            if gt == "odometry":
+                pose = Pose(
+                    position=Point(x=xyz[0], y=xyz[1], z=xyz[2]), orientation=Quat(x=q[0], y=q[1], z=q[2], w=q[3])
+                )
+                zero = V3(x=0.0, y=0.0, z=0.0)
+                m = Odometry(
+                    header=header(ns, "world"),
+                    child_frame_id="camera_optical",
+                    pose=PoseWC(pose=pose, covariance=np.zeros(36)),
+                    twist=TwistWC(twist=Twist(linear=zero, angular=zero), covariance=np.zeros(36)),
+                )
+            else:
+                tr = Tr(translation=V3(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=Quat(x=q[0], y=q[1], z=q[2], w=q[3]))
+                other = Tr(translation=V3(x=9.0, y=9.0, z=9.0), rotation=Quat(x=0.0, y=0.0, z=0.0, w=1.0))
+                m = TFMessage(
+                    transforms=[
+                        TS(header=header(ns, "world"), child_frame_id="camera_optical", transform=tr),
+                        TS(header=header(ns, "world"), child_frame_id="base_link", transform=other),
+                    ]
+                )
+            w.write(c_gt, ns, ts.serialize_cdr(m, m.__msgtype__))
+
+
+@pytest.mark.parametrize("compressed, gt", [(False, "odometry"), (True, "tf")])
+def test_recorded_bag_imports_and_runs(tmp_path, synth, compressed, gt):
+    """Header stamps (not receive times) become frame times; 16UC1 depth (mm) pairs within 1 ms; the
+    ground truth comes from an Odometry topic or from /tf (the transform to the image's frame)."""
+    _, frames, T = synth
+    stamps_ns = 1_700_000_000_000_000_000 + np.cumsum([0, 33, 34, 33, 33, 34, 33]) * 1_000_000
+    _write_bag(tmp_path / "bag", frames, T, stamps_ns, compressed=compressed, gt=gt)
+    assert detect_format(tmp_path / "bag") == "rosbag2"
+    res = import_sequence(
+        tmp_path / "bag",
+        tmp_path / "s",
+        options=ImportOptions(intrinsics=(CAM.fx_px, CAM.fy_px, CAM.cx_px, CAM.cy_px), height_mm=100.0),
+    )
+    s = Sequence.open(tmp_path / "s")
+    assert res.frames == 7 and s.has_depth and res.groundtruth_poses == 7
+    np.testing.assert_allclose(s.timestamps_s, stamps_ns * 1e-9, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(s.image(3), frames[3])
+    np.testing.assert_allclose(s.depth_mm(4), 104.0)
+    t_gt, T_gt = s.groundtruth()
+    np.testing.assert_allclose(T_gt, T, atol=1e-6)
+    from floorvo.run import run_estimator
+
+    run_estimator(s, "phase-corr", tmp_path / "run")
+    t_run, T_run = read_tum(tmp_path / "run" / "trajectory.txt")
+    np.testing.assert_allclose(T_run[0], T[0], atol=1e-6)
+    assert _end_error_mm(tmp_path / "run", T) < 0.2
+
+
+def test_bag_topic_choice_refusals(tmp_path, synth, capsys):
+    _, frames, T = synth
+    stamps_ns = 10**18 + np.arange(3) * 33_000_000
+    _write_bag(tmp_path / "bag", frames[:3], T[:3], stamps_ns, compressed=False, gt="odometry")
+    err = _one_line_error(
+        capsys, ["import", str(tmp_path / "bag"), "-o", str(tmp_path / "s"), *FLAGS, "--topic", "image=/nope"]
+    )
+    assert "--topic image=/nope: no such topic in the bag" in err
+    err = _one_line_error(
+        capsys,
+        ["import", str(tmp_path / "bag"), "-o", str(tmp_path / "s"), *FLAGS, "--topic", "groundtruth=/camera/image"],
+    )
+    assert "is sensor_msgs/msg/Image, a groundtruth topic is one of" in err
+    err = _one_line_error(
+        capsys, ["import", str(tmp_path / "bag"), "-o", str(tmp_path / "s"), *FLAGS, "--topic", "left=/camera/image"]
+    )
+    assert "--topic left=/camera/image: unknown role" in err
+
+
+# ----------------------------------------------------------------------------- refusals
+def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    out = str(tmp_path / "out")
+    base = ["import", str(src), "-o", out]
+    assert "holds no camera calibration; give --camera FILE" in _one_line_error(capsys, base + ["--fps", "10"])
+    assert "states no frame times; give --timestamps FILE or --fps" in _one_line_error(capsys, base + FLAGS)
+    assert "--height-mm nan: must be a finite number > 0" in _one_line_error(
+        capsys, base + FLAGS + ["--fps", "10", "--height-mm", "nan"]
+    )
+    assert "--fps -3.0: must be a finite number > 0" in _one_line_error(capsys, base + FLAGS + ["--fps", "-3"])
+    assert "--fx, --cy missing" in _one_line_error(capsys, base + ["--fy", "200", "--cx", "80", "--fps", "10"])
+    assert "--distortion '0.1,x': expected numbers" in _one_line_error(
+        capsys, base + FLAGS + ["--fps", "10", "--distortion", "0.1,x"]
+    )
+    (tmp_path / "cam.yaml").write_text(
+        "image_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+    )
+    err = _one_line_error(capsys, base + ["--camera", str(tmp_path / "cam.yaml"), "--fps", "10"])
+    assert "calibrated for 640x480 px, the frames of" in err and "are 162x124 px" in err
+    (tmp_path / "t2.txt").write_text("0.0\n0.1\n")
+    err = _one_line_error(capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t2.txt")])
+    assert "2 timestamp(s) for the 3 frame(s)" in err
+    (tmp_path / "t3.txt").write_text("0.0\n0.2\n0.1\n")
+    err = _one_line_error(capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t3.txt")])
+    assert "timestamps must increase, frame 2 at 0.100000000 s follows 0.200000000 s" in err
+    (tmp_path / "t4.txt").write_text("0.0\n0.1s\n0.2\n")
+    assert "'0.1s' is not a timestamp in s" in _one_line_error(
+        capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t4.txt")]
+    )
+    (tmp_path / "gt.txt").write_text("0.0 1 2 3 0 0 0 1\n0.1 1 2\n")
+    assert "a TUM line has 8 numbers" in _one_line_error(
+        capsys, base + FLAGS + ["--fps", "10", "--groundtruth", str(tmp_path / "gt.txt")]
+    )
+    (tmp_path / "empty").mkdir()
+    assert "format not recognised" in _one_line_error(capsys, ["import", str(tmp_path / "empty"), "-o", out])
+    assert "does not exist" in _one_line_error(capsys, ["import", str(tmp_path / "nope"), "-o", out])
+    (tmp_path / "broken.mp4").write_bytes(b"not a video at all")
+    assert "not a video OpenCV can decode" in _one_line_error(
+        capsys, ["import", str(tmp_path / "broken.mp4"), "-o", out, *FLAGS]
+    )
+    cv2.imwrite(str(src / "3.png"), frames[0][:100])
+    err = _one_line_error(capsys, base + FLAGS + ["--fps", "10"])
+    assert "image of frame 3 is 162x100 px, frame 0 is 162x124 px" in err
+    assert not (tmp_path / "out" / "cam0" / "000003.png").exists()
+
+
+def test_import_resumes_and_refuses_another_source(tmp_path, synth):
+    """The same import again keeps the frames on disk; another source into the same folder is refused."""
+    _, frames, _ = synth
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+        for i, img in enumerate(frames[:3]):
+            cv2.imwrite(str(tmp_path / d / f"{i}.png"), img)
+    opts = ImportOptions(intrinsics=(200.0, 200.0, 80.5, 61.5), fps=10.0, height_mm=100.0)
+    import_sequence(tmp_path / "a", tmp_path / "s", options=opts)
+    mtime = (tmp_path / "s" / "cam0" / "000001.png").stat().st_mtime_ns
+    import_sequence(tmp_path / "a", tmp_path / "s", options=opts)
+    assert (tmp_path / "s" / "cam0" / "000001.png").stat().st_mtime_ns == mtime
+    with pytest.raises(SequenceError, match="holds a different sequence"):
+        import_sequence(tmp_path / "b", tmp_path / "s", options=opts)
+
+
+def test_readme_minimal_sequence_json_loads(tmp_path):
+    """The hand-written sequence.json of the README's "Your own recordings" loads and is ready to run."""
+    from pathlib import Path
+
+    from floorvo.estimators import Frame
+    from floorvo.run import build_estimator
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = readme.split("## Your own recordings", 1)[1].split("\n## ", 1)[0]
+    example = section.split("```json\n", 1)[1].split("```", 1)[0]
+    root = tmp_path / "rec"
+    (root / "cam0").mkdir(parents=True)
+    (root / "sequence.json").write_text(example)
+    meta = json.loads(example)
+    img = np.random.default_rng(0).integers(0, 255, (meta["camera"]["height_px"], meta["camera"]["width_px"]), np.uint8)
+    cv2.imwrite(str(root / "cam0" / "000000.png"), img)
+    seq = Sequence.open(root)
+    assert seq.frame_count == 300 and seq.height_mm == 100.0 and seq.camera.size == (648, 494)
+    np.testing.assert_allclose(seq.timestamps_s[:3], [0.0, 1 / 30, 2 / 30])
+    assert seq.image(0).shape == (494, 648)
+    est, _ = build_estimator(seq, "phase-corr")  # refuses a sequence without rig.height_mm
+    res = est.step(est.start(), Frame(index=0, timestamp_s=0.0, image=seq.image(0)))
+    assert res.status == "init"
