@@ -267,14 +267,18 @@ def read(source: Path, options=None) -> Recording:
         by_topic: dict[str, list] = {}
         for c in reader.connections:
             by_topic.setdefault(c.topic, []).append(c)
-        roles_of = {}
-        for role, t in topics.items():
-            roles_of.setdefault(t, []).append(role)
+        roles_of: dict[str, list[str]] = {}
+        for role, name in topics.items():
+            roles_of.setdefault(name, []).append(role)
         conns = [c for t in set(topics.values()) | {"/tf_static"} for c in by_topic.get(t, [])]
         stamps: dict[str, list[int]] = {"image": [], "right": [], "depth": []}
         infos: dict[str, Any] = {}
-        gt_t, gt_T, tf_static = [], [], {}
-        frame_id, size, dtype, tf_parent = None, None, None, None
+        gt_t: list[int] = []
+        gt_T: list[np.ndarray] = []
+        tf_static: dict[tuple[str, str], np.ndarray] = {}
+        frame_id: str = ""
+        size: tuple[int, int] | None = None
+        dtype = None
         tf_pending: list[tuple[int, str, str, np.ndarray]] = []
         for conn, bag_ns, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
@@ -285,7 +289,7 @@ def read(source: Path, options=None) -> Recording:
                     if role == "image" and size is None:
                         img = decode_image(msg, conn.msgtype, f"{source} {conn.topic}")
                         img = to_mono(img, f"{source} {conn.topic}")
-                        size, dtype, frame_id = (img.shape[1], img.shape[0]), img.dtype, msg.header.frame_id
+                        size, dtype, frame_id = (img.shape[1], img.shape[0]), img.dtype, str(msg.header.frame_id)
                 elif role in ("camera_info", "right_camera_info") and role not in infos:
                     infos[role] = msg
                 elif role == "groundtruth" and conn.msgtype in POSE_TYPES:
@@ -347,13 +351,13 @@ def read(source: Path, options=None) -> Recording:
         if cam1 is not None and T01 is not None:
             cal = CameraCalibration(cal.cam0, cam1, T01)
     if tf_pending:
-        to_cam = [(t, p, T) for t, p, c, T in tf_pending if c == frame_id]
+        to_cam = [(t_ns, parent, T) for t_ns, parent, child, T in tf_pending if child == frame_id]
         if not to_cam:
             raise SequenceError(f"{source} /tf: no transform to the image frame {frame_id!r}; no ground truth")
         tf_parent = to_cam[0][1]
-        for t, p, T in to_cam:
-            if p == tf_parent:
-                gt_t.append(t)
+        for t_ns, parent, T in to_cam:
+            if parent == tf_parent:
+                gt_t.append(t_ns)
                 gt_T.append(T)
     gt = None
     if gt_t:
