@@ -333,7 +333,8 @@ def _join(prefix: str, key: str) -> str:
 
 
 def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key") -> Any:
-    """Dataclass ``cls`` from a plain mapping, every key, type and rule checked.
+    """Dataclass ``cls`` from a plain mapping, every key, type and rule checked (a field without a
+    default is required).
 
     ``data`` holds field values; a nested dataclass field takes a nested mapping; values
     that are :class:`SetText` are read by their field's type. ``prefix`` names where the
@@ -346,6 +347,9 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
     for key in data:
         if key not in fields:
             raise ConfigError(f"{_join(prefix, key)}: {unknown} (known: {', '.join(sorted(fields))})")
+    for key, f in fields.items():
+        if key not in data and f.default is _MISSING and f.default_factory is _MISSING:
+            raise ConfigError(f"{_join(prefix, key)}: missing (a required key)")
     kwargs = {}
     for key, value in data.items():
         where, tp = _join(prefix, key), hints[key]
