@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import SequenceError
+from floorvo.errors import ConfigError, SequenceError
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -43,6 +43,7 @@ from floorvo.io import (
     read_png,
     write_png,
 )
+from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta
 from floorvo.tum import read_tum, write_tum
 
 __all__ = [
@@ -57,10 +58,6 @@ __all__ = [
     "DEPTH_PNG_SCALE_PER_MM",
 ]
 
-#: Version of the on-disk format written here (2: optional per-frame ``timestamps.txt``).
-SCHEMA_VERSION = 2
-#: Versions a reader accepts; it refuses any other.
-READABLE_SCHEMA_VERSIONS = (1, 2)
 #: Per-frame timestamps (s), one line per frame; absent: frame i at i / fps.
 TIMESTAMPS_FILE = "timestamps.txt"
 #: Largest gap (s) between a frame's time and the ground-truth pose taken for it; the
@@ -100,9 +97,7 @@ class SequenceWriter:
     def __init__(self, root: str | os.PathLike, meta: dict, *, resume: bool = True, overwrite: bool = False):
         self.root = Path(root)
         meta = _canonical({"schema_version": SCHEMA_VERSION, "format": "floorbench-sequence", **meta})
-        for key in ("camera", "fps", "frame_count"):
-            if key not in meta:
-                raise ValueError(f"SequenceWriter: meta lacks {key!r}")
+        _check_meta(meta, self.root / "sequence.json")
         self.meta = meta
         if self.root.exists() and not self.root.is_dir():
             raise SequenceError(f"{self.root}: output path exists and is not a folder")
@@ -193,6 +188,14 @@ class SequenceWriter:
         atomic_write_text(self.root / TIMESTAMPS_FILE, "\n".join(lines) + "\n")
 
 
+def _check_meta(meta: dict, meta_path: Path) -> None:
+    """Every key of ``sequence.json`` checked (:mod:`floorvo.sequence_meta`); one-line SequenceError otherwise."""
+    try:
+        check_sequence_meta(meta)
+    except ConfigError as exc:
+        raise SequenceError(f"{meta_path}: {exc}") from None
+
+
 def _strip_volatile(meta: dict) -> dict:
     """Metadata without fields that may differ between identical renders (timings) or that a
     readable older schema version of the same sequence differs in."""
@@ -242,13 +245,8 @@ class Sequence:
                 f"{meta_path}: schema_version {version!r} is not supported "
                 f"(this floorvo reads versions {', '.join(map(str, READABLE_SCHEMA_VERSIONS))})"
             )
-        for key in ("camera", "fps", "frame_count"):
-            if key not in meta:
-                raise SequenceError(f"{meta_path}: missing required key {key!r}")
+        _check_meta(meta, meta_path)
         seq = cls(root, meta)
-        _ = seq.camera  # validate the camera block now
-        if seq.frame_count <= 0:
-            raise SequenceError(f"{meta_path}: frame_count must be >= 1, got {seq.frame_count}")
         _ = seq.timestamps_s  # validate timestamps.txt now
         return seq
 

@@ -5,10 +5,11 @@ from __future__ import annotations
 from floorvo.errors import ConfigError
 
 #: Configurations that are not an estimator's: the ``--set`` keys of ``floorvo map`` and
-#: ``floorvo localize``.
+#: ``floorvo localize``, and the keys of a sequence folder's ``sequence.json``.
 COMMAND_CONFIGS = {
     "map": "floorvo map --set KEY=VALUE",
     "localize": "floorvo localize --set KEY=VALUE (--map and --odometry are options)",
+    "sequence": "sequence.json of a sequence folder (floorvo import writes it; tables hold nested keys)",
 }
 
 
@@ -17,8 +18,8 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--config",
         metavar="NAME",
-        help="print the fields of an estimator's config (NAME: an estimator), or of 'map' or 'localize': "
-        "key, type, default, unit and rule",
+        help="print the fields of an estimator's config (NAME: an estimator), of 'map' or 'localize', or the keys "
+        "of 'sequence' (sequence.json): key, type, default, unit and rule",
     )
     p.set_defaults(func=run)
 
@@ -35,6 +36,10 @@ def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
         from floorvo.mapping.localize_run import SET_BY_OPTIONS, MapFusedConfig
 
         return MapFusedConfig, COMMAND_CONFIGS[name], SET_BY_OPTIONS
+    if name == "sequence":
+        from floorvo.sequence_meta import SequenceMeta
+
+        return SequenceMeta, COMMAND_CONFIGS[name], ()
     if name not in list_estimators():
         known = ", ".join([*list_estimators(), *COMMAND_CONFIGS])
         raise ConfigError(f"--config {name!r}: no such configuration (known: {known})")

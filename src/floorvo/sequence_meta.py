@@ -1,0 +1,167 @@
+"""What ``sequence.json`` may hold: its keys, their types and rules, declared once.
+
+``sequence.json`` is checked as strictly as a scene file, through the one configuration
+mechanism (:mod:`floorvo.config`): an unknown key, a value of the wrong type (``"80mm"``
+where a number goes, ``"none"`` where a table goes), a NaN or a value out of range is
+refused with one line naming the key, the value and the rule, e.g.
+``SEQ/sequence.json: rig.height_mm = nan mm: must be a finite number``.
+
+Blocks that record how a sequence was made (``scene``, ``trajectory``, ``seeds``,
+``versions``, ``source``, ...) are free-form tables: they are provenance, not read back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from floorvo.config import Config, build, param
+from floorvo.errors import ConfigError, ConfigFieldError
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "READABLE_SCHEMA_VERSIONS",
+    "CameraBlock",
+    "RigBlock",
+    "DepthBlock",
+    "CalibBlock",
+    "SequenceMeta",
+    "check_sequence_meta",
+]
+
+#: Version of the on-disk format written here (2: optional per-frame ``timestamps.txt``).
+SCHEMA_VERSION = 2
+#: Versions a reader accepts; it refuses any other.
+READABLE_SCHEMA_VERSIONS = (1, 2)
+#: Formats of ``depth/`` frames.
+DEPTH_FORMATS = ("png16", "npy_float32_mm")
+
+Matrix = tuple[tuple[float, ...], ...]
+
+
+def _matrix(value: Matrix, shape: tuple[int, int], key: str) -> np.ndarray:
+    M = np.asarray(value, dtype=float) if all(len(r) == shape[1] for r in value) else np.zeros(0)
+    if M.shape != shape:
+        raise ConfigFieldError(key, f" = {[list(r) for r in value]}: must be a {shape[0]}x{shape[1]} matrix")
+    if not np.isfinite(M).all():
+        raise ConfigFieldError(key, f" = {M.tolist()}: must hold finite numbers")
+    return M
+
+
+@dataclass(frozen=True)
+class CameraBlock(Config):
+    """Intrinsics of one camera (:meth:`floorvo.camera.CameraModel.to_dict`)."""
+
+    width_px: int = param(unit="px", min=1, doc="image width")
+    height_px: int = param(unit="px", min=1, doc="image height")
+    K: Matrix = param(doc="3x3 intrinsic matrix in pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
+    distortion: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0), doc="OpenCV k1, k2, p1, p2[, k3]")
+    model: str = param("pinhole", choices=("pinhole", "pinhole-brown-conrady"), doc="camera model")
+    distortion_model: str = param(
+        "opencv (k1, k2, p1, p2, k3)", choices=("opencv (k1, k2, p1, p2, k3)",), doc="meaning of distortion"
+    )
+
+    def validate(self) -> None:
+        K = _matrix(self.K, (3, 3), "K")
+        if K[0, 0] <= 0 or K[1, 1] <= 0 or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
+            raise ConfigFieldError(
+                "K", f" = {K.tolist()}: must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
+            )
+        if len(self.distortion) not in (4, 5) or not np.isfinite(self.distortion).all():
+            raise ConfigFieldError("distortion", f" = {list(self.distortion)}: must be 4 or 5 finite numbers")
+
+
+@dataclass(frozen=True)
+class RigBlock(Config):
+    """The rig: camera height, stereo extrinsics, and what a render records about its LEDs."""
+
+    height_mm: float | None = param(None, unit="mm", gt=0, doc="camera height above the floor")
+    T_cam0_cam1: Matrix | None = param(None, doc="4x4 pose of cam1 in cam0's frame, mm")
+    gsd_mm_per_px: float | None = param(None, unit="mm/px", gt=0, doc="ground sample distance at height_mm")
+    led_height_mm: float | None = param(None, unit="mm", gt=0, doc="LED emitters above the floor")
+    led_positions_cam_mm: Matrix | None = param(None, doc="LED positions in the camera frame, mm")
+
+    def validate(self) -> None:
+        if self.T_cam0_cam1 is not None:
+            T = _matrix(self.T_cam0_cam1, (4, 4), "T_cam0_cam1")
+            R = T[:3, :3]
+            if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+                raise ConfigFieldError("T_cam0_cam1", f" = {T.tolist()}: must be a rigid 4x4 transform")
+
+
+@dataclass(frozen=True)
+class DepthBlock(Config):
+    """How ``depth/`` frames are stored."""
+
+    format: str = param("png16", choices=DEPTH_FORMATS, doc="png16: 16-bit PNG in 1/100 mm; npy_float32_mm")
+    scale_per_mm: float = param(100.0, gt=0, doc="png16 units per mm")
+    content: str = param("", doc="what the depth measures")
+
+
+@dataclass(frozen=True)
+class CalibBlock(Config):
+    """Calibration frames under ``calib/``."""
+
+    flatfield: str = param("calib/cam0_flatfield.png", doc="flat-field frame of cam0")
+    flatfield_bit_depth: int = param(16, choices=(8, 16), doc="its bit depth")
+
+
+@dataclass(frozen=True)
+class SequenceMeta(Config):
+    """The keys of ``sequence.json``."""
+
+    schema_version: int = param(choices=READABLE_SCHEMA_VERSIONS, doc="on-disk format version")
+    camera: CameraBlock = param(doc="intrinsics of cam0")
+    fps: float = param(unit="Hz", gt=0, doc="frame rate; frame i at i / fps unless timestamps.txt gives times")
+    frame_count: int = param(min=1, doc="number of frames in cam0/")
+    format: str = param("floorbench-sequence", choices=("floorbench-sequence",), doc="format name")
+    name: str = param("", doc="sequence name")
+    bit_depth: int | None = param(None, choices=(8, 16), doc="bits per pixel of the frames")
+    rig: RigBlock = param(default_factory=RigBlock, doc="camera height, stereo extrinsics")
+    stereo: bool = param(False, doc="cam1/ frames, cameras.cam1 and rig.T_cam0_cam1 present")
+    cameras: dict[str, Any] = param(default_factory=dict, doc="cam1: intrinsics of the right camera (keys as camera)")
+    depth: dict[str, Any] | None = param(
+        None, doc="depth/ frames: format ('png16', 1/100 mm, or 'npy_float32_mm'), scale_per_mm"
+    )
+    calib: dict[str, Any] | None = param(None, doc="calib/ frames: flatfield (path), flatfield_bit_depth (8 or 16)")
+    floor_spacing_mm: float | None = param(None, unit="mm", gt=0, doc="floor mesh spacing of a render")
+    events: dict[str, Any] | None = param(None, doc="trajectory events (teleport_frames)")
+    seeds: dict[str, Any] | None = param(None, doc="provenance: random seeds")
+    units: dict[str, Any] | None = param(None, doc="provenance: units")
+    trajectory: dict[str, Any] | None = param(None, doc="provenance: the trajectory")
+    scene: dict[str, Any] | None = param(None, doc="provenance: the resolved scene")
+    versions: dict[str, Any] | None = param(None, doc="provenance: package versions")
+    render_stats: dict[str, Any] | None = param(None, doc="provenance: render timings")
+    synthetic: dict[str, Any] | None = param(None, doc="provenance: floorvo.synthetic settings")
+    source: dict[str, Any] | None = param(None, doc="provenance: what floorvo import read")
+
+    def validate(self) -> None:
+        for name, block in self.cameras.items():
+            if name != "cam1":
+                raise ConfigError(f"cameras.{name}: unknown camera (known: cam1)")
+            _nested(CameraBlock, block, f"cameras.{name}")
+        if self.depth is not None:
+            _nested(DepthBlock, self.depth, "depth")
+        if self.calib is not None:
+            _nested(CalibBlock, self.calib, "calib")
+        if self.stereo and ("cam1" not in self.cameras or self.rig.T_cam0_cam1 is None):
+            raise ConfigError("stereo = true: needs cameras.cam1 and rig.T_cam0_cam1")
+
+
+def _nested(cls: type, value: Any, key: str) -> None:
+    """Check a table that a free-form field holds as block ``cls``; errors name ``key`` in full."""
+    if not isinstance(value, dict):
+        raise ConfigError(f"{key} = {value!r}: must be a table")
+    try:
+        build(cls, value, key)
+    except ConfigError as exc:  # a plain ConfigError: an enclosing Config does not re-prefix it
+        raise ConfigError(str(exc)) from None
+
+
+def check_sequence_meta(meta: Any) -> SequenceMeta:
+    """``meta`` (parsed ``sequence.json``) checked key by key; one-line :class:`ConfigError` otherwise."""
+    if not isinstance(meta, dict):
+        raise ConfigError(f"must be a JSON object of keys, got {type(meta).__name__}")
+    return build(SequenceMeta, meta)

@@ -1,0 +1,114 @@
+"""sequence.json is checked as strictly as a scene file: one line naming the key, the value and the rule."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from floorvo.cli import main
+from floorvo.errors import SequenceError
+from floorvo.sequence import Sequence, SequenceWriter
+
+GOOD = {
+    "schema_version": 2,
+    "camera": {
+        "width_px": 32,
+        "height_px": 24,
+        "K": [[40.0, 0.0, 15.5], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]],
+        "distortion": [0.0, 0.0, 0.0, 0.0, 0.0],
+    },
+    "fps": 30.0,
+    "frame_count": 2,
+    "rig": {"height_mm": 100.0},
+}
+
+
+def _folder(tmp_path, meta, text: str | None = None):
+    root = tmp_path / "seq"
+    (root / "cam0").mkdir(parents=True, exist_ok=True)
+    (root / "sequence.json").write_text(text if text is not None else json.dumps(meta))
+    return root
+
+
+def _with(path: str, value):
+    meta = copy.deepcopy(GOOD)
+    node = meta
+    *parents, last = path.split(".")
+    for p in parents:
+        node = node[p]
+    if value is KeyError:
+        del node[last]
+    else:
+        node[last] = value
+    return meta
+
+
+@pytest.mark.parametrize(
+    "path, value, message",
+    [
+        ("rig.height_mm", "80mm", "rig.height_mm = '80mm': must be a number or none"),
+        ("fps", "30fps", "fps = '30fps': must be a number"),
+        ("rig.height_mm", float("nan"), "rig.height_mm = nan mm: must be a finite number"),
+        ("rig.height_mm", -5.0, "rig.height_mm = -5.0 mm: must be > 0 mm"),
+        ("rig", "none", "rig = 'none': must be a table"),
+        ("fps", 0, "fps = 0.0 Hz: must be > 0 Hz"),
+        ("frame_count", 0, "frame_count = 0: must be >= 1"),
+        ("frame_count", 2.5, "frame_count = 2.5: must be integer"),
+        ("frame_count", KeyError, "frame_count: missing (a required key)"),
+        ("camera.K", KeyError, "camera.K: missing (a required key)"),
+        ("height_mm", 100.0, "height_mm: unknown key (known: bit_depth, calib, camera"),
+        ("rig.heigth_mm", 100.0, "rig.heigth_mm: unknown key (known: T_cam0_cam1, gsd_mm_per_px, height_mm"),
+        ("camera.K", [[40.0, 0.0], [0.0, 40.0]], "camera.K = [[40.0, 0.0], [0.0, 40.0]]: must be a 3x3 matrix"),
+        ("camera.K", [[40.0, 0, 15.5], [0, -40.0, 11.5], [0, 0, 1]], "camera.K = [[40.0, 0.0, 15.5], [0.0, -40.0"),
+        ("camera.distortion", [0.1, 0.2], "camera.distortion = [0.1, 0.2]: must be 4 or 5 finite numbers"),
+        ("camera.width_px", "32", "camera.width_px = '32': must be integer"),
+        ("stereo", True, "stereo = true: needs cameras.cam1 and rig.T_cam0_cam1"),
+        ("stereo", "no", "stereo = 'no': must be true or false"),
+        ("depth", {"format": "exr"}, "depth.format = 'exr': must be one of 'png16', 'npy_float32_mm'"),
+        ("cameras", {"cam2": GOOD["camera"]}, "cameras.cam2: unknown camera (known: cam1)"),
+        ("rig.T_cam0_cam1", np.diag([1.0, 1.0, 1.0, 2.0]).tolist(), "rig.T_cam0_cam1 = [[1.0, 0.0, 0.0, 0.0]"),
+    ],
+)
+def test_bad_sequence_json_is_one_line(tmp_path, capsys, path, value, message):
+    root = _folder(tmp_path, _with(path, value))
+    with pytest.raises(SequenceError) as exc:
+        Sequence.open(root)
+    assert message in str(exc.value)
+    assert str(exc.value).startswith(f"{root / 'sequence.json'}: ")
+    rc = main(["run", str(root), "-e", "phase-corr", "-o", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and len(err.splitlines()) == 1 and message in err
+
+
+def test_not_an_object_and_nan_literal(tmp_path):
+    root = _folder(tmp_path, None, "[1, 2]")
+    with pytest.raises(SequenceError, match="schema_version None is not supported"):
+        Sequence.open(root)
+    text = json.dumps(GOOD).replace('"fps": 30.0', '"fps": NaN')
+    root = _folder(tmp_path, None, text)
+    with pytest.raises(SequenceError, match="fps = nan Hz: must be a finite number"):
+        Sequence.open(root)
+
+
+def test_good_sequence_loads_and_the_writer_refuses_what_would_not(tmp_path):
+    root = _folder(tmp_path, GOOD)
+    seq = Sequence.open(root)
+    assert seq.height_mm == 100.0 and seq.fps == 30.0 and seq.camera.size == (32, 24)
+    bad = {k: v for k, v in _with("fps", -1.0).items() if k != "schema_version"}
+    with pytest.raises(SequenceError, match="fps = -1.0 Hz: must be > 0 Hz"):
+        SequenceWriter(tmp_path / "other", bad)
+    assert not (tmp_path / "other" / "sequence.json").exists()
+
+
+def test_list_config_sequence_prints_every_key(capsys):
+    from floorvo.sequence_meta import SequenceMeta
+
+    assert main(["list", "--config", "sequence"]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split()[0]: line for line in out.splitlines()[2:]}
+    assert set(rows) >= {f for f in SequenceMeta.__dataclass_fields__ if f not in ("camera", "rig")}
+    assert "camera.K" in rows and "(required)" in rows["camera.K"]
+    assert "mm" in rows["rig.height_mm"].split() and "> 0" in rows["rig.height_mm"]
