@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
+from floorvo.cli.common import add_output_argument, parse_name_values, parse_set_args, progress_callback
 from floorvo.errors import ConfigError
 
 __all__ = ["add_parser", "run", "parse_estimator_sets"]
@@ -87,13 +87,7 @@ def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
 
 def parse_scale_calibrations(items: list[str] | None) -> dict[str, str]:
     """``ESTIMATOR=FILE`` items into ``{ESTIMATOR: FILE}``."""
-    out: dict[str, str] = {}
-    for item in items or []:
-        name, sep, path = item.partition("=")
-        if not sep or not name.strip() or not path.strip():
-            raise ConfigError(f"--scale-calibration {item!r}: expected ESTIMATOR=FILE (e.g. phase-corr=scale.json)")
-        out[name.strip()] = path.strip()
-    return out
+    return parse_name_values(items, "--scale-calibration", "ESTIMATOR=FILE (e.g. phase-corr=scale.json)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,8 +7,24 @@ import sys
 from typing import Any
 
 from floorvo.config import parse_set_args  # the one --set parser, re-exported for the command modules
+from floorvo.errors import ConfigError
 
-__all__ = ["add_output_argument", "parse_set_args", "progress_callback"]
+__all__ = ["add_output_argument", "parse_name_values", "parse_set_args", "progress_callback"]
+
+
+def parse_name_values(items: list[str] | None, flag: str, form: str) -> dict[str, str]:
+    """Repeated ``NAME=VALUE`` options (``--topic image=/cam0/image_raw``) into ``{NAME: VALUE}``.
+
+    ``flag`` and ``form`` (``"ROLE=NAME (e.g. image=/cam0/image_raw)"``) word the one-line
+    :class:`ConfigError` for an item without a name or a value.
+    """
+    out: dict[str, str] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise ConfigError(f"{flag} {item!r}: expected {form}")
+        out[name.strip()] = value.strip()
+    return out
 
 
 def add_output_argument(parser: argparse.ArgumentParser, help: str, **kwargs: Any) -> argparse.Action:

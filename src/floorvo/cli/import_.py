@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from floorvo.cli.common import add_output_argument, parse_name_values
 from floorvo.errors import ConfigError
 
 __all__ = ["add_parser", "run", "parse_floats", "parse_topics"]
@@ -23,7 +24,7 @@ def add_parser(sub) -> None:
         "give it.",
     )
     p.add_argument("source", help="image folder or list file, video file, EuRoC folder (with mav0/), ROS 2 bag folder")
-    p.add_argument("-o", "--output", "--out", dest="output", required=True, help="sequence folder to write")
+    add_output_argument(p, "sequence folder to write")
     p.add_argument("--format", choices=sorted(READERS), default=None, help="source format (default: detected)")
     cam = p.add_argument_group("camera (default: the source's calibration)")
     cam.add_argument(
@@ -68,13 +69,7 @@ def parse_floats(text: str | None, what: str) -> tuple[float, ...] | None:
 
 def parse_topics(items: list[str] | None) -> dict[str, str]:
     """``["image=/cam0/image_raw", ...]`` -> ``{"image": "/cam0/image_raw"}``."""
-    out: dict[str, str] = {}
-    for item in items or []:
-        role, sep, topic = item.partition("=")
-        if not sep or not role.strip() or not topic.strip():
-            raise ConfigError(f"--topic {item!r}: expected ROLE=NAME, e.g. image=/cam0/image_raw")
-        out[role.strip()] = topic.strip()
-    return out
+    return parse_name_values(items, "--topic", "ROLE=NAME, e.g. image=/cam0/image_raw")
 
 
 def run(args: argparse.Namespace) -> int:
