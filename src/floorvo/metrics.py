@@ -640,7 +640,7 @@ def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray) -> np.
     """Times (s) of the sequence's ``frames``: from the sequence folder (``timestamps.txt`` or
     ``i / fps``), or, for a bare ground-truth file, frame i at i over its median rate."""
     if (seq_dir / "sequence.json").is_file():
-        from floorvo.sequence import Sequence
+        from floorvo.sequence import Sequence  # sequence.py uses associate(): scoring sits above it
 
         ts = Sequence.open(seq_dir).timestamps_s
         return ts[frames[(frames >= 0) & (frames < len(ts))]]

@@ -43,6 +43,7 @@ from floorvo.io import (
     read_png,
     write_png,
 )
+from floorvo.metrics import associate
 from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta
 from floorvo.tum import read_tum, write_tum
 
@@ -359,8 +360,6 @@ class Sequence:
         away (:func:`floorvo.metrics.associate`, the pairing ``floorvo score`` uses); where
         none is, ``found`` is False and the pose is the identity. No ground truth: none found.
         """
-        from floorvo.metrics import associate
-
         ts = np.atleast_1d(np.asarray(timestamps_s, dtype=float))
         T = np.tile(np.eye(4), (len(ts), 1, 1))
         found = np.zeros(len(ts), bool)
