@@ -61,3 +61,19 @@ def test_export_then_import_gives_the_same_sequence_and_trajectory(tmp_path, ori
     np.testing.assert_allclose(t_run, t_orig, rtol=0, atol=1e-6)
     np.testing.assert_allclose(T_run[:, :3, 3], T_orig[:, :3, 3], rtol=0, atol=1e-3)  # 1e-6 m, in mm
     np.testing.assert_allclose(T_run[:, :3, :3], T_orig[:, :3, :3], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("fmt, k3", [("euroc", 0.0), ("rosbag2", 0.004)])
+def test_distortion_survives_the_round_trip(tmp_path, fmt, k3):
+    """k1, k2, p1, p2 (and k3 through the bag's plumb_bob camera_info) come back as they were written."""
+    from floorvo.sequence import SequenceWriter
+
+    cam = CameraModel(40, 30, 50.0, 51.0, 19.5, 14.5, (-0.12, 0.03, 0.001, -0.002, k3))
+    w = SequenceWriter(tmp_path / "seq", {"camera": cam.to_dict(), "fps": 10.0, "frame_count": 2})
+    for i in range(2):
+        w.write_frame(i, np.full((30, 40), 10 * i, np.uint8))
+    exported = export_sequence(tmp_path / "seq", fmt, tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    got = Sequence.open(tmp_path / "imported").camera
+    assert got.distortion == pytest.approx(cam.distortion, abs=1e-12)
+    assert (got.fx_px, got.fy_px, got.cx_px, got.cy_px) == (50.0, 51.0, 19.5, 14.5)
