@@ -6,6 +6,8 @@ Never imports Mitsuba, so it runs on real data. Layers:
   :mod:`floorvo.sequence`;
 * configuration: :mod:`floorvo.config` (typed frozen dataclasses, one ``--set`` parser);
 * estimators: :mod:`floorvo.estimators` (one protocol, a registry by name);
+* runs: :mod:`floorvo.runner` (the one frame loop), :mod:`floorvo.runfolder` (the one
+  writer and reader of ``RUN/trajectory.txt``, ``timing.csv``, ``result.json``);
 * metrics: :mod:`floorvo.metrics`;
 * CLI: :mod:`floorvo.cli` (thin calls to the functions above).
 

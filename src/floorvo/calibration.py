@@ -104,13 +104,18 @@ def calibrate_run(
     from floorvo.metrics import associate, read_run_and_groundtruth
 
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    gt, (t_ref, T_ref), (t_est, T_est), result = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
-    i_ref, i_est = associate(t_ref, t_est, max_diff_s)
+    gt, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
+    i_ref, i_est = associate(t_ref, run.timestamps_s, max_diff_s)
     if len(i_ref) < 2:
         raise SequenceError(f"{run_dir}/trajectory.txt: fewer than 2 poses match {gt} in time (within {max_diff_s} s)")
-    cal = fit_scale_calibration(T_ref[i_ref], T_est[i_est], min_travel_mm)
+    cal = fit_scale_calibration(T_ref[i_ref], run.T_world_cam[i_est], min_travel_mm)
     return ScaleCalibration(
-        **{**asdict(cal), "estimator": str(result.get("estimator", "")), "run": str(run_dir), "sequence": str(seq_dir)}
+        **{
+            **asdict(cal),
+            "estimator": str(run.result.get("estimator", "")),
+            "run": str(run_dir),
+            "sequence": str(seq_dir),
+        }
     )
 
 

@@ -34,7 +34,6 @@ Conventions
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 from collections.abc import Sequence as SequenceT
@@ -46,7 +45,7 @@ import numpy as np
 
 from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit_2d
-from floorvo.io import read_json
+from floorvo.runfolder import RunFolder
 
 __all__ = [
     "ALIGNMENTS",
@@ -64,7 +63,6 @@ __all__ = [
     "segment_errors",
     "translation_error_along_path",
     "tracking_stats",
-    "read_timing_csv",
     "timing_stats",
     "Score",
     "score_trajectories",
@@ -406,34 +404,6 @@ def tracking_stats(statuses: SequenceT[str] | None, n_ref: int, n_est: int) -> d
     }
 
 
-def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
-    """Columns of ``timing.csv`` (frame, detect_ms, match_ms, estimate_ms, total_ms, status, ...) or None if missing.
-
-    ``frame`` and the ``*_ms`` columns must be numbers (empty cells read as NaN); ``status``
-    and any other column that is not all numbers (such as a ``reason``) stay text.
-    """
-    path = Path(path)
-    if not path.is_file():
-        return None
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        return {}
-    cols: dict[str, np.ndarray] = {}
-    for key in rows[0]:
-        vals = [r[key] for r in rows]
-        if key == "status":
-            cols[key] = np.array(vals, dtype=object)
-            continue
-        try:
-            cols[key] = np.array([float(v) if v not in ("", None) else np.nan for v in vals])
-        except ValueError:
-            if key == "frame" or key.endswith("_ms"):
-                raise SequenceError(f"{path}: column {key!r} holds a value that is not a number") from None
-            cols[key] = np.array(vals, dtype=object)
-    return cols
-
-
 def timing_stats(timing: dict[str, np.ndarray] | None) -> dict[str, dict[str, float]]:
     """Per ``*_ms`` column: mean, median, p95, max, std (ms); plus ``fps`` from total_ms."""
     out: dict[str, Any] = {}
@@ -582,7 +552,7 @@ def score_trajectories(
 
 
 def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, purpose: str):
-    """``(groundtruth path, (t_ref, T_ref), (t_est, T_est), result.json dict or {})`` of a run.
+    """``(groundtruth path, (t_ref, T_ref), run)`` of a run; ``run`` is its :class:`~floorvo.runfolder.RunFolder`.
 
     ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
     ("score", "calibrate") words the error when there is no ground truth.
@@ -594,10 +564,7 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     if not gt_path.is_file():
         raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
     ref = read_tum(gt_path)
-    est = read_tum(run_dir / "trajectory.txt")
-    rp = run_dir / "result.json"
-    result = read_json(rp, SequenceError) if rp.is_file() else {}
-    return gt_path, ref, est, result
+    return gt_path, ref, RunFolder.read(run_dir)
 
 
 def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
@@ -607,9 +574,8 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    _, (t_ref, T_ref), (t_est, T_est), result = read_run_and_groundtruth(run_dir, seq_dir, "score")
-    timing = read_timing_csv(run_dir / "timing.csv")
-    statuses = list(timing["status"]) if timing and "status" in timing else None
+    _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
+    timing, result = run.timing, run.result
     if timing and "frame" in timing and len(timing["frame"]):
         # The estimator saw only these frames: cut the reference to the poses taken at their times.
         frames = timing["frame"].astype(int)
@@ -621,10 +587,10 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     score = score_trajectories(
         t_ref,
         T_ref,
-        t_est,
-        T_est,
+        run.timestamps_s,
+        run.T_world_cam,
         estimator=str(result.get("estimator", "")),
-        statuses=statuses,
+        statuses=run.statuses,
         timing=timing,
         max_diff_s=max_diff_s,
     )

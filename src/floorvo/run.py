@@ -5,43 +5,27 @@ ground-truth pose of the first frame run (the nearest in time, within
 :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`) when there is one, at the identity
 otherwise; frames where the track was lost are left out, so the gap shows in the file,
 and the chain continues from the last good pose (the next frame is matched against the
-last good one).
+last good one). The loop is :func:`floorvo.runner.run_sequence`, the files
+:class:`floorvo.runfolder.RunFolder`.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, replace
 
-import numpy as np
-
-from floorvo.calibration import ScaleCalibration, apply_scale
+from floorvo.calibration import ScaleCalibration
 from floorvo.errors import FloorbenchError
-from floorvo.estimators import Frame, get_estimator, make_config
-from floorvo.io import atomic_write_csv, atomic_write_json, atomic_write_text, ensure_writable_dir
-from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
-from floorvo.tum import write_tum
+from floorvo.estimators import get_estimator, make_config
+from floorvo.io import ensure_writable_dir
+from floorvo.runner import RunResult, camera_height_mm, run_sequence
+from floorvo.sequence import Sequence
 
 __all__ = ["run_estimator", "RunResult", "build_estimator"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class RunResult:
-    """Summary of a run (also written as result.json)."""
-
-    estimator: str
-    run_dir: str
-    frames: int
-    ok: int
-    lost: int
-    lost_frames: list
-    fps: float
-    median_total_ms: float
 
 
 def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | None = None):
@@ -53,11 +37,7 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
         raise FloorbenchError(f"{name} needs depth images, and {seq.root} has none (render it with depth enabled)")
     if "stereo" in req and not seq.has_stereo:
         raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
-    height = seq.height_mm
-    if height is None:
-        raise FloorbenchError(
-            f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
-        )
+    height = camera_height_mm(seq)
     rig = {}
     if seq.has_stereo:
         rig = {
@@ -88,100 +68,24 @@ def run_estimator(
     est, cfg = build_estimator(seq, name, overrides)
     out = ensure_writable_dir(out_dir)
     indices = list(range(seq.frame_count) if frames is None else frames)
-    if not indices:
-        raise FloorbenchError(f"{name}: no frames to run on")
-    ts_all = seq.timestamps_s
-    T_start, found = seq.groundtruth_at(ts_all[indices[:1]])
-    T_world = T_start[0]
-    if not found[0] and seq.groundtruth() is not None:
-        log.warning(
-            "%s: no ground-truth pose within %.3f s of frame %d (t = %.6f s); the trajectory starts at the identity",
-            seq.root,
-            GROUNDTRUTH_MAX_DIFF_S,
-            indices[0],
-            ts_all[indices[0]],
-        )
-    state = est.start()
-    poses, stamps, rows, lost = [], [], [], []
-    t_run = time.perf_counter()
-    for k, i in enumerate(indices):
-        frame = Frame(
-            index=i,
-            timestamp_s=float(ts_all[i]),
-            image=seq.image(i),
-            image_right=seq.image(i, "cam1") if "stereo" in est.requires else None,
-            depth_mm=seq.depth_mm(i) if "depth" in est.requires else None,
-        )
-        res = est.step(state, frame)
-        if res.status == "ok":
-            step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
-            T_world = T_world @ step
-        if res.status in ("ok", "init"):
-            poses.append(T_world.copy())
-            stamps.append(float(ts_all[i]))
-        else:
-            lost.append({"frame": i, "reason": res.reason})
-        tm = res.timing_ms
-        rows.append(
-            [
-                i,
-                f"{tm.get('detect', 0):.3f}",
-                f"{tm.get('match', 0):.3f}",
-                f"{tm.get('estimate', 0):.3f}",
-                f"{tm.get('total', 0):.3f}",
-                res.status,
-                res.n_keypoints,
-                res.n_matches,
-                res.n_inliers,
-            ]
-        )
-        if on_frame:
-            on_frame(k + 1, len(indices))
-    wall = time.perf_counter() - t_run
-    if poses:
-        write_tum(
-            out / "trajectory.txt", np.array(stamps), np.stack(poses), header=f"floorvo {name}: T_world_cam, metres"
-        )
-    else:
-        atomic_write_text(out / "trajectory.txt", f"# floorvo {name}: no frame tracked\n")
-    atomic_write_csv(
-        out / "timing.csv",
-        [
-            "frame",
-            "detect_ms",
-            "match_ms",
-            "estimate_ms",
-            "total_ms",
-            "status",
-            "n_keypoints",
-            "n_matches",
-            "n_inliers",
-        ],
-        rows,
+    n = len(indices)
+    run = run_sequence(
+        seq,
+        est,
+        frames=indices,
+        scale_calibration=scale_calibration,
+        on_step=None if on_frame is None else (lambda k, frame, res: on_frame(k + 1, n)),
+        name=name,
     )
-    totals = [float(r[4]) for r in rows]
-    counts = {s: sum(1 for r in rows if r[5] == s) for s in ("init", "ok", "lost")}
-    result = RunResult(
-        estimator=name,
-        run_dir=str(out),
-        frames=len(indices),
-        ok=counts["ok"],
-        lost=counts["lost"],
-        lost_frames=lost,
-        fps=len(indices) / wall if wall > 0 else 0.0,
-        median_total_ms=float(np.median(totals)) if totals else 0.0,
-    )
-    atomic_write_json(
-        out / "result.json",
-        {
-            **asdict(result),
-            "config": asdict(cfg),
-            "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
-            "sequence": str(seq.root),
-            "status_counts": counts,
-            "first_frame": indices[0],
-            "last_frame": indices[-1],
-        },
-    )
-    log.info("%s on %s: %d ok, %d lost, %.1f frames/s", name, seq.root, counts["ok"], counts["lost"], result.fps)
-    return result
+    run = replace(run, run_dir=str(out))
+    header = f"floorvo {name}: T_world_cam, metres" if run.placed.any() else f"floorvo {name}: no frame tracked"
+    result = {
+        **run.summary(),
+        "config": asdict(cfg),
+        "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
+        "sequence": str(seq.root),
+    }
+    run.run_folder(header=header, result=result).write(out)
+    counts = run.status_counts
+    log.info("%s on %s: %d ok, %d lost, %.1f frames/s", name, seq.root, counts["ok"], counts["lost"], run.fps)
+    return run

@@ -44,11 +44,12 @@ def write_tum(
     atomic_write_text(path, format_tum(timestamps_s, T_world_cam, header))
 
 
-def read_tum(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM file. Returns ``(timestamps_s (N,), T_world_cam (N, 4, 4) in mm)``.
 
-    Lines starting with ``#`` and blank lines are skipped. A malformed line or an empty
-    file raises :class:`SequenceError` naming the file and line.
+    Lines starting with ``#`` and blank lines are skipped. A malformed line, or a file
+    without pose lines unless ``allow_empty`` (then N = 0), raises :class:`SequenceError`
+    naming the file and line.
     """
     path = Path(path)
     if not path.is_file():
@@ -71,6 +72,8 @@ def read_tum(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
         ts.append(vals[0])
         Ts.append(T_from_xyz_quat(np.array(vals[1:4]) * 1000.0, q / n))
+    if not ts and allow_empty:
+        return np.zeros(0), np.zeros((0, 4, 4))
     if not ts:
         raise SequenceError(f"{path}: trajectory is empty (no pose lines)")
     return np.array(ts), np.stack(Ts)

@@ -94,3 +94,21 @@ def test_protocol_measures_every_run_and_compares_matching_modes(tmp_path):
     res.report_section(rep)
     html, _ = rep.write()
     assert html.read_text().count("data:image/png;base64,") == 2  # Fig. 8 and Fig. 9
+
+
+def test_a_strip_without_camera_height_is_refused(tmp_path):
+    """The distance scale comes from the camera height: a strip that does not state it is refused, not run at 100 mm."""
+    import json
+
+    from floorsim.bench.protocols.paper000 import run_subsequence
+    from floorvo.errors import SequenceError
+    from floorvo.sequence import Sequence
+
+    root, _, _ = _strip(tmp_path / "strip")
+    meta = json.loads((root / "sequence.json").read_text())
+    del meta["rig"]["height_mm"]
+    (root / "sequence.json").write_text(json.dumps(meta))
+    with pytest.raises(SequenceError, match="rig.height_mm is missing"):
+        run_subsequence(Sequence.open(root), "phase-corr", [0, 1])
+    res = run_paper000(root, ["phase-corr"], tmp_path / "p0")
+    assert res.runs == [] and len(res.skipped) == 1 and "rig.height_mm is missing" in res.skipped[0]

@@ -222,14 +222,17 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
         assert d < 0.2 and a < 2e-3
     res = json.loads((tmp_path / "run" / "result.json").read_text())
     assert [x["frame"] for x in res["lost_frames"]] == [6] and res["lost_frames"][0]["reason"]
+    assert res["map_fixes"] == 6  # relocalisation only: every placed frame is a map fix
     assert (tmp_path / "run" / "timing.csv").read_text().count("\n") == 8
     # The registered estimator under the generic runner (fixes only).
     r = run_estimator(
         tmp_path / "live", "map-fused", tmp_path / "run2", {"map": str(tmp_path / "map"), "odometry": "none"}
     )
-    assert r.lost == 1 and r.ok == 5
+    assert r.lost == 1 and r.ok == 5 and r.fixes == 6
     ts2, T2 = read_tum(tmp_path / "run2" / "trajectory.txt")
-    assert np.max(np.abs(T2[:, :3, 3] - T_est[:, :3, 3])) < 0.3  # runner anchors at GT frame 0
+    assert np.max(np.abs(T2[:, :3, 3] - T_est[:, :3, 3])) < 0.3  # the runner places the fixes at the map poses
+    # the fixes are the map's poses: the generic runner writes what localize writes
+    np.testing.assert_allclose(T2, T_est, atol=1e-6)
     # Errors are one line: a missing map, an unknown key.
     assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "nomap"), "-o", str(tmp_path / "r3")]) == 1
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1
@@ -239,6 +242,7 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
 
 def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, lane):
     from floorvo.estimators import Frame, get_estimator, make_config
+    from floorvo.runner import run_frames
 
     _, _, m = lane
     save_map(m, tmp_path / "map")
@@ -248,19 +252,31 @@ def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, 
     state = est.start()
     # A diagonal pass over the lane at 2.5 mm / frame with a slow turn.
     Ts = [T_world_cam_down(-30.0 + 2.5 * i, -4.0 + 0.4 * i, H_MM, 0.2 + 0.01 * i) for i in range(10)]
+    frames = [
+        Frame(i, i / 30.0, syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(400 + i)))
+        for i, T in enumerate(Ts)
+    ]
     T_world = None
-    for i, T in enumerate(Ts):
-        img = syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(400 + i))
-        r = est.step(state, Frame(i, i / 30.0, img))
+    chain = []
+    for i, (T, frame) in enumerate(zip(Ts, frames)):
+        r = est.step(state, frame)
+        # a fix reports the absolute pose it found; an odometry step only its motion
+        assert (r.T_world_cam is not None) == (i % 4 == 0), (i, r.reason)
         if i == 0:
             assert r.status == "init" and "map" in r.reason  # placed by the map, not at a guess
-            T_world = state.T_world
+            T_world = r.T_world_cam
         else:
             assert r.ok, r.reason
             assert r.reason == ("map fix" if i % 4 == 0 else "odometry")
             T_world = T_world @ r.T_prev_cur
+        chain.append(T_world)
         d, a = _se2_err(T_world, T)
         assert d < (0.2 if i % 4 == 0 else 0.5) and a < 5e-3, (i, r.reason, d, a)
+    # The runner places fixes where the map says, chains the odometry between them and counts the fixes.
+    run = run_frames(est, frames, T_world_start=np.eye(4))
+    assert run.fixes == 3 and run.fixed.tolist() == [i % 4 == 0 for i in range(10)]
+    assert run.placed.all()
+    np.testing.assert_allclose(run.T_world_cam, np.stack(chain), atol=1e-6)
 
 
 def test_map_fused_localiser_defaults_are_the_localizers():

@@ -32,7 +32,6 @@ tested with doubles.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import logging
 import os
@@ -62,9 +61,10 @@ from floorsim.scene import load_scene as load_scene_file
 from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, FloorbenchError
-from floorvo.estimators.base import Frame
-from floorvo.io import atomic_write_bytes, atomic_write_json
+from floorvo.io import atomic_write_json
 from floorvo.metrics import score_run
+from floorvo.runfolder import write_match_sample
+from floorvo.runner import run_sequence
 from floorvo.sequence import Sequence
 
 log = logging.getLogger(__name__)
@@ -230,38 +230,29 @@ def write_match_samples(
 ) -> int:
     """Save the matched keypoints of ``count`` frame pairs as ``RUN/matches/NNNNNN.npz`` for the report.
 
-    Runs the estimator afresh on each pair (previous, current) and keeps
-    ``StepResult.matches_px`` ((N, 4): u_prev, v_prev, u_cur, v_cur) as ``xy_prev_px`` and
-    ``xy_cur_px`` (N, 2). Returns how many pairs had matches (0 when the estimator does not
-    expose them).
+    Runs the estimator afresh on each pair (previous, current) through
+    :func:`floorvo.runner.run_sequence` and keeps the current frame's
+    ``StepResult.matches_px`` ((N, 4): u_prev, v_prev, u_cur, v_cur), written by
+    :func:`floorvo.runfolder.write_match_sample`. Returns how many pairs had matches (0 when
+    the estimator does not expose them).
     """
     seq = Sequence.open(seq_dir)
     if seq.frame_count < 2:
         return 0
     est, _ = (runner or DEFAULT_RUNNER).build(seq, estimator, overrides)
     picks = sorted({int(i) for i in np.linspace(1, seq.frame_count - 1, min(count, seq.frame_count - 1)).round()})
+    last: dict[str, Any] = {}
+
+    def keep(k: int, frame: Any, res: Any) -> None:
+        last["step"] = res
+
     written = 0
     for i in picks:
-        state = est.start()
-        res = None
-        for j in (i - 1, i):
-            res = est.step(
-                state,
-                Frame(
-                    index=j,
-                    timestamp_s=float(seq.timestamps_s[j]),
-                    image=seq.image(j),
-                    image_right=seq.image(j, "cam1") if "stereo" in est.requires else None,
-                    depth_mm=seq.depth_mm(j) if "depth" in est.requires else None,
-                ),
-            )
-        m = getattr(res, "matches_px", None)
+        run_sequence(seq, est, frames=[i - 1, i], on_step=keep)
+        m = last["step"].matches_px
         if m is None or len(m) == 0:
             continue
-        m = np.asarray(m, dtype=float).reshape(-1, 4)
-        buf = io.BytesIO()
-        np.savez(buf, xy_prev_px=m[:, :2], xy_cur_px=m[:, 2:])
-        atomic_write_bytes(run_dir / "matches" / f"{i:06d}.npz", buf.getvalue())
+        write_match_sample(run_dir, i, m)
         written += 1
     return written
 

@@ -25,8 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_bytes, atomic_write_text
-from floorvo.metrics import associate, read_timing_csv, translation_error_along_path
+from floorvo.metrics import associate, translation_error_along_path
+from floorvo.runfolder import RunFolder, read_match_samples, read_timing_csv
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
@@ -165,11 +167,13 @@ class Report:
 def _load_pair(rec: RunRecord):
     try:
         t_ref, T_ref = read_tum(rec.seq_dir / "groundtruth.txt")
-        t_est, T_est = read_tum(rec.run_dir / "trajectory.txt")
-    except Exception:  # a failed run has no trajectory: nothing to plot
+        run = RunFolder.read(rec.run_dir)
+    except FloorbenchError:  # a failed run has no trajectory: nothing to plot
         return None
-    i_ref, i_est = associate(t_ref, t_est)
-    return T_ref, T_est, i_ref, i_est
+    if len(run.timestamps_s) == 0:
+        return None
+    i_ref, i_est = associate(t_ref, run.timestamps_s)
+    return T_ref, run.T_world_cam, i_ref, i_est
 
 
 def _trajectory_figure(scene: str, recs: list[RunRecord]):
@@ -252,19 +256,15 @@ def _keypoint_figure(recs: list[RunRecord], max_frames: int = 3):
     """Frames with matched keypoints from ``RUN/matches/*.npz``; None when no run has any."""
     plt = _plt()
     for rec in recs:
-        mdir = rec.run_dir / "matches"
-        files = sorted(mdir.glob("*.npz")) if mdir.is_dir() else []
-        if not files:
+        samples = read_match_samples(rec.run_dir)
+        if not samples:
             continue
-        picks = [files[int(i)] for i in np.linspace(0, len(files) - 1, min(max_frames, len(files)))]
+        picks = [samples[int(i)] for i in np.linspace(0, len(samples) - 1, min(max_frames, len(samples)))]
         seq = Sequence.open(rec.seq_dir)
         fig, axes = plt.subplots(1, len(picks), figsize=(4 * len(picks), 3.4))
-        for ax, f in zip(np.atleast_1d(axes), picks):
-            idx = int(f.stem)
-            data = np.load(f)
+        for ax, (idx, a, b) in zip(np.atleast_1d(axes), picks):
             img = seq.image(idx)
             ax.imshow(img, cmap="gray")
-            a, b = np.asarray(data["xy_prev_px"]), np.asarray(data["xy_cur_px"])
             if len(a):
                 ax.plot(b[:, 0], b[:, 1], "o", ms=3, mfc="none", mec="lime")
                 for p, q in zip(a, b):

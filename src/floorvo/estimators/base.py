@@ -53,6 +53,12 @@ class StepResult:
 
     ``matches_px``: optional (N, 4) array of inlier matches (u_prev, v_prev, u_cur, v_cur)
     for reports; ``timing_ms``: detect, match, estimate, total.
+
+    ``T_world_cam``: optional absolute pose (4, 4) mm of the current camera in the world
+    frame, for an estimator that measures one (a map fix, :mod:`floorvo.mapping.fused`);
+    None otherwise, and always None unless ``status`` is ``init`` or ``ok``. The runner
+    (:mod:`floorvo.runner`) places the frame there instead of chaining ``T_prev_cur``, and
+    counts it as a fix.
     """
 
     status: str
@@ -63,6 +69,7 @@ class StepResult:
     n_inliers: int = 0
     timing_ms: Mapping[str, float] = field(default_factory=dict)
     matches_px: np.ndarray | None = None
+    T_world_cam: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:

@@ -7,11 +7,11 @@ pose ``T_world_cur`` is the map fix when there is one, the last belief composed 
 odometry step otherwise; a frame with neither is ``lost``. The drift is thus reset at
 every fix, and a kidnapped rig is placed again by the first fix after landing.
 
-``StepResult.T_prev_cur`` is the motion from the previous belief to the new one, so the
-generic runner (:func:`floorvo.run.run_estimator`), which chains those motions from the
-sequence's first ground-truth pose, reproduces the map poses up to the error of the first
-frame's fix. :func:`floorvo.mapping.localize_run.localize_sequence` writes the absolute
-map poses themselves.
+``StepResult.T_prev_cur`` is the motion from the previous belief to the new one; a frame
+placed by a map fix also reports the fix itself as ``StepResult.T_world_cam``. The runner
+(:mod:`floorvo.runner`) places such a frame at the fix and counts it, and chains the
+odometry steps between fixes, so :func:`floorvo.run.run_estimator` and
+:func:`floorvo.mapping.localize_run.localize_sequence` both write the map's poses.
 """
 
 from __future__ import annotations
@@ -128,8 +128,12 @@ class MapFused:
                 why = fix.reason if fix is not None else "no map fix yet"
                 return StepResult("lost", reason=f"not localised: {why}", **counts)
             state.T_world = new
+            fixed = fix is not None and fix.ok
             return StepResult(
-                "init", reason="first pose" + (" from the map" if fix is not None and fix.ok else ""), **counts
+                "init",
+                reason="first pose" + (" from the map" if fixed else ""),
+                T_world_cam=new if fixed else None,
+                **counts,
             )
         if new is None:
             parts = []
@@ -139,6 +143,11 @@ class MapFused:
                 parts.append(f"odometry: {odo.reason or odo.status}")
             return StepResult("lost", reason="; ".join(parts) or "no fix and no odometry", **counts)
         state.T_world = new
+        fixed = fix is not None and fix.ok
         return StepResult(
-            "ok", invert_T(prev) @ new, reason="map fix" if fix is not None and fix.ok else "odometry", **counts
+            "ok",
+            invert_T(prev) @ new,
+            reason="map fix" if fixed else "odometry",
+            T_world_cam=new if fixed else None,
+            **counts,
         )

@@ -36,9 +36,9 @@ from floorsim.bench.protocols.base import BenchContext, BenchProtocol, ProtocolO
 from floorsim.bench.report import Report, _plt
 from floorsim.bench.results import write_results_csv
 from floorsim.trajectories import paper000_subsequences
-from floorvo.calibration import apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
 from floorvo.estimators.base import Frame
+from floorvo.runner import run_frames
 from floorvo.sequence import Sequence
 
 log = logging.getLogger(__name__)
@@ -66,28 +66,25 @@ def run_subsequence(
     Returns ``measured_mm`` (K,) (distance from the run's first pose, per frame),
     ``true_mm`` (K,), ``match_ms`` (K,) and ``lost`` (count). The run's frame k gets
     timestamp ``k / fps``; a lost step keeps the previous pose. ``runner`` builds the
-    estimator (:class:`floorsim.bench.estimators.EstimatorRunner`).
+    estimator (:class:`floorsim.bench.estimators.EstimatorRunner`; the camera height is the
+    sequence's, refused when unknown); the loop is :func:`floorvo.runner.run_frames`.
     """
     est, _ = runner.build(seq, estimator, overrides)
-    state = est.start()
-    gt = seq.groundtruth()
-    T_gt = gt[1]
-    T = T_gt[indices[0]].copy()
-    p0 = T[:3, 3].copy()
-    measured, match_ms, lost = [], [], 0
-    for k, idx in enumerate(indices):
-        img = images[idx] if images is not None and idx in images else seq.image(int(idx))
-        res = est.step(state, Frame(index=k, timestamp_s=k / seq.fps, image=img, image_right=None, depth_mm=None))
-        if res.status == "lost" or res.T_prev_cur is None:
-            if k > 0:
-                lost += 1
-        else:
-            step = np.asarray(res.T_prev_cur, dtype=float)
-            T = T @ (step if scale_calibration is None else apply_scale(step, scale_calibration))
-        measured.append(float(np.linalg.norm(T[:3, 3] - p0)))
-        match_ms.append(float((res.timing_ms or {}).get("match", float("nan"))))
-    true = [float(np.linalg.norm(T_gt[i][:3, 3] - T_gt[indices[0]][:3, 3])) for i in indices]
-    return {"measured_mm": np.array(measured), "true_mm": np.array(true), "match_ms": np.array(match_ms), "lost": lost}
+    T_gt = seq.groundtruth()[1]
+    frames = (
+        Frame(
+            index=k,
+            timestamp_s=k / seq.fps,
+            image=images[idx] if images is not None and idx in images else seq.image(int(idx)),
+        )
+        for k, idx in enumerate(indices)
+    )
+    run = run_frames(est, frames, T_world_start=T_gt[indices[0]], scale_calibration=scale_calibration, name=estimator)
+    p0 = T_gt[indices[0]][:3, 3]
+    measured = np.linalg.norm(run.T_world_cam[:, :3, 3] - p0, axis=1)
+    lost = int(np.count_nonzero(run.status[1:] != "ok"))
+    true = [float(np.linalg.norm(T_gt[i][:3, 3] - p0)) for i in indices]
+    return {"measured_mm": measured, "true_mm": np.array(true), "match_ms": run.timing_ms[:, 1], "lost": lost}
 
 
 @dataclass

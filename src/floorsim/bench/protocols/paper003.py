@@ -45,7 +45,8 @@ from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_json
 from floorvo.mapping.localize_run import localize_sequence
 from floorvo.mapping.map import build_map, load_map, save_map
-from floorvo.metrics import associate, read_timing_csv, score_run
+from floorvo.metrics import associate, score_run
+from floorvo.runfolder import RunFolder
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
@@ -111,14 +112,13 @@ def relocalisation_metrics(
     ``query_ms_median`` / ``query_ms_p95`` (``timing.csv`` total_ms).
     """
     seq = Sequence.open(seq_dir)
-    run_dir = Path(run_dir)
+    run = RunFolder.read(run_dir)
     t_ref, T_ref = read_tum(Path(seq_dir) / "groundtruth.txt")
     n = seq.frame_count
     err = np.full(n, np.nan)
-    traj = run_dir / "trajectory.txt"
-    if traj.is_file() and any(ln.strip() and not ln.startswith("#") for ln in traj.read_text().splitlines()):
-        t_est, T_est = read_tum(traj)
-        i_ref, i_est = associate(t_ref, t_est)
+    if len(run.timestamps_s):
+        T_est = run.T_world_cam
+        i_ref, i_est = associate(t_ref, run.timestamps_s)
         frame_of_ref = np.rint(t_ref * seq.fps).astype(int)
         d = np.linalg.norm(T_est[i_est, :2, 3] - T_ref[i_ref, :2, 3], axis=1)
         frames = frame_of_ref[i_ref]
@@ -131,7 +131,7 @@ def relocalisation_metrics(
     for f in tele:
         j = next((k for k in range(f, n) if good[k]), None)
         recover.append(None if j is None else j - f)
-    timing = read_timing_csv(run_dir / "timing.csv") or {}
+    timing = run.timing or {}
     tot = np.asarray(timing.get("total_ms", []), float)
     tot = tot[np.isfinite(tot)]
     return {
@@ -310,10 +310,11 @@ def _report(res: Paper003Result, rep: Report) -> None:
         if not drawn_truth:
             ax.plot(T_ref[:, 0, 3], T_ref[:, 1, 3], "k.", ms=2, alpha=0.5, label="kidnap run, ground truth")
             drawn_truth = True
-        traj = rec.run_dir / "trajectory.txt"
         try:
-            _, T_est = read_tum(traj)
-        except Exception:  # nothing localised
+            T_est = RunFolder.read(rec.run_dir).T_world_cam
+        except FloorbenchError:  # no run folder
+            continue
+        if not len(T_est):  # nothing localised
             continue
         ax.plot(T_est[:, 0, 3], T_est[:, 1, 3], "+", ms=6, color="C3", label=f"{rec.scene}: relocalised frames")
     ax.set_xlabel("x [mm]")

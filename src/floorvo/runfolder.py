@@ -1,0 +1,216 @@
+"""The run folder: one writer and one reader of ``RUN/trajectory.txt``, ``timing.csv``, ``result.json``.
+
+Every estimator run of the project (``floorvo run``, ``floorvo localize``, the bench)
+writes this layout through :meth:`RunFolder.write`, and every reader (scoring,
+calibration, the bench report) reads it through :meth:`RunFolder.read`, as evo has one
+trajectory type and one ``file_interface``. The format is the contract with other tools:
+
+``trajectory.txt``
+    TUM (``timestamp tx ty tz qx qy qz qw``, seconds and metres; readable by ``evo_ape
+    tum``) of ``T_world_cam`` of every frame the run placed, after a ``#`` header line. A
+    run that placed no frame holds the header only.
+``timing.csv``
+    One row per frame the estimator saw: ``frame`` (sequence index), ``detect_ms``,
+    ``match_ms``, ``estimate_ms``, ``total_ms`` (three decimals), ``status`` (``init``,
+    ``ok`` or ``lost``), ``n_keypoints``, ``n_matches``, ``n_inliers``; ``floorvo localize``
+    adds a text column ``reason``. Runs written by other programs may have fewer columns;
+    ``frame`` is the one every reader needs.
+``result.json``
+    The run's summary (estimator, frame counts, lost frames with reasons, config, ...); see
+    :meth:`floorvo.runner.RunResult.summary`. Optional for a run written by another program.
+``matches/NNNNNN.npz``
+    Optional samples of matched keypoints for the report (:func:`write_match_sample`).
+
+Every file is written atomically (:mod:`floorvo.io`); ``result.json`` last, so its
+presence marks a finished run. A missing, malformed or inconsistent file is refused with a
+one-line :class:`~floorvo.errors.SequenceError` naming the file and the rule.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from floorvo.errors import SequenceError
+from floorvo.io import atomic_write_bytes, atomic_write_json, atomic_write_text, ensure_writable_dir, read_json
+from floorvo.tum import format_tum, read_tum
+
+__all__ = [
+    "STATUSES",
+    "TIMING_MS_COLUMNS",
+    "COUNT_COLUMNS",
+    "TIMING_COLUMNS",
+    "RunFolder",
+    "format_timing_csv",
+    "read_timing_csv",
+    "write_match_sample",
+    "read_match_samples",
+]
+
+#: What an estimator says of a frame (:class:`floorvo.estimators.base.StepResult`).
+STATUSES = ("init", "ok", "lost")
+#: Per-stage milliseconds, in the order of ``timing.csv``.
+TIMING_MS_COLUMNS = ("detect_ms", "match_ms", "estimate_ms", "total_ms")
+#: Per-frame counts, in the order of ``timing.csv``.
+COUNT_COLUMNS = ("n_keypoints", "n_matches", "n_inliers")
+#: The columns ``timing.csv`` starts with; any others (``reason``) follow.
+TIMING_COLUMNS = ("frame", *TIMING_MS_COLUMNS, "status", *COUNT_COLUMNS)
+
+TRAJECTORY = "trajectory.txt"
+TIMING = "timing.csv"
+RESULT = "result.json"
+MATCHES = "matches"
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    """The contents of a run folder in memory.
+
+    ``timestamps_s`` (N,) and ``T_world_cam`` (N, 4, 4), mm: the frames the run placed.
+    ``timing``: the columns of ``timing.csv``, each an (F,) array over the frames the
+    estimator saw (numbers as float or int arrays, ``status`` and other text as object
+    arrays), or None when the run has no ``timing.csv``. ``result``: ``result.json``
+    (``{}`` when absent). ``header``: the comment line of ``trajectory.txt`` (written, not
+    read back).
+    """
+
+    timestamps_s: np.ndarray
+    T_world_cam: np.ndarray
+    timing: Mapping[str, np.ndarray] | None = None
+    result: Mapping[str, Any] = field(default_factory=dict)
+    header: str = ""
+
+    @property
+    def statuses(self) -> list[str] | None:
+        """``timing.csv``'s status per frame, or None when it has none."""
+        if not self.timing or "status" not in self.timing:
+            return None
+        return [str(s) for s in self.timing["status"]]
+
+    def write(self, run_dir: str | os.PathLike) -> Path:
+        """Write the files into ``run_dir`` (created), each atomically; returns the folder."""
+        out = ensure_writable_dir(run_dir)
+        ts = np.asarray(self.timestamps_s, dtype=float).reshape(-1)
+        T = np.asarray(self.T_world_cam, dtype=float).reshape(-1, 4, 4)
+        atomic_write_text(out / TRAJECTORY, format_tum(ts, T, self.header or None))
+        if self.timing is not None:
+            atomic_write_text(out / TIMING, format_timing_csv(self.timing))
+        atomic_write_json(out / RESULT, dict(self.result))
+        return out
+
+    @classmethod
+    def read(cls, run_dir: str | os.PathLike) -> RunFolder:
+        """Read a run folder; ``trajectory.txt`` is required, ``timing.csv`` and ``result.json`` optional.
+
+        A malformed file is a one-line :class:`SequenceError` naming it and the rule.
+        """
+        run_dir = Path(run_dir)
+        if not run_dir.is_dir():
+            raise SequenceError(f"{run_dir}: run folder is missing")
+        ts, T = read_tum(run_dir / TRAJECTORY, allow_empty=True)
+        timing = read_timing_csv(run_dir / TIMING)
+        rp = run_dir / RESULT
+        result = read_json(rp, SequenceError) if rp.is_file() else {}
+        if not isinstance(result, dict):
+            raise SequenceError(f"{rp}: must hold a JSON object (the run's summary), got {type(result).__name__}")
+        return cls(ts, T, timing, result)
+
+
+def _cell(column: str, value: Any) -> str:
+    if column.endswith("_ms"):
+        return f"{float(value):.3f}"
+    if column == "frame" or column in COUNT_COLUMNS:
+        return str(int(value))
+    return str(value)
+
+
+def format_timing_csv(columns: Mapping[str, np.ndarray]) -> str:
+    """CSV text of ``timing.csv`` from its columns (each (F,)): :data:`TIMING_COLUMNS` first, in order,
+    then the others; milliseconds with three decimals."""
+    names = [c for c in TIMING_COLUMNS if c in columns] + [c for c in columns if c not in TIMING_COLUMNS]
+    lengths = {len(columns[c]) for c in names}
+    if len(lengths) > 1:
+        raise ValueError(f"timing.csv: columns of different lengths {sorted(lengths)}")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(names)
+    cells = [[_cell(c, v) for v in columns[c]] for c in names]
+    w.writerows(zip(*cells))
+    return buf.getvalue()
+
+
+def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
+    """Columns of ``timing.csv``, or None if the file is missing; ``{}`` when it has no rows.
+
+    ``frame``, the ``*_ms`` and the ``n_*`` columns must be numbers (empty cells read as
+    NaN; ``frame`` must be a whole number); ``status`` must be one of :data:`STATUSES`;
+    any other column that is not all numbers (such as ``reason``) stays text.
+    """
+    path = Path(path)
+    if not path.is_file():
+        return None
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        return {}
+    if any(None in r or None in r.values() for r in rows):
+        raise SequenceError(f"{path}: a row has another number of cells than the header")
+    cols: dict[str, np.ndarray] = {}
+    for key in rows[0]:
+        vals = [r[key] for r in rows]
+        if key == "status":
+            bad = next((v for v in vals if v not in STATUSES), None)
+            if bad is not None:
+                raise SequenceError(f"{path}: status {bad!r} is not one of {', '.join(STATUSES)}")
+            cols[key] = np.array(vals, dtype=object)
+            continue
+        try:
+            cols[key] = np.array([float(v) if v not in ("", None) else np.nan for v in vals])
+        except ValueError:
+            if key == "frame" or key.endswith("_ms") or key in COUNT_COLUMNS:
+                raise SequenceError(f"{path}: column {key!r} holds a value that is not a number") from None
+            cols[key] = np.array(vals, dtype=object)
+    frame = cols.get("frame")
+    if frame is not None and not all(math.isfinite(f) and f == int(f) and f >= 0 for f in frame):
+        raise SequenceError(f"{path}: column 'frame' must hold frame indices (whole numbers >= 0)")
+    return cols
+
+
+def write_match_sample(run_dir: str | os.PathLike, frame: int, matches_px: np.ndarray) -> Path:
+    """Save one frame pair's matched keypoints as ``RUN/matches/NNNNNN.npz`` (``frame``: the later frame).
+
+    ``matches_px``: (N, 4) ``u_prev, v_prev, u_cur, v_cur`` (as in ``StepResult.matches_px``),
+    stored as ``xy_prev_px`` and ``xy_cur_px`` (N, 2).
+    """
+    m = np.asarray(matches_px, dtype=float).reshape(-1, 4)
+    buf = io.BytesIO()
+    np.savez(buf, xy_prev_px=m[:, :2], xy_cur_px=m[:, 2:])
+    path = Path(run_dir) / MATCHES / f"{int(frame):06d}.npz"
+    atomic_write_bytes(path, buf.getvalue())
+    return path
+
+
+def read_match_samples(run_dir: str | os.PathLike) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """``[(frame, xy_prev_px (N, 2), xy_cur_px (N, 2)), ...]`` of ``RUN/matches``, by frame; [] when none."""
+    mdir = Path(run_dir) / MATCHES
+    out = []
+    for f in sorted(mdir.glob("*.npz")) if mdir.is_dir() else []:
+        try:
+            with np.load(f) as data:
+                a, b = np.asarray(data["xy_prev_px"], float), np.asarray(data["xy_cur_px"], float)
+            frame = int(f.stem)
+        except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile):
+            raise SequenceError(f"{f}: not a match sample (an .npz with xy_prev_px and xy_cur_px)") from None
+        if a.shape != b.shape or a.ndim != 2 or a.shape[1] != 2:
+            raise SequenceError(f"{f}: xy_prev_px and xy_cur_px must both be (N, 2), got {a.shape} and {b.shape}")
+        out.append((frame, a, b))
+    return out

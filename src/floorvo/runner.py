@@ -1,0 +1,297 @@
+"""The frame loop: run an estimator over frames and chain its steps into poses.
+
+Every caller that runs an estimator over frames (``floorvo run``, ``floorvo localize``,
+the paper-000 strip runs, the bench's match samples) goes through :func:`run_frames`, or
+:func:`run_sequence` on top of it, and writes what it got with
+:class:`floorvo.runfolder.RunFolder` (:meth:`RunResult.run_folder`)::
+
+    est, cfg = floorvo.run.build_estimator(seq, "phase-corr")
+    res = run_sequence(seq, est)               # RunResult: a pose and a status per frame
+    ts, T_world_cam = res.trajectory()         # the frames it placed
+
+Chaining (the motion convention of :mod:`floorvo.estimators.base`): the pose starts at
+``T_world_start``; a step that reports an absolute pose (``StepResult.T_world_cam``, a map
+fix) sets it, and counts as a fix; otherwise an ``ok`` step composes it with its motion,
+``T_world_cur = T_world_prev @ T_prev_cur``, after dividing out the rig's scale
+calibration when one is given (:func:`floorvo.calibration.apply_scale`). ``init`` places
+the frame at the current pose; ``lost`` places nothing and keeps the pose, so the next
+frame continues from the last good one.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from floorvo.calibration import ScaleCalibration, apply_scale
+from floorvo.errors import FloorbenchError, SequenceError
+from floorvo.estimators.base import Frame
+from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
+from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
+
+if TYPE_CHECKING:
+    from floorvo.estimators.base import StepResult
+
+__all__ = ["RunResult", "OnStep", "run_frames", "run_sequence", "sequence_frames", "camera_height_mm"]
+
+log = logging.getLogger(__name__)
+
+#: Called after every step with ``(k, frame, step_result)``; ``k`` counts from 0.
+OnStep = Callable[[int, Frame, "StepResult"], None]
+
+_STAGES = tuple(c[: -len("_ms")] for c in TIMING_MS_COLUMNS)  # detect, match, estimate, total
+_PLACED = ("init", "ok")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a run gave, per frame the estimator saw (F frames).
+
+    ``frame_index`` (F,) int: ``Frame.index``; ``timestamp_s`` (F,); ``status`` (F,)
+    object array of ``init``/``ok``/``lost``; ``reason`` (F,) object array; ``timing_ms``
+    (F, 4): detect, match, estimate, total (NaN where the estimator did not time a stage);
+    ``counts`` (F, 3) int: keypoints, matches, inliers; ``T_world_cam`` (F, 4, 4) mm: the
+    pose after each frame (a frame not placed holds the pose before it); ``fixed`` (F,)
+    bool: the step reported an absolute pose (a map fix); ``wall_s``: wall-clock seconds
+    of the loop, frame reading included. ``run_dir``: where it was written, "" if not.
+    """
+
+    estimator: str
+    frame_index: np.ndarray
+    timestamp_s: np.ndarray
+    status: np.ndarray
+    reason: np.ndarray
+    timing_ms: np.ndarray
+    counts: np.ndarray
+    T_world_cam: np.ndarray
+    fixed: np.ndarray
+    wall_s: float
+    run_dir: str = ""
+
+    @property
+    def frames(self) -> int:
+        """How many frames the estimator saw."""
+        return len(self.frame_index)
+
+    @property
+    def placed(self) -> np.ndarray:
+        """(F,) bool: frames with a pose (status ``init`` or ``ok``)."""
+        return (self.status == "init") | (self.status == "ok")
+
+    @property
+    def status_counts(self) -> dict[str, int]:
+        return {s: int(np.count_nonzero(self.status == s)) for s in STATUSES}
+
+    @property
+    def ok(self) -> int:
+        return self.status_counts["ok"]
+
+    @property
+    def lost(self) -> int:
+        return self.status_counts["lost"]
+
+    @property
+    def fixes(self) -> int:
+        """Frames placed by an absolute pose the estimator reported (map fixes)."""
+        return int(np.count_nonzero(self.fixed))
+
+    @property
+    def lost_frames(self) -> list[dict[str, Any]]:
+        """``[{"frame": index, "reason": why}, ...]`` of the frames not placed."""
+        return [
+            {"frame": int(i), "reason": str(r)}
+            for i, r in zip(self.frame_index[~self.placed], self.reason[~self.placed])
+        ]
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of the whole loop (wall clock)."""
+        return self.frames / self.wall_s if self.wall_s > 0 else 0.0
+
+    @property
+    def median_total_ms(self) -> float:
+        """Median of the estimator's ``total`` time per frame, ms (a frame it did not time counts 0)."""
+        total = np.nan_to_num(self.timing_ms[:, 3], nan=0.0)
+        return float(np.median(total)) if total.size else 0.0
+
+    def trajectory(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(timestamps_s (N,), T_world_cam (N, 4, 4) mm)`` of the placed frames."""
+        keep = self.placed
+        return self.timestamp_s[keep], self.T_world_cam[keep]
+
+    def timing_columns(self, *, reasons: bool = False) -> dict[str, np.ndarray]:
+        """The columns of ``timing.csv``; ``reasons`` adds the ``reason`` column.
+
+        A stage the estimator did not time is written as 0, as ``timing.csv`` always had it.
+        """
+        cols: dict[str, np.ndarray] = {"frame": self.frame_index}
+        ms = np.nan_to_num(self.timing_ms, nan=0.0)
+        cols.update({c: ms[:, j] for j, c in enumerate(TIMING_MS_COLUMNS)})
+        cols["status"] = self.status
+        cols.update({c: self.counts[:, j] for j, c in enumerate(COUNT_COLUMNS)})
+        if reasons:
+            cols["reason"] = self.reason
+        return cols
+
+    def summary(self) -> dict[str, Any]:
+        """``result.json``'s part every run has (callers add config, sequence, ...)."""
+        return {
+            "estimator": self.estimator,
+            "run_dir": self.run_dir,
+            "frames": self.frames,
+            "ok": self.ok,
+            "lost": self.lost,
+            "lost_frames": self.lost_frames,
+            "fps": self.fps,
+            "median_total_ms": self.median_total_ms,
+            "status_counts": self.status_counts,
+            "map_fixes": self.fixes,
+            "first_frame": int(self.frame_index[0]) if self.frames else None,
+            "last_frame": int(self.frame_index[-1]) if self.frames else None,
+        }
+
+    def run_folder(self, *, header: str, result: Mapping[str, Any], reasons: bool = False) -> RunFolder:
+        """The run folder of this run: its trajectory, ``timing.csv`` and ``result`` as ``result.json``."""
+        ts, T = self.trajectory()
+        return RunFolder(ts, T, self.timing_columns(reasons=reasons), dict(result), header)
+
+
+def run_frames(
+    estimator: Any,
+    frames: Iterable[Frame],
+    *,
+    T_world_start: np.ndarray,
+    scale_calibration: ScaleCalibration | None = None,
+    on_step: OnStep | None = None,
+    name: str | None = None,
+) -> RunResult:
+    """Run ``estimator`` (an :class:`~floorvo.estimators.base.Estimator`) over ``frames`` from a fresh state.
+
+    ``T_world_start`` (4, 4) mm: the pose the run starts at (see the module doc for the
+    chaining). ``scale_calibration`` is divided out of every motion step, never out of an
+    absolute pose. ``on_step(k, frame, step_result)`` is called after each step (progress,
+    match samples). ``name``: the run's estimator name (default ``estimator.name``).
+    An estimator that breaks the protocol (an unknown status, ``ok`` without motion) is a
+    bug: ``ValueError``.
+    """
+    name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
+    T_world = np.array(T_world_start, dtype=float)
+    if T_world.shape != (4, 4):
+        raise ValueError(f"run_frames: T_world_start must be (4, 4), got {T_world.shape}")
+    state = estimator.start()
+    index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
+    nan = float("nan")
+    t0 = time.perf_counter()
+    for k, frame in enumerate(frames):
+        res = estimator.step(state, frame)
+        st = res.status
+        fix = False
+        if st not in _PLACED:
+            if st != "lost":
+                raise ValueError(f"{name}: frame {frame.index}: status {st!r} (an estimator returns init, ok or lost)")
+        elif res.T_world_cam is not None:
+            T_world = np.array(res.T_world_cam, dtype=float)
+            fix = True
+        elif st == "ok":
+            if res.T_prev_cur is None:
+                raise ValueError(f"{name}: frame {frame.index}: status 'ok' without T_prev_cur")
+            step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
+            T_world = T_world @ step
+        index.append(frame.index)
+        stamp.append(frame.timestamp_s)
+        status.append(st)
+        reason.append(res.reason)
+        tm = res.timing_ms
+        timing.append([tm.get(s, nan) for s in _STAGES])
+        counts.append((res.n_keypoints, res.n_matches, res.n_inliers))
+        poses.append(T_world)
+        fixed.append(fix)
+        if on_step is not None:
+            on_step(k, frame, res)
+    wall = time.perf_counter() - t0
+    n = len(index)
+    return RunResult(
+        estimator=name,
+        frame_index=np.array(index, dtype=int),
+        timestamp_s=np.array(stamp, dtype=float),
+        status=np.array(status, dtype=object),
+        reason=np.array(reason, dtype=object),
+        timing_ms=np.array(timing, dtype=float).reshape(n, len(_STAGES)),
+        counts=np.array(counts, dtype=int).reshape(n, len(COUNT_COLUMNS)),
+        T_world_cam=np.array(poses, dtype=float).reshape(n, 4, 4),
+        fixed=np.array(fixed, dtype=bool),
+        wall_s=wall,
+    )
+
+
+def camera_height_mm(seq: Sequence) -> float:
+    """The sequence's camera height above the floor (mm); refused when ``sequence.json`` does not state it."""
+    height = seq.height_mm
+    if height is None:
+        raise SequenceError(
+            f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
+        )
+    return height
+
+
+def sequence_frames(seq: Sequence, indices: Iterable[int], requires: Iterable[str] = ()) -> Iterator[Frame]:
+    """Frames ``indices`` of ``seq`` at the sequence's frame times, read one at a time, with the
+    right camera and depth when ``requires`` says."""
+    req = set(requires)
+    ts_all = seq.timestamps_s
+    for i in indices:
+        yield Frame(
+            index=i,
+            timestamp_s=float(ts_all[i]),
+            image=seq.image(i),
+            image_right=seq.image(i, "cam1") if "stereo" in req else None,
+            depth_mm=seq.depth_mm(i) if "depth" in req else None,
+        )
+
+
+def run_sequence(
+    seq: Sequence,
+    estimator: Any,
+    *,
+    frames: Iterable[int] | None = None,
+    T_world_start: np.ndarray | None = None,
+    scale_calibration: ScaleCalibration | None = None,
+    on_step: OnStep | None = None,
+    name: str | None = None,
+) -> RunResult:
+    """:func:`run_frames` over the frames ``frames`` (default: all) of ``seq``.
+
+    ``T_world_start`` defaults to the ground-truth pose of the first frame run (the nearest
+    in time, within :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`: :meth:`Sequence.groundtruth_at`)
+    when there is one, the identity otherwise (so a trajectory is in the ground truth's world
+    frame). An empty frame list is refused.
+    """
+    indices = [int(i) for i in (range(seq.frame_count) if frames is None else frames)]
+    name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
+    if not indices:
+        raise FloorbenchError(f"{name}: no frames to run on")
+    if T_world_start is None:
+        t0 = seq.timestamps_s[indices[0]]
+        T_start, found = seq.groundtruth_at(np.array([t0]))
+        T_world_start = T_start[0]
+        if not found[0] and seq.groundtruth() is not None:
+            log.warning(
+                "%s: no ground-truth pose within %.3f s of frame %d (t = %.6f s); the trajectory starts at the identity",
+                seq.root,
+                GROUNDTRUTH_MAX_DIFF_S,
+                indices[0],
+                t0,
+            )
+    return run_frames(
+        estimator,
+        sequence_frames(seq, indices, getattr(estimator, "requires", ())),
+        T_world_start=T_world_start,
+        scale_calibration=scale_calibration,
+        on_step=on_step,
+        name=name,
+    )
