@@ -125,12 +125,13 @@ class RunFolder:
         return cls(ts, T, timing, result)
 
 
-def _cell(column: str, value: Any) -> str:
+def _column_cells(column: str, values: Any) -> list[str]:
+    values = np.asarray(values).tolist()
     if column.endswith("_ms"):
-        return f"{float(value):.3f}"
+        return [f"{float(v):.3f}" for v in values]
     if column == "frame" or column in COUNT_COLUMNS:
-        return str(int(value))
-    return str(value)
+        return [str(int(v)) for v in values]
+    return [str(v) for v in values]
 
 
 def format_timing_csv(columns: Mapping[str, np.ndarray]) -> str:
@@ -143,8 +144,7 @@ def format_timing_csv(columns: Mapping[str, np.ndarray]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(names)
-    cells = [[_cell(c, v) for v in columns[c]] for c in names]
-    w.writerows(zip(*cells))
+    w.writerows(zip(*[_column_cells(c, columns[c]) for c in names]))
     return buf.getvalue()
 
 
