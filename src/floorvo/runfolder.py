@@ -41,7 +41,14 @@ from typing import Any
 import numpy as np
 
 from floorvo.errors import SequenceError
-from floorvo.io import atomic_write_bytes, atomic_write_json, atomic_write_text, ensure_writable_dir, read_json
+from floorvo.io import (
+    atomic_write_bytes,
+    atomic_write_csv,
+    atomic_write_json,
+    atomic_write_text,
+    ensure_writable_dir,
+    read_json,
+)
 from floorvo.tum import format_tum, read_tum
 
 __all__ = [
@@ -50,7 +57,7 @@ __all__ = [
     "COUNT_COLUMNS",
     "TIMING_COLUMNS",
     "RunFolder",
-    "format_timing_csv",
+    "timing_table",
     "read_timing_csv",
     "write_match_sample",
     "read_match_samples",
@@ -103,7 +110,7 @@ class RunFolder:
         T = np.asarray(self.T_world_cam, dtype=float).reshape(-1, 4, 4)
         atomic_write_text(out / TRAJECTORY, format_tum(ts, T, self.header or None))
         if self.timing is not None:
-            atomic_write_text(out / TIMING, format_timing_csv(self.timing))
+            atomic_write_csv(out / TIMING, *timing_table(self.timing))
         atomic_write_json(out / RESULT, dict(self.result))
         return out
 
@@ -134,18 +141,14 @@ def _column_cells(column: str, values: Any) -> list[str]:
     return [str(v) for v in values]
 
 
-def format_timing_csv(columns: Mapping[str, np.ndarray]) -> str:
-    """CSV text of ``timing.csv`` from its columns (each (F,)): :data:`TIMING_COLUMNS` first, in order,
-    then the others; milliseconds with three decimals."""
+def timing_table(columns: Mapping[str, np.ndarray]) -> tuple[list[str], list[tuple[str, ...]]]:
+    """``(header, rows)`` of ``timing.csv`` from its columns (each (F,)): :data:`TIMING_COLUMNS`
+    first, in order, then the others; milliseconds with three decimals."""
     names = [c for c in TIMING_COLUMNS if c in columns] + [c for c in columns if c not in TIMING_COLUMNS]
     lengths = {len(columns[c]) for c in names}
     if len(lengths) > 1:
         raise ValueError(f"timing.csv: columns of different lengths {sorted(lengths)}")
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(names)
-    w.writerows(zip(*[_column_cells(c, columns[c]) for c in names]))
-    return buf.getvalue()
+    return names, list(zip(*[_column_cells(c, columns[c]) for c in names]))
 
 
 def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
