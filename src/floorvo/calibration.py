@@ -34,6 +34,7 @@ import numpy as np
 from floorvo.errors import ConfigError, SequenceError
 from floorvo.geometry import invert_T
 from floorvo.io import atomic_write_json, read_json
+from floorvo.metrics import associate, read_run_and_groundtruth
 
 __all__ = [
     "ScaleCalibration",
@@ -101,8 +102,6 @@ def calibrate_run(
     run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_diff_s: float = 0.01, min_travel_mm: float = 10.0
 ) -> ScaleCalibration:
     """Fit the scales of ``RUN/trajectory.txt`` against ``SEQ/groundtruth.txt`` (or a TUM file)."""
-    from floorvo.metrics import associate, read_run_and_groundtruth
-
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
     i_ref, i_est = associate(t_ref, run.timestamps_s, max_diff_s)

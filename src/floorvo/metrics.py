@@ -46,6 +46,7 @@ import numpy as np
 from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit_2d
 from floorvo.runfolder import RunFolder
+from floorvo.tum import read_tum
 
 __all__ = [
     "ALIGNMENTS",
@@ -557,8 +558,6 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
     ("score", "calibrate") words the error when there is no ground truth.
     """
-    from floorvo.tum import read_tum
-
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
     if not gt_path.is_file():

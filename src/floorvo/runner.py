@@ -24,25 +24,22 @@ import logging
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
-from floorvo.estimators.base import Frame
+from floorvo.estimators.base import Frame, StepResult
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
-
-if TYPE_CHECKING:
-    from floorvo.estimators.base import StepResult
 
 __all__ = ["RunResult", "OnStep", "run_frames", "run_sequence", "sequence_frames", "camera_height_mm"]
 
 log = logging.getLogger(__name__)
 
 #: Called after every step with ``(k, frame, step_result)``; ``k`` counts from 0.
-OnStep = Callable[[int, Frame, "StepResult"], None]
+OnStep = Callable[[int, Frame, StepResult], None]
 
 _STAGES = tuple(c[: -len("_ms")] for c in TIMING_MS_COLUMNS)  # detect, match, estimate, total
 _PLACED = ("init", "ok")
