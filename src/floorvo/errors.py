@@ -65,3 +65,21 @@ class ConfigFieldError(ConfigError):
 
 class SequenceError(FloorbenchError):
     """A sequence folder that is missing, corrupt or of another schema version."""
+
+
+class EstimatorLoadError(FloorbenchError):
+    """An estimator from outside the built-ins (a plugin, a ``module:Class`` reference) that
+    cannot be imported or is not an estimator; the message gives the one-line reason."""
+
+
+class ExternalEstimatorError(FloorbenchError):
+    """A run of an external estimator program that failed (crash, non-zero exit, timeout,
+    missing or malformed trajectory). ``reason``: the one-line cause; ``stderr_tail``: the
+    last lines of the program's standard error, joined on one line (may be empty)."""
+
+    def __init__(self, message: str, reason: str = "", stderr_tail: str = ""):
+        self.reason, self.stderr_tail = reason or message, stderr_tail
+        super().__init__(message)
+
+    def __reduce__(self):  # pickled across worker processes (sweeps)
+        return (ExternalEstimatorError, (str(self), self.reason, self.stderr_tail))

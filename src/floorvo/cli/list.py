@@ -1,4 +1,8 @@
-"""``floorvo list``: the registered estimators, a line each; ``--config NAME``: a config's fields."""
+"""``floorvo list``: the estimators, a line each; ``--config NAME``: a config's fields.
+
+Built-ins first by name with plugins among them (marked with their package and version);
+installed plugins that cannot be loaded follow as ``unavailable`` with their one-line reason.
+"""
 
 from __future__ import annotations
 
@@ -40,7 +44,7 @@ def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
         from floorvo.sequence_meta import SequenceMeta
 
         return SequenceMeta, COMMAND_CONFIGS[name], ()
-    if name not in list_estimators():
+    if name not in list_estimators() and ":" not in name:
         known = ", ".join([*list_estimators(), *COMMAND_CONFIGS])
         raise ConfigError(f"--config {name!r}: no such configuration (known: {known})")
     cls = get_estimator(name)
@@ -49,7 +53,7 @@ def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
 
 def run(args) -> int:
     from floorvo.config import describe_fields, format_fields
-    from floorvo.estimators import get_estimator, list_estimators
+    from floorvo.estimators import estimator_source, get_estimator, list_estimators, unavailable_estimators
 
     if args.config:
         cls, heading, exclude = _config_class(args.config)
@@ -59,5 +63,9 @@ def run(args) -> int:
     for name in list_estimators():
         cls = get_estimator(name)
         req = f" [needs {', '.join(sorted(cls.requires))}]" if cls.requires else ""
-        print(f"{name:<18} {cls.description}{req}")
+        source = estimator_source(name)
+        origin = "" if source.kind == "built-in" else f" ({source.describe()})"
+        print(f"{name:<18} {cls.description}{req}{origin}")
+    for name, reason in unavailable_estimators().items():
+        print(f"{name:<18} unavailable: {reason}")
     return 0
