@@ -109,6 +109,26 @@ class CameraModel:
             "distortion_model": "opencv (k1, k2, p1, p2, k3)",
         }
 
+    def to_opencv_yaml(self, **extra: float) -> str:
+        """The camera as OpenCV calibration YAML text (``cv::FileStorage``, ``%YAML:1.0``).
+
+        Keys: ``image_width``, ``image_height`` (px), ``camera_matrix`` (3x3 ``K``, px),
+        ``distortion_model`` (``plumb_bob``: k1, k2, p1, p2, k3), ``distortion_coefficients``
+        (1x5), then every ``extra`` number by its name (e.g. ``camera_height_mm=100.0``). It
+        is what ``cv2.FileStorage`` and the ROS/OpenCV calibration readers read.
+        """
+        import cv2  # only this method needs OpenCV's YAML writer
+
+        fs = cv2.FileStorage("camera.yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+        fs.write("image_width", int(self.width_px))
+        fs.write("image_height", int(self.height_px))
+        fs.write("camera_matrix", self.K)
+        fs.write("distortion_model", "plumb_bob")
+        fs.write("distortion_coefficients", np.array(self.distortion, dtype=float).reshape(1, -1))
+        for key, value in extra.items():
+            fs.write(key, float(value))
+        return fs.releaseAndGetString()
+
     # ------------------------------------------------------------------ properties
     @property
     def K(self) -> np.ndarray:

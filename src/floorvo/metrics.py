@@ -34,6 +34,7 @@ Conventions
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 from collections.abc import Sequence as SequenceT
@@ -46,7 +47,10 @@ import numpy as np
 from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit_2d
 from floorvo.runfolder import RunFolder
+from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "ALIGNMENTS",
@@ -73,6 +77,12 @@ __all__ = [
 
 ALIGNMENTS = ("none", "origin", "se2", "se3")
 #: Default KITTI-style segment lengths for floors (mm): 10, 25, 50, 100 and up.
+#: What a score without ground truth says in place of the metrics that need it.
+NO_GROUND_TRUTH = "no ground truth"
+#: An estimate whose first pose is farther than FAR_START_MM + FAR_START_FRACTION x path length
+#: from the ground truth at the same time is not in the ground truth's frame (a warning).
+FAR_START_MM = 10.0
+FAR_START_FRACTION = 0.05
 SEGMENT_LENGTHS_MM = (10.0, 25.0, 50.0, 100.0, 250.0, 500.0, 1000.0, 2000.0, 5000.0)
 
 
@@ -432,7 +442,14 @@ def timing_stats(timing: dict[str, np.ndarray] | None) -> dict[str, dict[str, fl
 # ----------------------------------------------------------------------------- score
 @dataclass
 class Score:
-    """Every metric of one run against its ground truth (see :meth:`to_dict`, :meth:`flat`)."""
+    """Every metric of one run against its ground truth (see :meth:`to_dict`, :meth:`flat`).
+
+    Without ground truth (or when the estimate shares fewer than two timestamps with it),
+    ``ate``, ``rpe_*``, ``drift`` and ``segments`` are empty, ``ground_truth`` says why
+    (``"no ground truth"``), and only tracking and timing are scored. ``warnings``: what a
+    reader of the figures must know (no shared timestamps; an estimate that starts far from
+    the ground truth, whose unaligned metrics are then left out).
+    """
 
     estimator: str
     run_dir: str
@@ -448,6 +465,8 @@ class Score:
     tracking: dict
     timing: dict
     extra: dict = field(default_factory=dict)
+    ground_truth: str = "ok"
+    warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """JSON-ready dict (per-pose arrays dropped)."""
@@ -469,14 +488,14 @@ class Score:
             f[f"ate_{name}_mean_mm"] = a["trans_mm"]["mean"]
             f[f"ate_{name}_max_mm"] = a["trans_mm"]["max"]
         f["ate_se3_rot_rmse_deg"] = self.ate["se3"]["rot_deg"]["rmse"] if "se3" in self.ate else float("nan")
-        f["rpe_frame_trans_rmse_mm"] = self.rpe_frame["trans_mm"]["rmse"]
-        f["rpe_frame_rot_rmse_deg"] = self.rpe_frame["rot_deg"]["rmse"]
+        if self.rpe_frame:
+            f["rpe_frame_trans_rmse_mm"] = self.rpe_frame["trans_mm"]["rmse"]
+            f["rpe_frame_rot_rmse_deg"] = self.rpe_frame["rot_deg"]["rmse"]
         for r in self.rpe_distance:
             f[f"rpe_{r['delta']:g}mm_trans_rmse_mm"] = r["trans_mm"]["rmse"]
-        f["end_drift_pct"] = self.drift["end_drift_pct"]
-        f["distance_error_pct"] = self.drift["distance_error_pct"]
-        f["path_length_mm"] = self.drift["path_length_mm"]
-        f["measured_mm"] = self.drift["measured_mm"]
+        for key in ("end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"):
+            if key in self.drift:
+                f[key] = self.drift[key]
         for s in self.segments:
             f[f"seg_{s['length_mm']:g}mm_t_err_pct"] = s["t_err_pct"]
         f["seg_mean_t_err_pct"] = (
@@ -535,6 +554,18 @@ def score_trajectories(
     A, B = T_ref[i_ref], T_est[i_est]
     ates = {m: ate(A, B, m) for m in ALIGNMENTS}
     rpe_d = [rpe(A, B, delta_mm=d) for d in rpe_deltas_mm if path_distances_mm(A)[-1] >= d]
+    drift = end_point_drift(A, B, "none")
+    warnings = []
+    start_mm = float(np.linalg.norm(A[0, :3, 3] - B[0, :3, 3]))
+    if start_mm > FAR_START_MM + FAR_START_FRACTION * path_distances_mm(A)[-1]:
+        # Not in the ground truth's frame: the unaligned figures would measure the offset, not the estimator.
+        warnings.append(
+            f"the estimate starts {start_mm:.1f} mm from the ground truth at their first shared time: it is not in "
+            "the ground truth's world frame, so the unaligned ATE and the end drift are left out (see the aligned ATE)"
+        )
+        for m in ("none", "origin"):
+            ates.pop(m, None)
+        drift = {k: v for k, v in drift.items() if k not in ("end_drift_pct", "end_error_mm")}
     return Score(
         estimator=estimator,
         run_dir="",
@@ -545,10 +576,39 @@ def score_trajectories(
         ate=ates,
         rpe_frame=rpe(A, B, delta_frames=1),
         rpe_distance=rpe_d,
-        drift=end_point_drift(A, B, "none"),
+        drift=drift,
         segments=segment_errors(A, B, segment_lengths_mm),
         tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est)),
         timing=timing_stats(timing),
+        warnings=warnings,
+    )
+
+
+def score_without_groundtruth(
+    n_frames: int,
+    t_est_s: np.ndarray,
+    *,
+    estimator: str = "",
+    statuses: SequenceT[str] | None = None,
+    timing: dict[str, np.ndarray] | None = None,
+    why: str = NO_GROUND_TRUTH,
+) -> Score:
+    """Tracking and timing of a run that has no ground truth to compare with (``why`` says so)."""
+    return Score(
+        estimator=estimator,
+        run_dir="",
+        seq_dir="",
+        n_ref=0,
+        n_est=len(t_est_s),
+        n_matched=0,
+        ate={},
+        rpe_frame={},
+        rpe_distance=[],
+        drift={},
+        segments=[],
+        tracking=tracking_stats(None if statuses is None else list(statuses), n_frames, len(t_est_s)),
+        timing=timing_stats(timing),
+        ground_truth=why,
     )
 
 
@@ -573,8 +633,18 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
+    if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
+        score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
+        log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)
+        return score
     _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
     timing, result = run.timing, run.result
+    if len(run.timestamps_s) >= 2 and len(associate(t_ref, run.timestamps_s, max_diff_s)[0]) == 0:
+        why = f"the estimate shares no timestamp with the ground truth (within {max_diff_s} s)"
+        log.warning("%s: %s; scored tracking and timing only", run_dir, why)
+        score = _score_without_groundtruth(run_dir, seq_dir, why)
+        score.warnings.append(why + ": check the frame times of the run and of groundtruth.txt")
+        return score
     if timing and "frame" in timing and len(timing["frame"]):
         # The estimator saw only these frames: cut the reference to the poses taken at their times.
         frames = timing["frame"].astype(int)
@@ -598,6 +668,25 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         score.extra["result"] = {
             k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
         }
+    for w in score.warnings:
+        log.warning("%s: %s", run_dir, w)
+    return score
+
+
+def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
+    run = RunFolder.read(run_dir)
+    n_frames = len(run.timing["frame"]) if run.timing and "frame" in run.timing else None
+    if n_frames is None:
+        n_frames = int(run.result.get("frames") or Sequence.open(seq_dir).frame_count)
+    score = score_without_groundtruth(
+        n_frames,
+        run.timestamps_s,
+        estimator=str(run.result.get("estimator", "")),
+        statuses=run.statuses,
+        timing=run.timing,
+        why=why,
+    )
+    score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
     return score
 
 

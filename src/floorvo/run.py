@@ -14,16 +14,19 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
 
 from floorvo.calibration import ScaleCalibration
-from floorvo.errors import FloorbenchError
-from floorvo.estimators import get_estimator, make_config
+from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.estimators import estimator_source, get_estimator, make_config
+from floorvo.geometry import T_from_se2, T_from_xyz_quat
 from floorvo.io import ensure_writable_dir
 from floorvo.runner import RunResult, camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
-__all__ = ["run_estimator", "RunResult", "build_estimator"]
+__all__ = ["run_estimator", "RunResult", "build_estimator", "InitialPose"]
 
 log = logging.getLogger(__name__)
 
@@ -57,11 +60,14 @@ def run_estimator(
     frames: range | list[int] | None = None,
     on_frame: Callable[[int, int], None] | None = None,
     scale_calibration: ScaleCalibration | None = None,
+    T_world_start: np.ndarray | None = None,
 ) -> RunResult:
     """Run estimator ``name`` over ``seq`` (or the listed ``frames`` of it) into ``out_dir``.
 
     ``scale_calibration`` (:mod:`floorvo.calibration`): divide each step's camera-frame
-    x, y translation by the rig's calibrated scales before chaining it.
+    x, y translation by the rig's calibrated scales before chaining it. ``T_world_start``
+    (4, 4) mm: where the run starts (default: the first frame's ground-truth pose, else the
+    identity; ``--initial-pose``, :class:`InitialPose`).
     """
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)
@@ -74,6 +80,7 @@ def run_estimator(
         est,
         frames=indices,
         scale_calibration=scale_calibration,
+        T_world_start=T_world_start,
         on_step=None if on_frame is None else (lambda k, frame, res: on_frame(k + 1, n)),
         name=name,
     )
@@ -84,8 +91,49 @@ def run_estimator(
         "config": asdict(cfg),
         "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
         "sequence": str(seq.root),
+        "source": estimator_source(name).to_dict(),
     }
     run.run_folder(header=header, result=result).write(out)
     counts = run.status_counts
     log.info("%s on %s: %d ok, %d lost, %.1f frames/s", name, seq.root, counts["ok"], counts["lost"], run.fps)
     return run
+
+
+@dataclass(frozen=True)
+class InitialPose:
+    """Where a run on a sequence without ground truth starts (``--initial-pose``).
+
+    Either a floor pose ``x_mm, y_mm, yaw_rad`` of the downward camera (placed at the
+    sequence's camera height, :func:`floorvo.geometry.T_from_se2`), or a full pose read from
+    a TUM line (``[timestamp] tx ty tz qx qy qz qw``, metres; the timestamp is ignored).
+    """
+
+    se2: tuple[float, float, float] | None = None
+    T_full: np.ndarray | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> InitialPose:
+        """``"x_mm,y_mm,yaw_rad"`` or a TUM line (7 or 8 numbers separated by spaces)."""
+        parts = text.replace(",", " ").split()
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            values = []
+        if len(values) in (7, 8) and all(np.isfinite(values)):
+            xyz_m, quat = np.array(values[-7:-4]), np.array(values[-4:])
+            if np.linalg.norm(quat) > 0:
+                return cls(T_full=T_from_xyz_quat(xyz_m * 1000.0, quat / np.linalg.norm(quat)))
+        if len(values) == 3 and "," in text and all(np.isfinite(values)):
+            return cls(se2=(values[0], values[1], values[2]))
+        raise ConfigError(
+            f"--initial-pose {text!r}: expected x_mm,y_mm,yaw_rad (e.g. 0,0,0) or a TUM line "
+            "'[t] tx ty tz qx qy qz qw' (metres, a non-zero quaternion)"
+        )
+
+    def T_world_cam(self, height_mm: float | None) -> np.ndarray:
+        """The pose (4, 4) mm; a floor pose is placed ``height_mm`` above the floor (0 when unknown)."""
+        if self.T_full is not None:
+            return np.array(self.T_full, dtype=float)
+        assert self.se2 is not None
+        x, y, yaw = self.se2
+        return T_from_se2(x, y, yaw, 0.0 if height_mm is None else float(height_mm))

@@ -44,7 +44,7 @@ def test_help_of_every_command_is_clean_and_names_output_the_same_way(prog):
     assert (
         with_output
         == {
-            "floorvo": {"run", "score", "calibrate", "map", "localize", "import"},
+            "floorvo": {"run", "score", "plot", "calibrate", "map", "localize", "import"},
             "floorsim": {"render", "bench", "sweep", "export", "gallery"},
         }[prog]
     )
@@ -57,6 +57,7 @@ def test_out_is_an_alias_of_output_in_every_command_that_writes(prog):
         "run": ["SEQ", "-e", "phase-corr"],
         "score": ["RUN", "--gt", "SEQ"],
         "calibrate": ["RUN", "--gt", "SEQ"],
+        "plot": ["RUN", "--gt", "SEQ"],
     }
     positional |= {"map": ["SEQ"], "localize": ["SEQ", "--map", "MAP"], "render": ["demo"], "bench": ["s.toml"]}
     positional |= {"sweep": ["w.toml"], "export": ["SEQ", "--format", "euroc"], "gallery": [], "import": ["SRC"]}

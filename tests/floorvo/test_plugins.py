@@ -4,6 +4,7 @@ package, built and installed by pip into a temporary folder), a broken plugin, a
 
 from __future__ import annotations
 
+import shlex
 import shutil
 import subprocess
 import sys
@@ -24,6 +25,7 @@ from floorvo.estimators import (
     unavailable_estimators,
 )
 from floorvo.estimators.registry import refresh_plugins
+from floorvo.external import command_hash
 from floorvo.metrics import score_run
 from floorvo.synthetic import line_poses, write_synthetic_sequence
 from floorvo.tum import read_tum
@@ -177,3 +179,66 @@ def test_module_class_reference_runs_without_installing(line_sequence, tmp_path,
     assert floorvo_main(["run", str(line_sequence), "-e", "my_vo_for_tests:Nope", "-o", str(run)]) == 1
     err = capsys.readouterr().err
     assert "cannot be imported: AttributeError" in err and len(err.strip().splitlines()) == 1
+
+
+EXTERNAL = Path(__file__).resolve().parents[2] / "examples" / "external-estimator"
+
+
+def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
+    installed_plugin, line_sequence, tmp_path
+):
+    """One bench over two sequence folders (one without ground truth): the plugin, the shipped
+    external program, a built-in, and an external program that crashes; then the gate."""
+    from floorsim.bench import run_bench
+    from floorsim.bench.gates import compare, load_baseline
+    from floorsim.bench.results import read_results_csv
+    from floorvo.external import load_estimator_file, parse_external
+    from floorvo.run import InitialPose
+
+    no_gt = shutil.copytree(line_sequence, tmp_path / "recording")
+    (no_gt / "groundtruth.txt").unlink()
+    crash = parse_external(f"crashes={shlex.quote(sys.executable)} -c 'import sys; sys.exit(\"no features\")'")
+    externals = [load_estimator_file(EXTERNAL / "fft-vo.toml"), crash]
+    out = tmp_path / "bench"
+    res = run_bench(
+        [line_sequence, no_gt],
+        [PLUGIN, "phase-corr"],
+        out,
+        externals=externals,
+        initial_pose=InitialPose.parse("5,0,0"),
+        save_baseline_to=tmp_path / "baseline.json",
+    )
+    rows = {(r["scene"], r["estimator"]): r for r in read_results_csv(out / "results.csv")}
+    names = {PLUGIN, "phase-corr", "fft-vo", "crashes"}
+    assert set(rows) == {(s, n) for s in ("line", "recording") for n in names}
+    for scene in ("line", "recording"):
+        got = {n: (rows[scene, n]["source"], rows[scene, n]["source_detail"]) for n in names}
+        assert got[PLUGIN] == ("plugin", "floorbench-example-plugin 0.1.0")
+        assert got["phase-corr"][0] == "built-in" and got["phase-corr"][1].startswith("floorbench ")
+        assert got["fft-vo"] == ("external", "sha256:" + command_hash(externals[0].command)[:12])
+        # the crash is a failed row with its reason and stderr; the others complete
+        bad = rows[scene, "crashes"]
+        assert bad["status"] == "failed: exit code 1" and bad["stderr_tail"] == "no features"
+        for n in names - {"crashes"}:
+            r = rows[scene, n]
+            assert r["status"] == "ok", r["status"]
+            assert r["wall_ms_per_frame"] > 0 and r["peak_rss_mb"] > 10
+            assert r["tracked_fraction"] == 1.0
+    for n in names - {"crashes"}:
+        # with ground truth: accurate to a fraction of a millimetre over the 19.5 mm line
+        assert rows["line", n]["ground_truth"] == "ok" and rows["line", n]["ate_se2_rmse_mm"] < 0.2
+        # without: tracking and timing only, and the run starts at --initial-pose
+        assert rows["recording", n]["ground_truth"] == "no ground truth"
+        assert rows["recording", n].get("ate_se2_rmse_mm") is None
+        _, T = read_tum(Path(rows["recording", n]["run_dir"]) / "trajectory.txt")
+        assert T[0, 0, 3] == pytest.approx(5.0) and T[0, 2, 3] == pytest.approx(100.0)
+    page = res.report_html.read_text()
+    assert "Estimators compared" in page and "no ground truth" in page and "Failed runs" in page
+    assert "accuracy (ATE after SE(2) alignment) against wall time per frame" in page
+    # the gate works on all three sources: the same rows pass, a tighter baseline fails each
+    baseline = load_baseline(tmp_path / "baseline.json")
+    assert compare(res.rows, baseline).ok
+    for key in [f"line/{n}" for n in names - {"crashes"}]:
+        baseline["entries"][key]["ate_se2_rmse_mm"] = -1.0  # allowed: -1 + max(abs, rel * 1) < 0
+    worse = {r.key for r in compare(res.rows, baseline).regressions}
+    assert worse == {f"line/{n}" for n in names - {"crashes"}}

@@ -1,14 +1,23 @@
 """The bench: render scenes (cached), run estimators, score them, run paper protocols, report, gate.
 
-:func:`run_bench` is the library function behind ``floorsim bench``. For each scene file:
+:func:`run_bench` is the library function behind ``floorsim bench``. It takes scene files and
+sequence folders (anything with a ``sequence.json``: a recording made with ``floorvo import``,
+a sequence rendered before); a sequence folder is used as it is (no render, no protocols, one
+repetition) and gets the same runs, scores, report and gates. For each scene file:
 
 1. load it (``floorsim.scene.load_scene`` with the ``--set`` overrides) and render it
    through :func:`render_cached`, which keys the sequence folder by a hash of the
    resolved scene, the seed and the render settings, so a sequence already rendered with
    the same inputs is reused (also across benches sharing a ``cache_dir``);
 2. run every requested estimator (default: every registered estimator whose
-   ``requires`` the sequence meets: mono estimators on mono sequences) through
-   ``floorvo.run.run_estimator`` into ``DIR/runs/SCENE/ESTIMATOR/repK``;
+   ``requires`` the sequence meets: mono estimators on mono sequences; built-ins, installed
+   plugins, and every external program given) through the runner
+   (:class:`floorsim.bench.estimators.EstimatorRunner`) into ``DIR/runs/SCENE/ESTIMATOR/repK``;
+   each row records where the estimator came from (``source``, ``source_detail``: built-in,
+   plugin with its version, external with the hash of its command line), its wall time per
+   frame and peak memory; a run that fails (an external program that crashed, timed out or
+   wrote no trajectory) is a ``failed`` row with the reason (and ``stderr_tail``), and the
+   bench goes on;
 3. score each run (:func:`floorvo.metrics.score_run`, written to ``RUN/score.json``) and
    append one row to ``DIR/results.csv`` (:mod:`floorsim.bench.results`, atomically
    rewritten after every row).
@@ -60,9 +69,11 @@ from floorsim.bench.results import write_results_csv
 from floorsim.scene import load_scene as load_scene_file
 from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
-from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
+from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json
 from floorvo.metrics import score_run
+from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.sequence import Sequence
@@ -71,11 +82,13 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "BenchResult",
+    "is_sequence_folder",
     "render_cached",
     "run_bench",
     "run_one",
     "scene_cache_key",
     "scene_seed",
+    "source_columns",
     "supported_estimators",
     "write_match_samples",
 ]
@@ -153,12 +166,20 @@ def render_cached(
     return out
 
 
+def is_sequence_folder(path: str | os.PathLike) -> bool:
+    """True for a folder holding ``sequence.json`` (benched as it is, not rendered)."""
+    return Path(path).is_dir() and (Path(path) / "sequence.json").is_file()
+
+
 # ----------------------------------------------------------------------------- estimators
 def supported_estimators(
     seq_dir: str | os.PathLike, names: SequenceT[str] | None = None, runner: EstimatorRunner | None = None
 ) -> tuple[list[str], dict[str, str]]:
     """Split estimator ``names`` (default: all registered) into those the sequence supports
-    and ``{name: reason}`` for the others (e.g. ``needs depth``)."""
+    and ``{name: reason}`` for the others (e.g. ``needs depth``, or a plugin that is unavailable).
+
+    A named estimator is kept unless the sequence lacks what it needs, so that one that cannot
+    run fails visibly in its row."""
     runner = runner or DEFAULT_RUNNER
     seq = Sequence.open(seq_dir)
     have = set()
@@ -168,7 +189,13 @@ def supported_estimators(
         have.add("stereo")
     ok, skipped = [], {}
     for n in names if names is not None else runner.names():
-        missing = runner.requires(n) - have
+        try:
+            missing = runner.requires(n) - have
+        except FloorbenchError as exc:
+            if names is None:
+                skipped[n] = str(exc)
+                continue
+            missing = set()
         if missing:
             skipped[n] = "needs " + " and ".join(sorted(missing))
             continue
@@ -176,7 +203,7 @@ def supported_estimators(
             # Default selection: leave out estimators that cannot run with their default
             # configuration (e.g. one that needs a prebuilt map); named ones fail visibly.
             try:
-                runner.build(seq, n)
+                runner.check(seq, n)
             except FloorbenchError as exc:
                 skipped[n] = f"not runnable with its default configuration: {exc}"
                 continue
@@ -201,6 +228,15 @@ class BenchResult:
     notes: list[str] = field(default_factory=list)
 
 
+def source_columns(runner: EstimatorRunner, name: str) -> dict[str, str]:
+    """``source`` and ``source_detail`` of estimator ``name`` for its row (none for a plugin that
+    cannot be loaded: its run fails and says why)."""
+    try:
+        return runner.source(name).row()
+    except FloorbenchError:
+        return {}
+
+
 def run_one(
     seq_dir: Path,
     estimator: str,
@@ -208,16 +244,23 @@ def run_one(
     overrides: Mapping[str, str] | None = None,
     scale_calibration: ScaleCalibration | None = None,
     runner: EstimatorRunner | None = None,
+    T_world_start: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Run one estimator on one sequence and score it; returns the metric part of a row.
+    """Run one estimator on one sequence and score it; returns the metric part of a row: the
+    runner's figures (wall ms per frame, peak memory) and the score's metrics.
 
     ``scale_calibration``: a :class:`floorvo.calibration.ScaleCalibration` divided out of
-    every step (``floorvo run --scale-calibration``), or None.
+    every step (``floorvo run --scale-calibration``), or None. ``T_world_start`` (4, 4) mm:
+    where a run on a sequence without ground truth starts (``--initial-pose``).
     """
-    (runner or DEFAULT_RUNNER).run(seq_dir, estimator, run_dir, overrides, scale_calibration)
+    kwargs = {} if T_world_start is None else {"T_world_start": T_world_start}
+    figures = (runner or DEFAULT_RUNNER).run(seq_dir, estimator, run_dir, overrides, scale_calibration, **kwargs)
     score = score_run(run_dir, seq_dir)
     atomic_write_json(run_dir / "score.json", score.to_dict())
-    return score.flat()
+    row: dict[str, Any] = {**dict(figures or {}), **score.flat(), "ground_truth": score.ground_truth}
+    if score.warnings:
+        row["score_warnings"] = "; ".join(score.warnings)
+    return row
 
 
 def write_match_samples(
@@ -307,40 +350,52 @@ def run_bench(
     paper000_runs: int | None = None,
     on_frame: Callable[[str, int, int], None] | None = None,
     scale_calibrations: Mapping[str, str | os.PathLike] | None = None,
+    externals: SequenceT[ExternalEstimator] = (),
+    initial_pose: InitialPose | None = None,
     render: RenderFn | None = None,
     load_scene: SceneLoader = load_scene_file,
     runner: EstimatorRunner | None = None,
 ) -> BenchResult:
     """Render, run, score, run the scenes' protocols, report and gate (see the module doc).
 
-    ``estimators``: names, or None for every registered estimator each sequence supports.
+    ``scene_paths``: scene files and sequence folders (:func:`is_sequence_folder`).
+    ``estimators``: names (built-ins, plugins, ``module:Class`` references), or None for
+    every registered estimator each sequence supports; the ``externals`` (programs,
+    :class:`floorvo.external.ExternalEstimator`) run on every sequence in either case.
     ``allow_new``: a scene/estimator without a ``baseline`` entry does not fail the gate.
     ``paper000_runs`` limits the number of runs per paper-000 model (None: all of them).
     ``on_frame(scene_name, done, n)`` reports render progress (frames done of n).
     ``scale_calibrations``: ``{estimator: calibration file}`` (``floorvo calibrate``); that
     estimator's runs, the paper-000 protocol's included, divide the rig's scale out of
     every step, and each row names the file in ``scale_calibration``.
+    ``initial_pose``: where runs on a sequence without ground truth start (default: the
+    identity); runs on a sequence with ground truth start at its first pose.
     Collaborators (defaults: the real ones): ``render`` (same signature as
     :func:`floorsim.simulate.render_sequence`), ``load_scene`` (as
     :func:`floorsim.scene.load_scene`), ``runner`` (:class:`EstimatorRunner`).
     """
-    runner = runner or DEFAULT_RUNNER
+    runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if repetitions < 1:
         raise ConfigError(f"--repeat {repetitions}: must be >= 1")
     if not scene_paths:
-        raise ConfigError("bench: give at least one scene file")
+        raise ConfigError("bench: give at least one scene file or sequence folder")
     out_dir = Path(out_dir)
     cache_dir = Path(cache_dir) if cache_dir is not None else out_dir / "sequences"
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
     known = runner.names()
     if estimators is not None:
         for n in list(estimators) + list(est_over):
-            if n not in known:
+            if not runner.known(n):
                 raise ConfigError(f"--estimators {n!r}: unknown estimator (known: {', '.join(sorted(known))})")
+        estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
     baseline_data = load_baseline(baseline) if baseline is not None else None
     scenes = []
+    notes: list[str] = []
     for p in scene_paths:
+        if is_sequence_folder(p):
+            scenes.append((Path(p), None, []))
+            continue
         scene = load_scene(p, dict(scene_overrides or {}))
         scenes.append((Path(p), scene, _scene_protocols(Path(p), scene)))
     ctx = BenchContext(
@@ -355,7 +410,6 @@ def run_bench(
     rows: list[dict[str, Any]] = []
     records: list[RunRecord] = []
     sections: list[Callable[[Report], None]] = []
-    notes: list[str] = []
     results_csv = out_dir / "results.csv"
 
     def add(out: ProtocolOutput) -> None:
@@ -368,18 +422,25 @@ def run_bench(
 
     scene_runs: list[tuple[SceneRun, list[BenchProtocol]]] = []
     for path, scene, protocols in scenes:
-        label = scene.name
+        recorded = scene is None
+        label = path.resolve().name if recorded else scene.name
         names_seen[label] = names_seen.get(label, 0) + 1
         if names_seen[label] > 1:
             label = f"{label}-{names_seen[label]}"
         cb = (lambda i, n, _s=label: on_frame(_s, i, n)) if on_frame else None
         first: SceneRun | None = None
-        for rep in range(repetitions):
-            seed = scene_seed(scene) + rep
-            seq_dir = render_cached(
-                scene, cache_dir, seed=seed, frames=frames, scale=scale, spp=spp, on_frame=cb, render=render
-            )
+        if recorded and repetitions > 1:
+            notes.append(f"{label}: a sequence folder is run once (--repeat renders a scene again with other seeds)")
+        for rep in range(1 if recorded else repetitions):
+            if recorded:
+                seq_dir, seed = path, None
+            else:
+                seed = scene_seed(scene) + rep
+                seq_dir = render_cached(
+                    scene, cache_dir, seed=seed, frames=frames, scale=scale, spp=spp, on_frame=cb, render=render
+                )
             names, skipped = supported_estimators(seq_dir, estimators, runner)
+            start = _start_pose(seq_dir, initial_pose)
             if first is None:
                 first = SceneRun(label, path, scene, seq_dir, seed, names, [])
                 for n, why in skipped.items():
@@ -396,16 +457,27 @@ def run_bench(
                     "sequence": str(seq_dir),
                     "run_dir": str(run_dir),
                 }
+                row.update(source_columns(runner, name))
                 if name in cals:
                     row["scale_calibration"] = cals[name][0]
                 try:
                     metrics = run_one(
-                        seq_dir, name, run_dir, est_over.get(name), cals[name][1] if name in cals else None, runner
+                        seq_dir,
+                        name,
+                        run_dir,
+                        est_over.get(name),
+                        cals[name][1] if name in cals else None,
+                        runner,
+                        T_world_start=start,
                     )
                     row["status"] = "ok"
                     row.update(metrics)
-                    if report and rep == 0:
+                    if report and rep == 0 and not runner.is_external(name):
                         write_match_samples(seq_dir, name, run_dir, est_over.get(name), runner=runner)
+                except ExternalEstimatorError as exc:
+                    row["status"] = f"failed: {exc.reason}"
+                    row["stderr_tail"] = exc.stderr_tail
+                    log.warning("scene %s, estimator %s: %s", label, name, exc)
                 except FloorbenchError as exc:
                     row["status"] = f"failed: {exc}"
                     log.warning("scene %s, estimator %s: %s", label, name, exc)
@@ -439,3 +511,14 @@ def run_bench(
             out_dir, rows, records, gate_summary=gate_text, extra_sections=sections
         )
     return res
+
+
+def _start_pose(seq_dir: Path, initial_pose: InitialPose | None) -> np.ndarray | None:
+    """``initial_pose`` at the sequence's camera height for a sequence without ground truth, else None
+    (a run then starts at the first ground-truth pose, or at the identity)."""
+    if initial_pose is None:
+        return None
+    seq = Sequence.open(seq_dir)
+    if seq.groundtruth() is not None:
+        return None
+    return initial_pose.T_world_cam(seq.height_mm)

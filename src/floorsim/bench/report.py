@@ -25,10 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_bytes, atomic_write_text
-from floorvo.metrics import associate, translation_error_along_path
-from floorvo.runfolder import RunFolder, read_match_samples, read_timing_csv
+from floorvo.plots import PlotRun, draw_errors, draw_trajectories, load_plot_run, pyplot
+from floorvo.runfolder import read_match_samples, read_timing_csv
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
@@ -38,6 +37,7 @@ __all__ = ["Report", "RunRecord", "SUMMARY_COLUMNS", "build_bench_report", "form
 SUMMARY_COLUMNS: list[tuple[str, str]] = [
     ("scene", "scene"),
     ("estimator", "estimator"),
+    ("source", "source"),
     ("repetition", "rep"),
     ("status", "status"),
     ("ate_none_rmse_mm", "ATE mm (no align)"),
@@ -47,17 +47,83 @@ SUMMARY_COLUMNS: list[tuple[str, str]] = [
     ("seg_mean_t_err_pct", "segment err %"),
     ("lost_frames", "lost"),
     ("time_total_ms_mean", "ms/frame"),
+    ("wall_ms_per_frame", "wall ms/frame"),
+    ("peak_rss_mb", "peak MiB"),
+]
+
+#: Columns that need ground truth: a row scored without it shows why in their cells.
+GROUND_TRUTH_COLUMNS = frozenset(
+    {"ate_none_rmse_mm", "ate_se2_rmse_mm", "rpe_frame_trans_rmse_mm", "end_drift_pct", "seg_mean_t_err_pct"}
+)
+
+#: (column, header) of the comparison of estimators across their sources.
+COMPARE_COLUMNS: list[tuple[str, str]] = [
+    ("estimator", "estimator"),
+    ("source", "source"),
+    ("source_detail", "version / command"),
+    ("runs", "runs"),
+    ("failed", "failed"),
+    ("ate_se2_rmse_mm", "ATE mm (SE2), mean"),
+    ("end_drift_pct", "end drift %, mean"),
+    ("wall_ms_per_frame", "wall ms/frame, mean"),
+    ("peak_rss_mb", "peak MiB, max"),
 ]
 
 
+def display_rows(rows: SequenceT[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """``rows`` as tables show them: a run scored without ground truth (``ground_truth`` is not
+    ``ok``) says so in the cells of :data:`GROUND_TRUTH_COLUMNS`."""
+    out = []
+    for r in rows:
+        d = dict(r)
+        gt = d.get("ground_truth")
+        if gt not in (None, "", "ok") and str(d.get("status", "")) == "ok":
+            d.update({c: "no ground truth" for c in GROUND_TRUTH_COLUMNS})
+        out.append(d)
+    return out
+
+
+def _finite(values: Iterable[Any]) -> list[float]:
+    out = []
+    for v in values:
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            continue
+        if math.isfinite(f):
+            out.append(f)
+    return out
+
+
+def compare_estimators(rows: SequenceT[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """One row per estimator of the bench (every source side by side): runs, failed runs, mean
+    ATE (SE2) and end drift of the runs with ground truth, mean wall time per frame, peak memory."""
+    by: dict[str, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        if r.get("estimator") and "repetition" in r:
+            by.setdefault(str(r["estimator"]), []).append(r)
+    out = []
+    for name, rs in by.items():
+        first = next((r for r in rs if r.get("source")), rs[0])
+        d: dict[str, Any] = {
+            "estimator": name,
+            "source": first.get("source"),
+            "source_detail": first.get("source_detail"),
+            "runs": len(rs),
+            "failed": sum(1 for r in rs if str(r.get("status", "")).startswith("failed")),
+        }
+        for col, agg in (("ate_se2_rmse_mm", np.mean), ("end_drift_pct", np.mean), ("wall_ms_per_frame", np.mean)):
+            vals = _finite(r.get(col) for r in rs)
+            d[col] = float(agg(vals)) if vals else None
+        peaks = _finite(r.get("peak_rss_mb") for r in rs)
+        d["peak_rss_mb"] = max(peaks) if peaks else None
+        out.append(d)
+    return out
+
+
 def _plt():
-    """matplotlib's pyplot on the Agg backend; imported on the first plot (heavy, and only reports need it)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    """matplotlib's pyplot on the Agg backend (:func:`floorvo.plots.pyplot`); imported on the first plot."""
+    return pyplot()
 
 
 def _fmt(v: Any) -> str:
@@ -77,8 +143,8 @@ def _fmt(v: Any) -> str:
 
 
 def format_table(rows: SequenceT[Mapping[str, Any]], columns: SequenceT[tuple[str, str]] = SUMMARY_COLUMNS) -> str:
-    """Plain-text table (fixed-width columns) of ``rows``."""
-    cells = [[h for _, h in columns]] + [[_fmt(r.get(c)) for c, _ in columns] for r in rows]
+    """Plain-text table (fixed-width columns) of ``rows`` (:func:`display_rows`)."""
+    cells = [[h for _, h in columns]] + [[_fmt(r.get(c)) for c, _ in columns] for r in display_rows(rows)]
     widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in cells]
     lines.insert(1, "  ".join("-" * w for w in widths))
@@ -164,64 +230,35 @@ class Report:
 
 
 # ----------------------------------------------------------------------------- plots
-def _load_pair(rec: RunRecord):
-    try:
-        t_ref, T_ref = read_tum(rec.seq_dir / "groundtruth.txt")
-        run = RunFolder.read(rec.run_dir)
-    except FloorbenchError:  # a failed run has no trajectory: nothing to plot
-        return None
-    if len(run.timestamps_s) == 0:
-        return None
-    i_ref, i_est = associate(t_ref, run.timestamps_s)
-    return T_ref, run.T_world_cam, i_ref, i_est
+def _plot_runs(recs: list[RunRecord]) -> tuple[list[PlotRun], tuple[np.ndarray, np.ndarray] | None]:
+    """The runs of ``recs`` that placed poses, and their sequence's ground truth (None without)."""
+    runs = [r for r in (load_plot_run(rec.run_dir, rec.estimator) for rec in recs) if r is not None]
+    gt = recs[0].seq_dir / "groundtruth.txt" if recs else None
+    return runs, (read_tum(gt) if gt is not None and gt.is_file() else None)
 
 
 def _trajectory_figure(scene: str, recs: list[RunRecord]):
+    runs, ref = _plot_runs(recs)
+    if not runs:
+        return None
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
-    drawn = False
-    for rec in recs:
-        pair = _load_pair(rec)
-        if pair is None:
-            continue
-        T_ref, T_est, _, _ = pair
-        if not drawn:
-            ax.plot(T_ref[:, 0, 3], T_ref[:, 1, 3], "k-", lw=2.5, alpha=0.5, label="ground truth")
-            drawn = True
-        ax.plot(T_est[:, 0, 3], T_est[:, 1, 3], ".-", ms=3, lw=1, label=rec.estimator)
-    ax.set_xlabel("x [mm]")
+    draw_trajectories(ax, runs, ref)
     ax.set_title(f"{scene}: estimated against true trajectory (no alignment)")
-    if drawn:
-        ext = np.ptp(T_ref[:, :2, 3], axis=0)
-        if ext.min() < 0.05 * max(ext.max(), 1e-9):
-            # a straight path: equal axes would flatten the lateral error to nothing
-            ax.set_ylabel("y [mm] (magnified)" if ext[1] <= ext[0] else "y [mm]")
-        else:
-            ax.set_ylabel("y [mm]")
-            ax.axis("equal")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    return fig if drawn else (plt.close(fig) or None)
+    return fig
 
 
 def _error_figure(scene: str, recs: list[RunRecord]):
+    runs, ref = _plot_runs(recs)
+    if not runs or ref is None:
+        return None
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    drawn = False
-    for rec in recs:
-        pair = _load_pair(rec)
-        if pair is None or len(pair[2]) < 2:
-            continue
-        T_ref, T_est, i_ref, i_est = pair
-        d, e = translation_error_along_path(T_ref[i_ref], T_est[i_est], "none")
-        ax.plot(d, e, ".-", ms=3, lw=1, label=rec.estimator)
-        drawn = True
-    ax.set_xlabel("distance travelled [mm]")
-    ax.set_ylabel("translation error [mm]")
+    if not draw_errors(ax, runs, ref):
+        plt.close(fig)
+        return None
     ax.set_title(f"{scene}: error against distance (no alignment)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    return fig if drawn else (plt.close(fig) or None)
+    return fig
 
 
 def _timing_figure(recs: list[RunRecord]):
@@ -276,6 +313,59 @@ def _keypoint_figure(recs: list[RunRecord], max_frames: int = 3):
     return None
 
 
+def _accuracy_time_figure(rows: SequenceT[Mapping[str, Any]]):
+    """ATE (SE2) against wall time per frame, one marker per scene x estimator (mean over the
+    repetitions): the multi-objective view; None when no run has both figures."""
+    points: dict[str, list[tuple[float, float]]] = {}
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for r in rows:
+        if str(r.get("status", "")) == "ok" and r.get("estimator"):
+            groups.setdefault((str(r.get("scene")), str(r["estimator"])), []).append(r)
+    for (_, est), rs in groups.items():
+        err = _finite(r.get("ate_se2_rmse_mm") for r in rs)
+        ms = _finite(r.get("wall_ms_per_frame") for r in rs)
+        if err and ms:
+            points.setdefault(est, []).append((float(np.mean(ms)), float(np.mean(err))))
+    if not points:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for est, pts in sorted(points.items()):
+        xs, ys = zip(*pts)
+        ax.plot(xs, ys, "o", ms=7, label=est)
+    ax.set_xscale("log")
+    ax.set_xlabel("wall time per frame [ms] (log)")
+    ax.set_ylabel("ATE after SE(2) alignment [mm]")
+    ax.set_title("accuracy against time per frame (lower left is better)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def _compare_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> None:
+    """Estimators of every source side by side, accuracy against time, and the failed runs."""
+    table = compare_estimators(rows)
+    if not table:
+        return
+    rep.heading("Estimators compared")
+    rep.text(
+        "Built-ins, plugins and external programs side by side. Wall time per frame covers the whole run (frame "
+        "reading, a program's start-up); peak memory is a program's own, or the bench process's during an "
+        "in-process run. Accuracy averages the runs that have ground truth."
+    )
+    rep.table(table, COMPARE_COLUMNS)
+    fig = _accuracy_time_figure(rows)
+    if fig is not None:
+        rep.figure(fig, "accuracy (ATE after SE(2) alignment) against wall time per frame, per scene and estimator")
+    failed = [r for r in rows if str(r.get("status", "")).startswith("failed")]
+    if failed:
+        rep.heading("Failed runs", level=3)
+        rep.table(
+            failed,
+            [("scene", "scene"), ("estimator", "estimator"), ("status", "reason"), ("stderr_tail", "stderr (tail)")],
+        )
+
+
 # ----------------------------------------------------------------------------- the bench report
 def build_bench_report(
     out_dir: str | os.PathLike,
@@ -298,7 +388,8 @@ def build_bench_report(
         "One row per scene x estimator x repetition. ATE in mm without alignment (the estimate starts at the "
         "first ground-truth pose) and after the best SE(2) fit; drift in % of the distance travelled."
     )
-    rep.table(rows, SUMMARY_COLUMNS)
+    rep.table(display_rows(rows), SUMMARY_COLUMNS)
+    _compare_section(rows, rep)
     if gate_summary:
         rep.heading("Regression gate")
         rep.text(gate_summary)

@@ -21,9 +21,35 @@ from floorvo.io import atomic_write_csv
 __all__ = ["ID_COLUMNS", "TEXT_COLUMNS", "write_results_csv", "read_results_csv"]
 
 #: Leading columns of results.csv; metric columns follow.
-ID_COLUMNS = ["scene", "scene_file", "estimator", "repetition", "seed", "status", "sequence", "run_dir"]
+ID_COLUMNS = [
+    "scene",
+    "scene_file",
+    "estimator",
+    "source",
+    "source_detail",
+    "repetition",
+    "seed",
+    "status",
+    "sequence",
+    "run_dir",
+]
 #: Columns read back as text even when a cell looks like a number.
-TEXT_COLUMNS = frozenset({"scene", "scene_file", "estimator", "status", "sequence", "run_dir", "job"})
+TEXT_COLUMNS = frozenset(
+    {
+        "scene",
+        "scene_file",
+        "estimator",
+        "source",
+        "source_detail",
+        "status",
+        "stderr_tail",
+        "sequence",
+        "run_dir",
+        "job",
+        "ground_truth",
+        "score_warnings",
+    }
+)
 
 
 def _columns(rows: SequenceT[Mapping[str, Any]], first: SequenceT[str]) -> list[str]:

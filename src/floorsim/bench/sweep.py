@@ -19,11 +19,16 @@ A sweep file (TOML)::
     [operating_point]                     # optional: the paper rig's value of a varied key
     "lights.height_mm" = 3.0              # (default: the base scene's own value)
 
+    sequences = ["../recordings/hall"]    # optional: sequence folders run beside the grid
+                                          # (relative to the sweep file; not rendered, not varied)
+
 Keys are scene keys in ``--set`` form (``section.key``), so a sweep can vary only what the
 scene file format has. One job is one grid point and repetition: it renders the scene (the
 render cache of :func:`floorsim.bench.bench.render_cached` reuses an identical sequence) and
 runs and scores every estimator on it, giving one row per estimator (paper protocols are
-the bench's, not the sweep's).
+the bench's, not the sweep's). Each sequence folder of ``sequences`` is one more job
+(``sequence=NAME``), run and scored as it is. External programs (``externals=``, from
+``--external`` and ``--estimator-file``) run in every job beside the registry's estimators.
 
 Execution: local processes by default (``jobs`` of them); ``scheduler="tcp://HOST:PORT"``
 sends the same jobs to a Dask distributed cluster; ``workers=N`` starts a local Dask
@@ -42,6 +47,7 @@ import logging
 import os
 import tomllib
 from collections.abc import Callable, Mapping
+from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -51,22 +57,25 @@ import numpy as np
 from floorsim.bench.bench import (
     RenderFn,
     SceneLoader,
+    is_sequence_folder,
     render_cached,
     run_one,
     scene_seed,
+    source_columns,
     supported_estimators,
 )
-from floorsim.bench.estimators import EstimatorRunner
+from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
 from floorsim.bench.report import Report, _plt
 from floorsim.bench.results import read_results_csv, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
-from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
+from floorvo.external import ExternalEstimator
 
 log = logging.getLogger(__name__)
 
 __all__ = ["SweepSpec", "load_sweep", "sweep_jobs", "run_sweep_job", "run_sweep", "SweepResult", "plot_sweep"]
 
-_TOP_KEYS = {"base", "estimators", "repetitions", "render", "set", "vary", "operating_point", "name"}
+_TOP_KEYS = {"base", "estimators", "repetitions", "render", "set", "vary", "operating_point", "name", "sequences"}
 _RENDER_KEYS = {"frames": int, "scale": float, "spp": int}
 
 
@@ -91,6 +100,7 @@ class SweepSpec:
     render: dict[str, Any] = field(default_factory=dict)
     fixed: dict[str, str] = field(default_factory=dict)
     operating_point: dict[str, Any] = field(default_factory=dict)
+    sequences: list[Path] = field(default_factory=list)
 
 
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
@@ -138,20 +148,38 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         if k not in vary:
             raise ConfigError(f"{path}: operating_point.{k}: not a varied key (varied: {', '.join(vary)})")
     fixed = {k: _as_override(v) for k, v in d.get("set", {}).items()}
+    seqs = d.get("sequences", [])
+    if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
+        raise ConfigError(f"{path}: sequences = {seqs!r}: must be a list of sequence folders")
+    sequences = [(path.parent / q).resolve() for q in seqs]
+    for q, full in zip(seqs, sequences):
+        if not is_sequence_folder(full):
+            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
     return SweepSpec(
-        str(d.get("name", path.stem)), base, {k: list(v) for k, v in vary.items()}, est, reps, render, fixed, dict(op)
+        str(d.get("name", path.stem)),
+        base,
+        {k: list(v) for k, v in vary.items()},
+        est,
+        reps,
+        render,
+        fixed,
+        dict(op),
+        sequences,
     )
 
 
 def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
-    """Every job of the grid: ``{"job": id, "params": {key: value}, "repetition": k}``."""
+    """Every job: the grid's ``{"job": id, "params": {key: value}, "repetition": k}``, then one
+    ``{"job": "sequence=NAME", "params": {}, "repetition": 0, "sequence": folder}`` per sequence folder."""
     keys = list(spec.vary)
-    jobs = []
+    jobs: list[dict[str, Any]] = []
     for combo in itertools.product(*(spec.vary[k] for k in keys)):
         params = dict(zip(keys, combo))
         for rep in range(spec.repetitions):
             jid = ";".join(f"{k}={_as_override(v)}" for k, v in params.items()) + f";rep={rep}"
             jobs.append({"job": jid, "params": params, "repetition": rep})
+    for q in spec.sequences:
+        jobs.append({"job": f"sequence={q.name}", "params": {}, "repetition": 0, "sequence": str(q)})
     return jobs
 
 
@@ -172,13 +200,20 @@ def run_sweep_job(
     A user error (bad scene value, a failed run) becomes a row with ``status`` saying why.
     """
     out, cache = Path(out_dir), Path(cache_dir)
-    base_row = {"job": job["job"], "repetition": job["repetition"], **{k: job["params"][k] for k in spec.vary}}
+    base_row = {"job": job["job"], "repetition": job["repetition"], **{k: job["params"].get(k) for k in spec.vary}}
     overrides = {**spec.fixed, **{k: _as_override(v) for k, v in job["params"].items()}}
+    runner = runner or DEFAULT_RUNNER
+    estimators = spec.estimators
+    if estimators is not None:
+        estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     try:
-        scene = load_scene(spec.base, overrides)
-        seed = scene_seed(scene) + int(job["repetition"])
-        seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
-        names, skipped = supported_estimators(seq_dir, spec.estimators, runner)
+        if job.get("sequence"):
+            seq_dir, seed, scene_name = Path(job["sequence"]), None, Path(job["sequence"]).name
+        else:
+            scene = load_scene(spec.base, overrides)
+            seed, scene_name = scene_seed(scene) + int(job["repetition"]), scene.name
+            seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
+        names, skipped = supported_estimators(seq_dir, estimators, runner)
     except FloorbenchError as exc:
         return [{**base_row, "scene": spec.name, "estimator": "", "status": f"failed: {exc}"}]
     rows = []
@@ -187,20 +222,24 @@ def run_sweep_job(
         run_dir = out / "runs" / safe / name
         row = {
             **base_row,
-            "scene": scene.name,
+            "scene": scene_name,
             "estimator": name,
             "seed": seed,
             "sequence": str(seq_dir),
             "run_dir": str(run_dir),
         }
         try:
+            row.update(source_columns(runner, name))
             row.update(run_one(seq_dir, name, run_dir, runner=runner))
             row["status"] = "ok"
+        except ExternalEstimatorError as exc:
+            row["status"] = f"failed: {exc.reason}"
+            row["stderr_tail"] = exc.stderr_tail
         except FloorbenchError as exc:
             row["status"] = f"failed: {exc}"
         rows.append(row)
     for name, why in skipped.items():
-        rows.append({**base_row, "scene": scene.name, "estimator": name, "status": f"skipped: {why}"})
+        rows.append({**base_row, "scene": scene_name, "estimator": name, "status": f"skipped: {why}"})
     return rows
 
 
@@ -226,6 +265,7 @@ def run_sweep(
     processes: bool = True,
     report: bool = True,
     on_job: Callable[[int, int], None] | None = None,
+    externals: SequenceT[ExternalEstimator] = (),
     render: RenderFn | None = None,
     load_scene: SceneLoader = load_scene_file,
     runner: EstimatorRunner | None = None,
@@ -236,7 +276,9 @@ def run_sweep(
     that many workers (``processes=False`` makes them threads, for tests); neither: a local
     process pool of ``jobs`` workers. Collaborators of every job (defaults: the real ones,
     as in :func:`floorsim.bench.bench.run_bench`): ``render``, ``load_scene``, ``runner``.
+    ``externals``: programs run in every job (:class:`floorvo.external.ExternalEstimator`).
     """
+    runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if scheduler is not None and workers is not None:
         raise ConfigError("--scheduler and --workers: give one of them (a cluster to join, or a local one to start)")
     if workers is not None and workers < 1:

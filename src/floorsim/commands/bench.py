@@ -1,4 +1,6 @@
-"""``floorsim bench SCENES... [--estimators A,B] -o DIR``: render, run, score, report, gate.
+"""``floorsim bench SCENES... [--estimators A,B] [--external NAME=CMD] -o DIR``: render, run, score, report, gate.
+
+SCENES are scene files and sequence folders (recordings: run as they are, not rendered).
 
 Thin call to :func:`floorsim.bench.run_bench`; prints the score table and the report's
 path. With ``--baseline FILE`` it prints what got worse and how many metrics it checked of how
@@ -11,7 +13,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument, parse_name_values, parse_set_args, progress_callback
+from floorvo.cli.common import (
+    add_external_arguments,
+    add_output_argument,
+    externals_from_args,
+    parse_name_values,
+    parse_set_args,
+    progress_callback,
+)
 from floorvo.errors import ConfigError
 
 __all__ = ["add_parser", "run", "parse_estimator_sets"]
@@ -22,16 +31,33 @@ def add_parser(subparsers) -> None:
         "bench",
         help="render scenes, run estimators, score them, write results.csv and a report; gate regressions",
         description="Render each scene (reusing a sequence already rendered with the same resolved scene, seed and "
-        "settings), run each estimator, score it, and write DIR/results.csv (one row per scene x estimator x "
-        "repetition), DIR/report.html (self-contained) and DIR/report.md. With --baseline, exit 1 when a metric "
-        "got worse than the baseline's tolerance allows, or a scene/estimator has no baseline entry (unless --allow-new).",
+        "settings; a sequence folder is used as it is), run each estimator (built-ins, installed plugins, "
+        "package.module:Class references, external programs), score it, and write DIR/results.csv (one row per "
+        "scene x estimator x repetition), DIR/report.html (self-contained) and DIR/report.md. A run that fails is "
+        "a failed row; with --baseline, exit 1 when a metric got worse than the baseline's tolerance allows, or a "
+        "scene/estimator has no baseline entry (unless --allow-new).",
     )
-    p.add_argument("scenes", metavar="SCENE", nargs="+", type=Path, help="scene TOML files")
+    p.add_argument(
+        "scenes",
+        metavar="SCENE",
+        nargs="+",
+        type=Path,
+        help="scene TOML files and sequence folders (anything with a sequence.json, e.g. from floorvo import)",
+    )
     add_output_argument(p, "output folder DIR", type=Path)
     p.add_argument(
         "--estimators",
         default=None,
-        help="comma-separated estimator names (default: every registered estimator the sequence supports)",
+        help="comma-separated estimator names or package.module:Class references (default: every registered "
+        "estimator the sequence supports); the --external programs run in either case",
+    )
+    add_external_arguments(p)
+    p.add_argument(
+        "--initial-pose",
+        metavar="POSE",
+        default=None,
+        help="where runs on a sequence without ground truth start: x_mm,y_mm,yaw_rad or a TUM line "
+        "(default: the identity)",
     )
     p.add_argument("--repeat", type=int, default=1, help="repetitions per scene, seeds scene seed + k (default 1)")
     p.add_argument(
@@ -94,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
     # Imported when the command runs, as in every command module: `floorsim --help` stays quick.
     from floorsim.bench import run_bench
     from floorsim.bench.report import format_table
+    from floorvo.run import InitialPose
 
     estimators = [e.strip() for e in args.estimators.split(",") if e.strip()] if args.estimators else None
     with progress_callback("render", "frame") as bar:
@@ -115,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
             paper000_runs=args.paper000_runs,
             on_frame=lambda scene, done, n: bar(done, n, desc=f"render {scene}"),
             scale_calibrations=parse_scale_calibrations(args.scale_calibration),
+            externals=externals_from_args(args),
+            initial_pose=None if args.initial_pose is None else InitialPose.parse(args.initial_pose),
             **args.collaborators,
         )
     for note in res.notes:

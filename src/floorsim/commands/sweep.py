@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument, progress_callback
+from floorvo.cli.common import add_external_arguments, add_output_argument, externals_from_args, progress_callback
 
 __all__ = ["add_parser", "run"]
 
@@ -34,6 +34,7 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)"
     )
+    add_external_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -49,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
             jobs=args.jobs,
             cache_dir=args.cache,
             on_job=on_job,
+            externals=externals_from_args(args),
             **args.collaborators,
         )
     print(f"sweep: {res.ran} job(s) run, {res.skipped} already done; {len(res.rows)} row(s) in {res.results_csv}")

@@ -30,7 +30,7 @@ __all__ = ["COMMANDS", "build_parser", "run_cli", "main"]
 log = logging.getLogger(__name__)
 
 #: Command modules under ``floorvo.cli``, in the order ``--help`` lists them.
-COMMANDS: list[str] = ["run", "list", "score", "calibrate", "map", "localize", "import_"]
+COMMANDS: list[str] = ["run", "list", "score", "plot", "calibrate", "map", "localize", "import_"]
 
 #: Loggers whose level ``-v`` / ``-q`` set.
 PACKAGE_LOGGERS = ("floorvo", "floorsim")

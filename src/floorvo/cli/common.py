@@ -9,7 +9,14 @@ from typing import Any
 from floorvo.config import parse_set_args  # the one --set parser, re-exported for the command modules
 from floorvo.errors import ConfigError
 
-__all__ = ["add_output_argument", "parse_name_values", "parse_set_args", "progress_callback"]
+__all__ = [
+    "add_output_argument",
+    "add_external_arguments",
+    "externals_from_args",
+    "parse_name_values",
+    "parse_set_args",
+    "progress_callback",
+]
 
 
 def parse_name_values(items: list[str] | None, flag: str, form: str) -> dict[str, str]:
@@ -37,6 +44,34 @@ def add_output_argument(parser: argparse.ArgumentParser, help: str, **kwargs: An
     action = parser.add_argument("-o", "--output", "--out", dest="output", help=help, **kwargs)
     action.hidden_aliases = ("--out",)  # type: ignore[attr-defined]  # read by the CLI's help formatter
     return action
+
+
+def add_external_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--external NAME=CMD`` and ``--estimator-file FILE`` (both repeatable): estimators that are
+    programs (:mod:`floorvo.external`), read by :func:`externals_from_args`."""
+    parser.add_argument(
+        "--external",
+        action="append",
+        metavar="NAME=CMD",
+        help="an estimator that is a program, run once per sequence; CMD is split like a shell does and may use "
+        "{sequence}, {output}, {camera}, {images}, {height_mm}, {fps}, {frames}; it writes {output}/trajectory.txt "
+        "(TUM) and optionally timing.csv (repeatable)",
+    )
+    parser.add_argument(
+        "--estimator-file",
+        action="append",
+        metavar="FILE",
+        help="an external estimator in a TOML file: name, command = [...], optional timeout_s, env, needs (repeatable)",
+    )
+
+
+def externals_from_args(args: argparse.Namespace) -> list:
+    """The :class:`floorvo.external.ExternalEstimator` of ``--external`` and ``--estimator-file``."""
+    from floorvo.external import load_estimator_file, parse_external
+
+    specs = [parse_external(text) for text in getattr(args, "external", None) or []]
+    specs += [load_estimator_file(path) for path in getattr(args, "estimator_file", None) or []]
+    return specs
 
 
 class progress_callback:

@@ -41,8 +41,29 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+def _tracking_lines(score: Score) -> list[str]:
+    """Tracking and timing lines (every score has them, with or without ground truth)."""
+    lines: list[str] = []
+    tr = score.tracking
+    lines.append(
+        f"tracking: {tr['lost_frames']} lost frame(s) in {tr['loss_events']} event(s), tracked {100 * tr['tracked_fraction']:.1f} %"
+    )
+    if "total_ms" in score.timing:
+        t = score.timing["total_ms"]
+        lines.append(
+            f"timing: total {_fmt(t['mean'])} ms mean, {_fmt(t['p95'])} ms p95 ({_fmt(score.timing.get('fps', float('nan')))} frames/s)"
+        )
+    return lines
+
+
 def format_score_table(score: Score) -> str:
     """A plain-text table of the main metrics of ``score``."""
+    if score.ground_truth != "ok":
+        lines = [f"estimator: {score.estimator or '?'}   poses: {score.n_est}; {score.ground_truth}"]
+        lines.append(f"accuracy (ATE, RPE, drift, segments): {score.ground_truth}")
+        lines += _tracking_lines(score)
+        lines += [f"warning: {w}" for w in score.warnings]
+        return "\n".join(lines)
     lines = [f"estimator: {score.estimator or '?'}   poses: {score.n_matched} matched of {score.n_ref} ground truth"]
     lines.append(f"{'metric':<34} {'rmse':>10} {'mean':>10} {'max':>10}")
     for name, a in score.ate.items():
@@ -57,23 +78,17 @@ def format_score_table(score: Score) -> str:
         lines.append(f"{label + ' [mm]':<34} {_fmt(t['rmse']):>10} {_fmt(t['mean']):>10} {_fmt(t['max']):>10}")
         lines.append(f"{label + ' [deg]':<34} {_fmt(q['rmse']):>10} {_fmt(q['mean']):>10} {_fmt(q['max']):>10}")
     d = score.drift
-    lines.append(
-        f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
-        f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)"
-    )
+    if "end_drift_pct" in d:
+        lines.append(
+            f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
+            f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)"
+        )
     for s in score.segments:
         lines.append(
             f"segment {s['length_mm']:>6g} mm: t_err {_fmt(s['t_err_pct'])} %  r_err {_fmt(s['r_err_deg_per_m'])} deg/m  (n={s['count']})"
         )
-    tr = score.tracking
-    lines.append(
-        f"tracking: {tr['lost_frames']} lost frame(s) in {tr['loss_events']} event(s), tracked {100 * tr['tracked_fraction']:.1f} %"
-    )
-    if "total_ms" in score.timing:
-        t = score.timing["total_ms"]
-        lines.append(
-            f"timing: total {_fmt(t['mean'])} ms mean, {_fmt(t['p95'])} ms p95 ({_fmt(score.timing.get('fps', float('nan')))} frames/s)"
-        )
+    lines += _tracking_lines(score)
+    lines += [f"warning: {w}" for w in score.warnings]
     return "\n".join(lines)
 
 

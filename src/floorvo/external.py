@@ -1,0 +1,378 @@
+"""External estimators: a program, any language, run once per sequence folder.
+
+An external estimator is a command line (an :class:`ExternalEstimator`, validated by the one
+configuration mechanism, :mod:`floorvo.config`), given as ``--external NAME=CMD`` or in a
+TOML file passed with ``--estimator-file FILE``::
+
+    name = "my-vo"
+    command = ["my_vo", "{sequence}", "{output}", "--camera", "{camera}"]
+    timeout_s = 600            # optional: killed after this long (a failed run)
+    needs = ["depth"]          # optional: what the sequence must have (depth, stereo)
+    [env]                      # optional: added to the program's environment
+    OMP_NUM_THREADS = "1"
+
+:func:`run_external` fills the placeholders (:data:`PLACEHOLDERS`: the sequence folder, the
+folder the program writes into, a camera file in OpenCV YAML, ...), runs the program in a
+process group of its own, and expects ``{output}/trajectory.txt`` (TUM: seconds and metres,
+``T_world_cam``, one line per frame it placed, stamped with the sequence's frame times) and
+optionally ``{output}/timing.csv`` (the run folder's columns, ``frame`` at least). It records
+the wall time and the child's peak resident memory (``ru_maxrss`` of its own ``wait4``).
+
+The program's poses are taken relative to its first one and placed at the run's start pose:
+the ground-truth pose at the time of its first pose when the sequence has ground truth,
+else ``T_world_start`` (``--initial-pose``), else the identity; so a program may start at the
+identity, as odometry does, and its run is in the ground truth's world frame like every run.
+The run folder (``RUN/trajectory.txt``, ``timing.csv``, ``result.json``) is written through
+:class:`floorvo.runfolder.RunFolder`; what the program wrote stays in ``RUN/program/``, its
+standard output and error in ``RUN/stdout.txt`` and ``RUN/stderr.txt``.
+
+A crash, a non-zero exit, a timeout, a missing or malformed trajectory is an
+:class:`~floorvo.errors.ExternalEstimatorError` whose ``reason`` and ``stderr_tail`` the bench
+writes into a ``failed`` row.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shlex
+import signal
+import string
+import subprocess
+import sys
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from floorvo.config import Config, build, param
+from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError
+from floorvo.estimators.registry import EstimatorSource, estimator_source
+from floorvo.io import atomic_write_text, ensure_writable_dir
+from floorvo.runfolder import RunFolder
+from floorvo.sequence import Sequence
+
+__all__ = [
+    "PLACEHOLDERS",
+    "NEEDS",
+    "ExternalEstimator",
+    "ExternalRun",
+    "command_hash",
+    "load_estimator_file",
+    "parse_external",
+    "run_external",
+]
+
+log = logging.getLogger(__name__)
+
+#: What a command's ``{placeholder}`` is replaced with.
+PLACEHOLDERS: dict[str, str] = {
+    "sequence": "the sequence folder (sequence.json, cam0/, ...)",
+    "output": "the folder the program writes trajectory.txt (and timing.csv) into: RUN/program",
+    "camera": "the left (or only) camera in OpenCV calibration YAML, with camera_height_mm: RUN/camera.yaml",
+    "images": "the folder of the left (or only) camera's frames: SEQUENCE/cam0",
+    "height_mm": "the camera height above the floor, mm",
+    "fps": "the sequence's frame rate, frames per second",
+    "frames": "the number of frames",
+    "here": "the folder of the --estimator-file (for --external: the folder the command was given in)",
+    "python": "the Python interpreter floorbench runs in (sys.executable)",
+}
+#: What an external estimator may need besides mono frames.
+NEEDS = ("depth", "stereo")
+#: Lines of the program's standard error kept for a failed row.
+STDERR_TAIL_LINES = 5
+_NAME_CHARS = set(string.ascii_letters + string.digits + "-_.+")
+
+
+def _placeholders(arg: str) -> list[str]:
+    """The ``{name}`` fields of one argument (ValueError for a stray brace)."""
+    return [f for _, f, _, _ in string.Formatter().parse(arg) if f is not None]
+
+
+@dataclass(frozen=True)
+class ExternalEstimator(Config):
+    """An estimator that is a program (see the module doc); ``--estimator-file`` holds its fields."""
+
+    config_name = "external"
+    name: str = param("", doc="the estimator's name in results (letters, digits, - _ . +)")
+    command: tuple[str, ...] = param(
+        (), doc="program and arguments; placeholders: " + ", ".join("{" + k + "}" for k in PLACEHOLDERS)
+    )
+    timeout_s: float | None = param(None, unit="s", gt=0, doc="kill the program after this long (a failed run)")
+    env: dict[str, str] = param(default_factory=dict, doc="environment variables added for the program")
+    needs: tuple[str, ...] = param((), doc="what the sequence must have besides mono frames: depth, stereo")
+    here: str = param("", doc="the folder {here} stands for (default: the estimator file's folder)")
+
+    def validate(self) -> None:
+        if not self.name or not set(self.name) <= _NAME_CHARS:
+            raise ConfigFieldError("name", f" = {self.name!r}: must be a non-empty name of letters, digits, - _ . +")
+        if not self.command or not self.command[0].strip():
+            raise ConfigFieldError("command", f" = {list(self.command)!r}: must name a program (a non-empty list)")
+        for arg in self.command:
+            try:
+                fields = _placeholders(arg)
+            except ValueError:
+                raise ConfigFieldError(
+                    "command", f" argument {arg!r}: a brace without a placeholder (write {{{{ for a brace)"
+                ) from None
+            for f in fields:
+                if f not in PLACEHOLDERS:
+                    raise ConfigFieldError(
+                        "command", f" argument {arg!r}: unknown placeholder {{{f}}} (known: {', '.join(PLACEHOLDERS)})"
+                    )
+        for key, value in self.env.items():
+            if not isinstance(value, str):
+                raise ConfigFieldError(f"env.{key}", f" = {value!r}: must be a string")
+        for n in self.needs:
+            if n not in NEEDS:
+                raise ConfigFieldError("needs", f" = {list(self.needs)!r}: {n!r} must be one of {', '.join(NEEDS)}")
+
+    @property
+    def requires(self) -> frozenset[str]:
+        """What the sequence must have besides mono frames (as an estimator's ``requires``)."""
+        return frozenset(self.needs)
+
+    @property
+    def source(self) -> EstimatorSource:
+        """``external`` with the command line and its hash (:func:`command_hash`)."""
+        return EstimatorSource("external", shlex.join(self.command), command_sha256=command_hash(self.command))
+
+
+def command_hash(command: tuple[str, ...] | list[str]) -> str:
+    """Hex SHA-256 of a command line as given (placeholders unfilled, so every sequence's run of one
+    estimator has the same hash): of the JSON list of its arguments."""
+    return hashlib.sha256(json.dumps(list(command)).encode()).hexdigest()
+
+
+def load_estimator_file(path: str | os.PathLike) -> ExternalEstimator:
+    """An external estimator from a TOML file (keys: the fields of :class:`ExternalEstimator`).
+
+    Unknown keys, wrong types and broken rules are refused in one line naming the file and the key.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"--estimator-file {path}: no such file")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    for key in ("name", "command"):
+        if key not in data:
+            raise ConfigError(f"{path}: {key}: missing (an external estimator needs name and command)")
+    data.setdefault("here", str(path.resolve().parent))
+    return build(ExternalEstimator, data, path.name)
+
+
+def parse_external(text: str, *, name: str | None = None) -> ExternalEstimator:
+    """``NAME=CMD`` (``--external``; ``CMD`` split like a shell does) as an :class:`ExternalEstimator`.
+
+    With ``name`` given, ``text`` is the command alone (``floorvo run --external CMD``; the
+    default name is the program's file name).
+    """
+    if name is None:
+        name, sep, text = text.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(
+                f"--external {name + sep + text!r}: expected NAME=COMMAND (e.g. my-vo='my_vo {{sequence}}')"
+            )
+        name = name.strip()
+    try:
+        command = tuple(shlex.split(text))
+    except ValueError as exc:
+        raise ConfigError(f"--external {text!r}: {exc}") from None
+    if not name:
+        name = Path(command[0]).name if command else ""
+    return build(ExternalEstimator, {"name": name, "command": command, "here": os.getcwd()}, "--external")
+
+
+@dataclass(frozen=True)
+class ExternalRun:
+    """What a successful run of a program gave: the run folder written, the program's figures."""
+
+    estimator: str
+    run_dir: str
+    frames: int
+    placed: int
+    wall_s: float
+    peak_rss_mb: float
+    returncode: int
+    command: list[str] = field(default_factory=list)
+
+    @property
+    def wall_ms_per_frame(self) -> float:
+        """Wall time of the whole program (start-up included) per sequence frame, ms."""
+        return 1000.0 * self.wall_s / self.frames if self.frames else float("nan")
+
+
+def _tail(path: Path, lines: int = STDERR_TAIL_LINES) -> str:
+    """The last ``lines`` non-blank lines of a text file, joined with `` | `` on one line (<= 500 chars)."""
+    try:
+        data = path.read_bytes()[-8192:].decode("utf-8", "replace")
+    except OSError:
+        return ""
+    kept = [" ".join(line.split()) for line in data.splitlines() if line.strip()][-lines:]
+    text = " | ".join(kept)
+    return text if len(text) <= 500 else "..." + text[-497:]
+
+
+def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, float, float]:
+    """Wait for ``proc`` with ``os.wait4`` (its own resource usage, not every child's); kill its
+    process group after ``timeout_s``. Returns ``(wait status or None on timeout, wall s, peak RSS MiB)``."""
+    t0 = time.perf_counter()
+    delay = 0.002
+    while True:
+        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        if pid == proc.pid:
+            proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+            return status, time.perf_counter() - t0, usage.ru_maxrss / 1024.0  # Linux: KiB
+        if timeout_s is not None and time.perf_counter() - t0 > timeout_s:
+            wall = time.perf_counter() - t0
+            for sig in (signal.SIGTERM, signal.SIGKILL):
+                try:
+                    os.killpg(proc.pid, sig)
+                except ProcessLookupError:
+                    break
+                deadline = time.perf_counter() + 2.0
+                while time.perf_counter() < deadline:
+                    pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+                    if pid == proc.pid:
+                        proc.returncode = os.waitstatus_to_exitcode(status)
+                        return None, wall, usage.ru_maxrss / 1024.0
+                    time.sleep(0.01)
+            _, status, usage = os.wait4(proc.pid, 0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            return None, wall, usage.ru_maxrss / 1024.0
+        time.sleep(delay)
+        delay = min(delay * 2, 0.05)
+
+
+def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:
+    """Where the run starts (see the module doc): ground truth at ``t_first_s``, else ``T_world_start``, else I."""
+    gt = seq.groundtruth()
+    if gt is not None and len(gt[0]):
+        k = int(np.argmin(np.abs(gt[0] - t_first_s)))
+        if abs(gt[0][k] - t_first_s) <= 0.01:
+            return gt[1][k]
+    return np.eye(4) if T_world_start is None else np.asarray(T_world_start, dtype=float)
+
+
+def run_external(
+    seq: Sequence | str | os.PathLike,
+    spec: ExternalEstimator,
+    run_dir: str | os.PathLike,
+    *,
+    T_world_start: np.ndarray | None = None,
+) -> ExternalRun:
+    """Run program ``spec`` over ``seq`` into ``run_dir`` (see the module doc); returns its figures.
+
+    ``T_world_start`` (4, 4) mm: the start pose of a run on a sequence without ground truth.
+    Raises :class:`ExternalEstimatorError` (reason and stderr tail) when the program fails, and
+    :class:`FloorbenchError` when the sequence lacks what it needs.
+    """
+    if not isinstance(seq, Sequence):
+        seq = Sequence.open(seq)
+    name = spec.name
+    if "depth" in spec.needs and not seq.has_depth:
+        raise FloorbenchError(f"{name} needs depth images, and {seq.root} has none")
+    if "stereo" in spec.needs and not seq.has_stereo:
+        raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
+    out = ensure_writable_dir(run_dir)
+    program_dir = out / "program"
+    for stale in ("trajectory.txt", "timing.csv", "result.json"):  # a rerun must not read an older run's files
+        (out / stale).unlink(missing_ok=True)
+        (program_dir / stale).unlink(missing_ok=True)
+    program_dir.mkdir(exist_ok=True)
+    height = seq.height_mm
+    camera_file = out / "camera.yaml"
+    extra = {} if height is None else {"camera_height_mm": float(height)}
+    atomic_write_text(camera_file, seq.camera.to_opencv_yaml(**extra))
+    values = {
+        "sequence": str(seq.root.resolve()),
+        "output": str(program_dir.resolve()),
+        "camera": str(camera_file.resolve()),
+        "images": str((seq.root / "cam0").resolve()),
+        "height_mm": "" if height is None else repr(float(height)),
+        "fps": repr(float(seq.fps)),
+        "frames": str(seq.frame_count),
+        "here": spec.here or os.getcwd(),
+        "python": sys.executable,
+    }
+    argv = [arg.format_map(values) for arg in spec.command]
+    env = {**os.environ, **spec.env}
+    log.info("%s: running %s", name, shlex.join(argv))
+
+    def fail(reason: str) -> ExternalEstimatorError:
+        tail = _tail(out / "stderr.txt")
+        log.warning("%s on %s failed: %s%s", name, seq.root, reason, f" (stderr: {tail})" if tail else "")
+        return ExternalEstimatorError(
+            f"{name}: {reason}" + (f"; stderr: {tail}" if tail else ""), reason=reason, stderr_tail=tail
+        )
+
+    with open(out / "stdout.txt", "wb") as so, open(out / "stderr.txt", "wb") as se:
+        try:
+            proc = subprocess.Popen(
+                argv, stdin=subprocess.DEVNULL, stdout=so, stderr=se, env=env, start_new_session=True
+            )
+        except OSError as exc:  # not found, not executable
+            raise fail(f"cannot start {argv[0]!r}: {exc.strerror or exc}") from None
+        status, wall_s, peak_mb = _wait(proc, spec.timeout_s)
+    if status is None:
+        raise fail(f"timed out after {spec.timeout_s:g} s (killed)")
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:
+        raise fail(f"killed by signal {signal.Signals(-code).name}")
+    if code != 0:
+        raise fail(f"exit code {code}")
+    if not (program_dir / "trajectory.txt").is_file():
+        raise fail("wrote no trajectory.txt into {output}")
+    try:
+        written = RunFolder.read(program_dir)
+    except SequenceError as exc:
+        raise fail(f"malformed output: {' '.join(str(exc).split())}") from None
+    if len(written.timestamps_s) == 0:
+        raise fail("trajectory.txt holds no pose")
+    T_prog = written.T_world_cam
+    T_start = _start_pose(seq, float(written.timestamps_s[0]), T_world_start)
+    T_world_cam = T_start @ np.linalg.inv(T_prog[0]) @ T_prog
+    src = spec.source
+    run = ExternalRun(name, str(out), seq.frame_count, len(T_world_cam), wall_s, peak_mb, code, argv)
+    statuses = written.statuses
+    result: dict[str, Any] = {
+        "estimator": name,
+        "run_dir": str(out),
+        "frames": seq.frame_count,
+        "placed": run.placed,
+        "fps": seq.frame_count / wall_s if wall_s > 0 else 0.0,
+        "wall_s": wall_s,
+        "wall_ms_per_frame": run.wall_ms_per_frame,
+        "peak_rss_mb": peak_mb,
+        "source": src.to_dict(),
+        "external": {
+            "command": argv,
+            "returncode": code,
+            "timeout_s": spec.timeout_s,
+            "env": dict(spec.env),
+            "program_result": dict(written.result),
+        },
+        "sequence": str(seq.root),
+    }
+    if statuses is not None:
+        result["status_counts"] = {s: statuses.count(s) for s in ("init", "ok", "lost")}
+        result["ok"], result["lost"] = result["status_counts"]["ok"], result["status_counts"]["lost"]
+    RunFolder(
+        written.timestamps_s, T_world_cam, written.timing, result, f"floorvo external {name}: T_world_cam, metres"
+    ).write(out)
+    log.info("%s on %s: %d poses, %.2f s, peak %.0f MiB", name, seq.root, run.placed, wall_s, peak_mb)
+    return run
+
+
+def external_source(name: str, externals: dict[str, ExternalEstimator] | None = None) -> EstimatorSource:
+    """Where ``name`` comes from: one of ``externals``, else the registry's answer."""
+    if externals and name in externals:
+        return externals[name].source
+    return estimator_source(name)

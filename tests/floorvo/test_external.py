@@ -1,0 +1,198 @@
+"""External estimators: a program run once per sequence (the shipped example, and small inline
+programs that crash, time out, or write nothing or garbage), its configuration refusals, and
+``floorvo run --external`` / ``--estimator-file``."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import shutil
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.cli import main as floorvo_main
+from floorvo.errors import ConfigError, ExternalEstimatorError
+from floorvo.external import ExternalEstimator, command_hash, load_estimator_file, parse_external, run_external
+from floorvo.runfolder import RunFolder
+from floorvo.synthetic import line_poses, write_synthetic_sequence
+from floorvo.tum import read_tum
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "external-estimator"
+CAM = CameraModel.from_sensor(160, 120, 29.6, 6.0)
+PY = shlex.quote(sys.executable)
+
+
+@pytest.fixture(scope="module")
+def line_sequence(tmp_path_factory):
+    """A synthetic sequence: 20 mm along x in 1.5 mm steps, with ground truth."""
+    return write_synthetic_sequence(tmp_path_factory.mktemp("seq") / "line", CAM, line_poses(20.0, 1.5), seed=3)
+
+
+def test_example_program_runs_and_its_run_is_placed_in_the_world_frame(line_sequence, tmp_path):
+    spec = load_estimator_file(EXAMPLE / "fft-vo.toml")
+    assert spec.name == "fft-vo" and spec.here == str(EXAMPLE) and spec.env == {"OMP_NUM_THREADS": "1"}
+    assert spec.source.kind == "external" and spec.source.command_sha256 == command_hash(spec.command)
+    res = run_external(line_sequence, spec, tmp_path / "run")
+    assert (res.frames, res.placed, res.returncode) == (14, 14, 0)
+    assert res.wall_s > 0 and 10 < res.peak_rss_mb < 4096  # a Python child with numpy and OpenCV
+    run = RunFolder.read(tmp_path / "run")
+    t_gt, T_gt = read_tum(line_sequence / "groundtruth.txt")
+    np.testing.assert_allclose(run.timestamps_s, t_gt)
+    # the program starts at the identity; its run starts at the first ground-truth pose
+    np.testing.assert_allclose(run.T_world_cam[0], T_gt[0], atol=1e-6)
+    assert abs(run.T_world_cam[-1, 0, 3] - T_gt[-1, 0, 3]) < 0.3  # 19.5 mm travelled
+    assert list(run.statuses) == ["init"] + ["ok"] * 13
+    assert run.result["source"]["kind"] == "external" and run.result["external"]["returncode"] == 0
+    # the camera file it read is OpenCV's YAML with the rig height
+    fs = cv2.FileStorage(str(tmp_path / "run" / "camera.yaml"), cv2.FILE_STORAGE_READ)
+    np.testing.assert_allclose(fs.getNode("camera_matrix").mat(), CAM.K)
+    assert fs.getNode("camera_height_mm").real() == 100.0
+
+
+def _failing(code: str, **kw) -> ExternalEstimator:
+    return ExternalEstimator(name="bad", command=(sys.executable, "-c", code, "{output}"), **kw)
+
+
+@pytest.mark.parametrize(
+    ("code", "reason", "tail"),
+    [
+        ("import sys; print('boom: no features', file=sys.stderr); sys.exit(3)", "exit code 3", "boom: no features"),
+        ("import os, signal; os.kill(os.getpid(), signal.SIGSEGV)", "killed by signal SIGSEGV", ""),
+        ("print('nothing written')", "wrote no trajectory.txt into {output}", ""),
+        (
+            "import sys, pathlib; pathlib.Path(sys.argv[1], 'trajectory.txt').write_text('0 1 2\\n')",
+            "malformed output:",
+            "",
+        ),
+    ],
+)
+def test_a_failing_program_is_an_error_with_reason_and_stderr_tail(line_sequence, tmp_path, code, reason, tail):
+    with pytest.raises(ExternalEstimatorError) as info:
+        run_external(line_sequence, _failing(code), tmp_path / "run")
+    assert info.value.reason.startswith(reason)
+    assert info.value.stderr_tail == tail
+    assert len(str(info.value).splitlines()) == 1
+    assert not (tmp_path / "run" / "result.json").exists()  # no finished run is claimed
+
+
+def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
+    spec = _failing("import time; time.sleep(30)", timeout_s=0.5)
+    with pytest.raises(ExternalEstimatorError, match=r"timed out after 0\.5 s \(killed\)") as info:
+        run_external(line_sequence, spec, tmp_path / "run")
+    assert info.value.reason == "timed out after 0.5 s (killed)"
+
+
+def test_needs_are_checked_before_the_program_runs(line_sequence, tmp_path):
+    spec = ExternalEstimator(name="rgbd", command=(sys.executable, "-c", "raise SystemExit(9)"), needs=("depth",))
+    with pytest.raises(Exception, match=r"rgbd needs depth images"):
+        run_external(line_sequence, spec, tmp_path / "run")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('name = "x"\ncommand = []\n', r"x\.toml\.command = \[\]: must name a program"),
+        ('name = "x"\ncommand = ["vo", "{seq}"]\n', r"unknown placeholder \{seq\} \(known: sequence, output"),
+        ('name = "x"\ncommand = ["vo"]\ntimeout_s = -1\n', r"x\.toml\.timeout_s = -1\.0 s: must be > 0 s"),
+        ('name = "x"\ncommand = ["vo"]\nneeds = ["lidar"]\n', r"'lidar' must be one of depth, stereo"),
+        ('name = "x"\ncommand = ["vo"]\nwhen = 3\n', r"x\.toml\.when: unknown key \(known: command, env"),
+        ('name = "a b"\ncommand = ["vo"]\n', r"x\.toml\.name = 'a b': must be a non-empty name"),
+        ('command = ["vo"]\n', r"x\.toml: name: missing"),
+        ('name = "x"\ncommand = ["vo"]\n[env]\nN = 1\n', r"x\.toml\.env\.N = 1: must be a string"),
+        ("name = ", r"x\.toml: not valid TOML"),
+    ],
+)
+def test_estimator_file_refusals_name_the_key_and_the_rule(tmp_path, text, message):
+    (tmp_path / "x.toml").write_text(text)
+    with pytest.raises(ConfigError, match=message) as info:
+        load_estimator_file(tmp_path / "x.toml")
+    assert len(str(info.value).splitlines()) == 1
+
+
+def test_external_argument_is_split_like_a_shell_and_hashed_as_given():
+    spec = parse_external("my-vo=my_vo --cam '{camera}' {sequence} {output}")
+    assert spec.name == "my-vo" and spec.command == ("my_vo", "--cam", "{camera}", "{sequence}", "{output}")
+    assert spec.source.detail == "sha256:" + command_hash(spec.command)[:12]
+    assert command_hash(spec.command) != command_hash(("my_vo", "{sequence}", "{output}"))
+    assert parse_external("my_vo {sequence}", name="").name == "my_vo"
+    with pytest.raises(ConfigError, match="expected NAME=COMMAND"):
+        parse_external("my_vo {sequence}")
+
+
+def test_floorvo_run_external_and_estimator_file(line_sequence, tmp_path, capsys):
+    cmd = f"{PY} {shlex.quote(str(EXAMPLE / 'fft_vo.py'))} {{sequence}} {{output}} {{camera}}"
+    assert floorvo_main(["run", str(line_sequence), "--external", cmd, "-o", str(tmp_path / "a")]) == 0
+    assert "14 placed" in capsys.readouterr().out
+    f = str(EXAMPLE / "fft-vo.toml")
+    assert floorvo_main(["run", str(line_sequence), "--estimator-file", f, "-o", str(tmp_path / "b")]) == 0
+    a, b = RunFolder.read(tmp_path / "a"), RunFolder.read(tmp_path / "b")
+    np.testing.assert_array_equal(a.T_world_cam, b.T_world_cam)
+    # a crash is one line and exit code 1
+    crash = f"{PY} -c 'import sys; sys.exit(4)'"
+    assert floorvo_main(["run", str(line_sequence), "--external", crash, "-o", str(tmp_path / "c")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("exit code 4")
+
+
+def test_floorvo_run_exits_1_when_nothing_after_the_first_frame_was_tracked(line_sequence, tmp_path, capsys):
+    # blank frames: AKAZE finds no keypoint, so every frame after the first is lost
+    blank = tmp_path / "blank"
+    write_synthetic_sequence(blank, CAM, line_poses(3.0, 1.5), seed=1)
+    for f in (blank / "cam0").glob("*.png"):
+        cv2.imwrite(str(f), np.zeros((CAM.height_px, CAM.width_px), np.uint8))
+    rc = floorvo_main(["run", str(blank), "-e", "akaze-guided", "-o", str(tmp_path / "r")])
+    captured = capsys.readouterr()
+    assert rc == 1
+    assert "tracked no frame after the first" in captured.err and len(captured.err.strip().splitlines()) == 1
+    assert json.loads((tmp_path / "r" / "result.json").read_text())["ok"] == 0
+
+
+def test_floorvo_plot_draws_runs_against_ground_truth(line_sequence, tmp_path, capsys):
+    spec = load_estimator_file(EXAMPLE / "fft-vo.toml")
+    run_external(line_sequence, spec, tmp_path / "a")
+    png = tmp_path / "plot.png"
+    assert floorvo_main(["plot", str(tmp_path / "a"), "--gt", str(line_sequence), "-o", str(png)]) == 0
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[0] > img.shape[1]  # two panels, one above the other
+    # a ground truth that shares no time with the run is refused in one line
+    other = write_synthetic_sequence(tmp_path / "late", CAM, line_poses(3.0, 1.5), seed=2, fps=7.0)
+    t, T = read_tum(other / "groundtruth.txt")
+    (other / "groundtruth.txt").write_text(
+        "".join(f"{ti + 1000.0:.6f} 0 0 0.1 1 0 0 0\n" for ti in t)  # the same poses' count, 1000 s later
+    )
+    capsys.readouterr()
+    assert floorvo_main(["plot", str(tmp_path / "a"), "--gt", str(other), "-o", str(png)]) == 1
+    assert "shares two timestamps" in capsys.readouterr().err
+
+
+def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(line_sequence, tmp_path, capsys):
+    from floorvo.metrics import score_run
+
+    # a run started at --initial-pose 50 mm away: the unaligned figures are left out with a warning
+    assert (
+        floorvo_main(
+            ["run", str(line_sequence), "-e", "phase-corr", "-o", str(tmp_path / "r"), "--initial-pose", "50,0,0"]
+        )
+        == 0
+    )
+    score = score_run(tmp_path / "r", line_sequence)
+    assert score.warnings and "starts 50.0 mm from the ground truth" in score.warnings[0]
+    flat = score.flat()
+    assert "end_drift_pct" not in flat and "ate_none_rmse_mm" not in flat
+    assert flat["ate_se2_rmse_mm"] < 0.2  # the aligned ATE still measures the estimator
+    # a run whose times share nothing with the ground truth: tracking only, and it says why
+    shifted = shutil.copytree(line_sequence, tmp_path / "shifted")
+    t, T = read_tum(line_sequence / "groundtruth.txt")
+    from floorvo.tum import write_tum
+
+    write_tum(shifted / "groundtruth.txt", t + 1000.0, T)
+    score = score_run(tmp_path / "r", shifted)
+    assert score.ground_truth.startswith("the estimate shares no timestamp with the ground truth")
+    assert "ate_se2_rmse_mm" not in score.flat() and score.flat()["tracked_fraction"] == 1.0
+    assert floorvo_main(["score", str(tmp_path / "r"), "--gt", str(shifted), "-o", str(tmp_path / "s.json")]) == 0
+    assert "accuracy (ATE, RPE, drift, segments): the estimate shares no timestamp" in capsys.readouterr().out
