@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from floorvo.config import from_overrides
-from floorvo.errors import ConfigError, EstimatorLoadError
+from floorvo.errors import ConfigError, EstimatorLoadError, shorten
 from floorvo.estimators.base import Estimator
 
 __all__ = [
@@ -129,9 +129,8 @@ def _checked(cls: Any, name: str | None = None) -> type[Estimator]:
 
 
 def _one_line(exc: BaseException) -> str:
-    """``Type: message`` on one line, cut to 200 characters."""
-    text = " ".join(f"{type(exc).__name__}: {exc}".split())
-    return text if len(text) <= 200 else text[:197] + "..."
+    """``Type: message`` on one line, cut to 200 characters (:func:`floorvo.errors.shorten`)."""
+    return shorten(" ".join(f"{type(exc).__name__}: {exc}".split()), 200)
 
 
 def _plugins() -> dict[str, importlib.metadata.EntryPoint]:
