@@ -683,7 +683,7 @@ def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
         run.timestamps_s,
         estimator=str(run.result.get("estimator", "")),
         statuses=run.statuses,
-        timing=run.timing,
+        timing=None if run.timing is None else dict(run.timing),
         why=why,
     )
     score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)

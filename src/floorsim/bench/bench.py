@@ -390,7 +390,7 @@ def run_bench(
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
     baseline_data = load_baseline(baseline) if baseline is not None else None
-    scenes = []
+    scenes: list[tuple[Path, Any, list[BenchProtocol]]] = []
     notes: list[str] = []
     for p in scene_paths:
         if is_sequence_folder(p):

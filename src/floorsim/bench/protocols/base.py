@@ -61,7 +61,8 @@ class SceneRun:
     """One scene of the bench as the protocols see it.
 
     ``label``: the scene's name in results.csv (``NAME-2`` for a second scene of that
-    name); ``seq_dir`` / ``seed``: repetition 0's rendered sequence and its seed;
+    name); ``seq_dir`` / ``seed``: repetition 0's rendered sequence and its seed (a
+    sequence folder given to the bench: that folder, seed None, ``scene`` None);
     ``estimators``: the estimators run on it; ``rows``: its results.csv rows (every
     repetition).
     """
@@ -70,7 +71,7 @@ class SceneRun:
     scene_file: Path
     scene: Any
     seq_dir: Path
-    seed: int
+    seed: int | None
     estimators: list[str]
     rows: list[dict[str, Any]]
 
