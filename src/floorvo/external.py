@@ -52,7 +52,7 @@ import numpy as np
 
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError
-from floorvo.estimators.registry import EstimatorSource, estimator_source
+from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir
 from floorvo.runfolder import RunFolder
 from floorvo.sequence import Sequence
@@ -369,10 +369,3 @@ def run_external(
     ).write(out)
     log.info("%s on %s: %d poses, %.2f s, peak %.0f MiB", name, seq.root, run.placed, wall_s, peak_mb)
     return run
-
-
-def external_source(name: str, externals: dict[str, ExternalEstimator] | None = None) -> EstimatorSource:
-    """Where ``name`` comes from: one of ``externals``, else the registry's answer."""
-    if externals and name in externals:
-        return externals[name].source
-    return estimator_source(name)

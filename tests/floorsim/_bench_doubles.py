@@ -20,6 +20,7 @@ import numpy as np
 from _bench_data import write_run, write_sequence
 
 from floorsim.bench.estimators import EstimatorRunner
+from floorvo.estimators import EstimatorSource
 from floorvo.estimators.base import StepResult
 
 SCENE_TOML = """name = "{name}"
@@ -111,15 +112,23 @@ class FakeRunner(EstimatorRunner):
     """The double estimators: their runs write trajectories with known errors (see the module doc)."""
 
     def names(self):
+        return list(REQUIRES) + list(self.externals)
+
+    def python_names(self):
         return list(REQUIRES)
 
     def requires(self, name):
-        return set(REQUIRES[name])
+        return super().requires(name) if self.is_external(name) else set(REQUIRES[name])
+
+    def source(self, name):
+        return super().source(name) if self.is_external(name) else EstimatorSource("double", name)
 
     def build(self, seq, name, overrides=None):
         return _Stepper(name), None
 
-    def run(self, seq_dir, name, run_dir, overrides=None, scale_calibration=None):
+    def run(self, seq_dir, name, run_dir, overrides=None, scale_calibration=None, **kwargs):
+        if self.is_external(name):  # external programs given to the bench run for real
+            return super().run(seq_dir, name, run_dir, overrides, scale_calibration, **kwargs)
         CALIBRATIONS.append((name, scale_calibration))
         meta = json.loads((Path(seq_dir) / "sequence.json").read_text())
         height = float(meta["scene"]["lights"]["height_mm"])

@@ -86,3 +86,36 @@ def test_shipped_sweep_files_vary_only_keys_the_scene_has():
                 for part in key.split("."):
                     node = node[part]
                 assert node == value, (f.name, key)
+
+
+def test_sweep_runs_sequence_folders_and_external_programs_in_every_job(tmp_path):
+    """A sweep file's ``sequences`` are jobs beside the grid (not rendered); an external program runs
+    in every job, grid and recording alike, on Dask workers, its rows naming where it came from."""
+    import shlex
+    import sys
+
+    from floorvo.external import parse_external
+
+    D.reset()
+    sweep = _sweep_file(tmp_path)
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec", height=2.0)), tmp_path / "rec")
+    sweep.write_text(sweep.read_text().replace("[vary]", 'sequences = ["rec"]\n\n[vary]'))
+    copy_gt = "import shutil, sys; shutil.copy(sys.argv[1] + '/groundtruth.txt', sys.argv[2] + '/trajectory.txt')"
+    ext = parse_external(f"copy-gt={shlex.quote(sys.executable)} -c {shlex.quote(copy_gt)} {{sequence}} {{output}}")
+    assert [j["job"] for j in sweep_jobs(load_sweep(sweep))][-1] == "sequence=rec"
+    res = run_sweep(sweep, tmp_path / "out", workers=2, processes=False, externals=[ext])
+    assert res.errors == [] and res.ran == 5
+    rows = read_results_csv(tmp_path / "out" / "results.csv")
+    by_job: dict[str, dict] = {}
+    for r in rows:
+        by_job.setdefault(r["job"], {})[r["estimator"]] = r
+    assert set(by_job) == {j["job"] for j in sweep_jobs(load_sweep(sweep))}
+    for job, runs in by_job.items():
+        assert set(runs) == {"scaled", "lossy", "copy-gt"}, job
+        assert runs["copy-gt"]["status"] == "ok" and runs["copy-gt"]["source"] == "external"
+        assert runs["copy-gt"]["ate_none_rmse_mm"] == pytest.approx(0.0, abs=1e-6)
+    recorded = by_job["sequence=rec"]
+    assert recorded["scaled"]["sequence"] == str(rec.resolve()) and recorded["scaled"]["scene"] == "rec"
+    # the recording was not rendered again: 4 grid renders and the one made above
+    assert len(D.RENDER_CALLS) == 5
+    assert recorded["scaled"]["end_drift_pct"] == pytest.approx(0.2, rel=1e-4)  # its LED height is 2 mm
