@@ -196,3 +196,29 @@ def test_bench_divides_a_scale_calibration_out_of_its_estimator(tmp_path, double
         )
         err = capsys.readouterr().err
         assert rc == 1 and err.count("\n") == 1 and words in err, err
+
+
+def test_cli_a_crashing_external_program_is_a_failed_row_and_the_bench_exits_0(tmp_path, doubles, capsys):
+    import shlex
+    import sys
+
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    crash = (
+        f"{shlex.quote(sys.executable)} -c 'import sys; print(\"segfault in tracker\", file=sys.stderr); sys.exit(7)'"
+    )
+    efile = tmp_path / "copy-gt.toml"
+    copy_gt = "import shutil, sys; shutil.copy(sys.argv[1] + '/groundtruth.txt', sys.argv[2] + '/trajectory.txt')"
+    efile.write_text(f'name = "copy-gt"\ncommand = ["{{python}}", "-c", "{copy_gt}", "{{sequence}}", "{{output}}"]\n')
+    out = tmp_path / "out"
+    argv = ["bench", str(scene), "--estimators", "scaled", "--external", f"crash={crash}"]
+    assert main([*argv, "--estimator-file", str(efile), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    rows = {r["estimator"]: r for r in read_results_csv(out / "results.csv")}
+    assert set(rows) == {"scaled", "crash", "copy-gt"}
+    assert rows["crash"]["status"] == "failed: exit code 7" and rows["crash"]["stderr_tail"] == "segfault in tracker"
+    assert rows["crash"]["source"] == "external" and rows["crash"]["source_detail"].startswith("sha256:")
+    assert rows["copy-gt"]["status"] == "ok" and rows["copy-gt"]["ate_none_rmse_mm"] == pytest.approx(0, abs=1e-6)
+    assert rows["scaled"]["status"] == "ok"
+    assert "failed: exit code 7" in printed
+    page = (out / "report.html").read_text()
+    assert "segfault in tracker" in page and "Estimators compared" in page
