@@ -46,8 +46,8 @@ import numpy as np
 
 from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit_2d
+from floorvo.io import read_json
 from floorvo.runfolder import RunFolder
-from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
 log = logging.getLogger(__name__)
@@ -676,8 +676,8 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
 def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
     run = RunFolder.read(run_dir)
     n_frames = len(run.timing["frame"]) if run.timing and "frame" in run.timing else None
-    if n_frames is None:
-        n_frames = int(run.result.get("frames") or Sequence.open(seq_dir).frame_count)
+    if n_frames is None:  # a run without timing.csv (a program's): every frame of the sequence
+        n_frames = int(run.result.get("frames") or read_json(seq_dir / "sequence.json").get("frame_count", 0))
     score = score_without_groundtruth(
         n_frames,
         run.timestamps_s,
