@@ -168,26 +168,16 @@ def load_estimator_file(path: str | os.PathLike) -> ExternalEstimator:
     return build(ExternalEstimator, data, path.name)
 
 
-def parse_external(text: str, *, name: str | None = None) -> ExternalEstimator:
-    """``NAME=CMD`` (``--external``; ``CMD`` split like a shell does) as an :class:`ExternalEstimator`.
-
-    With ``name`` given, ``text`` is the command alone (``floorvo run --external CMD``; the
-    default name is the program's file name).
-    """
-    if name is None:
-        name, sep, text = text.partition("=")
-        if not sep or not name.strip():
-            raise ConfigError(
-                f"--external {name + sep + text!r}: expected NAME=COMMAND (e.g. my-vo='my_vo {{sequence}}')"
-            )
-        name = name.strip()
+def parse_external(command: str, name: str = "") -> ExternalEstimator:
+    """An :class:`ExternalEstimator` from a command line given as text (``--external``), split like a
+    shell does; ``name`` defaults to the program's file name (``floorvo run --external CMD``)."""
     try:
-        command = tuple(shlex.split(text))
+        argv = tuple(shlex.split(command))
     except ValueError as exc:
-        raise ConfigError(f"--external {text!r}: {exc}") from None
+        raise ConfigError(f"--external {command!r}: {exc}") from None
     if not name:
-        name = Path(command[0]).name if command else ""
-    return build(ExternalEstimator, {"name": name, "command": command, "here": os.getcwd()}, "--external")
+        name = Path(argv[0]).name if argv else ""
+    return build(ExternalEstimator, {"name": name, "command": argv, "here": os.getcwd()}, "--external")
 
 
 @dataclass(frozen=True)
@@ -252,12 +242,11 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
 
 
 def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:
-    """Where the run starts (see the module doc): ground truth at ``t_first_s``, else ``T_world_start``, else I."""
-    gt = seq.groundtruth()
-    if gt is not None and len(gt[0]):
-        k = int(np.argmin(np.abs(gt[0] - t_first_s)))
-        if abs(gt[0][k] - t_first_s) <= 0.01:
-            return gt[1][k]
+    """Where the run starts (see the module doc): ground truth at ``t_first_s``
+    (:meth:`Sequence.groundtruth_at`), else ``T_world_start``, else the identity."""
+    T, found = seq.groundtruth_at(np.array([t_first_s]))
+    if found[0]:
+        return T[0]
     return np.eye(4) if T_world_start is None else np.asarray(T_world_start, dtype=float)
 
 

@@ -101,7 +101,7 @@ def test_sweep_runs_sequence_folders_and_external_programs_in_every_job(tmp_path
     rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec", height=2.0)), tmp_path / "rec")
     sweep.write_text(sweep.read_text().replace("[vary]", 'sequences = ["rec"]\n\n[vary]'))
     copy_gt = "import shutil, sys; shutil.copy(sys.argv[1] + '/groundtruth.txt', sys.argv[2] + '/trajectory.txt')"
-    ext = parse_external(f"copy-gt={shlex.quote(sys.executable)} -c {shlex.quote(copy_gt)} {{sequence}} {{output}}")
+    ext = parse_external(f"{shlex.quote(sys.executable)} -c {shlex.quote(copy_gt)} {{sequence}} {{output}}", "copy-gt")
     assert [j["job"] for j in sweep_jobs(load_sweep(sweep))][-1] == "sequence=rec"
     res = run_sweep(sweep, tmp_path / "out", workers=2, processes=False, externals=[ext])
     assert res.errors == [] and res.ran == 5

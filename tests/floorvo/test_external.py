@@ -115,13 +115,13 @@ def test_estimator_file_refusals_name_the_key_and_the_rule(tmp_path, text, messa
 
 
 def test_external_argument_is_split_like_a_shell_and_hashed_as_given():
-    spec = parse_external("my-vo=my_vo --cam '{camera}' {sequence} {output}")
+    spec = parse_external("my_vo --cam '{camera}' {sequence} {output}", "my-vo")
     assert spec.name == "my-vo" and spec.command == ("my_vo", "--cam", "{camera}", "{sequence}", "{output}")
     assert spec.source.detail == "sha256:" + command_hash(spec.command)[:12]
     assert command_hash(spec.command) != command_hash(("my_vo", "{sequence}", "{output}"))
-    assert parse_external("my_vo {sequence}", name="").name == "my_vo"
-    with pytest.raises(ConfigError, match="expected NAME=COMMAND"):
-        parse_external("my_vo {sequence}")
+    assert parse_external("/opt/vo/bin/my_vo {sequence}").name == "my_vo"
+    with pytest.raises(ConfigError, match=r"^--external\.command argument '\{sequence': a brace without a placeholder"):
+        parse_external("my_vo {sequence")
 
 
 def test_floorvo_run_external_and_estimator_file(line_sequence, tmp_path, capsys):

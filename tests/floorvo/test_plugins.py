@@ -197,7 +197,7 @@ def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
 
     no_gt = shutil.copytree(line_sequence, tmp_path / "recording")
     (no_gt / "groundtruth.txt").unlink()
-    crash = parse_external(f"crashes={shlex.quote(sys.executable)} -c 'import sys; sys.exit(\"no features\")'")
+    crash = parse_external(f"{shlex.quote(sys.executable)} -c 'import sys; sys.exit(\"no features\")'", "crashes")
     externals = [load_estimator_file(EXTERNAL / "fft-vo.toml"), crash]
     out = tmp_path / "bench"
     res = run_bench(

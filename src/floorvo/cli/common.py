@@ -69,7 +69,10 @@ def externals_from_args(args: argparse.Namespace) -> list:
     """The :class:`floorvo.external.ExternalEstimator` of ``--external`` and ``--estimator-file``."""
     from floorvo.external import load_estimator_file, parse_external
 
-    specs = [parse_external(text) for text in getattr(args, "external", None) or []]
+    items = parse_name_values(
+        getattr(args, "external", None), "--external", "NAME=COMMAND (e.g. my-vo='my_vo {sequence} {output}')"
+    )
+    specs = [parse_external(command, name) for name, command in items.items()]
     specs += [load_estimator_file(path) for path in getattr(args, "estimator_file", None) or []]
     return specs
 

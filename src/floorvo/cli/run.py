@@ -57,7 +57,7 @@ def _run_external(args, start) -> int:
 
     if args.set or args.scale_calibration:
         raise ConfigError("--set and --scale-calibration apply to Python estimators, not to a program")
-    spec = parse_external(args.external, name="") if args.external else load_estimator_file(args.estimator_file)
+    spec = parse_external(args.external) if args.external else load_estimator_file(args.estimator_file)
     res = run_external(args.sequence, spec, args.output, T_world_start=start)
     print(
         f"{res.estimator}: {res.frames} frames, {res.placed} placed, {res.wall_ms_per_frame:.1f} ms/frame (wall), "
