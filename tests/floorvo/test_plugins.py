@@ -195,8 +195,18 @@ def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
     from floorvo.external import load_estimator_file, parse_external
     from floorvo.run import InitialPose
 
-    no_gt = shutil.copytree(line_sequence, tmp_path / "recording")
-    (no_gt / "groundtruth.txt").unlink()
+    # the recording: the frames as a folder of images with irregular frame times and the camera
+    # in OpenCV YAML, imported with `floorvo import` (no ground truth)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i, f in enumerate(sorted((line_sequence / "cam0").glob("*.png"))):
+        shutil.copy(f, frames / f"img_{i + 1}.png")  # natural order: img_2 before img_10
+    times = 100.0 + 0.05 * np.arange(14) + 0.01 * (np.arange(14) % 3)
+    (tmp_path / "times.txt").write_text("".join(f"{t:.6f}\n" for t in times))
+    (tmp_path / "camera.yaml").write_text(CAM.to_opencv_yaml())
+    no_gt = tmp_path / "recording"
+    argv = ["import", str(frames), "-o", str(no_gt), "--camera", str(tmp_path / "camera.yaml")]
+    assert floorvo_main([*argv, "--height-mm", "100", "--timestamps", str(tmp_path / "times.txt")]) == 0
     crash = parse_external(f"{shlex.quote(sys.executable)} -c 'import sys; sys.exit(\"no features\")'", "crashes")
     externals = [load_estimator_file(EXTERNAL / "fft-vo.toml"), crash]
     out = tmp_path / "bench"
@@ -230,8 +240,9 @@ def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
         # without: tracking and timing only, and the run starts at --initial-pose
         assert rows["recording", n]["ground_truth"] == "no ground truth"
         assert rows["recording", n].get("ate_se2_rmse_mm") is None
-        _, T = read_tum(Path(rows["recording", n]["run_dir"]) / "trajectory.txt")
+        t, T = read_tum(Path(rows["recording", n]["run_dir"]) / "trajectory.txt")
         assert T[0, 0, 3] == pytest.approx(5.0) and T[0, 2, 3] == pytest.approx(100.0)
+        np.testing.assert_allclose(t, times, atol=1e-6)  # stamped with the recording's own frame times
     page = res.report_html.read_text()
     assert "Estimators compared" in page and "no ground truth" in page and "Failed runs" in page
     assert "accuracy (ATE after SE(2) alignment) against wall time per frame" in page
