@@ -119,3 +119,21 @@ def test_sweep_runs_sequence_folders_and_external_programs_in_every_job(tmp_path
     # the recording was not rendered again: 4 grid renders and the one made above
     assert len(D.RENDER_CALLS) == 5
     assert recorded["scaled"]["end_drift_pct"] == pytest.approx(0.2, rel=1e-4)  # its LED height is 2 mm
+
+
+def test_a_sweep_file_of_sequence_folders_needs_no_grid_and_refuses_a_grid_without_base(tmp_path):
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec")), tmp_path / "rec")
+    p = tmp_path / "s.toml"
+    p.write_text('sequences = ["rec"]\n')
+    spec = load_sweep(p)
+    assert spec.base is None and spec.vary == {} and spec.sequences == [rec.resolve()]
+    assert sweep_jobs(spec) == [{"job": "sequence=rec", "params": {}, "repetition": 0, "sequence": str(rec.resolve())}]
+    p.write_text('sequences = ["rec"]\n[vary]\n"lights.height_mm" = [1.0, 2.0]\n')
+    with pytest.raises(ConfigError, match=r"s\.toml: \[vary\] needs base = the scene file"):
+        load_sweep(p)
+    p.write_text('sequences = ["nowhere"]\n')
+    with pytest.raises(ConfigError, match=r"sequences: 'nowhere': not a sequence folder"):
+        load_sweep(p)
+    p.write_text("estimators = []\n")
+    with pytest.raises(ConfigError, match=r"base = None: must name the base scene file"):
+        load_sweep(p)

@@ -253,3 +253,26 @@ def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
         baseline.entries[key]["ate_se2_rmse_mm"] = -1.0  # allowed: -1 + max(abs, rel * 1) < 0
     worse = {r.key for r in compare(res.rows, baseline).regressions}
     assert worse == {f"line/{n}" for n in names - {"crashes"}}
+
+
+@pytest.mark.parametrize("where", ["process pool", "dask processes"])
+def test_a_sweep_of_sequence_folders_runs_the_plugin_in_worker_processes(
+    installed_plugin, line_sequence, tmp_path, where
+):
+    """A sweep file of sequence folders alone (no grid): each job runs in another process (a
+    spawned local worker, or a Dask worker process), where the plugin is found by its entry point."""
+    from floorsim.bench.results import read_results_csv
+    from floorsim.bench.sweep import load_sweep, run_sweep, sweep_jobs
+
+    sweep = tmp_path / "recordings.toml"
+    sweep.write_text(f'estimators = ["{PLUGIN}"]\nsequences = ["{line_sequence}"]\n')
+    spec = load_sweep(sweep)
+    assert spec.base is None and [j["job"] for j in sweep_jobs(spec)] == ["sequence=line"]
+    kwargs = {"jobs": 1} if where == "process pool" else {"workers": 1, "processes": True}
+    res = run_sweep(sweep, tmp_path / "out", **kwargs)
+    assert res.errors == [] and res.ran == 1
+    (row,) = read_results_csv(tmp_path / "out" / "results.csv")
+    assert row["estimator"] == PLUGIN and row["status"] == "ok", row["status"]
+    assert (row["source"], row["source_detail"]) == ("plugin", "floorbench-example-plugin 0.1.0")
+    assert row["ate_se2_rmse_mm"] < 0.2
+    assert "Estimators compared" in (tmp_path / "out" / "sweep.html").read_text()

@@ -20,7 +20,8 @@ A sweep file (TOML)::
     "lights.height_mm" = 3.0              # (default: the base scene's own value)
 
     sequences = ["../recordings/hall"]    # optional: sequence folders run beside the grid
-                                          # (relative to the sweep file; not rendered, not varied)
+                                          # (relative to the sweep file; not rendered, not varied;
+                                          # a file of sequences alone needs no base and no [vary])
 
 Keys are scene keys in ``--set`` form (``section.key``), so a sweep can vary only what the
 scene file format has. One job is one grid point and repetition: it renders the scene (the
@@ -65,7 +66,7 @@ from floorsim.bench.bench import (
     supported_estimators,
 )
 from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
-from floorsim.bench.report import Report, _plt
+from floorsim.bench.report import COMPARE_COLUMNS, Report, _plt, compare_estimators
 from floorsim.bench.results import read_results_csv, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
@@ -93,7 +94,7 @@ class SweepSpec:
     """A parsed sweep file."""
 
     name: str
-    base: Path
+    base: Path | None  # None: a sweep of sequence folders alone (no grid)
     vary: dict[str, list[Any]]
     estimators: list[str] | None = None
     repetitions: int = 1
@@ -117,13 +118,24 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         raise ConfigError(
             f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(_TOP_KEYS))})"
         )
-    if "base" not in d or not isinstance(d["base"], str):
-        raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
-    base = (path.parent / d["base"]).resolve()
-    if not base.is_file():
-        raise ConfigError(f"{path}: base = {d['base']!r}: scene file {base} does not exist")
-    vary = d.get("vary")
-    if not isinstance(vary, dict) or not vary:
+    seqs = d.get("sequences", [])
+    if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
+        raise ConfigError(f"{path}: sequences = {seqs!r}: must be a list of sequence folders")
+    sequences = [(path.parent / q).resolve() for q in seqs]
+    for q, full in zip(seqs, sequences):
+        if not is_sequence_folder(full):
+            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
+    base: Path | None = None
+    if "base" in d or not sequences:  # a sweep of sequence folders alone has no grid
+        if not isinstance(d.get("base"), str):
+            raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
+        base = (path.parent / d["base"]).resolve()
+        if not base.is_file():
+            raise ConfigError(f"{path}: base = {d['base']!r}: scene file {base} does not exist")
+    vary = d.get("vary", {} if base is None else None)
+    if base is None and vary:
+        raise ConfigError(f"{path}: [vary] needs base = the scene file whose keys it varies")
+    if base is not None and (not isinstance(vary, dict) or not vary):
         raise ConfigError(f"{path}: [vary] must name at least one scene key with a list of values")
     for k, v in vary.items():
         if not isinstance(v, list) or not v:
@@ -148,13 +160,6 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         if k not in vary:
             raise ConfigError(f"{path}: operating_point.{k}: not a varied key (varied: {', '.join(vary)})")
     fixed = {k: _as_override(v) for k, v in d.get("set", {}).items()}
-    seqs = d.get("sequences", [])
-    if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
-        raise ConfigError(f"{path}: sequences = {seqs!r}: must be a list of sequence folders")
-    sequences = [(path.parent / q).resolve() for q in seqs]
-    for q, full in zip(seqs, sequences):
-        if not is_sequence_folder(full):
-            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
     return SweepSpec(
         str(d.get("name", path.stem)),
         base,
@@ -173,7 +178,7 @@ def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
     ``{"job": "sequence=NAME", "params": {}, "repetition": 0, "sequence": folder}`` per sequence folder."""
     keys = list(spec.vary)
     jobs: list[dict[str, Any]] = []
-    for combo in itertools.product(*(spec.vary[k] for k in keys)):
+    for combo in itertools.product(*(spec.vary[k] for k in keys)) if spec.base is not None else ():
         params = dict(zip(keys, combo))
         for rep in range(spec.repetitions):
             jid = ";".join(f"{k}={_as_override(v)}" for k, v in params.items()) + f";rep={rep}"
@@ -210,6 +215,7 @@ def run_sweep_job(
         if job.get("sequence"):
             seq_dir, seed, scene_name = Path(job["sequence"]), None, Path(job["sequence"]).name
         else:
+            assert spec.base is not None  # grid jobs exist only with a base scene
             scene = load_scene(spec.base, overrides)
             seed, scene_name = scene_seed(scene) + int(job["repetition"]), scene.name
             seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
@@ -377,6 +383,8 @@ def _operating_value(spec: SweepSpec, key: str, load_scene: SceneLoader) -> Any:
     if key in spec.operating_point:
         return spec.operating_point[key]
     try:
+        if spec.base is None:
+            return None
         d = load_scene(spec.base, dict(spec.fixed)).to_dict()
         for part in key.split("."):
             d = d[part]
@@ -402,11 +410,14 @@ def plot_sweep(
     rep = Report(f"floorbench sweep: {spec.name}", Path(out_dir), stem="sweep")
     ok = [r for r in rows if r.get("status") == "ok"]
     rep.text(
-        f"Base scene {spec.base.name}; {len(rows)} rows, {len(ok)} scored. Each point is the mean over the "
+        f"Base scene {spec.base.name if spec.base else '(none: sequence folders only)'}; {len(rows)} rows, "
+        f"{len(ok)} scored. Each point is the mean over the "
         "other varied keys and the repetitions; the dashed line marks the paper rig's operating point. "
         "Failed or skipped jobs are listed in results.csv."
     )
     estimators = sorted({r["estimator"] for r in ok})
+    rep.heading("Estimators compared")
+    rep.table(compare_estimators(rows), COMPARE_COLUMNS)
     for key, values in spec.vary.items():
         rep.heading(key)
         numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
