@@ -246,6 +246,7 @@ def test_bench_runs_a_plugin_an_external_program_and_a_built_in_on_recordings(
     page = res.report_html.read_text()
     assert "Estimators compared" in page and "no ground truth" in page and "Failed runs" in page
     assert "accuracy (ATE after SE(2) alignment) against wall time per frame" in page
+    assert "recording: estimated (dots) trajectories (the sequence has no ground truth)" in page
     # the gate works on all three sources: the same rows pass, a tighter baseline fails each
     baseline = load_baseline(tmp_path / "baseline.json")
     assert compare(res.rows, baseline).ok

@@ -244,7 +244,10 @@ def _trajectory_figure(scene: str, recs: list[RunRecord]):
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 4))
     draw_trajectories(ax, runs, ref)
-    ax.set_title(f"{scene}: estimated against true trajectory (no alignment)")
+    if ref is None:
+        ax.set_title(f"{scene}: estimated trajectories (no ground truth)")
+    else:
+        ax.set_title(f"{scene}: estimated against true trajectory (no alignment)")
     return fig
 
 
@@ -401,14 +404,16 @@ def build_bench_report(
             by_scene.setdefault(r.scene, []).append(r)
     for scene, recs in by_scene.items():
         rep.heading(f"Scene {scene}")
-        fig = _trajectory_figure(scene, recs)
-        if fig is not None:
-            rep.figure(fig, f"{scene}: estimated (dots) against true trajectory, seen from above")
+        traj = _trajectory_figure(scene, recs)
+        if traj is None:
+            rep.text("No estimator produced a trajectory on this scene.")
+            continue
+        has_gt = (recs[0].seq_dir / "groundtruth.txt").is_file()
+        what = "against true trajectory" if has_gt else "trajectories (the sequence has no ground truth)"
+        rep.figure(traj, f"{scene}: estimated (dots) {what}, seen from above")
         fig = _error_figure(scene, recs)
         if fig is not None:
             rep.figure(fig, f"{scene}: translation error against distance travelled")
-        if fig is None:
-            rep.text("No estimator produced a trajectory on this scene.")
     rep.heading("Timing")
     fig = _timing_figure(list(records))
     if fig is not None:
