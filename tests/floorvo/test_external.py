@@ -196,3 +196,17 @@ def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(lin
     assert "ate_se2_rmse_mm" not in score.flat() and score.flat()["tracked_fraction"] == 1.0
     assert floorvo_main(["score", str(tmp_path / "r"), "--gt", str(shifted), "-o", str(tmp_path / "s.json")]) == 0
     assert "accuracy (ATE, RPE, drift, segments): the estimate shares no timestamp" in capsys.readouterr().out
+
+
+def test_initial_pose_is_a_floor_pose_or_a_tum_line():
+    from floorvo.geometry import T_from_se2
+    from floorvo.run import InitialPose
+
+    np.testing.assert_allclose(InitialPose.parse("12.5,-3,0.25").T_world_cam(80.0), T_from_se2(12.5, -3.0, 0.25, 80.0))
+    # a TUM line, with or without its timestamp (metres; qx qy qz qw): the downward camera at (0.1 m, 0, 0.08 m)
+    for text in ("0.1 0 0.08 1 0 0 0", "42.0 0.1 0 0.08 1 0 0 0"):
+        T = InitialPose.parse(text).T_world_cam(None)
+        np.testing.assert_allclose(T, T_from_se2(100.0, 0.0, 0.0, 80.0), atol=1e-12)
+    for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan"):
+        with pytest.raises(ConfigError, match=r"^--initial-pose .*: expected x_mm,y_mm,yaw_rad"):
+            InitialPose.parse(bad)
