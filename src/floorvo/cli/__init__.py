@@ -2,8 +2,9 @@
 
 Each command module defines ``add_parser(subparsers)`` (registering its arguments and
 ``set_defaults(func=run)``) and ``run(args) -> int``, a thin call to a library function.
-A :class:`~floorvo.errors.FloorbenchError` becomes one line on stderr and exit code 1;
-any other exception keeps its traceback.
+A :class:`~floorvo.errors.FloorbenchError` becomes one line on stderr and exit code 1, and
+so does an ``OSError`` (a full disk, a read-only folder: the line names the path); any
+other exception keeps its traceback.
 
 Flags that mean the same in every command of both CLIs (``floorvo``, ``floorsim``):
 ``-o/--output`` (the output file or folder; ``--out`` is accepted as a hidden alias, see
@@ -23,9 +24,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from floorvo import __version__
-from floorvo.errors import FloorbenchError
+from floorvo.errors import FloorbenchError, shorten
 
-__all__ = ["COMMANDS", "build_parser", "run_cli", "main"]
+__all__ = ["COMMANDS", "build_parser", "run_cli", "describe_os_error", "main"]
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +88,16 @@ def _log_level(args: argparse.Namespace) -> int:
     return logging.INFO
 
 
+def describe_os_error(exc: OSError) -> str:
+    """An operating-system error as one line with the path: ``out/run/result.json: No space left
+    on device (errno 28)``."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    if exc.errno is not None:
+        what = f"{what} (errno {exc.errno})"
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    return shorten(f"{' -> '.join(paths)}: {what}" if paths else what, 400)
+
+
 def run_cli(
     parser: argparse.ArgumentParser,
     argv: list[str] | None,
@@ -111,6 +122,9 @@ def run_cli(
         return int(args.func(args) or 0)
     except FloorbenchError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a full disk, a read-only folder, a file that vanished: one line with the path
+        print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; what was written is kept, run the same command again to resume", file=sys.stderr)
