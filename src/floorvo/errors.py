@@ -24,11 +24,18 @@ def shown(value: Any, limit: int = MAX_SHOWN_CHARS) -> str:
     value must not become a 100,000-character message line), newlines escaped (one line)."""
     if isinstance(value, str):
         text = repr(str(value))
-    elif isinstance(value, tuple):
-        text = repr(list(value))
+    elif isinstance(value, (tuple, list)):
+        text = repr(_as_lists(value))
     else:
         text = str(value)
     return shorten(text, limit)
+
+
+def _as_lists(value: Any) -> Any:
+    """Tuples (nested too) as lists, so a matrix read into tuples shows as it was written."""
+    if isinstance(value, (tuple, list)):
+        return [_as_lists(v) for v in value]
+    return value
 
 
 def shorten(text: str, limit: int = MAX_SHOWN_CHARS) -> str:

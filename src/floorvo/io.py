@@ -10,6 +10,7 @@ repr ``np.float64(100.0)``.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -23,7 +24,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shorten
 
 __all__ = [
     "atomic_write_bytes",
@@ -36,6 +37,7 @@ __all__ = [
     "read_png",
     "read_image",
     "read_json",
+    "json_sha256",
     "ensure_writable_dir",
 ]
 
@@ -162,13 +164,24 @@ def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, l
     path = Path(path)
     name = label or str(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{name}: not valid JSON (byte {exc.start} is not UTF-8 text)") from None
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise error(f"{name}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except (ValueError, RecursionError) as exc:  # an integer of 5000 digits, arrays nested 100,000 deep
+        raise error(f"{name}: not valid JSON ({shorten(str(exc))})") from None
+
+
+def json_sha256(obj: Any) -> str:
+    """SHA-256 (hex) of ``obj``'s canonical JSON (keys sorted, no spaces, numbers made plain):
+    the same for an object and for that object written by :func:`atomic_write_json` and read back."""
+    text = json.dumps(plain(obj), sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
 def ensure_writable_dir(path: str | os.PathLike) -> Path:

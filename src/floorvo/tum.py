@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, xyz_quat_from_T
 from floorvo.io import atomic_write_text
 
@@ -54,8 +54,14 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"{path}: trajectory file is missing")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SequenceError(f"{path}: not a TUM text file (byte {exc.start} is not UTF-8 text)") from None
+    except OSError as exc:
+        raise SequenceError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     ts, Ts = [], []
-    for lineno, line in enumerate(path.read_text().splitlines(), 1):
+    for lineno, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
@@ -65,13 +71,15 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
         try:
             vals = [float(p) for p in parts]
         except ValueError:
-            raise SequenceError(f"{path}:{lineno}: not a number in TUM line {line!r}") from None
+            raise SequenceError(f"{path}:{lineno}: not a number in TUM line {shown(line)}") from None
         q = np.array(vals[4:8])
         n = np.linalg.norm(q)
-        if not np.isfinite(vals).all() or n < 1e-9:
+        with np.errstate(over="ignore"):  # metres beyond 1.8e305 overflow in mm: refused below
+            xyz_mm = np.array(vals[1:4]) * 1000.0
+        if not (np.isfinite(vals).all() and np.isfinite(xyz_mm).all() and np.isfinite(n)) or n < 1e-9:
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
         ts.append(vals[0])
-        Ts.append(T_from_xyz_quat(np.array(vals[1:4]) * 1000.0, q / n))
+        Ts.append(T_from_xyz_quat(xyz_mm, q / n))
     if not ts and allow_empty:
         return np.zeros(0), np.zeros((0, 4, 4))
     if not ts:

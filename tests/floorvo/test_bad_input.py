@@ -4,8 +4,11 @@ never a traceback, and impossible values are refused instead of giving wrong out
 from __future__ import annotations
 
 import errno
+import io
+import json
 import os
 
+import numpy as np
 import pytest
 
 from floorsim.cli import main as floorsim_main
@@ -48,3 +51,162 @@ def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     blocker.write_text("not a folder")
     assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(blocker / "run")]) == 1
     assert str(blocker) in _one_line(capsys, "floorvo")
+
+
+# --------------------------------------------------------------------------- maps
+def _tiny_map(root):
+    """A 2-keyframe map of a 40 x 30 px camera with random arrays, saved to ``root``."""
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.mapping.map import GlobalMap, MapConfig, save_map
+    from floorvo.mapping.retrieval import BinaryVocabulary
+    from floorvo.mapping.similarity import Features, downscale
+
+    rng = np.random.default_rng(0)
+    cam = CameraModel.from_sensor(40, 30, 7.4, 6.0)
+    cfg = MapConfig()
+    h, w = downscale(np.zeros((30, 40), np.uint8), cfg.similarity.sim_scale).shape
+    feats = [
+        Features(rng.uniform(0, 30, (n, 2)).astype(np.float32), rng.integers(0, 256, (n, 32), dtype=np.uint8))
+        for n in (5, 7)
+    ]
+    m = GlobalMap(
+        cam,
+        100.0,
+        cfg,
+        [0, 3],
+        np.array([0.0, 0.1]),
+        np.stack([T_world_cam_down(0, 0, 100.0), T_world_cam_down(2.0, 0, 100.0)]),
+        rng.integers(0, 256, (2, h, w), dtype=np.uint8),
+        feats,
+        BinaryVocabulary(rng.integers(0, 256, (4, 32), dtype=np.uint8), np.ones(4, np.float32)),
+        n_mapping_frames=4,
+    )
+    return save_map(m, root)
+
+
+def _resign(root, meta: dict | None = None, arrays: dict | None = None, npz_bytes: bytes | None = None) -> None:
+    """Rewrite a map's files as a buggy or foreign writer would, with checksums that match."""
+    import hashlib
+
+    from floorvo.io import json_sha256
+
+    mj, npz = root / "map.json", root / "keyframes.npz"
+    meta = json.loads(mj.read_text()) if meta is None else meta
+    if arrays is not None:
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        npz_bytes = buf.getvalue()
+    if npz_bytes is not None:
+        npz.write_bytes(npz_bytes)
+        meta["arrays"]["sha256"] = hashlib.sha256(npz_bytes).hexdigest()
+    if isinstance(meta, dict):
+        meta.pop("content_sha256", None)
+        meta["content_sha256"] = json_sha256(meta)
+    mj.write_text(json.dumps(meta))
+
+
+def _map_refused(root, *words):
+    from floorvo.errors import FloorbenchError
+    from floorvo.mapping.map import load_map
+
+    with pytest.raises(FloorbenchError) as info:
+        load_map(root)
+    msg = str(info.value)
+    assert "\n" not in msg and len(msg) < 400, msg
+    for w in words:
+        assert w in msg, msg
+    return msg
+
+
+def test_an_edited_map_json_is_refused(tmp_path):
+    """Issue 16: fx scaled by 1.1 in map.json was accepted (localisation error 0.02 -> 0.43 mm)."""
+    from floorvo.mapping.map import load_map
+
+    root = _tiny_map(tmp_path / "map")
+    assert load_map(root).camera.fx_px == pytest.approx(6000 / 7.4)
+    meta = json.loads((root / "map.json").read_text())
+    meta["camera"]["K"][0][0] *= 1.1
+    (root / "map.json").write_text(json.dumps(meta, indent=2))
+    _map_refused(root, "map.json: content differs from its content_sha256")
+    del meta["content_sha256"]
+    (root / "map.json").write_text(json.dumps(meta, indent=2))
+    _map_refused(root, "has no content_sha256")
+
+
+def _npz_arrays(root) -> dict:
+    with np.load(root / "keyframes.npz") as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize(
+    "variant, words",
+    [
+        # map.json variants (AttributeError, KeyError and TypeError before)
+        (lambda m, a: ([1], None), ("not a floorbench map",)),
+        (lambda m, a: ({**m, "keyframes": 5}, None), ("keyframes = 5: must be a list",)),
+        (lambda m, a: ({k: v for k, v in m.items() if k != "camera"}, None), ("camera", "missing")),
+        (lambda m, a: ({**m, "camera": "none"}, None), ("camera = 'none': must be a table",)),
+        (lambda m, a: ({**m, "arrays": []}, None), ("arrays = []: must be a table",)),
+        (lambda m, a: ({**m, "height_mm": "80mm"}, None), ("height_mm = '80mm': must be a number",)),
+        (lambda m, a: ({**m, "height_mm": float("nan")}, None), ("height_mm = nan mm: must be a finite number",)),
+        (
+            lambda m, a: ({**m, "keyframes": [{**m["keyframes"][0], "T_world_kf": [[1, 0]]}, m["keyframes"][1]]}, None),
+            ("keyframes[0].T_world_kf = [[1.0, 0.0]]: must be a 4x4 matrix",),
+        ),
+        (lambda m, a: ({**m, "n_keyframes": 3}, None), ("n_keyframes = 3, but 2 keyframes",)),
+        (
+            lambda m, a: ({**m, "arrays": {**m["arrays"], "file": "../map.json"}}, None),
+            ("arrays.file = '../map.json'",),
+        ),
+        (lambda m, a: ({**m, "parameters": {"vocab_words": "many"}}, None), ("map.vocab_words = 'many'",)),
+        # keyframes.npz variants (BadZipFile, KeyError before)
+        (lambda m, a: (m, b"PK\x03\x04 not a zip at all"), ("not a readable .npz archive",)),
+        (lambda m, a: (m, {k: v for k, v in a.items() if k != "kp_offsets"}), ("array 'kp_offsets' is missing",)),
+        (lambda m, a: (m, {**a, "images": a["images"].astype(np.float32)}), ("array 'images' is float32",)),
+        (lambda m, a: (m, {**a, "images": a["images"][:, :-1]}), ("inconsistent map: images uint8",)),
+        (lambda m, a: (m, {**a, "kp_offsets": a["kp_offsets"][::-1].copy()}), ("keypoint offsets",)),
+        (lambda m, a: (m, {**a, "kp_xy_px": a["kp_xy_px"] * np.nan}), ("kp_xy_px", "finite")),
+        (lambda m, a: (m, {**a, "vocab_idf": a["vocab_idf"][:2]}), ("vocab_idf (2,)",)),
+        (lambda m, a: (m, {**a, "T_world_kf": a["T_world_kf"] + 1.0}), ("poses in map.json differ",)),
+    ],
+)
+def test_malformed_maps_are_refused_in_one_line(tmp_path, variant, words):
+    root = _tiny_map(tmp_path / "map")
+    meta, arrays = variant(json.loads((root / "map.json").read_text()), _npz_arrays(root))
+    if isinstance(arrays, bytes):
+        _resign(root, meta, npz_bytes=arrays)
+    else:
+        _resign(root, meta, arrays=arrays)
+    _map_refused(root, *words)
+
+
+# --------------------------------------------------------------------------- text files that are not text
+def test_binary_or_absurd_trajectory_and_json_files_are_one_line(tmp_path, small_seq, capsys):
+    from floorvo.errors import SequenceError
+    from floorvo.io import read_json
+    from floorvo.tum import read_tum
+
+    p = tmp_path / "trajectory.txt"
+    p.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff\xfe")
+    with pytest.raises(SequenceError, match=r"trajectory.txt: not a TUM text file \(byte 0 is not UTF-8 text\)"):
+        read_tum(p)
+    p.write_text("0 1e306 0 0 0 0 0 1\n")  # metres that overflow to inf in mm
+    with pytest.raises(SequenceError, match="non-finite value"):
+        read_tum(p)
+    j = tmp_path / "x.json"
+    for content, words in (
+        (b"\xff\xfe{}", "byte 0 is not UTF-8"),
+        (b"[" * 100_000 + b"]" * 100_000, "not valid JSON"),
+        (b"1" * 5000, "not valid JSON"),
+    ):
+        j.write_bytes(content)
+        with pytest.raises(SequenceError, match=words) as info:
+            read_json(j)
+        assert len(str(info.value)) < 300
+    # through the CLI: a binary ground truth is one line
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    (run / "trajectory.txt").write_bytes(b"\x00\xff" * 100)
+    capsys.readouterr()
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
+    assert "not a TUM text file" in _one_line(capsys, "floorvo")

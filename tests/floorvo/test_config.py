@@ -107,6 +107,26 @@ def test_build_refuses_by_name_with_one_line(data, message):
     assert "\n" not in str(exc.value) and "None" not in str(exc.value)
 
 
+@dataclass(frozen=True)
+class Needs(Config):
+    name: str = param(doc="required")
+    inner: Inner = param(default_factory=Inner)
+
+
+@dataclass(frozen=True)
+class Outer(Config):
+    needs: Needs = param(doc="a nested table with a required key")
+
+
+def test_a_missing_required_key_is_refused_by_name():
+    """A field without a default that the table lacks was a TypeError from the constructor."""
+    with pytest.raises(ConfigError, match=r"^outer.needs.name: missing \(a required key\)$"):
+        build(Outer, {"needs": {"inner": {"depth_mm": 1.0}}}, "outer")
+    with pytest.raises(ConfigError, match=r"^needs: missing"):
+        build(Outer, {})
+    assert build(Outer, {"needs": {"name": "a"}}).needs.name == "a"
+
+
 def test_direct_construction_checks_the_same_rules():
     with pytest.raises(ConfigError, match=r"^probe.count = 0: must be >= 1$"):
         Probe(count=0)

@@ -8,13 +8,15 @@ On disk a map is a folder::
 
     MAP/map.json        schema_version, format, camera, height_mm, parameters, keyframe
                         frame indices, timestamps and poses (T_world_kf, mm), pose_source
-                        ("groundtruth" or "chain"), chain_vs_groundtruth, sha256 of:
+                        ("groundtruth" or "chain"), chain_vs_groundtruth, its own
+                        content_sha256, and the sha256 of:
     MAP/keyframes.npz   images (K, h, w) uint8, kp_xy_px (M, 2) float32, kp_desc (M, 32)
                         uint8, kp_offsets (K + 1,) int64, vocab_words (V, 32) uint8,
                         vocab_idf (V,) float32, T_world_kf (K, 4, 4) float64
 
 Both files are written atomically, the arrays first; ``map.json`` names the arrays'
-checksum, so a map whose files do not belong together is refused on loading.
+checksum and carries one of its own content, so a map whose files do not belong together,
+or whose ``map.json`` was edited (a camera with another focal length), is refused on loading.
 """
 
 from __future__ import annotations
@@ -33,15 +35,24 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, build, from_overrides, param, to_plain
-from floorvo.errors import FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
 from floorvo.geometry import T_world_cam_down
-from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, read_json
+from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, json_sha256, read_json
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
 from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
 from floorvo.sequence import Sequence
 
-__all__ = ["MAP_SCHEMA_VERSION", "MapConfig", "GlobalMap", "build_map", "build_map_from_images", "load_map", "save_map"]
+__all__ = [
+    "MAP_SCHEMA_VERSION",
+    "MapConfig",
+    "MapFile",
+    "GlobalMap",
+    "build_map",
+    "build_map_from_images",
+    "load_map",
+    "save_map",
+]
 
 log = logging.getLogger(__name__)
 
@@ -313,70 +324,189 @@ def save_map(m: GlobalMap, out_dir: str | os.PathLike) -> Path:
         ],
         "arrays": {"file": "keyframes.npz", "sha256": hashlib.sha256(data).hexdigest()},
     }
+    meta["content_sha256"] = json_sha256(meta)
     atomic_write_json(out / "map.json", meta)
     return out
 
 
+#: The arrays of ``keyframes.npz``: dtype kind (``u`` unsigned, ``i`` signed, ``f`` float) and ndim.
+MAP_ARRAYS = {
+    "images": ("u", 3),
+    "kp_xy_px": ("f", 2),
+    "kp_desc": ("u", 2),
+    "kp_offsets": ("iu", 1),
+    "vocab_words": ("u", 2),
+    "vocab_idf": ("f", 1),
+    "T_world_kf": ("f", 3),
+}
+
+
+@dataclass(frozen=True)
+class MapKeyframeEntry(Config):
+    """One keyframe of ``map.json``."""
+
+    frame: int = param(min=0, doc="frame index in the mapping sequence")
+    timestamp_s: float = param(unit="s", doc="its time in the mapping sequence")
+    T_world_kf: tuple[tuple[float, ...], ...] = param(doc="4x4 pose of the keyframe, mm")
+
+
+@dataclass(frozen=True)
+class MapArraysEntry(Config):
+    """Where ``map.json`` finds its arrays, and their checksum."""
+
+    file: str = param(doc="file name of the arrays, in the map folder")
+    sha256: str = param(doc="SHA-256 of that file")
+
+
+@dataclass(frozen=True)
+class MapFile(Config):
+    """The keys of ``map.json`` (read by :func:`load_map`, written by :func:`save_map`)."""
+
+    schema_version: int = param(choices=(MAP_SCHEMA_VERSION,), doc="map folder format version")
+    format: str = param(choices=(MAP_FORMAT,), doc="format name")
+    camera: dict = param(doc="intrinsics (CameraModel.to_dict)")
+    height_mm: float = param(unit="mm", gt=0, doc="camera height above the floor")
+    parameters: dict = param(doc="the MapConfig used")
+    keyframes: tuple[dict, ...] = param(doc="frame, timestamp_s, T_world_kf of each keyframe")
+    arrays: MapArraysEntry = param(doc="the arrays file and its checksum")
+    content_sha256: str = param(doc="SHA-256 of this file's canonical JSON without this key")
+    n_keyframes: int = param(min=1, doc="number of keyframes")
+    n_mapping_frames: int = param(0, min=0, doc="frames of the mapping sequence")
+    units: dict = param(default_factory=dict, doc="provenance: units")
+    source: str = param("", doc="provenance: the mapping sequence")
+    pose_source: str = param("chain", choices=POSE_SOURCES, doc="where the keyframe poses came from")
+    chain_vs_groundtruth: dict = param(default_factory=dict, doc="the eq. (24) chain against ground truth")
+
+
+def _pose(entry: MapKeyframeEntry, where: str) -> np.ndarray:
+    T = np.array(entry.T_world_kf, dtype=float) if all(len(r) == 4 for r in entry.T_world_kf) else np.zeros(0)
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise ConfigError(f"{where}.T_world_kf = {shown(entry.T_world_kf)}: must be a 4x4 matrix of finite numbers")
+    return T
+
+
+def _read_map_json(mj: Path) -> tuple[MapFile, CameraModel, MapConfig, list[MapKeyframeEntry], np.ndarray]:
+    """``map.json`` checked in full: format, version, its own checksum, every key."""
+    meta = read_json(mj, FloorbenchError)
+    if not isinstance(meta, dict) or meta.get("format") != MAP_FORMAT:
+        raise FloorbenchError(f"{mj}: not a floorbench map (format must be {MAP_FORMAT!r})")
+    if meta.get("schema_version") != MAP_SCHEMA_VERSION:
+        raise FloorbenchError(
+            f"{mj}: schema_version {shown(meta.get('schema_version'))} is not {MAP_SCHEMA_VERSION} (rebuild the map)"
+        )
+    written = meta.get("content_sha256")
+    if written is None:
+        raise FloorbenchError(f"{mj}: has no content_sha256 (written before maps were checksummed); rebuild the map")
+    if written != json_sha256({k: v for k, v in meta.items() if k != "content_sha256"}):
+        raise FloorbenchError(
+            f"{mj}: content differs from its content_sha256 (edited or damaged); rebuild the map with `floorvo map`"
+        )
+    try:
+        f = build(MapFile, meta)
+        camera = CameraModel.from_dict(f.camera)
+        cfg = MapConfig.from_dict(f.parameters)
+        kfs = [build(MapKeyframeEntry, k, f"keyframes[{i}]") for i, k in enumerate(f.keyframes)]
+        T = np.stack([_pose(k, f"keyframes[{i}]") for i, k in enumerate(kfs)]) if kfs else np.zeros((0, 4, 4))
+    except ConfigError as exc:
+        raise FloorbenchError(f"{mj}: {exc}") from None
+    if f.n_keyframes != len(kfs):
+        raise FloorbenchError(f"{mj}: n_keyframes = {f.n_keyframes}, but {len(kfs)} keyframes are listed")
+    name = f.arrays.file
+    if name in ("", ".", "..") or "/" in name or "\\" in name:
+        raise FloorbenchError(f"{mj}: arrays.file = {shown(name)}: must be a file name in the map folder")
+    return f, camera, cfg, kfs, T
+
+
+def _read_map_arrays(npz: Path, sha256: str) -> dict[str, np.ndarray]:
+    """The arrays of ``keyframes.npz``, whose bytes must have checksum ``sha256``."""
+    if not npz.is_file():
+        raise FloorbenchError(f"{npz}: keyframe arrays are missing")
+    try:
+        data = npz.read_bytes()
+    except OSError as exc:
+        raise FloorbenchError(f"{npz}: cannot be read ({exc.strerror or exc})") from None
+    if hashlib.sha256(data).hexdigest() != sha256:
+        raise FloorbenchError(
+            f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)"
+        )
+    try:
+        z = np.load(io.BytesIO(data), allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError("a single array, not an .npz archive")
+        with z:
+            missing = [k for k in MAP_ARRAYS if k not in z.files]
+            if missing:
+                raise FloorbenchError(f"{npz}: array {missing[0]!r} is missing (has: {', '.join(z.files)})")
+            arr = {k: z[k] for k in MAP_ARRAYS}
+    except FloorbenchError:
+        raise
+    except Exception as exc:  # damaged zip or .npy data: BadZipFile, zlib.error, ValueError, EOFError, ...
+        raise FloorbenchError(
+            f"{npz}: not a readable .npz archive ({type(exc).__name__}: {shorten(str(exc))})"
+        ) from None
+    for k, (kinds, ndim) in MAP_ARRAYS.items():
+        a = arr[k]
+        if a.dtype.kind not in kinds or a.ndim != ndim:
+            raise FloorbenchError(f"{npz}: array {k!r} is {a.dtype} with shape {a.shape}; expected {ndim} dimensions")
+    return arr
+
+
+def _map_problem(arr: dict[str, np.ndarray], T: np.ndarray, camera: CameraModel, cfg: MapConfig) -> str | None:
+    """The first way the arrays disagree with each other or with ``map.json``, or None."""
+    K = len(T)
+    images, off, xy, desc = arr["images"], arr["kp_offsets"], arr["kp_xy_px"], arr["kp_desc"]
+    s = cfg.similarity.sim_scale
+    size = (K, *downscale(np.zeros((camera.height_px, camera.width_px), np.uint8), s).shape)
+    if images.dtype != np.uint8 or images.shape != size:
+        return f"images {images.dtype} {images.shape}, expected uint8 {size} ({K} keyframes of the map's camera)"
+    if len(off) != K + 1 or off[0] != 0 or np.any(np.diff(off) < 0) or off[-1] != len(xy) or len(xy) != len(desc):
+        return "keypoint offsets do not match the keypoints"
+    if xy.shape[1:] != (2,) or not np.isfinite(xy).all():
+        return f"keypoints kp_xy_px {xy.shape}: must be (M, 2) finite pixels"
+    words, idf = arr["vocab_words"], arr["vocab_idf"]
+    if desc.dtype != np.uint8 or words.dtype != np.uint8 or len(words) == 0 or desc.shape[1] != words.shape[1]:
+        return "descriptor width differs from the vocabulary's"
+    if idf.shape != (len(words),) or not np.isfinite(idf).all():
+        return f"vocab_idf {idf.shape}: must hold one finite weight per word ({len(words)})"
+    if arr["T_world_kf"].shape != T.shape or not np.allclose(T, arr["T_world_kf"]):
+        return "keyframe poses in map.json differ from keyframes.npz"
+    return None
+
+
 def load_map(path: str | os.PathLike) -> GlobalMap:
-    """Read and validate a map folder written by :func:`save_map`."""
+    """Read and validate a map folder written by :func:`save_map` (the one reader of the format).
+
+    Every file is checked: ``map.json`` against its own ``content_sha256`` and key by key
+    (:class:`MapFile`), ``keyframes.npz`` against the checksum ``map.json`` names, each array
+    for its type and shape, and the arrays against ``map.json`` (poses, keyframe count, the
+    camera's image size). Anything else is a one-line :class:`~floorvo.errors.FloorbenchError`.
+    """
     root = Path(path)
     mj = root / "map.json"
     if not mj.is_file():
         raise FloorbenchError(
             f"{root}: not a map folder (map.json is missing); build one with `floorvo map SEQ -o MAP`"
         )
-    meta = read_json(mj, FloorbenchError)
-    if meta.get("format") != MAP_FORMAT:
-        raise FloorbenchError(f"{mj}: format {meta.get('format')!r} is not {MAP_FORMAT!r}")
-    if meta.get("schema_version") != MAP_SCHEMA_VERSION:
-        raise FloorbenchError(
-            f"{mj}: schema_version {meta.get('schema_version')!r} is not {MAP_SCHEMA_VERSION} (rebuild the map)"
-        )
-    npz = root / meta.get("arrays", {}).get("file", "keyframes.npz")
-    if not npz.is_file():
-        raise FloorbenchError(f"{npz}: keyframe arrays are missing")
-    data = npz.read_bytes()
-    if hashlib.sha256(data).hexdigest() != meta["arrays"].get("sha256"):
-        raise FloorbenchError(
-            f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)"
-        )
-    try:
-        with np.load(io.BytesIO(data)) as z:
-            arr = {k: z[k] for k in z.files}
-        cfg = MapConfig.from_dict(meta["parameters"])
-        camera = CameraModel.from_dict(meta["camera"])
-        kfs = meta["keyframes"]
-    except (KeyError, ValueError, TypeError) as exc:
-        raise FloorbenchError(f"{root}: malformed map ({exc!r})") from None
-    K = len(kfs)
+    f, camera, cfg, kfs, T = _read_map_json(mj)
+    arr = _read_map_arrays(root / f.arrays.file, f.arrays.sha256)
+    problem = _map_problem(arr, T, camera, cfg)
+    if problem:
+        raise FloorbenchError(f"{root}: inconsistent map: {problem}")
     off = arr["kp_offsets"]
-    T = np.array([k["T_world_kf"] for k in kfs], dtype=float).reshape(-1, 4, 4)
-    problems = []
-    if arr["images"].ndim != 3 or len(arr["images"]) != K:
-        problems.append(f"images {arr['images'].shape} for {K} keyframes")
-    if len(off) != K + 1 or off[-1] != len(arr["kp_xy_px"]) or len(arr["kp_xy_px"]) != len(arr["kp_desc"]):
-        problems.append("keypoint offsets do not match the keypoints")
-    if arr["kp_desc"].ndim != 2 or arr["kp_desc"].shape[1] != arr["vocab_words"].shape[1]:
-        problems.append("descriptor width differs from the vocabulary's")
-    if not np.allclose(T, arr["T_world_kf"]):
-        problems.append("keyframe poses in map.json differ from keyframes.npz")
-    if K == 0:
-        problems.append("no keyframes")
-    if problems:
-        raise FloorbenchError(f"{root}: inconsistent map: {problems[0]}")
+    K = len(kfs)
     feats = [Features(arr["kp_xy_px"][off[k] : off[k + 1]], arr["kp_desc"][off[k] : off[k + 1]]) for k in range(K)]
     return GlobalMap(
         camera,
-        float(meta["height_mm"]),
+        f.height_mm,
         cfg,
-        [int(k["frame"]) for k in kfs],
-        np.array([k["timestamp_s"] for k in kfs], float),
+        [k.frame for k in kfs],
+        np.array([k.timestamp_s for k in kfs], float),
         T,
         arr["images"],
         feats,
         BinaryVocabulary(arr["vocab_words"], arr["vocab_idf"]),
-        n_mapping_frames=int(meta.get("n_mapping_frames", 0)),
-        source=str(meta.get("source", "")),
-        pose_source=str(meta.get("pose_source", "chain")),
-        chain_vs_groundtruth=dict(meta.get("chain_vs_groundtruth", {})),
+        n_mapping_frames=f.n_mapping_frames,
+        source=f.source,
+        pose_source=f.pose_source,
+        chain_vs_groundtruth=dict(f.chain_vs_groundtruth),
     )
