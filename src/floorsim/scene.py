@@ -53,7 +53,6 @@ key, the value and the rule. ``--set section.key=value`` overrides any key.
 from __future__ import annotations
 
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,6 +66,7 @@ from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
 from floorvo.config import Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.io import read_toml
 
 __all__ = [
     "SCENE_SCHEMA_VERSION",
@@ -404,13 +404,7 @@ def resolve_scene_path(path_or_name: str | os.PathLike) -> Path:
 def load_scene(path: str | os.PathLike, overrides: Mapping[str, str] | None = None) -> Scene:
     """Read a scene TOML file (or a shipped scene name), apply overrides, validate."""
     p = resolve_scene_path(path)
-    try:
-        d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML ({exc})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{p}: cannot read scene file ({exc})") from None
-    d = apply_overrides(d, overrides)
+    d = apply_overrides(read_toml(p, ConfigError), overrides)
     try:
         return scene_from_dict(d, default_name=p.stem)
     except ConfigError as exc:

@@ -38,7 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from floorvo.errors import ConfigError, ConfigFieldError, shown
+from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
 
 __all__ = [
     "Config",
@@ -329,7 +329,8 @@ def check(obj: Any) -> None:
 
 
 def _join(prefix: str, key: str) -> str:
-    return f"{prefix}.{key}" if prefix else key
+    """``prefix.key`` as errors name a field (a key read from a file is cut to one short line)."""
+    return f"{prefix}.{shorten(key)}" if prefix else shorten(key)
 
 
 def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key") -> Any:
@@ -422,7 +423,7 @@ def apply_overrides(d: Mapping[str, Any], overrides: Mapping[str, Any] | None) -
         for p in parts[:-1]:
             nxt = node.setdefault(p, {})
             if not isinstance(nxt, dict):
-                raise ConfigError(f"--set {key}: {p!r} is not a table")
+                raise ConfigError(f"--set {shorten(key)}: {shown(p)} is not a table")
             node = nxt
         node[parts[-1]] = SetText(raw) if isinstance(raw, str) else raw
     return out

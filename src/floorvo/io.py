@@ -16,6 +16,7 @@ import json
 import math
 import os
 import tempfile
+import tomllib
 from collections.abc import Iterable, Mapping
 from collections.abc import Sequence as SequenceT
 from pathlib import Path
@@ -37,6 +38,7 @@ __all__ = [
     "read_png",
     "read_image",
     "read_json",
+    "read_toml",
     "json_sha256",
     "ensure_writable_dir",
 ]
@@ -175,6 +177,25 @@ def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, l
         raise error(f"{name}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except (ValueError, RecursionError) as exc:  # an integer of 5000 digits, arrays nested 100,000 deep
         raise error(f"{name}: not valid JSON ({shorten(str(exc))})") from None
+
+
+def read_toml(path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None) -> dict:
+    """Parse a TOML file (a scene, a sweep); a missing, unreadable or malformed file raises
+    ``error`` with one line. ``label`` names the file in the message (default: its path)."""
+    path = Path(path)
+    name = label or str(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{name}: not valid TOML (byte {exc.start} is not UTF-8 text)") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{name}: not valid TOML ({shorten(str(exc))})") from None
+    except RecursionError:
+        raise error(f"{name}: not valid TOML (nested too deeply)") from None
 
 
 def json_sha256(obj: Any) -> str:

@@ -73,7 +73,8 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
         except ValueError:
             raise SequenceError(f"{path}:{lineno}: not a number in TUM line {shown(line)}") from None
         q = np.array(vals[4:8])
-        n = np.linalg.norm(q)
+        q_max = float(np.max(np.abs(q)))
+        n = q_max * float(np.linalg.norm(q / q_max)) if 0 < q_max < np.inf else q_max  # no overflow in the squares
         with np.errstate(over="ignore"):  # metres beyond 1.8e305 overflow in mm: refused below
             xyz_mm = np.array(vals[1:4]) * 1000.0
         if not (np.isfinite(vals).all() and np.isfinite(xyz_mm).all() and np.isfinite(n)) or n < 1e-9:

@@ -45,8 +45,8 @@ from __future__ import annotations
 import itertools
 import json
 import logging
+import math
 import os
-import tomllib
 from collections.abc import Callable, Mapping
 from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass, field
@@ -69,8 +69,9 @@ from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
 from floorsim.bench.report import COMPARE_COLUMNS, Report, _plt, compare_estimators
 from floorsim.bench.results import read_results_csv, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
-from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shorten, shown
 from floorvo.external import ExternalEstimator
+from floorvo.io import read_toml
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +79,8 @@ __all__ = ["SweepSpec", "load_sweep", "sweep_jobs", "run_sweep_job", "run_sweep"
 
 _TOP_KEYS = {"base", "estimators", "repetitions", "render", "set", "vary", "operating_point", "name", "sequences"}
 _RENDER_KEYS = {"frames": int, "scale": float, "spp": int}
+#: The most jobs (grid points x repetitions) a sweep file may ask for.
+MAX_SWEEP_JOBS = 10_000
 
 
 def _as_override(value: Any) -> str:
@@ -104,73 +107,83 @@ class SweepSpec:
     sequences: list[Path] = field(default_factory=list)
 
 
+def _table(path: Path, d: Mapping[str, Any], key: str) -> dict[str, Any]:
+    value = d.get(key, {})
+    if not isinstance(value, dict):
+        raise ConfigError(f"{path}: {key} = {shown(value)}: must be a table")
+    return value
+
+
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
-    """Read and check a sweep file (ConfigError naming the key, the value and the rule)."""
+    """Read and check a sweep file (ConfigError naming the key, the value and the rule).
+
+    The grid (values of every varied key, times the repetitions) may hold at most
+    :data:`MAX_SWEEP_JOBS` jobs. The render settings follow the rules of ``floorsim render``'s
+    ``--frames`` (an integer >= 1), ``--scale`` (0, 4] and ``--spp`` (an integer >= 1).
+    """
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: sweep file does not exist")
-    try:
-        d = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    d = read_toml(path, ConfigError)
     unknown = set(d) - _TOP_KEYS
     if unknown:
         raise ConfigError(
-            f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(_TOP_KEYS))})"
+            f"{path}: unknown key(s) {shorten(', '.join(sorted(unknown)))} (known: {', '.join(sorted(_TOP_KEYS))})"
         )
     seqs = d.get("sequences", [])
     if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
-        raise ConfigError(f"{path}: sequences = {seqs!r}: must be a list of sequence folders")
+        raise ConfigError(f"{path}: sequences = {shown(seqs)}: must be a list of sequence folders")
     sequences = [(path.parent / q).resolve() for q in seqs]
     for q, full in zip(seqs, sequences):
         if not is_sequence_folder(full):
-            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
+            raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
     base: Path | None = None
     if "base" in d or not sequences:  # a sweep of sequence folders alone has no grid
-        if not isinstance(d.get("base"), str):
-            raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
+        if not isinstance(d.get("base"), str) or not d["base"]:
+            raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
         base = (path.parent / d["base"]).resolve()
         if not base.is_file():
-            raise ConfigError(f"{path}: base = {d['base']!r}: scene file {base} does not exist")
+            raise ConfigError(f"{path}: base = {shown(d['base'])}: scene file {shorten(str(base))} does not exist")
     vary = d.get("vary", {} if base is None else None)
-    if base is None and vary:
+    if base is None and (vary or not isinstance(vary, dict)):
         raise ConfigError(f"{path}: [vary] needs base = the scene file whose keys it varies")
     if base is not None and (not isinstance(vary, dict) or not vary):
         raise ConfigError(f"{path}: [vary] must name at least one scene key with a list of values")
+    jobs = 1
     for k, v in vary.items():
         if not isinstance(v, list) or not v:
-            raise ConfigError(f"{path}: vary.{k} = {v!r}: must be a non-empty list of values")
+            raise ConfigError(f"{path}: vary.{shorten(k)} = {shown(v)}: must be a non-empty list of values")
         if len({_as_override(x) for x in v}) != len(v):
-            raise ConfigError(f"{path}: vary.{k} = {v!r}: values must be distinct")
+            raise ConfigError(f"{path}: vary.{shorten(k)} = {shown(v)}: values must be distinct")
+        jobs *= len(v)
     est = d.get("estimators")
     if est is not None and (not isinstance(est, list) or not all(isinstance(e, str) for e in est) or not est):
-        raise ConfigError(f"{path}: estimators = {est!r}: must be a non-empty list of names")
+        raise ConfigError(f"{path}: estimators = {shown(est)}: must be a non-empty list of names")
     reps = d.get("repetitions", 1)
     if not isinstance(reps, int) or isinstance(reps, bool) or reps < 1:
-        raise ConfigError(f"{path}: repetitions = {reps!r}: must be an integer >= 1")
-    render = d.get("render", {})
+        raise ConfigError(f"{path}: repetitions = {shown(reps)}: must be an integer >= 1")
+    if jobs * reps > MAX_SWEEP_JOBS:
+        raise ConfigError(f"{path}: the grid holds {jobs * reps} jobs (values x repetitions); at most {MAX_SWEEP_JOBS}")
+    render = _table(path, d, "render")
     for k, v in render.items():
         if k not in _RENDER_KEYS:
-            raise ConfigError(f"{path}: render.{k}: unknown key (known: {', '.join(_RENDER_KEYS)})")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0:
-            raise ConfigError(f"{path}: render.{k} = {v!r}: must be a number > 0")
+            raise ConfigError(f"{path}: render.{shorten(k)}: unknown key (known: {', '.join(_RENDER_KEYS)})")
+        whole = _RENDER_KEYS[k] is int
+        if isinstance(v, bool) or not isinstance(v, int if whole else (int, float)) or not 0 < v < math.inf:
+            rule = "an integer >= 1" if whole else "a number > 0"
+            raise ConfigError(f"{path}: render.{k} = {shown(v)}: must be {rule}")
+        if k == "scale" and v > 4:
+            raise ConfigError(f"{path}: render.scale = {shown(v)}: must be <= 4")
     render = {k: _RENDER_KEYS[k](v) for k, v in render.items()}
-    op = d.get("operating_point", {})
+    op = _table(path, d, "operating_point")
     for k in op:
         if k not in vary:
-            raise ConfigError(f"{path}: operating_point.{k}: not a varied key (varied: {', '.join(vary)})")
-    fixed = {k: _as_override(v) for k, v in d.get("set", {}).items()}
-    return SweepSpec(
-        str(d.get("name", path.stem)),
-        base,
-        {k: list(v) for k, v in vary.items()},
-        est,
-        reps,
-        render,
-        fixed,
-        dict(op),
-        sequences,
-    )
+            raise ConfigError(f"{path}: operating_point.{shorten(k)}: not a varied key (varied: {', '.join(vary)})")
+    fixed = {k: _as_override(v) for k, v in _table(path, d, "set").items()}
+    name = d.get("name", path.stem)
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{path}: name = {shown(name)}: must be a non-empty string")
+    return SweepSpec(name, base, {k: list(v) for k, v in vary.items()}, est, reps, render, fixed, dict(op), sequences)
 
 
 def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:

@@ -1,0 +1,184 @@
+"""Property-based tests (issue 16): every floorvo reader and config, given any input, gives
+a valid object or one FloorbenchError line, never another exception.
+
+Inputs are edits of a valid document (a value replaced by a nearby or a random one, a key
+dropped or added, the whole document swapped) and random bytes; see ``tests/_fuzz.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import io
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from _fuzz import edited, one_line_or_valid, values
+from floorvo.camera import CameraModel
+from floorvo.config import from_overrides, parse_set_args
+from floorvo.estimators import get_estimator, list_estimators, make_config
+from floorvo.io import json_sha256, read_json
+from floorvo.mapping.map import MapConfig, load_map
+from floorvo.sequence import Sequence
+from floorvo.synthetic import line_poses, write_synthetic_sequence
+from floorvo.tum import read_tum
+
+CAMERA = CameraModel.from_sensor().scaled(0.1)
+
+
+@pytest.fixture(scope="module")
+def workdir():
+    with tempfile.TemporaryDirectory(prefix="floorbench-props-") as d:
+        yield Path(d)
+
+
+# --------------------------------------------------------------------------- camera blocks
+@given(edited(CAMERA.to_dict()))
+def test_camera_block(block):
+    cam = one_line_or_valid(lambda: CameraModel.from_dict(block))
+    if isinstance(cam, CameraModel):
+        assert cam.width_px >= 1 and cam.fx_px > 0 and np.isfinite(cam.K).all()
+
+
+# --------------------------------------------------------------------------- TUM files
+TUM_LINE = st.lists(
+    st.one_of(st.floats(), st.integers(-(10**30), 10**30), st.sampled_from(["x", "1,2", "nan", "#", "0x10"])),
+    min_size=0,
+    max_size=9,
+).map(lambda xs: " ".join(map(str, xs)))
+
+
+@given(st.one_of(st.binary(max_size=200), st.lists(TUM_LINE, max_size=6).map(lambda ls: "\n".join(ls).encode())))
+def test_tum_file(workdir, data):
+    p = workdir / "trajectory.txt"
+    p.write_bytes(data)
+    got = one_line_or_valid(lambda: read_tum(p))
+    if isinstance(got, tuple):
+        ts, T = got
+        assert len(ts) == len(T) >= 1 and np.isfinite(ts).all() and np.isfinite(T).all()
+        np.testing.assert_allclose(
+            T[:, :3, :3] @ T[:, :3, :3].transpose(0, 2, 1), np.broadcast_to(np.eye(3), T[:, :3, :3].shape), atol=1e-9
+        )
+
+
+# --------------------------------------------------------------------------- JSON files
+@given(st.one_of(st.binary(max_size=100), values.map(lambda v: json.dumps(v).encode())))
+def test_json_file(workdir, data):
+    p = workdir / "any.json"
+    p.write_bytes(data)
+    one_line_or_valid(lambda: read_json(p))
+
+
+# --------------------------------------------------------------------------- configs and --set
+CONFIGS = {name: get_estimator(name).Config for name in list_estimators()} | {"map": MapConfig}
+
+
+@given(
+    st.sampled_from(sorted(CONFIGS)),
+    st.dictionaries(st.text(max_size=10), st.text(max_size=12), max_size=2),
+    st.data(),
+)
+def test_config_overrides(name, extra, data):
+    cls = CONFIGS[name]
+    keys = [f.name for f in dataclasses.fields(cls)]
+    texts = data.draw(
+        st.dictionaries(st.sampled_from(keys), st.one_of(st.text(max_size=12), values.map(str)), max_size=3)
+    )
+    cfg = one_line_or_valid(lambda: from_overrides(cls, {**texts, **extra}, name))
+    if name in list_estimators():
+        one_line_or_valid(lambda: make_config(name, {**texts, **extra}))
+    if isinstance(cfg, cls):
+        assert from_overrides(cls, {}, name).__class__ is cfg.__class__
+
+
+@given(st.lists(st.text(max_size=20), max_size=4))
+def test_set_arguments(items):
+    one_line_or_valid(lambda: parse_set_args(items))
+
+
+# --------------------------------------------------------------------------- sequence.json
+@pytest.fixture(scope="module")
+def sequence(workdir):
+    """A 2-frame synthetic sequence and its sequence.json."""
+    root = write_synthetic_sequence(workdir / "seq", CAMERA, line_poses(4.0, 4.0), seed=0)
+    return root, json.loads((root / "sequence.json").read_text())
+
+
+@given(st.data())
+def test_sequence_json_edits(sequence, data):
+    root, meta = sequence
+    doc = data.draw(edited(meta))
+    (root / "sequence.json").write_text(json.dumps(doc))
+    try:
+        seq = one_line_or_valid(lambda: Sequence.open(root))
+        if isinstance(seq, Sequence):
+            assert seq.frame_count >= 1 and seq.fps > 0 and np.isfinite(seq.timestamps_s).all()
+            assert seq.height_mm is None or seq.height_mm > 0
+            assert seq.camera.fx_px > 0
+            one_line_or_valid(lambda: seq.image(0))
+    finally:
+        (root / "sequence.json").write_text(json.dumps(meta))
+
+
+# --------------------------------------------------------------------------- maps
+@pytest.fixture(scope="module")
+def map_dir(workdir):
+    from test_bad_input import _tiny_map
+
+    root = _tiny_map(workdir / "map")
+    return root, (root / "map.json").read_text(), (root / "keyframes.npz").read_bytes()
+
+
+ARRAY_EDITS = st.sampled_from(["drop", "dtype", "shape", "nan", "empty", "transpose"])
+
+
+@given(st.data(), st.booleans(), st.lists(st.tuples(st.integers(0, 6), ARRAY_EDITS), max_size=2))
+def test_map_folder(map_dir, data, resign, array_edits):
+    """map.json edited (with checksums made to match, as a buggy writer would, or not) and
+    keyframes.npz arrays dropped, retyped, reshaped, emptied or filled with NaN."""
+    root, meta_text, npz_bytes = map_dir
+    meta = data.draw(edited(json.loads(meta_text)))
+    with np.load(io.BytesIO(npz_bytes)) as z:
+        arrays = {k: z[k] for k in z.files}
+    names = sorted(arrays)
+    for i, how in array_edits:
+        k = names[i % len(names)]
+        if k not in arrays:
+            continue
+        a = arrays[k]
+        if how == "drop":
+            del arrays[k]
+        elif how == "dtype":
+            arrays[k] = a.astype(np.float16 if a.dtype.kind != "f" else np.int8)
+        elif how == "shape":
+            arrays[k] = a.reshape(-1)
+        elif how == "nan" and a.dtype.kind == "f":
+            arrays[k] = np.full_like(a, np.nan)
+        elif how == "empty":
+            arrays[k] = a[:0]
+        elif how == "transpose":
+            arrays[k] = a.T.copy()
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    data_npz = buf.getvalue() if array_edits else npz_bytes
+    (root / "keyframes.npz").write_bytes(data_npz)
+    if resign and isinstance(meta, dict):
+        if isinstance(meta.get("arrays"), dict):
+            meta["arrays"]["sha256"] = hashlib.sha256(data_npz).hexdigest()
+        meta.pop("content_sha256", None)
+        meta["content_sha256"] = json_sha256(meta)
+    (root / "map.json").write_text(json.dumps(meta))
+    try:
+        m = one_line_or_valid(lambda: load_map(root))
+        if not isinstance(m, Exception):
+            assert m.n_keyframes == len(m.T_world_kf) == len(m.images) == len(m.features) >= 1
+            assert np.isfinite(m.T_world_kf).all() and m.height_mm > 0
+    finally:
+        (root / "map.json").write_text(meta_text)
+        (root / "keyframes.npz").write_bytes(npz_bytes)
