@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError, SequenceError
+from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -240,10 +240,13 @@ class Sequence:
         if not meta_path.is_file():
             raise SequenceError(f"{root}: not a sequence (no sequence.json)")
         meta = read_json(meta_path, SequenceError)
-        version = meta.get("schema_version") if isinstance(meta, dict) else None
+        if not isinstance(meta, dict):
+            kind = "a list" if isinstance(meta, list) else f"{type(meta).__name__} {shown(meta)}"
+            raise SequenceError(f"{meta_path}: holds {kind}; sequence.json must be a table of keys (a JSON object)")
+        version = meta.get("schema_version")
         if version not in READABLE_SCHEMA_VERSIONS or isinstance(version, bool):
             raise SequenceError(
-                f"{meta_path}: schema_version {version!r} is not supported "
+                f"{meta_path}: schema_version {shown(version)} is not supported "
                 f"(this floorvo reads versions {', '.join(map(str, READABLE_SCHEMA_VERSIONS))})"
             )
         _check_meta(meta, meta_path)

@@ -35,6 +35,8 @@ __all__ = [
 SCHEMA_VERSION = 2
 #: Versions a reader accepts; it refuses any other.
 READABLE_SCHEMA_VERSIONS = (1, 2)
+#: The most frames a sequence may have (its frame times are held in memory: 80 MB).
+MAX_FRAME_COUNT = 10_000_000
 #: Formats of ``depth/`` frames.
 DEPTH_FORMATS = ("png16", "npy_float32_mm")
 
@@ -115,7 +117,7 @@ class SequenceMeta(Config):
     schema_version: int = param(choices=READABLE_SCHEMA_VERSIONS, doc="on-disk format version")
     camera: CameraBlock = param(doc="intrinsics of cam0")
     fps: float = param(unit="Hz", gt=0, doc="frame rate; frame i at i / fps unless timestamps.txt gives times")
-    frame_count: int = param(min=1, doc="number of frames in cam0/")
+    frame_count: int = param(min=1, max=MAX_FRAME_COUNT, doc="number of frames in cam0/")
     format: str = param("floorbench-sequence", choices=("floorbench-sequence",), doc="format name")
     name: str = param("", doc="sequence name")
     bit_depth: int | None = param(None, choices=(8, 16), doc="bits per pixel of the frames")

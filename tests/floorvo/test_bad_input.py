@@ -210,3 +210,32 @@ def test_binary_or_absurd_trajectory_and_json_files_are_one_line(tmp_path, small
     capsys.readouterr()
     assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
     assert "not a TUM text file" in _one_line(capsys, "floorvo")
+
+
+# --------------------------------------------------------------------------- sequence.json
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        ("[1]", "holds a list; sequence.json must be a table of keys"),  # was "schema_version None"
+        ("3.5", "holds float 3.5; sequence.json must be a table"),
+        ('"x"', "holds str 'x'"),
+    ],
+)
+def test_sequence_json_that_is_not_a_table_says_so(tmp_path, capsys, content, words):
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(4.0, 4.0), seed=0)
+    (seq / "sequence.json").write_text(content)
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    assert words in _one_line(capsys, "floorvo")
+
+
+def test_a_frame_count_too_large_to_hold_is_refused(tmp_path):
+    from floorvo.errors import SequenceError
+    from floorvo.sequence import Sequence
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(4.0, 4.0), seed=0)
+    meta = json.loads((seq / "sequence.json").read_text())
+    (seq / "sequence.json").write_text(json.dumps({**meta, "frame_count": 1e308}))  # an integer-valued float
+    with pytest.raises(SequenceError, match=r"frame_count = .*: must be <= 10000000"):
+        Sequence.open(seq)
