@@ -85,7 +85,8 @@ def test_bad_sequence_json_is_one_line(tmp_path, capsys, path, value, message):
 
 def test_not_an_object_and_nan_literal(tmp_path):
     root = _folder(tmp_path, None, "[1, 2]")
-    with pytest.raises(SequenceError, match="schema_version None is not supported"):
+    # issue 16 item 10: a JSON list is not a schema-version problem
+    with pytest.raises(SequenceError, match="holds a list; sequence.json must be a table of keys"):
         Sequence.open(root)
     text = json.dumps(GOOD).replace('"fps": 30.0', '"fps": NaN')
     root = _folder(tmp_path, None, text)
