@@ -37,6 +37,7 @@ __all__ = [
     "write_png",
     "read_png",
     "read_image",
+    "read_text",
     "read_json",
     "read_toml",
     "json_sha256",
@@ -158,19 +159,29 @@ def read_image(path: str | os.PathLike, noun: str = "image file", kind: str = "i
     return img
 
 
+def read_text(
+    path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None, what: str = "text"
+) -> str:
+    """The UTF-8 text of a file; an unreadable file or one that is not UTF-8 text (a binary
+    file where a TUM, JSON or TOML file belongs) raises ``error`` with one line naming
+    ``label`` (default: the path) and ``what`` the file should be (``a TUM text file``)."""
+    path = Path(path)
+    name = label or str(path)
+    try:
+        return path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise error(f"{name}: not {what} (byte {exc.start} is not UTF-8 text)") from None
+
+
 def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None) -> Any:
     """Parse a JSON file; a missing, unreadable or malformed file raises ``error`` with one line.
 
     ``label`` names the file in the message (default: its path).
     """
-    path = Path(path)
     name = label or str(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise error(f"{name}: not valid JSON (byte {exc.start} is not UTF-8 text)") from None
+    text = read_text(path, error, label, "valid JSON")
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
@@ -182,14 +193,8 @@ def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, l
 def read_toml(path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None) -> dict:
     """Parse a TOML file (a scene, a sweep); a missing, unreadable or malformed file raises
     ``error`` with one line. ``label`` names the file in the message (default: its path)."""
-    path = Path(path)
     name = label or str(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise error(f"{name}: not valid TOML (byte {exc.start} is not UTF-8 text)") from None
+    text = read_text(path, error, label, "valid TOML")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -14,7 +14,7 @@ import numpy as np
 
 from floorvo.errors import SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, xyz_quat_from_T
-from floorvo.io import atomic_write_text
+from floorvo.io import atomic_write_text, read_text
 
 __all__ = ["write_tum", "read_tum", "format_tum"]
 
@@ -54,12 +54,7 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"{path}: trajectory file is missing")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SequenceError(f"{path}: not a TUM text file (byte {exc.start} is not UTF-8 text)") from None
-    except OSError as exc:
-        raise SequenceError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_text(path, SequenceError, what="a TUM text file")
     ts, Ts = [], []
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.strip()

@@ -117,3 +117,12 @@ def test_sweep_file(workdir, text):
         grid = spec.repetitions * math.prod(len(v) for v in spec.vary.values()) if spec.base is not None else 0
         assert len(jobs) == grid + len(spec.sequences) >= 1
         assert len({j["job"] for j in jobs}) == len(jobs)
+
+
+def test_sweep_paths_that_are_not_paths(workdir):
+    (workdir / "scene.toml").write_text(toml_text(TINY_SCENE))
+    p = workdir / "sweep.toml"
+    p.write_text(toml_text({**SWEEP, "base": "scene\u0000.toml"}))
+    assert "base = 'scene\\x00.toml': not a usable path" in str(one_line_or_valid(lambda: load_sweep(p)))
+    p.write_text(toml_text({**SWEEP, "sequences": ["a\u0000"]}))
+    assert "not a usable path" in str(one_line_or_valid(lambda: load_sweep(p)))

@@ -114,6 +114,14 @@ def _table(path: Path, d: Mapping[str, Any], key: str) -> dict[str, Any]:
     return value
 
 
+def _beside(path: Path, name: str, key: str) -> Path:
+    """``name`` (a path in the sweep file, relative to it) as an absolute path."""
+    try:
+        return (path.parent / name).resolve()
+    except (ValueError, OSError) as exc:  # an embedded NUL byte, a loop of links
+        raise ConfigError(f"{path}: {key} = {shown(name)}: not a usable path ({shorten(str(exc))})") from None
+
+
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
     """Read and check a sweep file (ConfigError naming the key, the value and the rule).
 
@@ -133,7 +141,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     seqs = d.get("sequences", [])
     if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
         raise ConfigError(f"{path}: sequences = {shown(seqs)}: must be a list of sequence folders")
-    sequences = [(path.parent / q).resolve() for q in seqs]
+    sequences = [_beside(path, q, "sequences") for q in seqs]
     for q, full in zip(seqs, sequences):
         if not is_sequence_folder(full):
             raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
@@ -141,7 +149,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     if "base" in d or not sequences:  # a sweep of sequence folders alone has no grid
         if not isinstance(d.get("base"), str) or not d["base"]:
             raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
-        base = (path.parent / d["base"]).resolve()
+        base = _beside(path, d["base"], "base")
         if not base.is_file():
             raise ConfigError(f"{path}: base = {shown(d['base'])}: scene file {shorten(str(base))} does not exist")
     vary = d.get("vary", {} if base is None else None)
