@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shorten, shown
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_csv,
@@ -48,7 +48,9 @@ from floorvo.io import (
     atomic_write_text,
     ensure_writable_dir,
     read_json,
+    read_text,
 )
+from floorvo.sequence_meta import MAX_FRAME_COUNT
 from floorvo.tum import format_tum, read_tum
 
 __all__ = [
@@ -71,6 +73,9 @@ TIMING_MS_COLUMNS = ("detect_ms", "match_ms", "estimate_ms", "total_ms")
 COUNT_COLUMNS = ("n_keypoints", "n_matches", "n_inliers")
 #: The columns ``timing.csv`` starts with; any others (``reason``) follow.
 TIMING_COLUMNS = ("frame", *TIMING_MS_COLUMNS, "status", *COUNT_COLUMNS)
+
+#: The largest frame index a run may list (a sequence holds at most MAX_FRAME_COUNT frames).
+MAX_FRAME_INDEX = MAX_FRAME_COUNT - 1
 
 TRAJECTORY = "trajectory.txt"
 TIMING = "timing.csv"
@@ -104,14 +109,31 @@ class RunFolder:
         return [str(s) for s in self.timing["status"]]
 
     def write(self, run_dir: str | os.PathLike) -> Path:
-        """Write the files into ``run_dir`` (created), each atomically; returns the folder."""
+        """Write the files into ``run_dir`` (created), each atomically; returns the folder.
+
+        All or nothing: the folder's old ``result.json`` goes first and the new one is
+        written last, and when a write fails (a full disk) the files this call wrote are
+        removed again before the error propagates, so a folder never holds the trajectory of
+        one run beside the summary of another, nor a trajectory without its summary.
+        """
         out = ensure_writable_dir(run_dir)
         ts = np.asarray(self.timestamps_s, dtype=float).reshape(-1)
         T = np.asarray(self.T_world_cam, dtype=float).reshape(-1, 4, 4)
-        atomic_write_text(out / TRAJECTORY, format_tum(ts, T, self.header or None))
-        if self.timing is not None:
-            atomic_write_csv(out / TIMING, *timing_table(self.timing))
-        atomic_write_json(out / RESULT, dict(self.result))
+        tum = format_tum(ts, T, self.header or None)
+        table = timing_table(self.timing) if self.timing is not None else None
+        (out / RESULT).unlink(missing_ok=True)
+        written: list[Path] = []
+        try:
+            atomic_write_text(out / TRAJECTORY, tum)
+            written.append(out / TRAJECTORY)
+            if table is not None:
+                atomic_write_csv(out / TIMING, *table)
+                written.append(out / TIMING)
+            atomic_write_json(out / RESULT, dict(self.result))
+        except BaseException:
+            for p in written:
+                p.unlink(missing_ok=True)
+            raise
         return out
 
     @classmethod
@@ -161,8 +183,11 @@ def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
     path = Path(path)
     if not path.is_file():
         return None
-    with path.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    text = read_text(path, SequenceError, what="a CSV text file")
+    try:
+        rows = list(csv.DictReader(io.StringIO(text, newline="")))
+    except csv.Error as exc:  # a NUL byte, a field beyond the csv module's limit
+        raise SequenceError(f"{path}: not a readable CSV file ({shorten(str(exc))})") from None
     if not rows:
         return {}
     if any(None in r or None in r.values() for r in rows):
@@ -173,19 +198,42 @@ def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
         if key == "status":
             bad = next((v for v in vals if v not in STATUSES), None)
             if bad is not None:
-                raise SequenceError(f"{path}: status {bad!r} is not one of {', '.join(STATUSES)}")
+                raise SequenceError(f"{path}: status {shown(bad)} is not one of {', '.join(STATUSES)}")
             cols[key] = np.array(vals, dtype=object)
             continue
         try:
             cols[key] = np.array([float(v) if v not in ("", None) else np.nan for v in vals])
         except ValueError:
             if key == "frame" or key.endswith("_ms") or key in COUNT_COLUMNS:
-                raise SequenceError(f"{path}: column {key!r} holds a value that is not a number") from None
+                raise SequenceError(f"{path}: column {shown(key)} holds a value that is not a number") from None
             cols[key] = np.array(vals, dtype=object)
+            continue
+        _check_numbers(path, key, vals, cols[key])
     frame = cols.get("frame")
-    if frame is not None and not all(math.isfinite(f) and f == int(f) and f >= 0 for f in frame):
-        raise SequenceError(f"{path}: column 'frame' must hold frame indices (whole numbers >= 0)")
+    if frame is not None:
+        if not all(math.isfinite(f) and f == int(f) and 0 <= f <= MAX_FRAME_INDEX for f in frame):
+            raise SequenceError(f"{path}: column 'frame' must hold frame indices (whole numbers >= 0)")
+        back = np.nonzero(np.diff(frame) <= 0)[0]
+        if len(back):
+            i = int(back[0]) + 1
+            raise SequenceError(
+                f"{path}: frame {int(frame[i])} (row {i + 1}) follows frame {int(frame[i - 1])}; "
+                "a run sees each frame once, in increasing order"
+            )
     return cols
+
+
+def _check_numbers(path: Path, key: str, cells: list[str], values: np.ndarray) -> None:
+    """Milliseconds and counts are finite and >= 0 (counts whole); an empty cell is a missing
+    value (NaN), but a written ``nan`` or ``inf`` is a broken measurement."""
+    if not (key.endswith("_ms") or key in COUNT_COLUMNS):
+        return
+    for cell, v in zip(cells, values):
+        if cell in ("", None):
+            continue
+        if not (math.isfinite(v) and v >= 0 and (v == int(v) or key not in COUNT_COLUMNS)):
+            rule = "whole numbers >= 0" if key in COUNT_COLUMNS else "finite milliseconds >= 0"
+            raise SequenceError(f"{path}: column {shown(key)} holds {shown(cell)}; must hold {rule} (or be empty)")
 
 
 def write_match_sample(run_dir: str | os.PathLike, frame: int, matches_px: np.ndarray) -> Path:

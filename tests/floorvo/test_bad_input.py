@@ -46,6 +46,24 @@ def test_a_full_disk_is_one_line_naming_the_file_and_leaves_no_temporary(small_s
     assert f"{tmp_path / 'seq' / 'sequence.json'}: No space left on device (errno 28)" in err
 
 
+def test_a_run_that_cannot_finish_leaves_no_half_run(small_seq, tmp_path, monkeypatch, capsys):
+    """Issue 16: a full disk left trajectory.txt without result.json (or beside an older run's)."""
+    import floorvo.runfolder
+    from floorvo.runfolder import RunFolder
+
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    assert RunFolder.read(run).result["estimator"] == "phase-corr"
+
+    def full(path, obj):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(floorvo.runfolder, "atomic_write_json", full)
+    assert floorvo_main(["run", str(small_seq), "-e", "akaze-guided", "-o", str(run)]) == 1
+    assert f"{run / 'result.json'}: No space left on device (errno 28)" in _one_line(capsys, "floorvo")
+    assert sorted(p.name for p in run.iterdir()) == []  # neither the new trajectory nor the old summary
+
+
 def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
@@ -181,6 +199,27 @@ def test_malformed_maps_are_refused_in_one_line(tmp_path, variant, words):
 
 
 # --------------------------------------------------------------------------- text files that are not text
+@pytest.mark.parametrize(
+    "row, words",
+    [
+        ("1,nan,0,0,nan,ok,1,1,1", "column 'detect_ms' holds 'nan'; must hold finite milliseconds >= 0"),
+        ("1,0,0,0,-1,ok,1,1,1", "column 'total_ms' holds '-1'"),
+        ("1,0,0,0,1,ok,1.5,1,1", "column 'n_keypoints' holds '1.5'; must hold whole numbers >= 0"),
+        ("0,0,0,0,1,ok,1,1,1", "frame 0 (row 2) follows frame 0"),  # a frame twice: one would be dropped
+        ("1e10,0,0,0,1,ok,1,1,1", "column 'frame' must hold frame indices"),
+    ],
+)
+def test_timing_rows_that_would_be_dropped_or_misread_are_refused(small_seq, tmp_path, capsys, row, words):
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    lines = (run / "timing.csv").read_text().splitlines()
+    lines[2] = row
+    (run / "timing.csv").write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
+    assert words in _one_line(capsys, "floorvo")
+
+
 def test_binary_or_absurd_trajectory_and_json_files_are_one_line(tmp_path, small_seq, capsys):
     from floorvo.errors import SequenceError
     from floorvo.io import read_json

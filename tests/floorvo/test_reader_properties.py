@@ -182,3 +182,52 @@ def test_map_folder(map_dir, data, resign, array_edits):
     finally:
         (root / "map.json").write_text(meta_text)
         (root / "keyframes.npz").write_bytes(npz_bytes)
+
+
+# --------------------------------------------------------------------------- run folders
+@pytest.fixture(scope="module")
+def run_dir(sequence, workdir):
+    """A phase-corr run over the 2-frame sequence, and its files' contents."""
+    from floorvo.run import run_estimator
+
+    root, _ = sequence
+    run = workdir / "run"
+    run_estimator(root, "phase-corr", run)
+    return run, {f: (run / f).read_bytes() for f in ("trajectory.txt", "timing.csv", "result.json")}
+
+
+CELLS = st.one_of(
+    st.sampled_from(["", "0", "1", "2", "-1", "nan", "inf", "1e10", "1.5", "ok", "lost", "init", "x", '"a,b"']),
+    st.floats().map(str),
+    st.integers(-5, 5).map(str),
+)
+
+
+@given(
+    st.data(),
+    st.sampled_from(["timing", "result", "both"]),
+    st.one_of(st.none(), st.binary(max_size=60)),
+)
+def test_run_folder(sequence, run_dir, data, which, raw):
+    """timing.csv rows of any cells (under its header, or a random one), result.json edited, or
+    either file replaced by bytes: RunFolder.read and floorvo score give a run or one line."""
+    from floorvo.metrics import score_run
+    from floorvo.runfolder import TIMING_COLUMNS, RunFolder
+
+    root, _ = sequence
+    run, files = run_dir
+    if which in ("timing", "both"):
+        header = data.draw(st.just(",".join(TIMING_COLUMNS)) | st.lists(CELLS, max_size=4).map(",".join))
+        rows = data.draw(st.lists(st.lists(CELLS, min_size=0, max_size=10).map(",".join), max_size=3))
+        (run / "timing.csv").write_bytes(raw if raw is not None else "\n".join([header, *rows]).encode() + b"\n")
+    if which in ("result", "both"):
+        doc = data.draw(edited(json.loads(files["result.json"])))
+        (run / "result.json").write_bytes(raw if raw is not None and which == "result" else json.dumps(doc).encode())
+    try:
+        got = one_line_or_valid(lambda: RunFolder.read(run))
+        if isinstance(got, RunFolder) and got.timing and "frame" in got.timing:
+            assert np.all(np.diff(got.timing["frame"]) > 0)
+        one_line_or_valid(lambda: score_run(run, root))
+    finally:
+        for name, content in files.items():
+            (run / name).write_bytes(content)
