@@ -278,3 +278,15 @@ def test_a_frame_count_too_large_to_hold_is_refused(tmp_path):
     (seq / "sequence.json").write_text(json.dumps({**meta, "frame_count": 1e308}))  # an integer-valued float
     with pytest.raises(SequenceError, match=r"frame_count = .*: must be <= 10000000"):
         Sequence.open(seq)
+
+
+def test_localize_errors_name_the_options_not_the_estimator_config(tmp_path, small_seq, capsys):
+    """Issue 16 item 10: `floorvo localize` errors were labelled `map-fused.map:`."""
+    root = _tiny_map(tmp_path / "map")  # a 40 x 30 px camera; the sequence's is 162 x 124
+    rc = floorvo_main(["localize", str(small_seq), "--map", str(root), "-o", str(tmp_path / "run")])
+    err = _one_line(capsys, "floorvo")
+    assert rc == 1 and f"--map {root}: the map's camera is (40, 30), the sequence's (162, 124)" in err
+    assert "map-fused" not in err
+    # the estimator itself (floorvo run -e map-fused) still names its config key
+    rc = floorvo_main(["run", str(small_seq), "-e", "map-fused", "--set", f"map={root}", "-o", str(tmp_path / "r2")])
+    assert rc == 1 and f"map-fused.map {root}: the map's camera is (40, 30)" in _one_line(capsys, "floorvo")

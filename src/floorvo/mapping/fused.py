@@ -17,6 +17,7 @@ odometry steps between fixes, so :func:`floorvo.run.run_estimator` and
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,27 +68,32 @@ class MapFused:
         *,
         height_mm: float,
         flatfield: np.ndarray | None = None,
+        labels: Mapping[str, str] | None = None,
         **rig,
     ):
+        # How errors name the map and odometry settings: as config keys here, as the
+        # options --map and --odometry of `floorvo localize` (localize_sequence passes them).
+        where = {"map": "map-fused.map", "odometry": "map-fused.odometry", **(labels or {})}
         if not config.map:
             raise ConfigError(
-                "map-fused.map = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`"
+                f"{where['map']} = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`"
             )
         self.config = config
         self.map = load_map(config.map)
         if self.map.camera.size != camera.size:
             raise ConfigError(
-                f"map-fused.map: the map's camera is {self.map.camera.size}, the sequence's {camera.size}"
+                f"{where['map']} {config.map}: the map's camera is {self.map.camera.size}, the sequence's {camera.size}"
             )
         if abs(self.map.height_mm - float(height_mm)) > 0.01 * self.map.height_mm:
             raise ConfigError(
-                f"map-fused.map: built at height {self.map.height_mm} mm, the sequence is at {height_mm} mm"
+                f"{where['map']} {config.map}: built at height {self.map.height_mm} mm, "
+                f"the sequence is at {height_mm} mm"
             )
         self.localizer = Localizer(self.map, config, flatfield=flatfield)  # a MapFusedConfig is a LocalizeConfig
         self.odometry = None
         if config.odometry != "none":
             if config.odometry == self.name:
-                raise ConfigError("map-fused.odometry = 'map-fused': must be another estimator or 'none'")
+                raise ConfigError(f"{where['odometry']} = 'map-fused': must be another estimator or 'none'")
             overrides = parse_set_args(kv for kv in config.odometry_set.split(";") if kv.strip())
             odo_cfg = make_config(config.odometry, overrides)
             self.odometry = get_estimator(config.odometry)(

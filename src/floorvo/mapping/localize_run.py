@@ -63,7 +63,9 @@ def localize_sequence(
         seq = Sequence.open(seq)
     height = camera_height_mm(seq)
     cfg = localize_config(map_dir, odometry, overrides)
-    est = MapFused(cfg, seq.camera, height_mm=height, flatfield=seq.flatfield())
+    est = MapFused(
+        cfg, seq.camera, height_mm=height, flatfield=seq.flatfield(), labels={"map": "--map", "odometry": "--odometry"}
+    )
     out = ensure_writable_dir(out_dir)
     name = "map-fused" if odometry != "none" else "relocalise"
     n = seq.frame_count
