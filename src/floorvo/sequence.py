@@ -350,9 +350,31 @@ class Sequence:
         return read_png(p) if p.is_file() else None
 
     def groundtruth(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(timestamps_s (N,), T_world_cam0 (N, 4, 4) mm)`` or None when there is none."""
+        """``(timestamps_s (N,), T_world_cam0 (N, 4, 4) mm)`` or None when there is none.
+
+        Ground truth of one pose per frame (N = ``frame_count``, as every render writes it)
+        must be at the frames' times (``timestamps.txt``, or ``i / fps``) within
+        :data:`GROUNDTRUTH_MAX_DIFF_S`: a ``sequence.json`` whose ``fps`` disagrees with
+        ``groundtruth.txt`` is refused in one line instead of pairing frames with the wrong
+        poses (``floorvo score`` scored 11 of 21 poses of such a sequence with exit code 0).
+        Ground truth at another rate (a motion-capture system) is paired by time.
+        """
         p = self.root / "groundtruth.txt"
-        return read_tum(p) if p.is_file() else None
+        if not p.is_file():
+            return None
+        ts_gt, T = read_tum(p)
+        if len(ts_gt) == self.frame_count:
+            ts = self.timestamps_s
+            off = np.abs(ts_gt - ts)
+            if not np.all(off <= GROUNDTRUTH_MAX_DIFF_S):
+                i = int(np.argmax(off > GROUNDTRUTH_MAX_DIFF_S))
+                stamps = self.root / TIMESTAMPS_FILE
+                source = stamps if stamps.is_file() else f"fps = {self.fps:g} Hz in {self.root / 'sequence.json'}"
+                raise SequenceError(
+                    f"{p}: one pose per frame, but pose {i} is at {ts_gt[i]:.6f} s and frame {i} at {ts[i]:.6f} s "
+                    f"({source}): the frame times and the ground truth disagree"
+                )
+        return ts_gt, T
 
     def groundtruth_at(
         self, timestamps_s: np.ndarray, max_diff_s: float = GROUNDTRUTH_MAX_DIFF_S

@@ -290,3 +290,16 @@ def test_localize_errors_name_the_options_not_the_estimator_config(tmp_path, sma
     # the estimator itself (floorvo run -e map-fused) still names its config key
     rc = floorvo_main(["run", str(small_seq), "-e", "map-fused", "--set", f"map={root}", "-o", str(tmp_path / "r2")])
     assert rc == 1 and f"map-fused.map {root}: the map's camera is (40, 30)" in _one_line(capsys, "floorvo")
+
+
+def test_sequence_fps_that_disagrees_with_its_ground_truth_is_refused(tmp_path, capsys):
+    """Issue 16 item 4: with fps 60 in sequence.json and ground truth at 30 Hz, floorvo score
+    scored 11 of 21 poses with exit code 0."""
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)  # 30 fps, 3 frames
+    meta = json.loads((seq / "sequence.json").read_text())
+    (seq / "sequence.json").write_text(json.dumps({**meta, "fps": 60.0}))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert "groundtruth.txt: one pose per frame, but pose 1 is at 0.033333 s and frame 1 at 0.016667 s" in err
+    assert "fps = 60 Hz" in err
