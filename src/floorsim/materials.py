@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.config import Config, build, param
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, shown
 
 __all__ = [
     "Material",
@@ -228,7 +228,7 @@ def register_material(name: str, description: str, Params: type, specular: tuple
 
 def get_material(name: str) -> Material:
     if name not in MATERIALS:
-        raise ConfigError(f"floor.material = {name!r}: unknown material (known: {', '.join(sorted(MATERIALS))})")
+        raise ConfigError(f"floor.material = {shown(name)}: unknown material (known: {', '.join(sorted(MATERIALS))})")
     return MATERIALS[name]
 
 

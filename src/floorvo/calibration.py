@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import ConfigError, SequenceError
+from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import invert_T
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import associate, read_run_and_groundtruth
@@ -136,7 +136,7 @@ def load_scale_calibration(path: str | os.PathLike) -> ScaleCalibration:
     fields = set(ScaleCalibration.__dataclass_fields__)
     unknown = sorted(set(d) - fields - {"kind", "version"})
     if unknown:
-        raise ConfigError(f"{path}: unknown key {unknown[0]!r} in a scale calibration")
+        raise ConfigError(f"{path}: unknown key {shown(unknown[0])} in a scale calibration")
     for axis in "xy":
         v = d.get(f"scale_{axis}")
         if (
@@ -145,7 +145,9 @@ def load_scale_calibration(path: str | os.PathLike) -> ScaleCalibration:
             or not math.isfinite(v)
             or not SCALE_RANGE[0] <= v <= SCALE_RANGE[1]
         ):
-            raise ConfigError(f"{path}: scale_{axis} = {v!r} must be a number in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]")
+            raise ConfigError(
+                f"{path}: scale_{axis} = {shown(v)} must be a number in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
+            )
     return ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
 
 

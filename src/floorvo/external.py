@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.config import Config, build, param
-from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError, shown
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir
 from floorvo.runfolder import RunFolder
@@ -127,7 +127,7 @@ class ExternalEstimator(Config):
                     )
         for key, value in self.env.items():
             if not isinstance(value, str):
-                raise ConfigFieldError(f"env.{key}", f" = {value!r}: must be a string")
+                raise ConfigFieldError(f"env.{key}", f" = {shown(value)}: must be a string")
         for n in self.needs:
             if n not in NEEDS:
                 raise ConfigFieldError("needs", f" = {list(self.needs)!r}: {n!r} must be one of {', '.join(NEEDS)}")

@@ -416,5 +416,5 @@ def _read_timestamps(path: Path) -> np.ndarray:
         try:
             out.append(float(line))
         except ValueError:
-            raise SequenceError(f"{path}:{lineno}: not a timestamp in seconds: {line!r}") from None
+            raise SequenceError(f"{path}:{lineno}: not a timestamp in seconds: {shown(line)}") from None
     return np.array(out, dtype=float)

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.config import Config, build, param
-from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.errors import ConfigError, ConfigFieldError, shown
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -155,7 +155,7 @@ class SequenceMeta(Config):
 def _nested(cls: type, value: Any, key: str) -> None:
     """Check a table that a free-form field holds as block ``cls``; errors name ``key`` in full."""
     if not isinstance(value, dict):
-        raise ConfigError(f"{key} = {value!r}: must be a table")
+        raise ConfigError(f"{key} = {shown(value)}: must be a table")
     try:
         build(cls, value, key)
     except ConfigError as exc:  # a plain ConfigError: an enclosing Config does not re-prefix it

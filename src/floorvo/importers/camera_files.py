@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, shown
 from floorvo.geometry import invert_T
 
 __all__ = [
@@ -93,11 +93,11 @@ def _numbers(value: Any, what: str, count: int | None = None) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float).ravel()
     except (TypeError, ValueError):
-        raise ConfigError(f"{what}: {value!r} is not a list of numbers") from None
+        raise ConfigError(f"{what}: {shown(value)} is not a list of numbers") from None
     if count is not None and arr.size != count:
         raise ConfigError(f"{what}: needs {count} numbers, got {arr.size}")
     if not np.isfinite(arr).all():
-        raise ConfigError(f"{what}: {value!r} holds a value that is not a finite number")
+        raise ConfigError(f"{what}: {shown(value)} holds a value that is not a finite number")
     return arr
 
 
@@ -127,7 +127,9 @@ def camera_from_parts(
         if w != float(width_px) or h != float(height_px):
             raise ValueError
     except (TypeError, ValueError):
-        raise ConfigError(f"{what}: image size {width_px!r} x {height_px!r} is not a pair of whole numbers") from None
+        raise ConfigError(
+            f"{what}: image size {shown(width_px)} x {shown(height_px)} is not a pair of whole numbers"
+        ) from None
     f = _numbers([fx, fy, cx, cy], f"{what} intrinsics", 4)
     return CameraModel(w, h, f[0], f[1], f[2], f[3], tuple(distortion))
 
@@ -161,11 +163,11 @@ def _from_intrinsics(d: dict, what: str) -> CameraModel:
     """Kalibr camchain entry or EuRoC sensor.yaml: ``intrinsics [fu, fv, pu, pv]`` and ``resolution [w, h]``."""
     model = str(d.get("camera_model", "pinhole")).lower()
     if model != "pinhole":
-        raise ConfigError(f"{what}: camera_model {model!r} is not supported (pinhole only)")
+        raise ConfigError(f"{what}: camera_model {shown(model)} is not supported (pinhole only)")
     f = _numbers(d.get("intrinsics"), f"{what} intrinsics", 4)
     res = d.get("resolution")
     if not isinstance(res, list) or len(res) != 2:
-        raise ConfigError(f"{what}: resolution {res!r} is not [width, height]")
+        raise ConfigError(f"{what}: resolution {shown(res)} is not [width, height]")
     dist = distortion_from(
         _get(d, ("distortion_coeffs", "distortion_coefficients")), d.get("distortion_model", "radtan"), what
     )

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shown
 from floorvo.geometry import invert_T
 from floorvo.importers.camera_files import CameraCalibration, load_yaml, read_camera_file, transform_m_to_mm
 from floorvo.importers.recording import FrameImages, Recording, read_image_file
@@ -59,7 +59,7 @@ def _camera_stream(cam_dir: Path) -> tuple[np.ndarray, list[Path]]:
         try:
             stamps.append(int(parts[0]))
         except ValueError:
-            raise SequenceError(f"{csv_path}:{lineno}: {parts[0]!r} is not a timestamp in ns") from None
+            raise SequenceError(f"{csv_path}:{lineno}: {shown(parts[0])} is not a timestamp in ns") from None
         files.append(cam_dir / "data" / parts[1])
     if not stamps:
         raise SequenceError(f"{csv_path}: lists no frames")

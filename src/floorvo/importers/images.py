@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shown
 from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file
 
 __all__ = ["IMAGE_SUFFIXES", "detect", "read", "list_images"]
@@ -64,7 +64,7 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
         path = Path(name)
         files.append(path if path.is_absolute() else source.parent / path)
         if not files[-1].is_file():
-            raise SequenceError(f"{source}:{lineno}: image {name!r} does not exist")
+            raise SequenceError(f"{source}:{lineno}: image {shown(name)} does not exist")
     if not files:
         raise SequenceError(f"{source}: lists no images")
     if times and len(times) != len(files):

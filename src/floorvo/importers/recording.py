@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from floorvo import __version__
-from floorvo.errors import ConfigError, SequenceError
+from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import read_image
 from floorvo.sequence import SequenceWriter, check_timestamps
@@ -193,7 +193,7 @@ def _positive(value: float | None, what: str) -> float | None:
         return None
     v = float(value)
     if not np.isfinite(v) or v <= 0:
-        raise ConfigError(f"{what} {value!r}: must be a finite number > 0")
+        raise ConfigError(f"{what} {shown(value)}: must be a finite number > 0")
     return v
 
 

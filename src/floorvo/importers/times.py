@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import ConfigError, SequenceError
+from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat
 from floorvo.tum import read_tum
 
@@ -52,9 +52,9 @@ def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray
         try:
             v = float(fields[0]) if unit != "ns" else int(fields[0]) * 1e-9
         except ValueError:
-            raise SequenceError(f"{path}:{lineno}: {fields[0]!r} is not a timestamp in {unit}") from None
+            raise SequenceError(f"{path}:{lineno}: {shown(fields[0])} is not a timestamp in {unit}") from None
         if not np.isfinite(v):
-            raise SequenceError(f"{path}:{lineno}: timestamp {fields[0]!r} is not a finite number")
+            raise SequenceError(f"{path}:{lineno}: timestamp {shown(fields[0])} is not a finite number")
         vals.append(v if unit == "ns" else v * TIME_UNITS_S[unit])
     if not vals:
         raise SequenceError(f"timestamps file {path}: holds no timestamps")
@@ -78,7 +78,7 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
             t_ns = int(f[0])
             v = np.array([float(x) for x in f[1:8]])
         except ValueError:
-            raise SequenceError(f"{path}:{lineno}: not a number in EuRoC pose row {','.join(f[:8])!r}") from None
+            raise SequenceError(f"{path}:{lineno}: not a number in EuRoC pose row {shown(','.join(f[:8]))}") from None
         q = v[[4, 5, 6, 3]]  # (x, y, z, w)
         n = float(np.linalg.norm(q))
         if not np.isfinite(v).all() or n < 1e-9:

@@ -25,7 +25,7 @@ from floorsim.bench.protocols.base import BenchContext, BenchProtocol, ProtocolO
 from floorsim.bench.protocols.paper000 import Paper000Strip
 from floorsim.bench.protocols.paper001 import Paper001Line
 from floorsim.bench.protocols.paper003 import Paper003Relocalisation
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, shown
 
 __all__ = [
     "PROTOCOLS",
@@ -74,10 +74,10 @@ def protocols_for_scene(scene: Any) -> list[BenchProtocol]:
     if names is None:
         return [p for p in PROTOCOLS.values() if ttype in p.default_for]
     if isinstance(names, str) or not all(isinstance(n, str) for n in names):
-        raise ConfigError(f"bench.protocols = {names!r}: must be a list of protocol names")
+        raise ConfigError(f"bench.protocols = {shown(names)}: must be a list of protocol names")
     for n in names:
         if n not in PROTOCOLS:
-            raise ConfigError(f"bench.protocols: {n!r} is not a bench protocol (known: {', '.join(PROTOCOLS)})")
+            raise ConfigError(f"bench.protocols: {shown(n)} is not a bench protocol (known: {', '.join(PROTOCOLS)})")
         p = PROTOCOLS[n]
         if p.trajectory_types and ttype not in p.trajectory_types:
             raise ConfigError(
