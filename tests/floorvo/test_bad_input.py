@@ -303,3 +303,19 @@ def test_sequence_fps_that_disagrees_with_its_ground_truth_is_refused(tmp_path, 
     err = _one_line(capsys, "floorvo")
     assert "groundtruth.txt: one pose per frame, but pose 1 is at 0.033333 s and frame 1 at 0.016667 s" in err
     assert "fps = 60 Hz" in err
+
+
+def test_a_refused_render_writes_nothing(tmp_path, capsys):
+    """Issue 16 item 5: --set floor.seed=abc left sequence.json and groundtruth.txt behind."""
+    for bad in ("floor.seed=abc", "camera.pixel_pitch_um=8193", 'trajectory.type=["uniform"]', "fps=nan"):
+        out = tmp_path / "seq"
+        assert floorsim_main(["render", "demo", "--frames", "1", "--set", bad, "-o", str(out)]) == 1
+        assert bad.split("=")[0].split(".")[0] in _one_line(capsys, "floorsim")
+        assert not out.exists()
+
+
+def test_an_error_line_is_one_line_whatever_it_quotes(tmp_path, capsys):
+    p = tmp_path / ("x" * 200 + "\nline")
+    p.mkdir()
+    assert floorvo_main(["run", str(p), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    assert "\\nline" in _one_line(capsys, "floorvo")

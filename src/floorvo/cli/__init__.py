@@ -121,7 +121,9 @@ def run_cli(
     try:
         return int(args.func(args) or 0)
     except FloorbenchError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        # One line whatever the message holds (values are cut where they are formatted,
+        # errors.shown; this keeps the contract for a path or a name read from a file too).
+        print(f"{prog}: error: {shorten(str(exc), 2000)}", file=sys.stderr)
         return 1
     except OSError as exc:  # a full disk, a read-only folder, a file that vanished: one line with the path
         print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
