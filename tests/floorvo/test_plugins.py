@@ -175,6 +175,16 @@ def test_module_class_reference_runs_without_installing(line_sequence, tmp_path,
     _, T = read_tum(run / "trajectory.txt")
     _, T_gt = read_tum(line_sequence / "groundtruth.txt")
     np.testing.assert_allclose(T[:, :3, 3], T_gt[:, :3, 3], atol=1e-6)  # the line's steps are 1.5 mm
+    # the bench runs a reference too, --est-set reaching its config (the dots before the colon are the module's)
+    from floorsim.bench import run_bench
+    from floorsim.commands.bench import parse_estimator_sets
+
+    over = parse_estimator_sets([f"{ref}.step_mm=3.0"])
+    assert over == {ref: {"step_mm": "3.0"}}
+    res = run_bench([line_sequence], [ref], tmp_path / "bench", estimator_overrides=over, report=False)
+    (row,) = res.rows
+    assert row["status"] == "ok" and (row["source"], row["source_detail"]) == ("module", ref)
+    assert row["measured_mm"] == pytest.approx(2 * 19.5)  # 13 steps of 3 mm instead of 1.5 mm
     capsys.readouterr()
     assert floorvo_main(["run", str(line_sequence), "-e", "my_vo_for_tests:Nope", "-o", str(run)]) == 1
     err = capsys.readouterr().err

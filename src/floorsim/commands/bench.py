@@ -101,12 +101,15 @@ def add_parser(subparsers) -> None:
 
 
 def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
-    """``NAME.KEY=VALUE`` items into ``{NAME: {KEY: VALUE}}``."""
+    """``NAME.KEY=VALUE`` items into ``{NAME: {KEY: VALUE}}``; NAME may be a ``package.module:Class``
+    reference, whose dots before the colon belong to it (``pkg.vo:MyVo.grid=3``)."""
     out: dict[str, dict[str, str]] = {}
     for key, value in parse_set_args(items).items():
-        if "." not in key:
+        colon = key.find(":")
+        dot = key.find(".", colon + 1 if colon >= 0 else 0)
+        if dot <= 0:
             raise ConfigError(f"--est-set {key}={value}: expected NAME.KEY=VALUE (e.g. akaze.threshold=0.001)")
-        name, k = key.split(".", 1)
+        name, k = key[:dot], key[dot + 1 :]
         out.setdefault(name, {})[k] = value
     return out
 
