@@ -42,6 +42,7 @@ import signal
 import string
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 from dataclasses import dataclass, field
@@ -211,34 +212,34 @@ def _tail(path: Path, lines: int = STDERR_TAIL_LINES) -> str:
 
 
 def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, float, float]:
-    """Wait for ``proc`` with ``os.wait4`` (its own resource usage, not every child's); kill its
-    process group after ``timeout_s``. Returns ``(wait status or None on timeout, wall s, peak RSS MiB)``."""
+    """Wait for ``proc`` with a blocking ``os.wait4`` (its own resource usage, not every child's);
+    after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL 2 s later. Returns
+    ``(wait status, or None when it was killed for the timeout; wall s; peak RSS MiB)``."""
+    done, timed_out = threading.Event(), threading.Event()
+
+    def kill() -> None:
+        timed_out.set()
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            if done.is_set():
+                return
+            try:
+                os.killpg(proc.pid, sig)
+            except ProcessLookupError:
+                return
+            done.wait(2.0)
+
+    timer = threading.Timer(timeout_s, kill) if timeout_s is not None else None
     t0 = time.perf_counter()
-    delay = 0.002
-    while True:
-        pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-        if pid == proc.pid:
-            proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
-            return status, time.perf_counter() - t0, usage.ru_maxrss / 1024.0  # Linux: KiB
-        if timeout_s is not None and time.perf_counter() - t0 > timeout_s:
-            wall = time.perf_counter() - t0
-            for sig in (signal.SIGTERM, signal.SIGKILL):
-                try:
-                    os.killpg(proc.pid, sig)
-                except ProcessLookupError:
-                    break
-                deadline = time.perf_counter() + 2.0
-                while time.perf_counter() < deadline:
-                    pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-                    if pid == proc.pid:
-                        proc.returncode = os.waitstatus_to_exitcode(status)
-                        return None, wall, usage.ru_maxrss / 1024.0
-                    time.sleep(0.01)
-            _, status, usage = os.wait4(proc.pid, 0)
-            proc.returncode = os.waitstatus_to_exitcode(status)
-            return None, wall, usage.ru_maxrss / 1024.0
-        time.sleep(delay)
-        delay = min(delay * 2, 0.05)
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    done.set()
+    if timer is not None:
+        timer.cancel()
+    proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
+    return (None if timed_out.is_set() else status), wall, usage.ru_maxrss / 1024.0  # Linux: KiB
 
 
 def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:
