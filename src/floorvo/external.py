@@ -44,7 +44,6 @@ import subprocess
 import sys
 import threading
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -54,7 +53,7 @@ import numpy as np
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError, shown
 from floorvo.estimators.registry import EstimatorSource
-from floorvo.io import atomic_write_text, ensure_writable_dir
+from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.runfolder import RunFolder
 from floorvo.sequence import Sequence
 
@@ -158,10 +157,7 @@ def load_estimator_file(path: str | os.PathLike) -> ExternalEstimator:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"--estimator-file {path}: no such file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    data = read_toml(path, ConfigError)
     for key in ("name", "command"):
         if key not in data:
             raise ConfigError(f"{path}: {key}: missing (an external estimator needs name and command)")
