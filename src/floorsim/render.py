@@ -8,8 +8,8 @@ are point sources attached to the rig; each has a cosine-power emission lobe aim
 the floor point under the camera. The hood blocks all other light.
 
 For every pixel we trace ``spp`` stratified primary rays through the pinhole (Mitsuba's
-``ldsampler`` for 4^k spp, ``multijitter`` otherwise; the camera's lens distortion when
-it has one). The floor is Lambertian, shaded with the normal interpolated from the
+``ldsampler`` for 4^k spp, ``multijitter`` otherwise, which rounds some counts up:
+:func:`stratified_spp`; the camera's lens distortion when it has one). The floor is Lambertian, shaded with the normal interpolated from the
 vertex normals of the height field (the sampled surface is smooth; flat facets would add
 sub-pixel shading noise), and lit by the LEDs only. For LED k at distance r_k::
 
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import glob
 import logging
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -45,7 +46,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.errors import FloorbenchError
 
-__all__ = ["LedArray", "FloorRenderer", "find_libllvm", "backend_info"]
+__all__ = ["LedArray", "FloorRenderer", "heightfield_vertex_normals", "stratified_spp", "find_libllvm", "backend_info"]
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +138,99 @@ class LedArray:
     bar: np.ndarray | None = None
 
 
+def _is_power_of_four(n: int) -> bool:
+    return n >= 4 and (n & (n - 1)) == 0 and (n.bit_length() - 1) % 2 == 0
+
+
+def stratified_spp(spp: int) -> int:
+    """Samples per pixel the renderer takes when asked for ``spp``.
+
+    4, 16, 64, ... (powers of 4) use Mitsuba's ``ldsampler`` and are exact. Every other
+    count uses ``multijitter``, a jittered a x b grid with a = floor(sqrt(spp)) and
+    b = ceil(spp / a), exact for 1, 2, 3, 6, 8, 9, 12, ... and rounded up otherwise
+    (5 -> 6, 7 -> 8, 10 -> 12, 32 -> 35). (``ldsampler`` itself would take 4 for a request
+    of 1, so 1 goes to ``multijitter``, which takes 1.)
+    """
+    spp = int(spp)
+    if spp < 1:
+        raise ValueError(f"spp = {spp}: must be >= 1")
+    if _is_power_of_four(spp):
+        return spp
+    a = math.isqrt(spp)
+    return a * (-(-spp // a))
+
+
+def heightfield_vertex_normals(
+    xs_mm: np.ndarray, ys_mm: np.ndarray, height_mm: np.ndarray, rows_per_block: int = 512
+) -> np.ndarray:
+    """Unit vertex normals (ny, nx, 3) float32 of the height field z = ``height_mm[i, j]`` at (xs[j], ys[i]).
+
+    ``xs_mm`` (nx,) and ``ys_mm`` (ny,) increasing, ``height_mm`` (ny, nx). The grid is
+    triangulated as :meth:`FloorRenderer._set_grid` does: cell (i, j) into
+    (i,j)-(i,j+1)-(i+1,j+1) and (i,j)-(i+1,j+1)-(i+1,j). Each vertex gets the sum of the
+    unit normals of its triangles weighted by the triangle's angle at the vertex,
+    normalised: the weighting of Thuermer and Wuethrich, "Computing Vertex Normals from
+    Polygonal Facets" (JGT 1998), which Mitsuba's ``recompute_vertex_normals`` uses; the
+    normals agree with Mitsuba's to float32 rounding and point to +z.
+
+    Computed in float64 in a fixed order, ``rows_per_block`` cell rows at a time (bounded
+    memory), so they are the same bytes in every run whatever the threads. With
+    dx = x[j+1] - x[j], dy = y[i+1] - y[i] and the height differences a = z01 - z00,
+    b = z11 - z00, c = z10 - z00 of a cell, the lower triangle's normal is
+    (-a dy, dx (a - b), dx dy) and the upper's (dy (c - b), -dx c, dx dy).
+    """
+    xs = np.asarray(xs_mm, dtype=np.float64)
+    ys = np.asarray(ys_mm, dtype=np.float64)
+    z = np.asarray(height_mm)
+    ny, nx = z.shape
+    if xs.shape != (nx,) or ys.shape != (ny,) or nx < 2 or ny < 2:
+        raise ValueError(
+            f"heightfield_vertex_normals: need xs (nx,), ys (ny,), height (ny, nx) with nx, ny >= 2, "
+            f"got {xs.shape}, {ys.shape}, {z.shape}"
+        )
+    acc = np.zeros((3, ny, nx), dtype=np.float64)  # x, y, z planes
+    dx = np.diff(xs)[None, :]  # (1, nx - 1)
+    dx2 = dx * dx
+
+    def angle(dot: np.ndarray, len_sq_u: np.ndarray, len_sq_v: np.ndarray) -> np.ndarray:
+        return np.arccos(np.clip(dot / np.sqrt(len_sq_u * len_sq_v), -1.0, 1.0))
+
+    def add(out: np.ndarray, rows: slice, cols: slice, n: tuple, weight: np.ndarray) -> None:
+        for k in range(3):
+            out[k, rows, cols] += n[k] * weight
+
+    top, bottom, left, right = slice(None, -1), slice(1, None), slice(None, -1), slice(1, None)
+    for r0 in range(0, ny - 1, rows_per_block):
+        r1 = min(ny - 1, r0 + rows_per_block)
+        zb = z[r0 : r1 + 1].astype(np.float64)
+        dy = np.diff(ys[r0 : r1 + 1])[:, None]  # (rows, 1)
+        dy2 = dy * dy
+        z00 = zb[top, left]
+        a, b, c = zb[top, right] - z00, zb[bottom, right] - z00, zb[bottom, left] - z00
+        out = acc[:, r0 : r1 + 1]
+        nz = dx * dy
+        # Lower triangle v0 = (i, j), v1 = (i, j+1), v2 = (i+1, j+1): edges e01 = (dx, 0, a),
+        # e02 = (dx, dy, b), e12 = (0, dy, b - a).
+        n = (-a * dy, dx * (a - b), np.broadcast_to(nz, a.shape))
+        inv = 1.0 / np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+        n = (n[0] * inv, n[1] * inv, n[2] * inv)
+        l01, l02, l12 = dx2 + a * a, dx2 + dy2 + b * b, dy2 + (b - a) ** 2
+        add(out, top, left, n, angle(dx2 + a * b, l01, l02))
+        add(out, top, right, n, angle(-a * (b - a), l01, l12))
+        add(out, bottom, right, n, angle(dy2 + b * (b - a), l02, l12))
+        # Upper triangle v0 = (i, j), v1 = (i+1, j+1), v2 = (i+1, j): edges e01 = (dx, dy, b),
+        # e02 = (0, dy, c), e12 = (-dx, 0, c - b).
+        n = (dy * (c - b), -dx * c, np.broadcast_to(nz, a.shape))
+        inv = 1.0 / np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+        n = (n[0] * inv, n[1] * inv, n[2] * inv)
+        l01, l02, l12 = dx2 + dy2 + b * b, dy2 + c * c, dx2 + (c - b) ** 2
+        add(out, top, left, n, angle(dy2 + b * c, l01, l02))
+        add(out, bottom, right, n, angle(dx2 - b * (c - b), l01, l12))
+        add(out, bottom, left, n, angle(c * (c - b), l02, l12))
+    acc /= np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)[None]
+    return np.ascontiguousarray(np.moveaxis(acc, 0, -1), dtype=np.float32)
+
+
 class FloorRenderer:
     """Renders radiance images of a floor tile for a camera model.
 
@@ -181,26 +275,40 @@ class FloorRenderer:
         xs = (spacing_mm * (np.arange(nx) - cx)).astype(np.float32)
         ys = (spacing_mm * (np.arange(ny) - cy)).astype(np.float32)
         origin = (float(x0_mm) + spacing_mm * cx, float(y0_mm) + spacing_mm * cy)
-        V = np.empty((ny, nx, 3), dtype=np.float32)
-        V[..., 0] = xs[None, :]
-        V[..., 1] = ys[:, None]
-        V[..., 2] = height_mm
-        a = (np.arange(ny - 1, dtype=np.uint32)[:, None] * nx + np.arange(nx - 1, dtype=np.uint32)[None, :]).ravel()
-        F = np.empty((2 * a.size, 3), dtype=np.uint32)
-        F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
-        F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
-        self._set_mesh(V.reshape(-1), F.reshape(-1), albedo.reshape(-1), nx * ny, len(F), origin)
+        self._set_grid(xs, ys, height_mm, albedo, origin)
 
     def load_flat(self, xmin: float, xmax: float, ymin: float, ymax: float, albedo: float) -> None:
         """A perfectly flat floor of uniform ``albedo`` (for the flat-field frame)."""
         origin = (0.5 * (xmin + xmax), 0.5 * (ymin + ymax))
         hx, hy = 0.5 * (xmax - xmin), 0.5 * (ymax - ymin)
-        V = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], dtype=np.float32)
-        F = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
-        self._set_mesh(V.reshape(-1), F.reshape(-1), np.full(4, albedo, dtype=np.float32), 4, 2, origin)
+        xs = np.array([-hx, hx], dtype=np.float32)
+        ys = np.array([-hy, hy], dtype=np.float32)
+        self._set_grid(xs, ys, np.zeros((2, 2), np.float32), np.full((2, 2), albedo, np.float32), origin)
 
-    def _set_mesh(self, V, F, albedo, n_vertices, n_faces, origin_xy_mm) -> None:
-        """Load the mesh; ``V`` (3 n,) float32 in tile-local mm, the tile's origin at world ``origin_xy_mm``.
+    def _set_grid(
+        self, xs: np.ndarray, ys: np.ndarray, height_mm: np.ndarray, albedo: np.ndarray, origin_xy_mm
+    ) -> None:
+        """Triangulate the grid of vertices (xs[j], ys[i], height[i, j]) (tile-local mm) and load it.
+
+        ``xs`` (nx,), ``ys`` (ny,), ``height_mm`` and ``albedo`` (ny, nx), all float32. Cell
+        (i, j) with a = i nx + j is split along its diagonal into (a, a+1, a+1+nx) and
+        (a, a+1+nx, a+nx).
+        """
+        ny, nx = height_mm.shape
+        V = np.empty((ny, nx, 3), dtype=np.float32)
+        V[..., 0] = xs[None, :]
+        V[..., 1] = ys[:, None]
+        V[..., 2] = height_mm
+        N = heightfield_vertex_normals(xs, ys, height_mm)
+        a = (np.arange(ny - 1, dtype=np.uint32)[:, None] * nx + np.arange(nx - 1, dtype=np.uint32)[None, :]).ravel()
+        F = np.empty((2 * a.size, 3), dtype=np.uint32)
+        F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
+        F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
+        self._set_mesh(V.reshape(-1), F.reshape(-1), N.reshape(-1), albedo.reshape(-1), nx * ny, len(F), origin_xy_mm)
+
+    def _set_mesh(self, V, F, N, albedo, n_vertices, n_faces, origin_xy_mm) -> None:
+        """Load the mesh; ``V`` (3 n,) float32 in tile-local mm, the tile's origin at world ``origin_xy_mm``;
+        ``N`` (3 n,) float32 unit vertex normals.
 
         Why tile-local: a shadow ray must start a little off the surface so that it does not
         hit its own triangle, and Mitsuba's ``spawn_ray_to`` lifts it by
@@ -210,6 +318,12 @@ class FloorRenderer:
         rendered differently at another place (13 % RMS at 200 mm). We lift shadow rays by a
         fixed :attr:`shadow_offset_mm` instead, 64 float32 ulps of the tile's largest
         coordinate, and hold coordinates small and alike in every tile.
+
+        Why the normals come from numpy: Mitsuba's ``recompute_vertex_normals`` (which
+        ``params.update()`` calls when only the positions change) adds the face normals into
+        the vertices with atomic float adds, in an order that depends on the JIT threads, so
+        the normals, and through them the frames and the exposure, changed in the last bits
+        from run to run (see :func:`heightfield_vertex_normals`).
         """
         mi = self.mi
         self.scene = None
@@ -220,23 +334,23 @@ class FloorRenderer:
         mesh = mi.Mesh("floor", n_vertices, n_faces, has_vertex_normals=True, has_vertex_texcoords=False)
         params = mi.traverse(mesh)
         params["vertex_positions"] = mi.Float(V)
+        params["vertex_normals"] = mi.Float(N)
         params["faces"] = mi.UInt32(F)
-        params.update()
-        mesh.recompute_vertex_normals()
+        params.update()  # "vertex_normals" among the changed keys: Mitsuba keeps ours
         mesh.add_attribute("vertex_albedo", 1, mi.Float(albedo))
         self.scene = mi.load_dict({"type": "scene", "floor": mesh})
 
     # --------------------------------------------------------------------- rays
     def _sampler(self, spp: int):
-        """A cached stratified Mitsuba sampler: ``ldsampler`` for 4^k spp, ``multijitter`` otherwise
-        (which rounds ``spp`` up to an a x b grid, e.g. 5 -> 6; see :meth:`effective_spp`)."""
+        """A cached stratified Mitsuba sampler taking :func:`stratified_spp` (``spp``) samples per pixel:
+        ``ldsampler`` for 4, 16, 64, ... spp, ``multijitter`` otherwise."""
         spp = int(spp)
         if spp < 1:
             raise ValueError(f"spp = {spp}: must be >= 1")
         s = self._samplers.get(spp)
         if s is None:
-            square_pow2 = spp >= 1 and (spp & (spp - 1)) == 0 and (spp.bit_length() - 1) % 2 == 0
-            s = self.mi.load_dict({"type": "ldsampler" if square_pow2 else "multijitter", "sample_count": spp})
+            kind = "ldsampler" if _is_power_of_four(spp) else "multijitter"
+            s = self.mi.load_dict({"type": kind, "sample_count": stratified_spp(spp)})
             self._samplers[spp] = s
         return s
 
@@ -363,7 +477,9 @@ class FloorRenderer:
                 L += dr.select(occluded, 0.0, F)
         if ambient > 0:
             L += dr.select(valid, float(ambient) * diffuse, 0.0)
-        img = dr.block_sum(L, spp) * (1.0 / spp)
+        # Evaluated mode: a reduction kernel with a fixed order. Dr.Jit's default switches to atomic
+        # scatter-adds (order varies from run to run) when L would take over 1 GiB (about 1000 spp at full size).
+        img = dr.block_sum(L, spp, mode="evaluated") * (1.0 / spp)
         return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
 
     def _shadow_ray(self, si, target):

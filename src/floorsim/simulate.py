@@ -27,7 +27,7 @@ import floorsim
 import floorvo
 from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import get_material, sample_material
-from floorsim.render import FloorRenderer, LedArray, backend_info
+from floorsim.render import FloorRenderer, LedArray, backend_info, stratified_spp
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.spectral import mono_response
@@ -53,7 +53,11 @@ def prepare_scene(
     spp: int | None = None,
     seed: int | None = None,
 ) -> Scene:
-    """Apply the command-line knobs to a scene (validated like the file)."""
+    """Apply the command-line knobs to a scene (validated like the file).
+
+    ``render.spp`` becomes the count the renderer really takes (:func:`floorsim.render.stratified_spp`:
+    5 -> 6, with a warning), so the scene recorded in ``sequence.json`` is the one rendered.
+    """
     if frames is not None and frames < 1:
         raise ConfigError(f"--frames = {frames}: must be >= 1")
     if scale is not None and not 0 < scale <= 4:
@@ -68,6 +72,16 @@ def prepare_scene(
         # Keep the field of view: the pixel pitch grows as the resolution shrinks.
         cam = dataclasses.replace(cam, width_px=w, height_px=h, pixel_pitch_um=cam.pixel_pitch_um * cam.width_px / w)
     render = scene.render if spp is None else dataclasses.replace(scene.render, spp=spp)
+    rendered_spp = stratified_spp(render.spp)
+    if rendered_spp != render.spp:
+        # Record what is rendered: sequence.json's scene then says how many samples each pixel has.
+        log.warning(
+            "%s: render.spp = %d is not a sampler grid; rendering and recording %d samples per pixel",
+            scene.name,
+            render.spp,
+            rendered_spp,
+        )
+        render = dataclasses.replace(render, spp=rendered_spp)
     out = dataclasses.replace(scene, camera=cam, render=render, seed=scene.seed if seed is None else seed)
     if frames is not None:
         out = dataclasses.replace(out, trajectory={**out.trajectory, "max_frames": frames})
