@@ -34,7 +34,7 @@ from floorsim.spectral import mono_response
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError
-from floorvo.io import atomic_write_json, read_json
+from floorvo.io import atomic_write_json, checked_output_path, read_json
 from floorvo.sequence import SequenceWriter
 
 __all__ = ["render_sequence", "prepare_scene", "plan_tiles", "LED_INTENSITY_UNIT"]
@@ -233,6 +233,7 @@ def render_sequence(
     Frames already on disk from an interrupted render of the same resolved scene are
     kept; only missing frames are rendered. ``on_frame(done, total)`` reports progress.
     """
+    checked_output_path(out_dir)  # before any work: "" and "/" are refused (the writer checks the rest)
     scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)
     traj = _trajectory_of(scene)
     cam = scene.camera_model()
@@ -283,8 +284,9 @@ def render_sequence(
     root = writer.root
     writer.write_groundtruth(ts, T_all)
     missing = writer.missing_frames()
-    flat_path = root / "calib" / "cam0_flatfield.png"
-    need_flat = scene.render.flatfield and not flat_path.is_file()
+    need_flat = scene.render.flatfield and not all(
+        writer.has_calib(name) for name in ("cam0_flatfield", "cam1_flatfield")[: 2 if T_01 is not None else 1]
+    )
     total = traj.frame_count
     if on_frame:
         on_frame(total - len(missing), total)

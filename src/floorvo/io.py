@@ -15,7 +15,8 @@ import io
 import json
 import math
 import os
-import tempfile
+import re
+import secrets
 import tomllib
 from collections.abc import Iterable, Mapping
 from collections.abc import Sequence as SequenceT
@@ -42,20 +43,45 @@ __all__ = [
     "read_toml",
     "json_sha256",
     "ensure_writable_dir",
+    "remove_stale_temporaries",
+    "checked_output_path",
+    "TEMP_SUFFIX",
 ]
+
+#: Suffix of the temporary files of :func:`atomic_write_bytes`.
+TEMP_SUFFIX = ".tmp"
+#: Their names: 8 hex digits now, 8 of [a-z0-9_] from the ``tempfile.mkstemp`` of earlier versions.
+_TEMP_NAME = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")
+
+
+def _create_temporary(path: Path) -> tuple[int, Path]:
+    """Create and open (write-only) a new temporary file ``.NAME.XXXXXXXX.tmp`` beside ``path``.
+
+    Created with mode 0666 less the process umask, as ``open`` creates files
+    (``tempfile.mkstemp`` creates them 0600, which hid rendered datasets from every other user).
+    """
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"
+        try:
+            return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666), tmp
+        except FileExistsError:
+            continue
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder, rename).
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync, rename).
 
-    An ``OSError`` (a full disk: ``[Errno 28]``, a read-only folder) leaves no temporary
-    file behind and names ``path`` in its ``filename``, so the CLIs report it in one line.
+    The file gets the permissions any new file gets (0666 less the umask). An ``OSError``
+    (a full disk: ``[Errno 28]``, a read-only folder) leaves no temporary file behind and
+    names ``path`` in its ``filename``, so the CLIs report it in one line. The temporary is
+    named ``.NAME.XXXXXXXX.tmp``; one left behind by a killed process is removed by
+    :func:`remove_stale_temporaries`.
     """
     path = Path(path)
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = _create_temporary(path)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -70,6 +96,22 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         if isinstance(exc, OSError):
             exc.filename, exc.filename2 = str(path), None  # the file the user asked for, not the temporary
         raise
+
+
+def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Delete the temporaries of :func:`atomic_write_bytes` directly in ``folder`` (``.NAME.XXXXXXXX.tmp``).
+
+    Call it only on a folder this process writes alone: a temporary is left behind only when
+    its writer was killed between creating and renaming it. Returns the paths removed.
+    """
+    folder = Path(folder)
+    removed = []
+    if folder.is_dir():
+        for p in folder.iterdir():
+            if _TEMP_NAME.fullmatch(p.name) and p.is_file():
+                p.unlink(missing_ok=True)
+                removed.append(p)
+    return removed
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
@@ -210,12 +252,27 @@ def json_sha256(obj: Any) -> str:
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
+def checked_output_path(path: str | os.PathLike, error: type[Exception] = SequenceError) -> Path:
+    """``path`` as a Path, refusing the empty path and the root of a file system (one line, ``error``).
+
+    ``-o ""`` would write into the current folder and ``-o /`` into the file-system root.
+    """
+    raw = os.fspath(path)
+    if str(raw).strip() == "":
+        raise error("output folder '': the path is empty; name a folder")
+    p = Path(raw)
+    resolved = p.resolve()
+    if resolved == Path(resolved.anchor):
+        raise error(f"{raw}: is the root of a file system; name a folder below it")
+    return p
+
+
 def ensure_writable_dir(path: str | os.PathLike) -> Path:
     """Create ``path`` (and parents) and check that files can be written there."""
     path = Path(path)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".write-test.", dir=path)
+        fd, tmp = _create_temporary(path / "write-test")
         os.close(fd)
         os.unlink(tmp)
     except OSError as exc:

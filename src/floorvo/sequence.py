@@ -10,6 +10,7 @@
       depth/000000.png  16-bit depth in 1/100 mm (or depth/000000.npy, float32 mm)
       calib/cam0_flatfield.png   flat-field frame (same rig, flat uniform floor), optional
       timestamps.txt    per-frame times (s), one line per frame in frame order; optional
+      calib/sensor.json          exposure of a rendered sequence (floorsim), optional
       groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
 
 Frame ``i`` was taken at line ``i`` of ``timestamps.txt`` when the folder has one (a
@@ -17,13 +18,16 @@ recording: camera clock times, any spacing), at ``i / fps`` otherwise (a render)
 version 2 added ``timestamps.txt``; version 1 folders (no such file) still load.
 
 Every file is written atomically, so a frame file that exists is complete; a render that
-is interrupted and restarted skips the frames already on disk (:meth:`SequenceWriter.has_frame`).
+is interrupted and restarted skips the frames already on disk and readable
+(:meth:`SequenceWriter.has_frame`) and removes the temporaries the interrupted one left.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,10 +41,12 @@ from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
     atomic_write_text,
+    checked_output_path,
     ensure_writable_dir,
     plain,
     read_json,
     read_png,
+    remove_stale_temporaries,
     write_png,
 )
 from floorvo.metrics import associate
@@ -55,10 +61,16 @@ __all__ = [
     "Sequence",
     "SequenceWriter",
     "frame_name",
+    "sequence_files",
+    "SEQUENCE_FORMAT",
     "check_timestamps",
     "DEPTH_PNG_SCALE_PER_MM",
 ]
 
+log = logging.getLogger(__name__)
+
+#: The ``format`` field of every ``sequence.json`` this writer makes.
+SEQUENCE_FORMAT = "floorbench-sequence"
 #: Per-frame timestamps (s), one line per frame; absent: frame i at i / fps.
 TIMESTAMPS_FILE = "timestamps.txt"
 #: Largest gap (s) between a frame's time and the ground-truth pose taken for it; the
@@ -84,32 +96,49 @@ class SequenceWriter:
     Parameters
     ----------
     root:
-        Output folder (created).
+        Output folder (created). Refused in one line: the empty path, the root of a file
+        system, and an existing folder that holds other files but no sequence.
     meta:
         The content of ``sequence.json`` except ``schema_version``, which is added. Must
         hold ``camera`` (``CameraModel.to_dict()``), ``fps`` and ``frame_count``.
     resume:
         If ``root/sequence.json`` exists with the same metadata, keep the frames already
-        written; if it exists with different metadata, refuse (unless ``overwrite``).
+        written (a frame counts only if its files decode, see :meth:`has_frame`); if it
+        exists with different metadata, refuse (unless ``overwrite``).
     overwrite:
-        Replace an existing sequence with different metadata (old frames are deleted).
+        Replace an existing sequence with different metadata: the files the format names
+        (:func:`sequence_files`) are deleted; anything else in the folder (a user's notes,
+        subfolders) stays.
+
+    Opening a folder removes the temporaries that a killed writer left behind
+    (``.NAME.XXXXXXXX.tmp``, see :func:`floorvo.io.remove_stale_temporaries`).
     """
 
     def __init__(self, root: str | os.PathLike, meta: dict, *, resume: bool = True, overwrite: bool = False):
-        self.root = Path(root)
-        meta = _canonical({"schema_version": SCHEMA_VERSION, "format": "floorbench-sequence", **meta})
+        self.root = checked_output_path(root)
+        meta = _canonical({"schema_version": SCHEMA_VERSION, "format": SEQUENCE_FORMAT, **meta})
         _check_meta(meta, self.root / "sequence.json")
         self.meta = meta
         if self.root.exists() and not self.root.is_dir():
             raise SequenceError(f"{self.root}: output path exists and is not a folder")
-        ensure_writable_dir(self.root)
         meta_path = self.root / "sequence.json"
-        if meta_path.exists():
-            try:
-                old = json.loads(meta_path.read_text())
-            except (OSError, json.JSONDecodeError):
-                old = None
-            same = old is not None and _strip_volatile(old) == _strip_volatile(meta)
+        old = None
+        if self.root.is_dir():
+            for folder in (self.root, *(self.root / sub for sub in _FRAME_FOLDERS), self.root / "calib"):
+                remove_stale_temporaries(folder)
+            if meta_path.exists():
+                old = _read_own_meta(meta_path)
+            else:
+                others = sorted(p.name for p in self.root.iterdir())
+                if others:
+                    more = f" and {len(others) - 1} more" if len(others) > 1 else ""
+                    raise SequenceError(
+                        f"{self.root}: holds {others[0]!r}{more} but no sequence.json; "
+                        "choose an empty or new output folder"
+                    )
+        ensure_writable_dir(self.root)
+        if old is not None:
+            same = _strip_volatile(old) == _strip_volatile(meta)
             if same and resume:
                 self.resumed = True
                 if old.get("schema_version") != SCHEMA_VERSION:  # an older version of the same sequence
@@ -120,13 +149,8 @@ class SequenceWriter:
                     f"{self.root}: holds a different sequence (other scene, seed or settings); "
                     "choose another output folder or pass --overwrite"
                 )
-            for sub in ("cam0", "cam1", "depth", "calib"):
-                d = self.root / sub
-                if d.is_dir():
-                    for f in d.iterdir():
-                        f.unlink()
-            for f in ("groundtruth.txt", TIMESTAMPS_FILE):
-                (self.root / f).unlink(missing_ok=True)
+            for f in sequence_files(self.root):
+                f.unlink(missing_ok=True)
         self.resumed = False
         atomic_write_json(meta_path, meta)
 
@@ -148,11 +172,28 @@ class SequenceWriter:
         return paths
 
     def has_frame(self, index: int) -> bool:
-        """True if every file of frame ``index`` is on disk (atomic writes: exists = complete)."""
-        return all(p.is_file() for p in self.required_paths(index))
+        """True if every file of frame ``index`` is on disk and decodes.
+
+        Writes are atomic, so a file of ours is complete; a file damaged afterwards (cut short
+        by a copy, a full disk or a crash of the file system) does not count, and a resume
+        renders the frame again.
+        """
+        return all(_decodes(p) for p in self.required_paths(index))
+
+    def has_calib(self, name: str) -> bool:
+        """True if ``calib/NAME.png`` is on disk and decodes."""
+        return _decodes(self.root / "calib" / f"{name}.png")
 
     def missing_frames(self) -> list[int]:
-        return [i for i in range(int(self.meta["frame_count"])) if not self.has_frame(i)]
+        """Indices of the frames whose files are not all on disk and readable (logged when a file is damaged)."""
+        missing = []
+        for i in range(int(self.meta["frame_count"])):
+            if not self.has_frame(i):
+                missing.append(i)
+                for p in self.required_paths(i):
+                    if p.is_file() and not _decodes(p):
+                        log.warning("%s: damaged (does not decode); writing it again", p)
+        return missing
 
     # ----------------------------------------------------------------- writing
     def write_frame(self, index: int, image: np.ndarray, cam: str = "cam0") -> None:
@@ -195,6 +236,73 @@ def _check_meta(meta: dict, meta_path: Path) -> None:
         check_sequence_meta(meta)
     except ConfigError as exc:
         raise SequenceError(f"{meta_path}: {exc}") from None
+
+
+#: Folders of per-frame files.
+_FRAME_FOLDERS = ("cam0", "cam1", "depth")
+_FRAME_FILE = re.compile(r"\d{6,}\.(png|npy)")
+_CALIB_FILE = re.compile(r"cam\d+_flatfield\.png|sensor\.json")
+
+
+def sequence_files(root: str | os.PathLike) -> list[Path]:
+    """The files of the sequence format present in ``root`` (except ``sequence.json``).
+
+    ``groundtruth.txt``, ``timestamps.txt``, ``cam0/``, ``cam1/`` and ``depth/`` frames (``NNNNNN.png``/``.npy``),
+    ``calib/CAM_flatfield.png`` and ``calib/sensor.json``. Nothing else: other files and
+    folders in the sequence folder are not the format's (``--overwrite`` leaves them).
+    """
+    root = Path(root)
+    files = [root / "groundtruth.txt", root / TIMESTAMPS_FILE]
+    for sub, pattern in [*((s, _FRAME_FILE) for s in _FRAME_FOLDERS), ("calib", _CALIB_FILE)]:
+        d = root / sub
+        if d.is_dir():
+            files += sorted(p for p in d.iterdir() if pattern.fullmatch(p.name))
+    return [p for p in files if p.is_file()]
+
+
+def _read_own_meta(meta_path: Path) -> dict:
+    """The content of an existing ``sequence.json`` written by this format; SequenceError otherwise."""
+    try:
+        old = json.loads(meta_path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        old = None
+    ours = (
+        isinstance(old, dict)
+        and old.get("format", SEQUENCE_FORMAT) == SEQUENCE_FORMAT
+        and old.get("schema_version") in READABLE_SCHEMA_VERSIONS
+    )
+    if not ours:
+        raise SequenceError(
+            f"{meta_path}: not a floorbench sequence (unreadable, or not format {SEQUENCE_FORMAT!r} of a "
+            "readable schema_version); "
+            "choose an empty or new output folder"
+        )
+    return old
+
+
+def _decodes(path: Path) -> bool:
+    """True if ``path`` is a file that reads as a frame (PNG, or ``.npy`` for depth)."""
+    if not path.is_file():
+        return False
+    if path.suffix == ".npy":
+        try:
+            np.load(path, allow_pickle=False)
+        except (OSError, ValueError, EOFError):
+            return False
+        return True
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(-12, os.SEEK_END)
+            if fh.read() != _PNG_END:  # cut short: no need to decode (libpng would complain on stderr)
+                return False
+        read_png(path)
+    except (OSError, SequenceError):
+        return False
+    return True
+
+
+#: The last 12 bytes of every PNG: the empty IEND chunk and its CRC.
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
 def _strip_volatile(meta: dict) -> dict:

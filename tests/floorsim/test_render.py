@@ -184,6 +184,35 @@ def test_resume_keeps_written_frames(tmp_path):
     assert [f.read_bytes() for f in frames] == original
 
 
+def test_resume_renders_damaged_files_again(tmp_path):
+    """A frame and the flat field cut short, and a temporary a SIGKILL left: the resume
+    renders the two again, byte for byte, and removes the temporary."""
+    scene = tiny_scene(**{"sensor.noise": True, "trajectory.distance_mm": 8.0})
+    root = render_sequence(scene, tmp_path / "seq")
+    frame, flat = root / "cam0" / "000001.png", root / "calib" / "cam0_flatfield.png"
+    original = {p: p.read_bytes() for p in (frame, flat)}
+    for p, data in original.items():
+        p.write_bytes(data[: len(data) // 2])
+    stale = root / "cam0" / ".000002.png.a1b2c3d4.tmp"
+    stale.write_bytes(b"half")
+    render_sequence(scene, root)
+    assert {p: p.read_bytes() for p in original} == original
+    assert not stale.exists()
+
+
+def test_cli_render_refuses_empty_root_and_foreign_folders(tmp_path, monkeypatch, capsys):
+    from floorsim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "thesis.tex").write_text("...")
+    for out, rule in (("", "path is empty"), ("/", "root of a file system"), ("mine", "no sequence.json")):
+        assert main(["render", "demo", "-o", out, "--frames", "1"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and rule in err[0], err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["mine", "thesis.tex"]
+
+
 def test_cli_render_unwritable_and_summary(tmp_path):
     ro = tmp_path / "ro"
     ro.write_text("a file, not a folder")
