@@ -15,33 +15,44 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
-finite differences, biases zero).
+finite differences, biases zero). Ground-truth rows carry the image stamps of their
+frames, to the nanosecond (``groundtruth.txt`` holds microseconds). ``sensor.yaml``'s
+``distortion_coefficients`` are EuRoC's radial-tangential (k1, k2, p1, p2), followed by
+k3 when the camera has one (OpenCV's order): a reader that takes only four would model
+another lens.
 """
 
 from __future__ import annotations
 
 import csv
+import io
+import logging
 import os
-import shutil
 from pathlib import Path
 
 import numpy as np
 
 from floorvo.errors import FloorbenchError
 from floorvo.geometry import xyz_quat_from_T
-from floorvo.io import atomic_write_text
+from floorvo.io import atomic_write_bytes, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
 
-__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence"]
+__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence", "euroc_distortion"]
+
+log = logging.getLogger(__name__)
 
 
 def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
 
 
-def _check_out(out: Path) -> None:
-    if out.exists() and any(out.iterdir()) if out.is_dir() else out.exists():
-        raise FloorbenchError(f"{out}: output exists; choose a new path (exports are not merged into old ones)")
+def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
+    """The output path, refused in one line if empty, a file-system root, or taken (an empty folder may do)."""
+    path = checked_output_path(out, FloorbenchError)
+    taken = path.exists() and (not may_exist_empty or not path.is_dir() or any(path.iterdir()))
+    if taken:
+        raise FloorbenchError(f"{path}: output exists; choose a new path (exports are not merged into old ones)")
+    return path
 
 
 def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
@@ -51,8 +62,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
-    out = Path(out)
-    _check_out(out)
+    out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
@@ -186,10 +196,36 @@ def _yaml_dump(path: Path, data: dict) -> None:
     atomic_write_text(path, "%YAML:1.0\n" + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
 
 
+def euroc_distortion(distortion) -> list[float]:
+    """``sensor.yaml`` coefficients of OpenCV's (k1, k2, p1, p2, k3): the first four, and k3 when it is not 0."""
+    k = [float(v) for v in (tuple(distortion) + (0.0,) * 5)[:5]]
+    return k if k[4] != 0.0 else k[:4]
+
+
+def _csv_text(header: str, rows) -> str:
+    buf = io.StringIO()
+    buf.write(header)
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue()
+
+
+def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
+    """Nanosecond stamps of ``t_s``; a stamp within 1 us of a frame's (TUM files hold microseconds) gets the frame's.
+
+    ``frame_stamps_s`` (M,) increasing.
+    """
+    t_s = np.asarray(t_s, dtype=float)
+    f = np.asarray(frame_stamps_s, dtype=float)
+    if f.size == 0:
+        return [_ns(float(t)) for t in t_s]
+    j = np.clip(np.searchsorted(f, t_s), 1, max(1, f.size - 1)) if f.size > 1 else np.zeros(t_s.shape, int)
+    k = np.where(np.abs(f[j - 1] - t_s) <= np.abs(f[j] - t_s), j - 1, j) if f.size > 1 else j
+    return [_ns(float(f[kk])) if abs(f[kk] - t) <= 1e-6 else _ns(float(t)) for t, kk in zip(t_s, k)]
+
+
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
     """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
-    out = Path(out)
-    _check_out(out)
+    out = _check_out(out)
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
@@ -201,26 +237,28 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
             ns = _ns(float(stamps[i]))
             src = seq.image_path(i, c)
             seq.image(i, c)  # validates the frame before it is copied
-            shutil.copyfile(src, d / f"{ns}.png")
+            atomic_write_bytes(d / f"{ns}.png", src.read_bytes())
             rows.append((ns, f"{ns}.png"))
-        with open(mav / c / "data.csv", "w", newline="") as fh:
-            fh.write("#timestamp [ns],filename\n")
-            csv.writer(fh, lineterminator="\n").writerows(rows)
+        atomic_write_text(mav / c / "data.csv", _csv_text("#timestamp [ns],filename\n", rows))
         cam = seq.camera_model(c)
         T_BS = np.eye(4) if c == "cam0" else np.asarray(seq.T_cam0_cam1, dtype=float).copy()
         T_BS[:3, 3] /= 1000.0
+        distortion = euroc_distortion(cam.distortion)
+        if len(distortion) == 5:
+            log.warning("%s: k3 = %g written as a fifth distortion coefficient (EuRoC has four)", c, distortion[4])
         _yaml_dump(
             mav / c / "sensor.yaml",
             {
                 "sensor_type": "camera",
-                "comment": f"floorbench {seq.meta.get('name', '')} {c}; body frame = cam0",
+                "comment": f"floorbench {seq.meta.get('name', '')} {c}; body frame = cam0"
+                + ("; distortion k1, k2, p1, p2, k3 (OpenCV)" if len(distortion) == 5 else ""),
                 "T_BS": {"cols": 4, "rows": 4, "data": [float(v) for v in T_BS.ravel()]},
                 "rate_hz": float(seq.fps),
                 "resolution": [cam.width_px, cam.height_px],
                 "camera_model": "pinhole",
                 "intrinsics": [cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px],
                 "distortion_model": "radial-tangential",
-                "distortion_coefficients": [float(v) for v in cam.distortion[:4]],
+                "distortion_coefficients": distortion,
             },
         )
     gt = seq.groundtruth()
@@ -230,29 +268,29 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
         t, Ts = gt
         p = Ts[:, :3, 3] / 1000.0
         v = np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p)
-        with open(g / "data.csv", "w", newline="") as fh:
-            fh.write(
-                "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
-                "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
-                "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n"
+        rows = []
+        for k, ns in enumerate(_stamps_ns(t, stamps)):
+            _, q = xyz_quat_from_T(Ts[k])
+            rows.append(
+                [
+                    ns,
+                    *[f"{x:.9f}" for x in p[k]],
+                    *[f"{x:.12f}" for x in (q[3], q[0], q[1], q[2])],
+                    *[f"{x:.9f}" for x in v[k]],
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
+                ]
             )
-            wr = csv.writer(fh, lineterminator="\n")
-            for k in range(len(t)):
-                _, q = xyz_quat_from_T(Ts[k])
-                wr.writerow(
-                    [
-                        _ns(t[k]),
-                        *[f"{x:.9f}" for x in p[k]],
-                        *[f"{x:.12f}" for x in (q[3], q[0], q[1], q[2])],
-                        *[f"{x:.9f}" for x in v[k]],
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                    ]
-                )
+        header = (
+            "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
+            "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
+            "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n"
+        )
+        atomic_write_text(g / "data.csv", _csv_text(header, rows))
     return out
 
 

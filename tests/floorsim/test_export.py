@@ -98,3 +98,57 @@ def test_export_refuses_existing_output(stereo_depth_seq, tmp_path):
     (tmp_path / "taken" / "x").write_text("x")
     with pytest.raises(FloorbenchError, match="output exists"):
         export_sequence(seq_dir, "euroc", tmp_path / "taken")
+
+
+def _seq_30fps(root, distortion=(0.0,) * 5):
+    cam = CameraModel.from_sensor(40, 30, pixel_pitch_um=120.0, distortion=distortion)
+    w = SequenceWriter(root, {"camera": cam.to_dict(), "fps": 30.0, "frame_count": 4})
+    Ts = np.stack([T_world_cam_down(3.0 * i, 0.0, 100.0, 0.0) for i in range(4)])
+    for i in range(4):
+        w.write_frame(i, np.full((30, 40), 10 * i, dtype=np.uint8))
+    w.write_groundtruth(np.arange(4) / 30.0, Ts)
+    return root
+
+
+def test_euroc_groundtruth_stamps_are_the_image_stamps(tmp_path):
+    """groundtruth.txt holds microseconds (0.033333 s); the export gives its rows the frames' nanoseconds."""
+    out = export_sequence(_seq_30fps(tmp_path / "seq"), "euroc", tmp_path / "euroc")
+    images = [int(r[0]) for r in list(csv.reader(open(out / "mav0/cam0/data.csv")))[1:]]
+    gt = [int(r[0]) for r in list(csv.reader(open(out / "mav0/state_groundtruth_estimate0/data.csv")))[1:]]
+    assert images == [0, 33_333_333, 66_666_667, 100_000_000]  # round(i / 30 s * 1e9)
+    assert gt == images
+    assert sorted(p.name for p in (out / "mav0/cam0/data").iterdir()) == sorted(f"{t}.png" for t in images)
+
+
+def test_euroc_keeps_k3(tmp_path):
+    """k3 is written after EuRoC's four radial-tangential coefficients; a camera without one keeps four."""
+    d = (-0.12, 0.05, 0.001, -0.002, 0.03)
+    out = export_sequence(_seq_30fps(tmp_path / "k3", d), "euroc", tmp_path / "e1")
+    sensor = yaml.safe_load((out / "mav0/cam0/sensor.yaml").read_text().split("\n", 1)[1])
+    assert sensor["distortion_coefficients"] == pytest.approx(list(d))
+    out = export_sequence(_seq_30fps(tmp_path / "k0", d[:4] + (0.0,)), "euroc", tmp_path / "e0")
+    sensor = yaml.safe_load((out / "mav0/cam0/sensor.yaml").read_text().split("\n", 1)[1])
+    assert sensor["distortion_coefficients"] == pytest.approx(list(d[:4]))
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_export_refuses_empty_output_path(stereo_depth_seq, tmp_path, monkeypatch, fmt):
+    from floorvo.errors import FloorbenchError
+
+    seq_dir, _ = stereo_depth_seq
+    work = tmp_path / "cwd"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    with pytest.raises(FloorbenchError, match="path is empty"):
+        export_sequence(seq_dir, fmt, "")
+    assert list(work.iterdir()) == []
+
+
+def test_rosbag2_refuses_an_existing_empty_folder(stereo_depth_seq, tmp_path):
+    """The bag writer makes its folder itself: an existing one is refused in one line, not with WriterError."""
+    from floorvo.errors import FloorbenchError
+
+    seq_dir, _ = stereo_depth_seq
+    (tmp_path / "bag").mkdir()
+    with pytest.raises(FloorbenchError, match="output exists"):
+        export_sequence(seq_dir, "rosbag2", tmp_path / "bag")
