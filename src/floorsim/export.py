@@ -24,8 +24,6 @@ another lens.
 
 from __future__ import annotations
 
-import csv
-import io
 import logging
 import os
 from pathlib import Path
@@ -34,7 +32,7 @@ import numpy as np
 
 from floorvo.errors import FloorbenchError
 from floorvo.geometry import xyz_quat_from_T
-from floorvo.io import atomic_write_bytes, atomic_write_text, checked_output_path
+from floorvo.io import atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
 
 __all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence", "euroc_distortion"]
@@ -202,13 +200,6 @@ def euroc_distortion(distortion) -> list[float]:
     return k if k[4] != 0.0 else k[:4]
 
 
-def _csv_text(header: str, rows) -> str:
-    buf = io.StringIO()
-    buf.write(header)
-    csv.writer(buf, lineterminator="\n").writerows(rows)
-    return buf.getvalue()
-
-
 def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
     """Nanosecond stamps of ``t_s``; a stamp within 1 us of a frame's (TUM files hold microseconds) gets the frame's.
 
@@ -239,7 +230,7 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
             seq.image(i, c)  # validates the frame before it is copied
             atomic_write_bytes(d / f"{ns}.png", src.read_bytes())
             rows.append((ns, f"{ns}.png"))
-        atomic_write_text(mav / c / "data.csv", _csv_text("#timestamp [ns],filename\n", rows))
+        atomic_write_csv(mav / c / "data.csv", ["#timestamp [ns]", "filename"], rows)
         cam = seq.camera_model(c)
         T_BS = np.eye(4) if c == "cam0" else np.asarray(seq.T_cam0_cam1, dtype=float).copy()
         T_BS[:3, 3] /= 1000.0
@@ -285,12 +276,28 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
                     0,
                 ]
             )
-        header = (
-            "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
-            "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
-            "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n"
-        )
-        atomic_write_text(g / "data.csv", _csv_text(header, rows))
+        header = ["#timestamp"] + [
+            f" {name}"  # EuRoC's header has a space after each comma
+            for name in (
+                "p_RS_R_x [m]",
+                "p_RS_R_y [m]",
+                "p_RS_R_z [m]",
+                "q_RS_w []",
+                "q_RS_x []",
+                "q_RS_y []",
+                "q_RS_z []",
+                "v_RS_R_x [m s^-1]",
+                "v_RS_R_y [m s^-1]",
+                "v_RS_R_z [m s^-1]",
+                "b_w_RS_S_x [rad s^-1]",
+                "b_w_RS_S_y [rad s^-1]",
+                "b_w_RS_S_z [rad s^-1]",
+                "b_a_RS_S_x [m s^-2]",
+                "b_a_RS_S_y [m s^-2]",
+                "b_a_RS_S_z [m s^-2]",
+            )
+        ]
+        atomic_write_csv(g / "data.csv", header, rows)
     return out
 
 
