@@ -33,8 +33,10 @@ the bench's, not the sweep's). Each sequence folder of ``sequences`` is one more
 
 Execution: local processes by default (``jobs`` of them); ``scheduler="tcp://HOST:PORT"``
 sends the same jobs to a Dask distributed cluster; ``workers=N`` starts a local Dask
-cluster of N workers. Rows stream into ``DIR/results.csv`` (atomically rewritten) as jobs
-finish, so an interrupted sweep started again skips the jobs already there.
+cluster of N workers. Local workers exit when the main process dies, even by SIGKILL
+(:func:`_exit_with_parent`; Dask's own workers watch their nanny the same way). Rows stream
+into ``DIR/results.csv`` (atomically rewritten) as jobs finish, so an interrupted sweep
+started again skips the jobs already there.
 Then ``DIR/sweep.html`` and ``DIR/sweep.md`` hold the robustness curves: drift and
 tracking loss against each varied parameter, one line per estimator, the operating point
 marked.
@@ -352,20 +354,48 @@ def run_sweep(
     return res
 
 
+def _exit_with_parent(parent_alive) -> None:
+    """Worker initializer: exit at once when the sweep's main process dies (even by SIGKILL).
+
+    ``parent_alive`` is the read end of a pipe whose write end only the main process holds;
+    when that process is gone the pipe closes, the watching thread's ``recv`` ends and the
+    worker exits, instead of computing for minutes results nobody collects (Dask's workers
+    do the same with their nanny's pipe).
+    """
+    import threading
+
+    def watch() -> None:
+        try:
+            parent_alive.recv()
+        except (EOFError, OSError):
+            pass
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 def _run_local(todo, args, collect, jobs: int) -> None:
     import concurrent.futures as cf
     import multiprocessing as mp
 
-    with cf.ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
-        futs = {pool.submit(run_sweep_job, job, *args): job for job in todo}
-        try:
-            for fut in cf.as_completed(futs):
-                exc = fut.exception()
-                collect(futs[fut], None if exc else fut.result(), exc)
-        except KeyboardInterrupt:
-            for f in futs:
-                f.cancel()
-            raise
+    ctx = mp.get_context("spawn")
+    parent_alive, keep_alive = ctx.Pipe(duplex=False)  # keep_alive: never written, closed when this process ends
+    try:
+        with cf.ProcessPoolExecutor(
+            max_workers=jobs, mp_context=ctx, initializer=_exit_with_parent, initargs=(parent_alive,)
+        ) as pool:
+            futs = {pool.submit(run_sweep_job, job, *args): job for job in todo}
+            try:
+                for fut in cf.as_completed(futs):
+                    exc = fut.exception()
+                    collect(futs[fut], None if exc else fut.result(), exc)
+            except KeyboardInterrupt:
+                for f in futs:
+                    f.cancel()
+                raise
+    finally:
+        keep_alive.close()
+        parent_alive.close()
 
 
 def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, processes: bool) -> None:
