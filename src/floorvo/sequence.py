@@ -9,8 +9,8 @@
       cam1/000000.png   right camera when the rig is stereo
       depth/000000.png  16-bit depth in 1/100 mm (or depth/000000.npy, float32 mm)
       calib/cam0_flatfield.png   flat-field frame (same rig, flat uniform floor), optional
-      timestamps.txt    per-frame times (s), one line per frame in frame order; optional
       calib/sensor.json          exposure of a rendered sequence (floorsim), optional
+      timestamps.txt    per-frame times (s), one line per frame in frame order; optional
       groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
 
 Frame ``i`` was taken at line ``i`` of ``timestamps.txt`` when the folder has one (a

@@ -63,9 +63,10 @@ def test_export_then_import_gives_the_same_sequence_and_trajectory(tmp_path, ori
     np.testing.assert_allclose(T_run[:, :3, :3], T_orig[:, :3, :3], rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("fmt, k3", [("euroc", 0.0), ("rosbag2", 0.004)])
+@pytest.mark.parametrize("fmt, k3", [("euroc", 0.0), ("euroc", 0.004), ("rosbag2", 0.004)])
 def test_distortion_survives_the_round_trip(tmp_path, fmt, k3):
-    """k1, k2, p1, p2 (and k3 through the bag's plumb_bob camera_info) come back as they were written."""
+    """k1, k2, p1, p2 and k3 (EuRoC's fifth coefficient when it is not 0, the bag's plumb_bob
+    camera_info) come back as they were written."""
     from floorvo.sequence import SequenceWriter
 
     cam = CameraModel(40, 30, 50.0, 51.0, 19.5, 14.5, (-0.12, 0.03, 0.001, -0.002, k3))

@@ -80,7 +80,11 @@ def test_writer_refuses_a_sequence_json_that_is_not_ours(tmp_path):
 # ----------------------------------------------------------------- --overwrite
 def test_overwrite_deletes_only_the_files_of_the_format(tmp_path):
     root = tmp_path / "seq"
-    w = SequenceWriter(root, _meta(3, stereo=True, depth={"format": "npy_float32_mm"}))
+    cam1 = CameraModel.from_sensor(40, 30, pixel_pitch_um=120.0).to_dict()
+    T_01 = np.eye(4)
+    T_01[0, 3] = 20.0
+    stereo = {"stereo": True, "cameras": {"cam1": cam1}, "rig": {"T_cam0_cam1": T_01.tolist()}}
+    w = SequenceWriter(root, _meta(3, depth={"format": "npy_float32_mm"}, **stereo))
     for i in range(3):
         w.write_frame(i, _frame(i))
         w.write_frame(i, _frame(i), "cam1")
@@ -89,6 +93,7 @@ def test_overwrite_deletes_only_the_files_of_the_format(tmp_path):
     w.write_calib("cam0_flatfield", _frame(9))
     (root / "calib" / "sensor.json").write_text("{}")
     w.write_groundtruth(np.arange(3) / 10.0, np.stack([np.eye(4)] * 3))
+    w.write_timestamps(np.arange(3) / 10.0)
     user = {
         "cam0/README.txt": "how I took these",
         "cam0/notes/000001.png": "not a frame: in a subfolder",
@@ -99,7 +104,7 @@ def test_overwrite_deletes_only_the_files_of_the_format(tmp_path):
     for rel, text in user.items():
         (root / rel).parent.mkdir(parents=True, exist_ok=True)
         (root / rel).write_text(text)
-    assert len(sequence_files(root)) == 3 * 3 + 1 + 2 + 1
+    assert len(sequence_files(root)) == 3 * 3 + 1 + 2 + 2
     SequenceWriter(root, _meta(2), overwrite=True)
     assert sequence_files(root) == []
     for rel, text in user.items():
