@@ -73,7 +73,7 @@ class ScaleCalibration:
 
 def _steps(T: np.ndarray) -> np.ndarray:
     """(N-1, 3) translations of the relative steps inv(T_i) T_i+1 of (N, 4, 4) poses, mm."""
-    return np.array([(invert_T(T[i]) @ T[i + 1])[:3, 3] for i in range(len(T) - 1)]).reshape(-1, 3)
+    return (invert_T(T[:-1]) @ T[1:])[:, :3, 3].reshape(-1, 3)
 
 
 def fit_scale_calibration(T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: float = 10.0) -> ScaleCalibration:

@@ -1,20 +1,31 @@
-"""Rigid transforms in millimetres and radians.
+"""Rigid transforms, rigid fits and pixel <-> floor conversions, in millimetres and radians.
+
+The one place for these primitives: every estimator, the mapping and the metrics use them.
 
 Conventions
 -----------
 * Poses are 4x4 ``float64`` homogeneous matrices ``T_a_b`` that map points from frame
   ``b`` into frame ``a``: ``p_a = T_a_b @ p_b``. Translations are in millimetres.
+  :func:`invert_T` also takes stacks ``(..., 4, 4)``.
 * World frame: z up, mean floor plane at z = 0, x the default direction of travel.
 * Camera frame: OpenCV's (x right, y down, z along the optical axis).
 * A camera looking straight down with yaw 0 has its x axis along world +x, its y axis
   along world -y and its optical axis along world -z (:func:`T_world_cam_down`).
 * Quaternions are (x, y, z, w), as in TUM files.
+* Floor coordinates of a downward camera: a floor point's camera-frame (x, y) in mm at
+  depth ``height_mm`` (:func:`pixels_to_floor_mm`). A rigid map of floor points between two
+  frames, ``q_b = R2 q_a + t2_mm``, is the planar part of ``T_b_a`` (:func:`planar_T`).
+* Rigid fits (:func:`umeyama`, :func:`rigid_fit`, :func:`rigid_fit_robust`) take source and
+  destination points ``(N, d)`` and return ``(R, t)`` with ``dst_i ~ R src_i + t``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial.transform import Rotation
+
+from floorvo.camera import CameraModel
 
 __all__ = [
     "R_WORLD_CAM_DOWN",
@@ -27,7 +38,14 @@ __all__ = [
     "se2_from_T",
     "T_from_se2",
     "yaw_of_R",
-    "rigid_fit_2d",
+    "umeyama",
+    "rigid_fit",
+    "rigid_fit_robust",
+    "pixels_to_floor_mm",
+    "floor_mm_to_pixels",
+    "pixel_rigid_to_floor",
+    "planar_T",
+    "floor_rigid_to_T",
 ]
 
 #: Rotation of a camera looking straight down with yaw 0: columns are the camera axes
@@ -35,7 +53,7 @@ __all__ = [
 R_WORLD_CAM_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 
 
-def make_T(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+def make_T(R: npt.ArrayLike, t: npt.ArrayLike) -> np.ndarray:
     """Build a 4x4 transform from a 3x3 rotation and a 3-vector translation (mm)."""
     T = np.eye(4)
     T[:3, :3] = np.asarray(R, dtype=float)
@@ -44,10 +62,16 @@ def make_T(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def invert_T(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform (exact: R^T, -R^T t)."""
+    """Inverse of rigid transforms ``T`` (4, 4) or a stack (..., 4, 4): exact ``(R^T, -R^T t)``."""
     T = np.asarray(T, dtype=float)
-    R = T[:3, :3]
-    return make_T(R.T, -R.T @ T[:3, 3])
+    if T.ndim < 2 or T.shape[-2:] != (4, 4):
+        raise ValueError(f"invert_T: need a (..., 4, 4) array of rigid transforms, got shape {T.shape}")
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -(Rt @ T[..., :3, 3:4])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
 
 
 def rot_z(yaw_rad: float) -> np.ndarray:
@@ -108,25 +132,145 @@ def T_from_se2(x_mm: float, y_mm: float, yaw_rad: float, height_mm: float) -> np
     return T_world_cam_down(x_mm, y_mm, height_mm, yaw_rad)
 
 
-def rigid_fit_2d(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares rigid motion (no scale) mapping 2D points ``src`` onto ``dst``.
+# ----------------------------------------------------------------------------- rigid fits
+def umeyama(
+    src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None, *, with_scale: bool = False
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least-squares similarity ``dst_i ~ s R src_i + t`` of matched points (Kabsch/Umeyama).
 
-    Solves ``min sum w_i |R src_i + t - dst_i|^2`` in closed form (Kabsch/Umeyama with
-    the reflection check). ``src`` and ``dst`` are (N, 2), N >= 2.
+    Minimises ``sum_i w_i |dst_i - (s R src_i + t)|^2`` in closed form (Umeyama 1991, eqs.
+    (34)-(42); the same SVD solution as paper 001's ICP step, eqs. (11)-(21)):
 
-    Returns ``(R, t)`` with R of shape (2, 2) and t of shape (2,).
+    * weighted centroids ``mu_s``, ``mu_d`` (eq. (12) of paper 001) and centred points;
+    * ``W = sum_i w_i (dst_i - mu_d)(src_i - mu_s)^T`` (eq. (20)), ``W = U S V^T`` (eq. (21));
+    * ``R = U diag(1, .., 1, det(U V^T)) V^T``: the reflection check. Paper 001 takes ``-R``
+      when ``det(U V^T) < 0``; that is not the best rotation. The closed form flips the
+      singular vector of the smallest singular value instead. It matters for every planar
+      point set (a floor in 3D), whose W has rank 2 and an arbitrary third singular vector;
+    * ``s = trace(S diag(1, .., d)) / sum_i w_i |src_i - mu_s|^2`` when ``with_scale``, else 1;
+    * ``t = mu_d - s R mu_s`` (eq. (17) of paper 001).
+
+    ``src``, ``dst``: (N, d) with N >= d (and not all on a line in 3D); ``weights``: (N,)
+    non-negative, not all zero, None = equal. Returns ``(R (d, d), t (d,), s)``, det R = +1.
     """
     src = np.asarray(src, dtype=float)
     dst = np.asarray(dst, dtype=float)
-    if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 2 or src.shape[0] < 2:
-        raise ValueError(f"rigid_fit_2d: need two (N, 2) arrays with N >= 2, got {src.shape} and {dst.shape}")
-    w = np.ones(len(src)) if weights is None else np.asarray(weights, dtype=float)
+    if src.shape != dst.shape or src.ndim != 2 or src.shape[0] < max(2, src.shape[1]):
+        d = src.shape[1] if src.ndim == 2 else "d"
+        raise ValueError(f"rigid fit: need two (N, {d}) arrays with N >= {d}, got {src.shape} and {dst.shape}")
+    n, d = src.shape
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (n,) or not np.all(w >= 0) or w.sum() <= 0:
+        raise ValueError(f"rigid fit: weights must be (N,) = ({n},), non-negative, not all zero; got shape {w.shape}")
     w = w / w.sum()
     mu_s = w @ src
     mu_d = w @ dst
-    H = (src - mu_s).T @ ((dst - mu_d) * w[:, None])
-    U, _, Vt = np.linalg.svd(H)
-    D = np.diag([1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
-    R = Vt.T @ D @ U.T
-    t = mu_d - R @ mu_s
+    xs = src - mu_s
+    W = ((dst - mu_d) * w[:, None]).T @ xs
+    U, S, Vt = np.linalg.svd(W)
+    D = np.ones(d)
+    D[-1] = np.sign(np.linalg.det(U @ Vt)) or 1.0
+    R = (U * D) @ Vt
+    s = float(S @ D / (w @ (xs**2).sum(axis=1))) if with_scale else 1.0
+    t = mu_d - s * R @ mu_s
+    return R, t, s
+
+
+def rigid_fit(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rigid motion ``dst_i ~ R src_i + t`` (no scale): :func:`umeyama`'s ``(R, t)``.
+
+    ``src``, ``dst``: (N, d) matched points (d = 2 for image or floor points, 3 for 3D).
+    """
+    R, t, _ = umeyama(src, dst, weights)
     return R, t
+
+
+def rigid_fit_robust(
+    src: np.ndarray, dst: np.ndarray, *, iterations: int = 3, k_mad: float = 4.0, min_points: int = 3
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`rigid_fit` iterated with residual rejection (the iterative ICP of paper 001).
+
+    Fit all pairs; then up to ``iterations`` times keep the pairs whose residual
+    ``|R src_i + t - dst_i|`` (eq. (10) of paper 001) is at most ``median + k_mad * 1.4826
+    MAD`` of the pairs kept so far, and refit; stop when the kept set no longer changes or
+    would fall under ``min_points``. Returns ``(R, t, inlier_mask (N,))``.
+    """
+    src = np.asarray(src, dtype=float)
+    dst = np.asarray(dst, dtype=float)
+    keep = np.ones(len(src), dtype=bool)
+    R, t = rigid_fit(src, dst)
+    for _ in range(iterations):
+        r = np.linalg.norm(src @ R.T + t - dst, axis=1)
+        med = float(np.median(r[keep]))
+        mad = float(np.median(np.abs(r[keep] - med))) * 1.4826
+        new = r <= med + k_mad * max(mad, 1e-9)
+        if new.sum() < min_points or np.array_equal(new, keep):
+            break
+        keep = new
+        R, t = rigid_fit(src[keep], dst[keep])
+    return R, t, keep
+
+
+# ----------------------------------------------------------------------------- pixels <-> floor
+def pixels_to_floor_mm(uv_px: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
+    """(N, 2) pixels (u, v) -> (N, 2) floor coordinates (mm) in the camera's x-y axes.
+
+    Eq. (1) of paper 000 (``2 d tan(theta) / w`` mm per pixel, i.e.
+    :meth:`CameraModel.gsd_mm_per_px`) generalised to the full camera model: the ray through
+    the pixel (distortion included) meets the floor at depth ``height_mm`` (camera looking
+    straight down).
+    """
+    return camera.unproject(np.asarray(uv_px, dtype=float).reshape(-1, 2), height_mm)[:, :2]
+
+
+def floor_mm_to_pixels(xy_mm: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
+    """(N, 2) floor coordinates (mm, camera x-y axes, depth ``height_mm``) -> (N, 2) pixels.
+
+    The inverse of :func:`pixels_to_floor_mm`.
+    """
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    return camera.project(np.column_stack([xy, np.full(len(xy), float(height_mm))]))
+
+
+def pixel_rigid_to_floor(
+    R_px: np.ndarray, t_px: np.ndarray, camera: CameraModel, height_mm: float, *, centred: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid map of floor points ``q_b = R2 q_a + t2_mm`` from one of pixels ``p_b = R_px p_a + t_px``.
+
+    A downward camera at ``height_mm`` sees a floor point at camera-frame ``q`` (mm) at pixel
+    ``p = c + D q`` with ``D = diag(fx, fy) / h`` (eq. (1) of paper 000 with the pinhole
+    model, no distortion), so ``R2 = D^-1 R D`` (re-orthonormalised; it equals ``R`` for
+    square pixels) and ``t2 = D^-1 (R c + t - c)``. With ``centred``, the pixel map is
+    between centred pixels ``p - c`` and ``t2 = D^-1 t``. Returns ``(R2 (2, 2), t2_mm (2,))``.
+    """
+    R = np.asarray(R_px, dtype=float)
+    t = np.asarray(t_px, dtype=float).reshape(2)
+    D = np.array([camera.fx_px, camera.fy_px]) / float(height_mm)
+    U, _, Vt = np.linalg.svd((R * D[None, :]) / D[:, None])  # D^-1 R D, re-orthonormalised
+    R2 = U @ Vt
+    if not centred:
+        c = np.array([camera.cx_px, camera.cy_px])
+        t = R @ c + t - c
+    return R2, t / D
+
+
+def planar_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
+    """4x4 transform with rotation ``R2`` (2, 2) about z and translation ``(t2_mm, 0)``.
+
+    For a rigid map of floor points ``q_b = R2 q_a + t2`` between frames a and b of a
+    downward camera at a constant height, this is ``T_b_a`` (mm).
+    """
+    T = np.eye(4)
+    T[:2, :2] = R2
+    T[:2, 3] = np.asarray(t2_mm, dtype=float).reshape(2)
+    return T
+
+
+def floor_rigid_to_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
+    """Camera motion ``T_prev_cur`` (4x4, mm) from the rigid map of floor points between frames.
+
+    ``R2, t2_mm`` map a floor point's camera-x/y coordinates (mm) in the previous frame to
+    those in the current frame: ``q_cur = R2 q_prev + t2``. That is the planar part of
+    ``T_cur_prev`` (:func:`planar_T`); the result is its inverse.
+    """
+    return invert_T(planar_T(R2, t2_mm))

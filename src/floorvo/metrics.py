@@ -17,7 +17,8 @@ Conventions
   - ``origin``: ``est`` moved rigidly so its first pose equals the first ``ref`` pose
     (evo's ``--align_origin``);
   - ``se2``: the least-squares rotation about world z and translation in x, y
-    (Umeyama in the floor plane; z untouched): the natural gauge of floor odometry;
+    (Umeyama in the floor plane, :func:`floorvo.geometry.rigid_fit`; z untouched): the
+    natural gauge of floor odometry;
   - ``se3``: the least-squares rigid motion in 3D (Umeyama, no scale; evo's ``--align``).
 
 * RPE follows evo's definition: for index pairs (i, j), ``E = (ref_i^-1 ref_j)^-1
@@ -45,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.errors import SequenceError
-from floorvo.geometry import invert_T, rigid_fit_2d
+from floorvo.geometry import invert_T, rigid_fit
 from floorvo.io import read_json
 from floorvo.runfolder import RunFolder
 from floorvo.tum import read_tum
@@ -56,7 +57,6 @@ __all__ = [
     "ALIGNMENTS",
     "SEGMENT_LENGTHS_MM",
     "associate",
-    "umeyama_alignment",
     "align",
     "path_distances_mm",
     "error_stats",
@@ -145,51 +145,26 @@ def associate(
 
 
 # ----------------------------------------------------------------------------- alignment
-def umeyama_alignment(
-    src: np.ndarray, dst: np.ndarray, with_scale: bool = False
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares similarity ``dst ~ s R src + t`` (Umeyama 1991, eqs. 40-42).
-
-    ``src``, ``dst``: (N, d) points. Returns ``(R (d, d), t (d,), s)``; ``s = 1`` unless
-    ``with_scale``.
-    """
-    src = np.asarray(src, dtype=float)
-    dst = np.asarray(dst, dtype=float)
-    if src.shape != dst.shape or src.ndim != 2 or len(src) < 2:
-        raise ValueError(f"umeyama_alignment: need two (N, d) arrays with N >= 2, got {src.shape} and {dst.shape}")
-    n, d = src.shape
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    xs, xd = src - mu_s, dst - mu_d
-    cov = xd.T @ xs / n
-    U, D, Vt = np.linalg.svd(cov)
-    S = np.eye(d)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        S[-1, -1] = -1.0
-    R = U @ S @ Vt
-    s = float(np.trace(np.diag(D) @ S) / (xs**2).sum(1).mean()) if with_scale else 1.0
-    t = mu_d - s * R @ mu_s
-    return R, t, s
-
-
 def align(T_ref: np.ndarray, T_est: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
     """Align ``T_est`` (N, 4, 4) onto ``T_ref`` (N, 4, 4) by ``method`` (see module doc).
 
     Returns ``(T_est_aligned (N, 4, 4), T_align (4, 4))`` with ``T_est_aligned[i] =
-    T_align @ T_est[i]``; the inputs are not modified. With fewer than two poses (or a
-    reference that does not move) ``se2``/``se3`` fall back to ``origin``.
+    T_align @ T_est[i]``; the inputs are not modified. With fewer than two poses (three for
+    ``se3``), or a reference that does not move, ``se2``/``se3`` fall back to ``origin``.
     """
     A, B = _check_pair(T_ref, T_est)
     if method not in ALIGNMENTS:
         raise ValueError(f"alignment {method!r}: must be one of {', '.join(ALIGNMENTS)}")
     T_align = np.eye(4)
     degenerate = len(A) < 2 or np.ptp(A[:, :3, 3], axis=0).max() < 1e-9 or np.ptp(B[:, :3, 3], axis=0).max() < 1e-9
-    if method == "origin" or (method in ("se2", "se3") and degenerate):
+    # A rotation in 3D needs three poses: two leave the turn about the line through them free.
+    if method == "origin" or (method in ("se2", "se3") and degenerate) or (method == "se3" and len(A) < 3):
         T_align = A[0] @ invert_T(B[0])
     elif method == "se3":
-        R, t, _ = umeyama_alignment(B[:, :3, 3], A[:, :3, 3])
+        R, t = rigid_fit(B[:, :3, 3], A[:, :3, 3])
         T_align[:3, :3], T_align[:3, 3] = R, t
     elif method == "se2":
-        R2, t2 = rigid_fit_2d(B[:, :2, 3], A[:, :2, 3])
+        R2, t2 = rigid_fit(B[:, :2, 3], A[:, :2, 3])
         T_align[:2, :2], T_align[:2, 3] = R2, t2
     return np.einsum("ij,njk->nik", T_align, B), T_align
 
@@ -201,16 +176,6 @@ def path_distances_mm(T: np.ndarray) -> np.ndarray:
     if len(p) == 0:
         return np.zeros(0)
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-
-
-def _inv(T: np.ndarray) -> np.ndarray:
-    """Inverse of rigid transforms (K, 4, 4) (R^T, -R^T t), vectorised."""
-    out = np.zeros_like(T)
-    Rt = np.swapaxes(T[:, :3, :3], 1, 2)
-    out[:, :3, :3] = Rt
-    out[:, :3, 3] = -np.einsum("kij,kj->ki", Rt, T[:, :3, 3])
-    out[:, 3, 3] = 1.0
-    return out
 
 
 def _rotation_angle_deg(R: np.ndarray) -> np.ndarray:
@@ -282,9 +247,9 @@ def _relative_errors(A: np.ndarray, B: np.ndarray, pairs: np.ndarray) -> tuple[n
     if len(pairs) == 0:
         return np.zeros(0), np.zeros(0)
     i, j = pairs[:, 0], pairs[:, 1]
-    dA = _inv(A[i]) @ A[j]
-    dB = _inv(B[i]) @ B[j]
-    E = _inv(dA) @ dB
+    dA = invert_T(A[i]) @ A[j]
+    dB = invert_T(B[i]) @ B[j]
+    E = invert_T(dA) @ dB
     return np.linalg.norm(E[:, :3, 3], axis=1), _rotation_angle_deg(E[:, :3, :3])
 
 

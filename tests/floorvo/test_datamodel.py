@@ -7,7 +7,7 @@ import pytest
 
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, SequenceError
-from floorvo.geometry import T_world_cam_down, invert_T, rigid_fit_2d, rot_z, se2_from_T
+from floorvo.geometry import T_world_cam_down, invert_T, rigid_fit, rot_z, se2_from_T
 from floorvo.sequence import SCHEMA_VERSION, Sequence, SequenceWriter
 from floorvo.tum import read_tum, write_tum
 
@@ -83,7 +83,7 @@ def test_se2_and_rigid_fit():
     src = rng.normal(size=(30, 2))
     R = rot_z(-0.7)[:2, :2]
     dst = src @ R.T + [1.5, -2.0]
-    R_est, t_est = rigid_fit_2d(src, dst)
+    R_est, t_est = rigid_fit(src, dst)
     np.testing.assert_allclose(R_est, R, atol=1e-12)
     np.testing.assert_allclose(t_est, [1.5, -2.0], atol=1e-12)
 

@@ -31,29 +31,15 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.spatial import cKDTree
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
-from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T, pixels_to_floor_mm
-from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
-from floorvo.geometry import rigid_fit_2d
+from floorvo.estimators.base import Frame, StepResult
+from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
+from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.matching import match_guided, match_nn, pack_descriptors
 
-__all__ = ["AkazeGuided", "AkazeBruteforce", "AkazeConfig", "mean_std_filter", "hamming_distances", "pack_descriptors"]
-
-
-def pack_descriptors(desc: np.ndarray) -> np.ndarray:
-    """uint8 descriptors (N, B) as (N, ceil(B / 8)) uint64 words (zero padded), for fast XOR/popcount."""
-    desc = np.ascontiguousarray(desc, dtype=np.uint8)
-    pad = (-desc.shape[1]) % 8
-    if pad:
-        desc = np.hstack([desc, np.zeros((len(desc), pad), dtype=np.uint8)])
-    return desc.view(np.uint64)
-
-
-def hamming_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Bitwise Hamming distance between packed descriptor rows ``a`` (..., W) and ``b`` (..., W) (uint64 words)."""
-    return np.bitwise_count(np.bitwise_xor(a, b)).sum(axis=-1, dtype=np.int32)
+__all__ = ["AkazeGuided", "AkazeBruteforce", "AkazeConfig", "mean_std_filter"]
 
 
 def mean_std_filter(movement: np.ndarray, passes: int = 2) -> np.ndarray:
@@ -113,7 +99,6 @@ class _AkazeBase:
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         self.detector = cv2.AKAZE_create(threshold=config.akaze_threshold)
-        self.bf = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
         self.centre = np.array([camera.cx_px, camera.cy_px])
 
     def start(self) -> _State:
@@ -131,12 +116,9 @@ class _AkazeBase:
         return np.array([k.pt for k in kps], dtype=np.float64), desc
 
     def _bruteforce(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        matches = self.bf.match(state.desc, desc)
-        if not matches:
-            return np.zeros((0, 2)), np.zeros((0, 2))
-        qi = np.array([m.queryIdx for m in matches])
-        ti = np.array([m.trainIdx for m in matches])
-        return state.kps[qi], kps[ti]
+        """Mutual nearest Hamming neighbours (cross-checked brute force)."""
+        m = match_nn(state.desc, desc, cross_check=True)
+        return state.kps[m.i0], kps[m.i1]
 
     def _guided(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Eq. (2) prediction, then nearest-first candidates accepted under the Hamming threshold."""
@@ -144,18 +126,16 @@ class _AkazeBase:
         M = state.M_last
         p = state.kps - self.centre
         pred = p @ M[:2, :2].T + M[:2, 2] + self.centre  # eq. (2), general rigid form
-        tree = cKDTree(kps)
-        k = min(cfg.max_candidates, len(kps))
-        dist, idx = tree.query(pred, k=k, distance_upper_bound=cfg.search_radius_px)
-        dist, idx = dist.reshape(len(pred), k), idx.reshape(len(pred), k)
-        valid = np.isfinite(dist)
-        idx_safe = np.where(valid, idx, 0)
-        ham = hamming_distances(state.packed[:, None, :], pack_descriptors(desc)[idx_safe])  # (N, k), nearest first
-        good = valid & (ham < cfg.hamming_threshold)
-        has = good.any(axis=1)
-        first = np.argmax(good, axis=1)  # the nearest candidate passing the threshold
-        rows = np.nonzero(has)[0]
-        return state.kps[rows], kps[idx_safe[rows, first[rows]]]
+        m = match_guided(
+            pred,
+            kps,
+            state.packed,
+            pack_descriptors(desc),
+            radius_px=cfg.search_radius_px,
+            max_candidates=cfg.max_candidates,
+            max_distance=cfg.hamming_threshold,
+        )
+        return state.kps[m.i0], kps[m.i1]
 
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
@@ -208,9 +188,9 @@ class _AkazeBase:
         # Eq. (1) via the camera model, then the SE(2) least-squares rigid fit.
         q_prev = pixels_to_floor_mm(src, self.camera, self.height_mm)
         q_cur = pixels_to_floor_mm(dst, self.camera, self.height_mm)
-        R2, t2_mm = rigid_fit_2d(q_prev, q_cur)
+        R2, t2_mm = rigid_fit(q_prev, q_cur)
         T = floor_rigid_to_T(R2, t2_mm)
-        Rpx, tpx = rigid_fit_2d(src - self.centre, dst - self.centre)
+        Rpx, tpx = rigid_fit(src - self.centre, dst - self.centre)
         M = np.eye(3)
         M[:2, :2], M[:2, 2] = Rpx, tpx
         state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), M

@@ -30,8 +30,6 @@ __all__ = [
     "Frame",
     "StepResult",
     "Estimator",
-    "floor_rigid_to_T",
-    "pixels_to_floor_mm",
 ]
 
 
@@ -91,29 +89,3 @@ class Estimator(Protocol):
     def start(self) -> Any: ...
 
     def step(self, state: Any, frame: Frame) -> StepResult: ...
-
-
-def pixels_to_floor_mm(uv_px: np.ndarray, camera: CameraModel, height_mm: float) -> np.ndarray:
-    """(N, 2) pixels -> (N, 2) floor coordinates (mm) in the camera's x-y axes.
-
-    Eq. (1) of paper 000 generalised to the full camera model: the ray through the pixel
-    meets the floor at depth ``height_mm`` (camera looking straight down).
-    """
-    return camera.unproject(np.asarray(uv_px, dtype=float).reshape(-1, 2), height_mm)[:, :2]
-
-
-def floor_rigid_to_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
-    """Camera motion from a rigid map of floor points between frames.
-
-    ``R2, t2_mm`` map a floor point's camera-x/y coordinates (mm) in the previous frame to
-    those in the current frame: ``q_cur = R2 q_prev + t2``. That is the planar part of
-    ``T_cur_prev``; the result is its inverse ``T_prev_cur`` (4x4, mm).
-    """
-    T_cur_prev = np.eye(4)
-    T_cur_prev[:2, :2] = R2
-    T_cur_prev[:2, 3] = t2_mm
-    R = T_cur_prev[:3, :3]
-    T = np.eye(4)
-    T[:3, :3] = R.T
-    T[:3, 3] = -R.T @ T_cur_prev[:3, 3]
-    return T

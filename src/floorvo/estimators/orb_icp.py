@@ -32,8 +32,9 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.estimators.base import Frame, StepResult
-from floorvo.estimators.icp import icp_svd_robust
-from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
+from floorvo.geometry import rigid_fit_robust
+from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.matching import ratio_test
 
 __all__ = ["OrbIcp", "OrbIcpConfig", "homogenise_keypoints"]
 
@@ -148,28 +149,21 @@ class OrbIcp:
         return self.camera.unproject(uv, np.where((z > 0) & (zn > 0), z, np.nan))
 
     def _match(self, d_prev: np.ndarray, d_cur: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(i_prev, i_cur, gamma) of the matches passing the ratio test, best (lowest gamma) first."""
+        """(i_prev, i_cur, gamma) of the matches passing the ratio test, one per current
+        keypoint (the lowest gamma), best (lowest gamma) first."""
         if len(d_prev) < 2 or len(d_cur) < 2:
             return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
         cv2.setRNGSeed(self.config.seed)  # the LSH index built on d_cur draws its hash bits from OpenCV's RNG
-        knn = self.flann.knnMatch(d_prev, d_cur, k=2)
-        qi, ti, gam = [], [], []
-        for m in knn:
-            if len(m) < 2:
-                continue
-            a, b = m
-            gamma = a.distance / b.distance if b.distance > 0 else 1.0
-            if gamma < self.config.ratio:  # section 3: gamma = d / L under the threshold
-                qi.append(a.queryIdx)
-                ti.append(a.trainIdx)
-                gam.append(gamma)
-        qi, ti, gam = np.array(qi, int), np.array(ti, int), np.array(gam)
-        # One match per current keypoint: keep the best gamma.
-        order = np.argsort(gam, kind="stable")
-        qi, ti, gam = qi[order], ti[order], gam[order]
-        _, first = np.unique(ti, return_index=True)
-        first = np.sort(first)
-        return qi[first], ti[first], gam[first]
+        dist = np.full((len(d_prev), 2), np.inf)
+        idx = np.full((len(d_prev), 2), -1, dtype=np.int64)
+        for nn in self.flann.knnMatch(d_prev, d_cur, k=2):  # LSH may return fewer than 2 neighbours
+            for r, dm in enumerate(nn[:2]):
+                dist[dm.queryIdx, r], idx[dm.queryIdx, r] = dm.distance, dm.trainIdx
+        # Section 3: gamma = d / L under the threshold.
+        m = ratio_test(dist, idx, self.config.ratio, unique="best")
+        gamma = np.asarray(m.ratio)
+        order = np.argsort(gamma, kind="stable")  # PROSAC takes the matches by quality
+        return m.i0[order], m.i1[order], gamma[order]
 
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
@@ -254,8 +248,8 @@ class OrbIcp:
         P_prev, P_cur = P_prev[has_depth], P_cur[has_depth]
         if len(P_prev) < self.config.min_matches:
             return lost(f"too few inliers with depth ({len(P_prev)})", len(P_prev))
-        # ICP by SVD: p_prev = R p_cur + t (eq. (9)), so (R, t) is T_prev_cur.
-        R, t, keep = icp_svd_robust(P_prev, P_cur, iterations=self.config.icp_iterations)
+        # ICP by SVD (eqs. (8)-(21)) with residual rejection: p_prev = R p_cur + t (eq. (9)), so (R, t) is T_prev_cur.
+        R, t, keep = rigid_fit_robust(P_cur, P_prev, iterations=self.config.icp_iterations)
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, t
         t3 = time.perf_counter()

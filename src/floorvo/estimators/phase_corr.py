@@ -27,9 +27,9 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T
-from floorvo.estimators.preprocess import illumination_corrected
-from floorvo.geometry import rigid_fit_2d
+from floorvo.estimators.base import Frame, StepResult
+from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit
+from floorvo.imaging import illumination_corrected
 
 __all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
 
@@ -175,7 +175,6 @@ class PhaseCorr:
         c = (np.arange(g) + 0.5) * bs
         cx, cy = np.meshgrid(c + self.x0 - camera.cx_px, c + self.y0 - camera.cy_px)
         self.block_centres = np.stack([cx.ravel(), cy.ravel()], axis=1)  # prev-centred px
-        self.mm_per_px = self.height_mm / camera.fx_px
 
     def start(self) -> _State:
         return _State()
@@ -252,8 +251,8 @@ class PhaseCorr:
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
             )
         # M maps prev-centred px to cur-centred px: the floor's motion in the image.
-        R_px, t_px = M[:2, :2], M[:2, 2]
-        T = floor_rigid_to_T(R_px, t_px * self.mm_per_px)  # eq. (1) of paper 000 via the camera model
+        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.camera, self.height_mm, centred=True)
+        T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         state.M_pred = M
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
@@ -293,7 +292,7 @@ class PhaseCorr:
                 peaks.append(pk)
             shifts = np.array(shifts)
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
-            R2, t2 = rigid_fit_2d(self.block_centres, self.block_centres + shifts)
+            R2, t2 = rigid_fit(self.block_centres, self.block_centres + shifts)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(self.block_centres @ R2.T + t2 - self.block_centres - shifts).max())

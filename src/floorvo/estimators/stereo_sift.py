@@ -36,9 +36,9 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import Frame, StepResult
-from floorvo.estimators.icp import icp_svd_robust
-from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
-from floorvo.geometry import invert_T, rigid_fit_2d
+from floorvo.geometry import invert_T, rigid_fit_robust
+from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.matching import match_ratio
 
 __all__ = ["StereoSift", "StereoSiftConfig"]
 
@@ -117,7 +117,6 @@ class StereoSift:
         tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
         self.F = np.linalg.inv(camera_right.K).T @ tx @ R @ np.linalg.inv(camera.K)
         self.sift = cv2.SIFT_create(nfeatures=config.n_features, contrastThreshold=config.contrast_threshold)
-        self.bf = cv2.BFMatcher(cv2.NORM_L2)
 
     def start(self) -> _State:
         return _State()
@@ -130,14 +129,9 @@ class StereoSift:
         return np.array([k.pt for k in kps], dtype=np.float64), desc
 
     def _ratio_match(self, da: np.ndarray, db: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if len(da) < 2 or len(db) < 2:
-            return np.zeros(0, int), np.zeros(0, int)
-        qi, ti = [], []
-        for m in self.bf.knnMatch(da, db, k=2):
-            if len(m) == 2 and m[0].distance < self.config.ratio * m[1].distance:
-                qi.append(m[0].queryIdx)
-                ti.append(m[0].trainIdx)
-        return np.array(qi, int), np.array(ti, int)
+        """Lowe's ratio test (L2); several rows of ``da`` may take one row of ``db``."""
+        m = match_ratio(da, db, self.config.ratio, unique="none")
+        return m.i0, m.i1
 
     def _stereo(self, frame: Frame) -> _Side:
         """Left keypoints matched in the right frame (M_2), triangulated in the left camera."""
@@ -220,22 +214,12 @@ class StereoSift:
             n_in = len(P1)
         elif self.config.update == "rigid":
             # Improvement: rigid SVD fit, P_3dL1 = R P_3dL2 + t, i.e. T_prev_cur.
-            R, t, keep = icp_svd_robust(P1, P2)
+            R, t, keep = rigid_fit_robust(P2, P1)
             T[:3, :3], T[:3, 3] = R, t
             n_in = int(keep.sum())
         else:
             # Planar rigid SVD fit: yaw and x-y translation from the x-y coordinates, height from z.
-            keep = np.ones(len(P1), dtype=bool)
-            for _ in range(2):
-                R2, t_xy = rigid_fit_2d(P2[keep, :2], P1[keep, :2])
-                r = np.linalg.norm(P2[:, :2] @ R2.T + t_xy - P1[:, :2], axis=1)
-                med = float(np.median(r[keep]))
-                mad = 1.4826 * float(np.median(np.abs(r[keep] - med)))
-                new_keep = r <= med + 4.0 * max(mad, 1e-9)
-                if new_keep.sum() < 3 or np.array_equal(new_keep, keep):
-                    break
-                keep = new_keep
-            R2, t_xy = rigid_fit_2d(P2[keep, :2], P1[keep, :2])
+            R2, t_xy, keep = rigid_fit_robust(P2[:, :2], P1[:, :2], iterations=2)
             T[:2, :2], T[:2, 3] = R2, t_xy
             T[2, 3] = float(np.mean(P1[keep, 2] - P2[keep, 2]))
             n_in = int(keep.sum())

@@ -18,7 +18,8 @@ done here as ``T_world_kf[k+1] = T_world_kf[k] @ T_kf[k]_kf[k+1]`` with 4x4 pose
 
 Pixels -> mm: a downward camera at ``height_mm`` maps a floor point at camera-frame
 (x, y) mm to pixel (cx + fx x / h, cy + fy y / h), so a rigid map of pixels of frame j
-onto frame i is the planar part of ``T_i_j`` after scaling by h / f (:func:`fit_to_T_i_j`).
+onto frame i is the planar part of ``T_i_j`` after scaling by h / f (:func:`fit_to_T_i_j`,
+:func:`floorvo.geometry.pixel_rigid_to_floor`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import FloorbenchError
+from floorvo.geometry import pixel_rigid_to_floor, planar_T
 from floorvo.mapping.similarity import Features, RigidFit, Similarity, SimilarityConfig, frame_similarity
 
 __all__ = ["KeyframeConfig", "KeyframeResult", "extract_keyframes", "fit_to_T_i_j", "chain_poses"]
@@ -66,23 +68,11 @@ class KeyframeResult:
 def fit_to_T_i_j(fit: RigidFit, camera: CameraModel, height_mm: float) -> np.ndarray:
     """4x4 ``T_i_j`` (mm) of a downward camera from the rigid map of pixels j -> i (eq. 5).
 
-    A floor point seen at camera-frame (x_j, y_j) in j is at ``q_i = R2 q_j + t2`` in i;
-    with ``q = D^-1 (p - c)``, ``D = diag(fx, fy) / h``: ``R2 = D^-1 R D``, ``t2 = D^-1 (R c + t - c)``.
-    For square pixels R2 = R. The result is the planar part of ``T_i_j`` (rotation about
-    the optical axis, translation in the image plane, same height).
+    A floor point seen at camera-frame (x_j, y_j) in j is at ``q_i = R2 q_j + t2`` in i
+    (:func:`floorvo.geometry.pixel_rigid_to_floor`); the result is the planar part of
+    ``T_i_j`` (rotation about the optical axis, translation in the image plane, same height).
     """
-    D = np.diag([camera.fx_px, camera.fy_px]) / float(height_mm)
-    Dinv = np.linalg.inv(D)
-    c = np.array([camera.cx_px, camera.cy_px])
-    R2 = Dinv @ fit.R @ D
-    # Re-orthonormalise (exact for square pixels).
-    U, _, Vt = np.linalg.svd(R2)
-    R2 = U @ Vt
-    t2 = Dinv @ (fit.R @ c + fit.t_px - c)
-    T = np.eye(4)
-    T[:2, :2] = R2
-    T[:2, 3] = t2
-    return T
+    return planar_T(*pixel_rigid_to_floor(fit.R, fit.t_px, camera, height_mm))
 
 
 def chain_poses(T_world_first: np.ndarray, T_kf_prev_kf: np.ndarray) -> np.ndarray:

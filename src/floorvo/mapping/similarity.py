@@ -42,8 +42,9 @@ import cv2
 import numpy as np
 
 from floorvo.config import Config, param
-from floorvo.estimators.preprocess import illumination_corrected, to_uint8_contrast
-from floorvo.geometry import rigid_fit_2d
+from floorvo.geometry import rigid_fit
+from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.matching import match_ratio
 
 __all__ = [
     "SimilarityConfig",
@@ -159,23 +160,12 @@ def prepare_image(image: np.ndarray, flatfield: np.ndarray | None = None) -> np.
     """uint8 (H, W) frame with the LED falloff divided out and the contrast normalised.
 
     Uses the flat-field frame when given, a wide blur of the frame itself otherwise
-    (:func:`floorvo.estimators.preprocess.illumination_corrected`).
+    (:func:`floorvo.imaging.illumination_corrected`, the blur made on an 8x smaller copy).
     """
     img = np.asarray(image)
     if img.ndim != 2:
         raise ValueError(f"prepare_image: need a (H, W) mono image, got shape {img.shape}")
-    if flatfield is not None:
-        return to_uint8_contrast(illumination_corrected(img, flatfield))
-    # The illumination is smooth: estimate it by a wide blur on an 8x smaller copy (the
-    # same sigma of 1/16 of the image size as illumination_corrected, ~15x faster).
-    f = img.astype(np.float32)
-    h, w = f.shape
-    small = cv2.resize(f, (max(1, w // 8), max(1, h // 8)), interpolation=cv2.INTER_AREA)
-    small = cv2.GaussianBlur(small, (0, 0), max(h, w) / 16.0 / 8.0)
-    illum = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
-    out = np.zeros_like(f)
-    np.divide(f, illum, out=out, where=illum > 1e-3 * max(float(illum.max()), 1e-12))
-    return to_uint8_contrast(out)
+    return to_uint8_contrast(illumination_corrected(img, flatfield, blur_downscale=8))
 
 
 def downscale(image_u8: np.ndarray, scale: float) -> np.ndarray:
@@ -209,21 +199,16 @@ def detect_features(image_u8: np.ndarray, cfg: SimilarityConfig) -> Features:
     return Features(np.array([k.pt for k in kps], dtype=np.float32), desc)
 
 
-_BF = cv2.BFMatcher(cv2.NORM_HAMMING)
-
-
 def match_descriptors(fa: Features, fb: Features, ratio: float) -> np.ndarray:
-    """(M, 2) index pairs (i in ``fa``, j in ``fb``) passing the ratio test, one per j."""
+    """(M, 2) index pairs (i in ``fa``, j in ``fb``) passing the ratio test, one per j.
+
+    One keypoint of frame i may not take two keypoints of frame j: the pair of the lowest j
+    is kept (:func:`floorvo.matching.ratio_test`, ``unique="first"``).
+    """
     if len(fa) < 2 or len(fb) < 2:
         return np.zeros((0, 2), dtype=np.int64)
-    knn = _BF.knnMatch(fb.desc, fa.desc, k=2)
-    pairs = [(m[0].trainIdx, m[0].queryIdx) for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
-    if not pairs:
-        return np.zeros((0, 2), dtype=np.int64)
-    pairs = np.array(pairs, dtype=np.int64)
-    # One keypoint of frame i may not take two keypoints of frame j.
-    _, first = np.unique(pairs[:, 0], return_index=True)
-    return pairs[np.sort(first)]
+    m = match_ratio(fb.desc, fa.desc, ratio, unique="first")
+    return m.idx[:, ::-1].copy()
 
 
 def ransac_rigid(
@@ -234,7 +219,7 @@ def ransac_rigid(
     A hypothesis is kept only if its two points pass the connect-line length check of
     eqs. (17)-(19) (equal-height points keep their distance; on the floor every point
     does, so a changed length means a mismatch). The consensus set is refitted in closed
-    form (:func:`floorvo.geometry.rigid_fit_2d`). ``src``, ``dst``: (N, 2) pixels.
+    form (:func:`floorvo.geometry.rigid_fit`). ``src``, ``dst``: (N, 2) pixels.
     """
     n = len(src)
     if n < max(2, cfg.min_inliers):
@@ -265,13 +250,13 @@ def ransac_rigid(
     for _ in range(2):
         if mask.sum() < 2:
             break
-        R, t = rigid_fit_2d(src[mask], dst[mask])
+        R, t = rigid_fit(src[mask], dst[mask])
         res = np.linalg.norm(src @ R.T + t - dst, axis=1)
         mask = res <= cfg.ransac_tol_px
     k = int(mask.sum())
     if k < cfg.min_inliers:
         return RigidFit(False, n_matches=n, n_inliers=k, reason=f"{k} rigid inliers < {cfg.min_inliers}")
-    R, t = rigid_fit_2d(src[mask], dst[mask])
+    R, t = rigid_fit(src[mask], dst[mask])
     return RigidFit(True, R, t, n_matches=n, n_inliers=k)
 
 
@@ -412,7 +397,7 @@ def _refine_fit(fit, flat, iy_b, ix_b, dx, dy, r, XC, YC, M, s, w, h) -> RigidFi
     # The block's content in frame j: invert the warp (p_i_nominal = R p_j + t).
     Rm, tm = M[:, :2], M[:, 2]
     p_j = (np.stack([cx, cy], axis=1) - tm) @ Rm  # R^T (p - t)
-    R2, t2 = rigid_fit_2d(_unscale_points(p_j, s), _unscale_points(p_i, s))
+    R2, t2 = rigid_fit(_unscale_points(p_j, s), _unscale_points(p_i, s))
     return RigidFit(True, R2, t2, fit.n_matches, fit.n_inliers, fit.reason)
 
 

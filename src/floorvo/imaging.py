@@ -1,4 +1,4 @@
-"""Frame normalisation for grazing-LED floor images.
+"""Frame normalisation for grazing-LED floor images, shared by the estimators and the mapping.
 
 Real frames are bright at the edges near the LEDs and dark in the middle; the pattern
 moves with the camera, so it must be removed before matching (a plain correlation of
@@ -16,12 +16,19 @@ __all__ = ["illumination_corrected", "to_uint8_contrast"]
 
 
 def illumination_corrected(
-    image: np.ndarray, flatfield: np.ndarray | None = None, blur_sigma_px: float | None = None
+    image: np.ndarray,
+    flatfield: np.ndarray | None = None,
+    blur_sigma_px: float | None = None,
+    *,
+    blur_downscale: int | None = None,
 ) -> np.ndarray:
     """float32 (H, W) image with the LED falloff divided out, mean ~1 where lit.
 
     ``flatfield``: (H, W) frame of the rig over a flat uniform floor (any bit depth);
     pixels where it is below 0.5 % of its maximum are treated as unlit (value 0).
+    Without one, the illumination is a Gaussian blur of the frame of ``blur_sigma_px``
+    (default: 1/16 of the image size), computed on a copy ``blur_downscale`` times smaller
+    (default: sigma / 4; the blur is smooth, so it is scaled back up by linear interpolation).
     """
     img = np.asarray(image, dtype=np.float32)
     if flatfield is not None:
@@ -36,7 +43,7 @@ def illumination_corrected(
         m = float(out[valid].mean()) if valid.any() else 0.0
         return out / m if m > 0 else out
     sigma = blur_sigma_px or max(img.shape) / 16.0
-    f = int(sigma // 4)
+    f = int(sigma // 4) if blur_downscale is None else int(blur_downscale)
     if f >= 2:
         # A wide blur is smooth: compute it on an f-times smaller image and scale it back up.
         small = cv2.resize(img, (max(1, img.shape[1] // f), max(1, img.shape[0] // f)), interpolation=cv2.INTER_AREA)

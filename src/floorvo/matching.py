@@ -1,0 +1,211 @@
+"""Descriptor matching: the pure matchers every feature estimator and the mapping use.
+
+Modelled on Kornia's ``feature/matching.py``: plain functions of two descriptor arrays
+that return index pairs and distances, no state and no file I/O. Exact nearest
+neighbours come from OpenCV's brute-force matcher (Hamming distance for binary uint8
+descriptors such as AKAZE's MLDB and ORB, L2 for float descriptors such as SIFT); a
+caller with its own (approximate) index passes its k-nearest neighbours to
+:func:`ratio_test`.
+
+Conventions
+-----------
+* ``desc0`` (N0, B) and ``desc1`` (N1, B): one descriptor per row, both of one kind.
+* A :class:`Matches` holds ``idx`` (M, 2) int64 pairs ``(i in desc0, j in desc1)``,
+  ``distance`` (M,) of each pair and, for ratio matches, ``ratio`` (M,): nearest over
+  second-nearest distance (Lowe's ratio, paper 001's ``gamma = d / L``). Pairs come in
+  ascending ``i``.
+* Uniqueness rules (``unique`` of :func:`ratio_test`): ``"none"`` lets several rows of
+  ``desc0`` take the same row of ``desc1``; ``"first"`` keeps, for each row of ``desc1``,
+  the pair of the lowest ``i``; ``"best"`` keeps the pair of the lowest ratio (ties: the
+  lowest ``i``). ``cross_check`` of :func:`match_nn` keeps mutual nearest neighbours.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+__all__ = [
+    "Matches",
+    "UNIQUE_RULES",
+    "knn",
+    "match_nn",
+    "ratio_test",
+    "match_ratio",
+    "pack_descriptors",
+    "hamming_distances",
+    "match_guided",
+]
+
+#: Uniqueness rules of :func:`ratio_test` (see the module docstring).
+UNIQUE_RULES = ("none", "first", "best")
+
+
+@dataclass(frozen=True)
+class Matches:
+    """Matched index pairs ``idx`` (M, 2) ``(i in desc0, j in desc1)``, their ``distance``
+    (M,) and, for ratio matches, the ratio ``d_nearest / d_second`` (M,) (None otherwise)."""
+
+    idx: np.ndarray
+    distance: np.ndarray
+    ratio: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(len(self.idx))
+
+    @property
+    def i0(self) -> np.ndarray:
+        """(M,) indices into ``desc0``."""
+        return self.idx[:, 0]
+
+    @property
+    def i1(self) -> np.ndarray:
+        """(M,) indices into ``desc1``."""
+        return self.idx[:, 1]
+
+
+def _empty(with_ratio: bool = False) -> Matches:
+    return Matches(np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0) if with_ratio else None)
+
+
+def _norm(desc0: np.ndarray, desc1: np.ndarray) -> int:
+    """OpenCV norm for the descriptor kind: Hamming for uint8 (binary) rows, L2 for float rows."""
+    if desc0.dtype != desc1.dtype:
+        raise ValueError(f"descriptors of two kinds: {desc0.dtype} and {desc1.dtype}")
+    return cv2.NORM_HAMMING if desc0.dtype == np.uint8 else cv2.NORM_L2
+
+
+def _check(desc0: np.ndarray, desc1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    d0, d1 = np.asarray(desc0), np.asarray(desc1)
+    if d0.ndim != 2 or d1.ndim != 2 or (len(d0) and len(d1) and d0.shape[1] != d1.shape[1]):
+        raise ValueError(f"need descriptors (N0, B) and (N1, B), got shapes {d0.shape} and {d1.shape}")
+    return d0, d1
+
+
+def knn(desc0: np.ndarray, desc1: np.ndarray, k: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest rows of ``desc1`` for every row of ``desc0``, nearest first (exact).
+
+    Returns ``(distance (N0, k) float64, index (N0, k) int64)``; where ``desc1`` has fewer
+    than ``k`` rows the missing neighbours have distance ``inf`` and index -1.
+    """
+    d0, d1 = _check(desc0, desc1)
+    dist = np.full((len(d0), k), np.inf)
+    idx = np.full((len(d0), k), -1, dtype=np.int64)
+    if len(d0) == 0 or len(d1) == 0:
+        return dist, idx
+    for m in cv2.BFMatcher(_norm(d0, d1)).knnMatch(d0, d1, k=k):
+        for r, dm in enumerate(m):
+            dist[dm.queryIdx, r] = dm.distance
+            idx[dm.queryIdx, r] = dm.trainIdx
+    return dist, idx
+
+
+def match_nn(desc0: np.ndarray, desc1: np.ndarray, *, cross_check: bool = False) -> Matches:
+    """Nearest row of ``desc1`` for every row of ``desc0`` (exact brute force).
+
+    With ``cross_check`` only mutual nearest neighbours are kept (``j`` is the nearest of
+    ``i`` and ``i`` the nearest of ``j``; ties go to the lowest index), as OpenCV's
+    ``BFMatcher(crossCheck=True)`` does.
+    """
+    d0, d1 = _check(desc0, desc1)
+    if len(d0) == 0 or len(d1) == 0:
+        return _empty()
+    found = cv2.BFMatcher(_norm(d0, d1), crossCheck=cross_check).match(d0, d1)
+    if not found:
+        return _empty()
+    idx = np.array([(m.queryIdx, m.trainIdx) for m in found], dtype=np.int64)
+    dist = np.array([m.distance for m in found], dtype=float)
+    order = np.argsort(idx[:, 0], kind="stable")
+    return Matches(idx[order], dist[order])
+
+
+def ratio_test(knn_distance: np.ndarray, knn_index: np.ndarray, ratio: float, *, unique: str = "none") -> Matches:
+    """Lowe's ratio test on the two nearest neighbours of each row of ``desc0``.
+
+    ``knn_distance``, ``knn_index``: (N0, 2) distances and ``desc1`` indices of the nearest
+    and second-nearest neighbour (:func:`knn`, or an approximate index; a missing neighbour
+    has distance ``inf`` or index -1 and gives no match). Row ``i`` matches its nearest
+    ``j`` when ``d_nearest < ratio * d_second``. ``unique``: one of :data:`UNIQUE_RULES`
+    (module docstring). Returns :class:`Matches` with ``ratio = d_nearest / d_second``
+    (1 where ``d_second`` is 0), pairs in ascending ``i``.
+    """
+    dist = np.asarray(knn_distance, dtype=float)
+    index = np.asarray(knn_index, dtype=np.int64)
+    if dist.ndim != 2 or dist.shape[1] < 2 or index.shape != dist.shape:
+        raise ValueError(f"ratio test: need (N, 2) neighbour distances and indices, got {dist.shape} and {index.shape}")
+    if unique not in UNIQUE_RULES:
+        raise ValueError(f"ratio test: unique = {unique!r} must be one of {', '.join(UNIQUE_RULES)}")
+    if not 0.0 < ratio <= 1.0:
+        raise ValueError(f"ratio test: ratio = {ratio!r} must be in (0, 1]")
+    d_near, d_second = dist[:, 0], dist[:, 1]
+    found = (index[:, 0] >= 0) & (index[:, 1] >= 0) & np.isfinite(d_second)
+    ok = found & (d_near < ratio * d_second)
+    rows = np.nonzero(ok)[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gamma = np.where(d_second[rows] > 0, d_near[rows] / d_second[rows], 1.0)
+    cols = index[rows, 0]
+    if unique != "none" and len(rows):
+        # Several rows of desc0 took one row of desc1: keep the first, or the one of lowest ratio.
+        order = np.argsort(gamma, kind="stable") if unique == "best" else np.arange(len(rows))
+        _, first = np.unique(cols[order], return_index=True)
+        keep = np.sort(order[first])
+        rows, cols, gamma = rows[keep], cols[keep], gamma[keep]
+    return Matches(np.column_stack([rows, cols]).astype(np.int64), d_near[rows], gamma)
+
+
+def match_ratio(desc0: np.ndarray, desc1: np.ndarray, ratio: float, *, unique: str = "none") -> Matches:
+    """Ratio-test matches of ``desc0`` in ``desc1``: :func:`ratio_test` on the exact :func:`knn`."""
+    return ratio_test(*knn(desc0, desc1, 2), ratio, unique=unique)
+
+
+def pack_descriptors(desc: np.ndarray) -> np.ndarray:
+    """uint8 binary descriptors (N, B) as (N, ceil(B / 8)) uint64 words (zero padded), for fast XOR/popcount."""
+    desc = np.ascontiguousarray(desc, dtype=np.uint8)
+    pad = (-desc.shape[1]) % 8
+    if pad:
+        desc = np.hstack([desc, np.zeros((len(desc), pad), dtype=np.uint8)])
+    return desc.view(np.uint64)
+
+
+def hamming_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bitwise Hamming distance between packed descriptor rows ``a`` (..., W) and ``b`` (..., W) (uint64 words)."""
+    return np.bitwise_count(np.bitwise_xor(a, b)).sum(axis=-1, dtype=np.int32)
+
+
+def match_guided(
+    xy_pred_px: np.ndarray,
+    xy1_px: np.ndarray,
+    packed0: np.ndarray,
+    packed1: np.ndarray,
+    *,
+    radius_px: float,
+    max_candidates: int,
+    max_distance: int,
+) -> Matches:
+    """Motion-predicted matching of paper 000 (section II-B, eq. (2)): nearest position first.
+
+    Row ``i`` of ``desc0`` is predicted at ``xy_pred_px[i]`` (N0, 2) in the new frame; the
+    new frame's keypoints ``xy1_px`` (N1, 2) within ``radius_px`` of it are visited in order
+    of distance from the prediction (at most ``max_candidates``), and the first whose
+    Hamming distance is under ``max_distance`` bits is the match. ``packed0``, ``packed1``:
+    the binary descriptors packed by :func:`pack_descriptors`. Pairs in ascending ``i``;
+    ``distance`` is the Hamming distance.
+    """
+    pred = np.asarray(xy_pred_px, dtype=float).reshape(-1, 2)
+    pts = np.asarray(xy1_px, dtype=float).reshape(-1, 2)
+    if len(pred) == 0 or len(pts) == 0:
+        return _empty()
+    k = min(int(max_candidates), len(pts))
+    dist, idx = cKDTree(pts).query(pred, k=k, distance_upper_bound=radius_px)
+    dist, idx = dist.reshape(len(pred), k), idx.reshape(len(pred), k)
+    valid = np.isfinite(dist)
+    idx_safe = np.where(valid, idx, 0)
+    ham = hamming_distances(packed0[:, None, :], packed1[idx_safe])  # (N0, k), nearest position first
+    good = valid & (ham < max_distance)
+    rows = np.nonzero(good.any(axis=1))[0]
+    first = np.argmax(good[rows], axis=1)  # the nearest candidate passing the threshold
+    cols = idx_safe[rows, first]
+    return Matches(np.column_stack([rows, cols]).astype(np.int64), ham[rows, first].astype(float))

@@ -1,0 +1,248 @@
+"""floorvo.geometry: the one rigid fit (Kabsch/Umeyama, paper 001's ICP-SVD, eqs. (8)-(21)),
+the one rigid inverse and the pixel <-> floor conversions, against exact motions and hand computation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from floorvo.camera import CameraModel
+from floorvo.geometry import (
+    T_world_cam_down,
+    floor_mm_to_pixels,
+    floor_rigid_to_T,
+    invert_T,
+    make_T,
+    pixel_rigid_to_floor,
+    pixels_to_floor_mm,
+    planar_T,
+    rigid_fit,
+    rigid_fit_robust,
+    rot_z,
+    umeyama,
+)
+
+
+def icp_svd(P, P_prime, weights=None):
+    """Paper 001's argument order: ``P = R P' + t`` (eq. (9)) is ``rigid_fit(P', P)``."""
+    return rigid_fit(P_prime, P, weights)
+
+
+def icp_svd_robust(P, P_prime):
+    return rigid_fit_robust(P_prime, P)
+
+
+def _apply(R, t, X):
+    return X @ R.T + t
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_exact_on_noiseless_3d_points(seed):
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=seed).as_matrix()
+    t = rng.normal(0, 50, 3)
+    P_prime = rng.normal(0, 30, (40, 3))
+    P = _apply(R, t, P_prime)  # eq. (9): p_i = R p'_i + t
+    R_est, t_est = icp_svd(P, P_prime)
+    np.testing.assert_allclose(R_est, R, atol=1e-10)
+    np.testing.assert_allclose(t_est, t, atol=1e-9)
+    assert np.linalg.det(R_est) == pytest.approx(1.0)
+
+
+def test_planar_points_would_give_a_reflection():
+    """Floor points (all z = 100): W has rank 2; R = U V^T alone is a reflection here."""
+    rng = np.random.default_rng(5)
+    P_prime = np.column_stack([rng.uniform(-40, 40, (30, 2)), np.full(30, 100.0)])
+    yaw = np.radians(3.0)
+    R = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1.0]])
+    t = np.array([4.0, -1.5, 0.0])
+    P = _apply(R, t, P_prime)
+    # Construct the SVD the naive solution would use and confirm it is a reflection case for some
+    # sign choice: flipping the null-space singular vector of W makes det(U V^T) = -1.
+    q, qp = P - P.mean(0), P_prime - P_prime.mean(0)
+    U, S, Vt = np.linalg.svd(q.T @ qp)
+    assert S[2] < 1e-9 * S[0]
+    flipped = U @ np.diag([1, 1, -1.0]) @ Vt if np.linalg.det(U @ Vt) > 0 else U @ Vt
+    assert np.linalg.det(flipped) == pytest.approx(-1.0)
+    # The paper's "-R" remedy is not the motion either.
+    assert not np.allclose(-flipped, R, atol=1e-6)
+    R_est, t_est = icp_svd(P, P_prime)
+    np.testing.assert_allclose(R_est, R, atol=1e-10)
+    np.testing.assert_allclose(t_est, t, atol=1e-9)
+
+
+def test_mirrored_point_set_returns_a_rotation_not_the_reflection():
+    """Points related by a true reflection: the best rotation is returned (det +1)."""
+    rng = np.random.default_rng(3)
+    P_prime = rng.normal(0, 10, (20, 3))
+    M = np.diag([1.0, 1.0, -1.0])
+    P = P_prime @ M.T
+    R_est, _ = icp_svd(P, P_prime)
+    assert np.linalg.det(R_est) == pytest.approx(1.0)
+    assert not np.allclose(R_est, M)
+
+
+def test_robust_iterations_drop_outliers():
+    rng = np.random.default_rng(4)
+    R = Rotation.from_euler("z", 10, degrees=True).as_matrix()
+    t = np.array([1.0, 2.0, 3.0])
+    P_prime = rng.normal(0, 20, (50, 3))
+    P = _apply(R, t, P_prime)
+    P[:5] += rng.normal(0, 30, (5, 3))  # five wrong matches
+    R_est, t_est, keep = icp_svd_robust(P, P_prime)
+    assert not keep[:5].any() and keep[5:].all()
+    np.testing.assert_allclose(R_est, R, atol=1e-9)
+    np.testing.assert_allclose(t_est, t, atol=1e-8)
+
+
+def test_refuses_too_few_points():
+    with pytest.raises(ValueError, match="N >= 3"):
+        icp_svd(np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+def test_rigid_fit_3d_source_destination_order_on_a_floor_with_weights():
+    """rigid_fit(src, dst): dst = R src + t, exact on coplanar (floor) points; a weight of 0 ignores a pair."""
+    rigid_fit_3d = rigid_fit
+    rng = np.random.default_rng(11)
+    src = np.column_stack([rng.uniform(-50, 50, (25, 2)), np.full(25, 100.0)])  # X_cur on the floor plane
+    R = Rotation.from_euler("z", -7.5, degrees=True).as_matrix()
+    t = np.array([-3.0, 12.0, 0.0])
+    dst = _apply(R, t, src)  # X_prev = R X_cur + t
+    R_est, t_est = rigid_fit_3d(src, dst)
+    np.testing.assert_allclose(R_est, R, atol=1e-10)
+    np.testing.assert_allclose(t_est, t, atol=1e-9)
+    dst_bad = dst.copy()
+    dst_bad[0] += [40.0, -25.0, 5.0]
+    w = np.ones(25)
+    w[0] = 0.0
+    R_w, t_w = rigid_fit_3d(src, dst_bad, weights=w)
+    np.testing.assert_allclose(R_w, R, atol=1e-10)
+    np.testing.assert_allclose(t_w, t, atol=1e-9)
+    R_u, _ = rigid_fit_3d(src, dst_bad)  # unweighted, the wrong pair pulls the fit away
+    assert not np.allclose(R_u, R, atol=1e-6)
+    with pytest.raises(ValueError, match="weights"):
+        rigid_fit_3d(src, dst, weights=np.zeros(25))
+
+
+# ----------------------------------------------------------------------------- Kabsch / Umeyama
+def test_umeyama_recovers_known_rigid_motion():
+    rng = np.random.default_rng(1)
+    src = rng.normal(size=(30, 3)) * 50
+    R = make_T(rot_z(0.7), [0, 0, 0])[:3, :3] @ np.array(
+        [[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]]
+    )
+    t = np.array([5.0, -3.0, 12.0])
+    R_hat, t_hat, s = umeyama(src, src @ R.T + t)
+    np.testing.assert_allclose(R_hat, R, atol=1e-10)
+    np.testing.assert_allclose(t_hat, t, atol=1e-9)
+    assert s == 1.0
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_kabsch_recovers_a_random_rigid_transform_exactly(d, seed):
+    rng = np.random.default_rng(seed)
+    R = Rotation.random(random_state=seed).as_matrix() if d == 3 else rot_z(rng.uniform(-np.pi, np.pi))[:2, :2]
+    t = rng.normal(0, 100, d)
+    src = rng.normal(0, 40, (25, d))
+    R_est, t_est = rigid_fit(src, src @ R.T + t)
+    np.testing.assert_allclose(R_est, R, atol=1e-12)
+    np.testing.assert_allclose(t_est, t, atol=1e-10)
+    assert np.linalg.det(R_est) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_umeyama_recovers_a_known_similarity_and_weights_are_relative():
+    rng = np.random.default_rng(7)
+    R = Rotation.random(random_state=7).as_matrix()
+    src = rng.normal(0, 10, (30, 3))
+    dst = 2.5 * src @ R.T + [1.0, -2.0, 3.0]
+    R_est, t_est, s = umeyama(src, dst, with_scale=True)
+    assert s == pytest.approx(2.5, rel=1e-12)
+    np.testing.assert_allclose(R_est, R, atol=1e-12)
+    np.testing.assert_allclose(t_est, [1.0, -2.0, 3.0], atol=1e-10)
+    # Weights count only relative to each other: w and 7 w give the same fit.
+    w = rng.uniform(0.1, 1.0, 30)
+    noisy = dst + rng.normal(0, 0.5, dst.shape)
+    a, b = umeyama(src, noisy, w, with_scale=True), umeyama(src, noisy, 7 * w, with_scale=True)
+    for x, y in zip(a, b):
+        np.testing.assert_allclose(x, y, atol=1e-12)
+
+
+def test_kabsch_hand_computed_on_two_points():
+    """(0, 0) -> (1, 1) and (2, 0) -> (1, 3), worked by hand: a quarter turn, then a shift by (1, 1)."""
+    src = np.array([[0.0, 0.0], [2.0, 0.0]])
+    dst = np.array([[1.0, 1.0], [1.0, 3.0]])
+    R, t = rigid_fit(src, dst)
+    np.testing.assert_allclose(R, [[0.0, -1.0], [1.0, 0.0]], atol=1e-15)
+    np.testing.assert_allclose(t, [1.0, 1.0], atol=1e-15)
+
+
+def test_rigid_fit_refuses_bad_shapes_and_weights_by_name():
+    with pytest.raises(ValueError, match=r"\(N, 2\) arrays with N >= 2"):
+        rigid_fit(np.zeros((1, 2)), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="rigid fit"):
+        rigid_fit(np.zeros((5, 2)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="weights"):
+        rigid_fit(np.ones((3, 2)), np.ones((3, 2)), weights=[1.0, -1.0, 1.0])
+
+
+# ----------------------------------------------------------------------------- inverse
+def test_invert_T_single_and_batched_are_exact_inverses():
+    rng = np.random.default_rng(3)
+    T = np.stack([make_T(Rotation.random(random_state=i).as_matrix(), rng.normal(0, 50, 3)) for i in range(6)])
+    stack = T.reshape(2, 3, 4, 4)
+    inv = invert_T(stack)
+    assert inv.shape == (2, 3, 4, 4)
+    np.testing.assert_allclose(inv @ stack, np.broadcast_to(np.eye(4), (2, 3, 4, 4)), atol=1e-12)
+    np.testing.assert_allclose(inv.reshape(6, 4, 4), np.linalg.inv(T), atol=1e-12)
+    np.testing.assert_array_equal(invert_T(T[2]), inv.reshape(6, 4, 4)[2])
+    # Hand computation: a quarter turn about z and a shift; the inverse turns back and shifts back.
+    Q = make_T(rot_z(np.pi / 2), [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(invert_T(Q), make_T(rot_z(-np.pi / 2), [-2.0, 1.0, -3.0]), atol=1e-15)
+    with pytest.raises(ValueError, match="4, 4"):
+        invert_T(np.eye(3))
+
+
+# ----------------------------------------------------------------------------- pixels <-> floor
+def test_pixels_to_floor_hand_computed_and_round_trip():
+    cam = CameraModel.from_sensor()  # 648 x 494, f = 6 mm / 7.4 um, centre (323.5, 246.5)
+    g = cam.gsd_mm_per_px(100.0)  # eq. (1) of paper 000
+    uv = np.array([[323.5, 246.5], [333.5, 246.5], [323.5, 226.5]])
+    np.testing.assert_allclose(pixels_to_floor_mm(uv, cam, 100.0), [[0, 0], [10 * g, 0], [0, -20 * g]], atol=1e-12)
+    dist = CameraModel(640, 480, 800.0, 820.0, 320.0, 240.0, (-0.1, 0.02, 0.001, -0.001, 0.0))
+    xy = np.array([[5.0, -3.0], [-20.0, 15.0]])
+    np.testing.assert_allclose(pixels_to_floor_mm(floor_mm_to_pixels(xy, dist, 100.0), dist, 100.0), xy, atol=1e-4)
+
+
+@pytest.mark.parametrize("centred", [False, True])
+def test_pixel_rigid_to_floor_agrees_with_converting_the_points(centred):
+    """A rigid map of pixels becomes the rigid map of the same floor points (non-square pixels too)."""
+    cam = CameraModel(400, 300, 500.0, 500.0 if centred else 520.0, 190.0, 160.0)
+    rng = np.random.default_rng(9)
+    # A floor motion q_b = R2 q_a + t2 (mm) seen in pixels.
+    R2, t2 = rot_z(0.2)[:2, :2], np.array([3.0, -1.5])
+    q_a = rng.uniform(-20, 20, (10, 2))
+    p_a, p_b = floor_mm_to_pixels(q_a, cam, 100.0), floor_mm_to_pixels(q_a @ R2.T + t2, cam, 100.0)
+    c = np.array([cam.cx_px, cam.cy_px])
+    R_px, t_px = rigid_fit(p_a - c, p_b - c) if centred else rigid_fit(p_a, p_b)
+    if cam.fx_px != cam.fy_px:  # pixels are not square: the image motion is not rigid, fit it as affine
+        A = np.linalg.lstsq(np.column_stack([p_a, np.ones(10)]), p_b, rcond=None)[0].T
+        R_px, t_px = A[:, :2], A[:, 2]
+    R_est, t_est = pixel_rigid_to_floor(R_px, t_px, cam, 100.0, centred=centred)
+    np.testing.assert_allclose(R_est, R2, atol=1e-9)
+    np.testing.assert_allclose(t_est, t2, atol=1e-9)
+
+
+def test_floor_rigid_to_T_is_the_camera_motion():
+    """Camera moving +2 mm along its x and turning 0.1 rad: floor points move the other way in the image."""
+    T_prev_cur = make_T(rot_z(0.1), [2.0, 0.0, 0.0])
+    T_cur_prev = invert_T(T_prev_cur)
+    R2, t2 = T_cur_prev[:2, :2], T_cur_prev[:2, 3]  # q_cur = R2 q_prev + t2
+    np.testing.assert_allclose(floor_rigid_to_T(R2, t2), T_prev_cur, atol=1e-15)
+    np.testing.assert_array_equal(planar_T(R2, t2)[2:, :], np.eye(4)[2:, :])
+    # And through a downward camera's world poses.
+    T0, T1 = T_world_cam_down(0.0, 0.0, 100.0), T_world_cam_down(1.0, 2.0, 100.0, 0.3)
+    step = invert_T(T0) @ T1
+    back = invert_T(step)
+    np.testing.assert_allclose(floor_rigid_to_T(back[:2, :2], back[:2, 3]), step, atol=1e-12)
