@@ -44,7 +44,7 @@ def se2_err(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
 
 
 def synthetic_sources(map_scene, kid_scene, texture_seed: int, noise_std: float):
-    from floorvo.mapping import synthetic as syn
+    from floorvo import synthetic as syn
 
     cam = map_scene.camera_model()
     h = map_scene.camera.height_mm

@@ -1,4 +1,4 @@
-"""Synthetic floorvo sequences with exact ground truth, made in code (no renderer).
+"""Synthetic floorvo sequences and views with exact ground truth, made in code (no renderer).
 
 For tests and benchmarks that need a sequence folder fast: a procedural floor-like
 texture (bumps at several scales lit from the side, albedo mottling) is viewed by a
@@ -13,9 +13,14 @@ Optionally a depth image per frame (flat floor: the camera height) and a right c
     T = line_poses(length_mm=100.0, step_mm=4.0, height_mm=100.0)
     write_synthetic_sequence("out/synth", camera, T, height_mm=100.0, fps=30.0, seed=0)
 
-The floor texture has one pixel per ``texture_gsd_mm`` (default: the camera's ground
-sample distance at ``height_mm``); a world point (X, Y) mm sits at texture pixel
-``(X / gsd + U0, -Y / gsd + V0)``. The texture is built once, large enough for the whole
+For the map and the relocalisation (tests, benchmarks), :func:`view` crops the uint8 frame
+a downward camera at ``T_world_cam`` sees of a texture (one texture pixel per ground
+sample) by an exact affine warp: rotation about the principal point and translation in
+px = mm / gsd. There a floor point ``(X, Y)`` (mm) is at texture pixel ``U = X / gsd + U0``,
+``V = -Y / gsd + V0`` with ``(U0, V0)`` the texture centre (world y up, rows down).
+
+In a sequence the floor texture (:func:`floor_texture`) has one pixel per ground sample
+at ``height_mm``; a world point (X, Y) mm sits at texture pixel ``(X / gsd + U0, -Y / gsd + V0)``. The texture is built once, large enough for the whole
 trajectory footprint, so keep trajectories within a few metres at full resolution.
 """
 
@@ -31,19 +36,33 @@ from floorvo.camera import CameraModel
 from floorvo.geometry import T_world_cam_down, se2_from_T
 from floorvo.sequence import SequenceWriter
 
-__all__ = ["floor_texture", "led_falloff", "line_poses", "render_view", "write_synthetic_sequence"]
+__all__ = [
+    "floor_texture",
+    "led_falloff",
+    "line_poses",
+    "render_view",
+    "view",
+    "texture_extent_mm",
+    "write_synthetic_sequence",
+]
 
 
-def floor_texture(height_px: int, width_px: int, seed: int) -> np.ndarray:
-    """(H, W) float32 texture > 0: a bumpy relief shaded by a light from -x, times albedo blobs."""
+def floor_texture(height_px: int, width_px: int | None = None, seed: int = 0) -> np.ndarray:
+    """(H, W) float32 floor texture in (0, 1], deterministic from ``seed`` (square when ``width_px`` is None).
+
+    A bumpy relief (Gaussian-filtered noise at 1, 2.5, 6 and 20 px) shaded by a light from
+    -x, times albedo blobs, scaled so that its maximum is 1. The one procedural floor of the
+    synthetic data: sequences (:func:`write_synthetic_sequence`) and exact views (:func:`view`).
+    """
+    width_px = height_px if width_px is None else width_px
     rng = np.random.default_rng(seed)
     h = np.zeros((height_px, width_px), np.float32)
     for sigma, amp in ((1.0, 1.0), (2.5, 1.5), (6.0, 2.0), (20.0, 3.0)):
         h += amp * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), sigma)
     shade = np.gradient(h, axis=1)  # faces towards -x are lit
     albedo = 1.0 + 0.3 * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), 8.0)
-    tex = albedo * (1.0 + 0.5 * shade / (shade.std() + 1e-6))
-    return np.clip(tex, 0.05, None).astype(np.float32)
+    tex = np.clip(albedo * (1.0 + 0.5 * shade / (shade.std() + 1e-6)), 0.05, None)
+    return (tex / tex.max()).astype(np.float32)
 
 
 def led_falloff(camera: CameraModel) -> np.ndarray:
@@ -84,7 +103,7 @@ def render_view(
 
     X, Y, yaw = se2_from_T(T_world_cam)
     height = float(T_world_cam[2, 3])
-    s = height / camera.fx_px / gsd_mm  # texture px per camera px
+    s = camera.gsd_mm_per_px(height) / gsd_mm  # texture px per camera px
     c, sn = np.cos(yaw), np.sin(yaw)
     Rw = np.array([[c, -sn], [sn, c]]) @ np.diag([1.0, -1.0])  # world mm per centred camera px (x height/f)
     Tt = np.diag([1.0, -1.0])  # texture px from world: U = X / gsd + U0, V = -Y / gsd + V0
@@ -118,7 +137,7 @@ def write_synthetic_sequence(
     per frame (flat floor). ``stereo_baseline_mm``: also a right camera ``cam1``.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
-    gsd = height_mm / camera.fx_px
+    gsd = camera.gsd_mm_per_px(height_mm)
     xy = T_world_cam[:, :2, 3]
     reach = np.hypot(camera.width_px, camera.height_px) * gsd * 0.6 + (stereo_baseline_mm or 0.0) + 2.0
     lo, hi = xy.min(axis=0) - reach, xy.max(axis=0) + reach
@@ -165,3 +184,44 @@ def write_synthetic_sequence(
         w.write_calib("cam1_flatfield", flat)
     w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
     return Path(out_dir)
+
+
+def texture_extent_mm(texture: np.ndarray, gsd_mm_per_px: float) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) of the floor the texture covers, in mm."""
+    h, w = texture.shape
+    return (-(w / 2) * gsd_mm_per_px, (w / 2) * gsd_mm_per_px, -(h / 2) * gsd_mm_per_px, (h / 2) * gsd_mm_per_px)
+
+
+def view(
+    texture: np.ndarray,
+    camera: CameraModel,
+    T_world_cam: np.ndarray,
+    height_mm: float,
+    *,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+    centre_mm: tuple[float, float] = (0.0, 0.0),
+) -> np.ndarray:
+    """uint8 (H, W) frame of ``camera`` at ``T_world_cam`` (downward, yaw only) over ``texture``.
+
+    A camera at (X0, Y0) with yaw psi sees floor point ``c + Rz(psi) [(u - cx) g, -(v - cy) g]``
+    at pixel (u, v) (cam x = world x, cam y = world -y at yaw 0), so the image -> texture map
+    is the rotation by psi about the principal point plus the translation (X0 / g, -Y0 / g).
+    ``noise_std``: Gaussian sensor noise in grey levels (needs ``rng``); ``centre_mm``: the
+    floor point (mm) at the texture's centre.
+    """
+    g = camera.gsd_mm_per_px(height_mm)
+    x0, y0, psi = se2_from_T(T_world_cam)
+    x0, y0 = x0 - centre_mm[0], y0 - centre_mm[1]
+    th, tw = texture.shape
+    Uc, Vc = x0 / g + tw / 2.0, -y0 / g + th / 2.0
+    c, s = np.cos(psi), np.sin(psi)
+    cx, cy = camera.cx_px, camera.cy_px
+    M = np.array([[c, s, Uc - c * cx - s * cy], [-s, c, Vc + s * cx - c * cy]])
+    img = cv2.warpAffine(
+        texture, M, camera.size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REFLECT
+    )
+    img = 30.0 + 200.0 * img
+    if noise_std > 0:
+        img = img + (rng or np.random.default_rng(0)).normal(0.0, noise_std, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)

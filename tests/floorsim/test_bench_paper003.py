@@ -2,7 +2,7 @@
 
 The shipped paper003 scenes, shrunk (a 60 x 40 mm lawnmower, three 8 mm kidnap segments),
 are "rendered" by a stand-in that writes exact views of one procedural floor texture at
-each scene pose (:mod:`floorvo.mapping.synthetic`), so the truth of every frame is exact
+each scene pose (:mod:`floorvo.synthetic`), so the truth of every frame is exact
 and the test needs no Mitsuba.
 """
 
@@ -16,7 +16,7 @@ import pytest
 
 from floorsim.bench import run_bench
 from floorsim.bench.results import read_results_csv
-from floorvo.mapping import synthetic as syn
+from floorvo import synthetic as syn
 from floorvo.sequence import SequenceWriter
 
 ROOT = Path(__file__).resolve().parents[2]

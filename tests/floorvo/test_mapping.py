@@ -1,7 +1,7 @@
 """Keyframe global map and relocalisation (paper 003) on a procedural floor, no renderer.
 
 Views are exact affine crops of a seeded texture at known poses
-(:mod:`floorvo.mapping.synthetic`), so every pose has an exact truth.
+(:mod:`floorvo.synthetic`), so every pose has an exact truth.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import json
 import numpy as np
 import pytest
 
+from floorvo import synthetic as syn
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.geometry import T_world_cam_down, invert_T, se2_from_T
-from floorvo.mapping import synthetic as syn
 from floorvo.mapping.keyframes import KeyframeConfig, fit_to_T_i_j
 from floorvo.mapping.localize import Localizer
 from floorvo.mapping.map import MapConfig, build_map_from_images, load_map, save_map

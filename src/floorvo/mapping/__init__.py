@@ -7,5 +7,4 @@
 * :mod:`~floorvo.mapping.localize`: a live frame's global pose from the map alone.
 * :mod:`~floorvo.mapping.fused`: the ``map-fused`` estimator (odometry between map fixes).
 * :mod:`~floorvo.mapping.localize_run`: ``floorvo localize`` as a library function.
-* :mod:`~floorvo.mapping.synthetic`: a procedural floor texture and exact views, for tests.
 """
