@@ -147,12 +147,17 @@ class _AkazeBase:
                 "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
         if len(kps) < self.config.min_matches or len(state.kps) < self.config.min_matches:
-            state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
+            if len(kps) < self.config.min_matches:
+                # This frame cannot be tracked: the next one is matched against the last frame
+                # kept (estimator contract), with no motion to predict from across the gap.
+                why = f"too few keypoints ({len(kps)})"
+                state.M_last = None
+            else:
+                # The frame kept has too few keypoints (an untextured first frame): this one replaces it.
+                why = f"too few keypoints in the previous frame ({len(state.kps)})"
+                state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
             return StepResult(
-                "lost",
-                reason=f"too few keypoints ({len(kps)})",
-                n_keypoints=len(kps),
-                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                "lost", reason=why, n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
         if self.guided and state.M_last is not None:
             src, dst = self._guided(state, kps, desc)
