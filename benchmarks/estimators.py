@@ -35,8 +35,8 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from floorvo.estimators import get_estimator, list_estimators  # noqa: E402
-from floorvo.metrics import score_run  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
+from floorvo.scoring import score_run  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 

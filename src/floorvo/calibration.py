@@ -34,7 +34,8 @@ import numpy as np
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import invert_T
 from floorvo.io import atomic_write_json, read_json
-from floorvo.metrics import associate, read_run_and_groundtruth
+from floorvo.metrics import associate
+from floorvo.scoring import read_run_and_groundtruth
 
 __all__ = [
     "ScaleCalibration",

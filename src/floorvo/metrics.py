@@ -2,7 +2,8 @@
 
 Every function here is pure: it takes ``(timestamps_s (N,), T_world_cam (N, 4, 4) mm)``
 arrays and returns new arrays or plain numbers; inputs are never modified (evo aligns in
-place; this module never does). Only :func:`score_run` reads files.
+place; this module never does), and no file is read or written: the scoring of a run
+folder is :mod:`floorvo.scoring`, the names of the scored numbers :mod:`floorvo.metric_defs`.
 
 Conventions
 -----------
@@ -35,27 +36,17 @@ Conventions
 
 from __future__ import annotations
 
-import logging
-import math
-import os
 from collections.abc import Sequence as SequenceT
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, rigid_fit
-from floorvo.io import read_json
-from floorvo.runfolder import RunFolder
-from floorvo.tum import read_tum
-
-log = logging.getLogger(__name__)
 
 __all__ = [
     "ALIGNMENTS",
     "SEGMENT_LENGTHS_MM",
+    "check_trajectory",
     "associate",
     "align",
     "path_distances_mm",
@@ -69,24 +60,15 @@ __all__ = [
     "translation_error_along_path",
     "tracking_stats",
     "timing_stats",
-    "Score",
-    "score_trajectories",
-    "read_run_and_groundtruth",
-    "score_run",
 ]
 
 ALIGNMENTS = ("none", "origin", "se2", "se3")
 #: Default KITTI-style segment lengths for floors (mm): 10, 25, 50, 100 and up.
-#: What a score without ground truth says in place of the metrics that need it.
-NO_GROUND_TRUTH = "no ground truth"
-#: An estimate whose first pose is farther than FAR_START_MM + FAR_START_FRACTION x path length
-#: from the ground truth at the same time is not in the ground truth's frame (a warning).
-FAR_START_MM = 10.0
-FAR_START_FRACTION = 0.05
 SEGMENT_LENGTHS_MM = (10.0, 25.0, 50.0, 100.0, 250.0, 500.0, 1000.0, 2000.0, 5000.0)
 
 
-def _check_traj(timestamps_s: np.ndarray, T: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+def check_trajectory(timestamps_s: np.ndarray, T: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(timestamps_s (N,), T (N, 4, 4))`` as float arrays; ValueError naming ``what`` for other shapes."""
     ts = np.asarray(timestamps_s, dtype=float)
     Ts = np.asarray(T, dtype=float)
     if Ts.ndim != 3 or Ts.shape[1:] != (4, 4) or ts.shape != (len(Ts),):
@@ -402,267 +384,3 @@ def timing_stats(timing: dict[str, np.ndarray] | None) -> dict[str, dict[str, fl
     if "total_ms" in out and out["total_ms"]["mean"] > 0:
         out["fps"] = 1000.0 / out["total_ms"]["mean"]
     return out
-
-
-# ----------------------------------------------------------------------------- score
-@dataclass
-class Score:
-    """Every metric of one run against its ground truth (see :meth:`to_dict`, :meth:`flat`).
-
-    Without ground truth (or when the estimate shares fewer than two timestamps with it),
-    ``ate``, ``rpe_*``, ``drift`` and ``segments`` are empty, ``ground_truth`` says why
-    (``"no ground truth"``), and only tracking and timing are scored. ``warnings``: what a
-    reader of the figures must know (no shared timestamps; an estimate that starts far from
-    the ground truth, whose unaligned metrics are then left out).
-    """
-
-    estimator: str
-    run_dir: str
-    seq_dir: str
-    n_ref: int
-    n_est: int
-    n_matched: int
-    ate: dict[str, dict]
-    rpe_frame: dict
-    rpe_distance: list[dict]
-    drift: dict
-    segments: list[dict]
-    tracking: dict
-    timing: dict
-    extra: dict = field(default_factory=dict)
-    ground_truth: str = "ok"
-    warnings: list[str] = field(default_factory=list)
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (per-pose arrays dropped)."""
-        d = asdict(self)
-        for a in d["ate"].values():
-            a.pop("errors_mm", None)
-            if "T_align" in a:
-                a["T_align"] = np.asarray(a["T_align"]).tolist()
-        for r in [d["rpe_frame"], *d["rpe_distance"]]:
-            for k in ("pairs", "trans_errors_mm", "rot_errors_deg"):
-                r.pop(k, None)
-        return _jsonable(d)
-
-    def flat(self) -> dict[str, float]:
-        """One number per metric, named with unit and alignment (results.csv columns, gates)."""
-        f: dict[str, float] = {}
-        for name, a in self.ate.items():
-            f[f"ate_{name}_rmse_mm"] = a["trans_mm"]["rmse"]
-            f[f"ate_{name}_mean_mm"] = a["trans_mm"]["mean"]
-            f[f"ate_{name}_max_mm"] = a["trans_mm"]["max"]
-        f["ate_se3_rot_rmse_deg"] = self.ate["se3"]["rot_deg"]["rmse"] if "se3" in self.ate else float("nan")
-        if self.rpe_frame:
-            f["rpe_frame_trans_rmse_mm"] = self.rpe_frame["trans_mm"]["rmse"]
-            f["rpe_frame_rot_rmse_deg"] = self.rpe_frame["rot_deg"]["rmse"]
-        for r in self.rpe_distance:
-            f[f"rpe_{r['delta']:g}mm_trans_rmse_mm"] = r["trans_mm"]["rmse"]
-        for key in ("end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"):
-            if key in self.drift:
-                f[key] = self.drift[key]
-        for s in self.segments:
-            f[f"seg_{s['length_mm']:g}mm_t_err_pct"] = s["t_err_pct"]
-        f["seg_mean_t_err_pct"] = (
-            float(np.mean([s["t_err_pct"] for s in self.segments])) if self.segments else float("nan")
-        )
-        f["seg_mean_r_err_deg_per_m"] = (
-            float(np.mean([s["r_err_deg_per_m"] for s in self.segments])) if self.segments else float("nan")
-        )
-        f["lost_frames"] = float(self.tracking["lost_frames"])
-        f["loss_events"] = float(self.tracking["loss_events"])
-        f["tracked_fraction"] = float(self.tracking["tracked_fraction"])
-        for key in ("total_ms", "detect_ms", "match_ms", "estimate_ms"):
-            if key in self.timing:
-                f[f"time_{key}_mean"] = self.timing[key]["mean"]
-        if "fps" in self.timing:
-            f["fps"] = self.timing["fps"]
-        return f
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
-def score_trajectories(
-    t_ref_s: np.ndarray,
-    T_ref: np.ndarray,
-    t_est_s: np.ndarray,
-    T_est: np.ndarray,
-    *,
-    estimator: str = "",
-    statuses: SequenceT[str] | None = None,
-    timing: dict[str, np.ndarray] | None = None,
-    max_diff_s: float = 0.01,
-    rpe_deltas_mm: SequenceT[float] = (10.0, 100.0),
-    segment_lengths_mm: SequenceT[float] = SEGMENT_LENGTHS_MM,
-) -> Score:
-    """Score an estimated trajectory against the reference (both ``(ts (N,), T (N, 4, 4) mm)``)."""
-    t_ref_s, T_ref = _check_traj(t_ref_s, T_ref, "reference")
-    t_est_s, T_est = _check_traj(t_est_s, T_est, "estimate")
-    i_ref, i_est = associate(t_ref_s, t_est_s, max_diff_s)
-    if len(i_ref) < 2:
-        raise SequenceError(
-            f"estimate has {len(i_ref)} pose(s) matching a ground-truth timestamp within {max_diff_s} s; need >= 2 to score"
-        )
-    A, B = T_ref[i_ref], T_est[i_est]
-    ates = {m: ate(A, B, m) for m in ALIGNMENTS}
-    rpe_d = [rpe(A, B, delta_mm=d) for d in rpe_deltas_mm if path_distances_mm(A)[-1] >= d]
-    drift = end_point_drift(A, B, "none")
-    warnings = []
-    start_mm = float(np.linalg.norm(A[0, :3, 3] - B[0, :3, 3]))
-    if start_mm > FAR_START_MM + FAR_START_FRACTION * path_distances_mm(A)[-1]:
-        # Not in the ground truth's frame: the unaligned figures would measure the offset, not the estimator.
-        warnings.append(
-            f"the estimate starts {start_mm:.1f} mm from the ground truth at their first shared time: it is not in "
-            "the ground truth's world frame, so the unaligned ATE and the end drift are left out (see the aligned ATE)"
-        )
-        for m in ("none", "origin"):
-            ates.pop(m, None)
-        drift = {k: v for k, v in drift.items() if k not in ("end_drift_pct", "end_error_mm")}
-    return Score(
-        estimator=estimator,
-        run_dir="",
-        seq_dir="",
-        n_ref=len(T_ref),
-        n_est=len(T_est),
-        n_matched=len(i_ref),
-        ate=ates,
-        rpe_frame=rpe(A, B, delta_frames=1),
-        rpe_distance=rpe_d,
-        drift=drift,
-        segments=segment_errors(A, B, segment_lengths_mm),
-        tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est)),
-        timing=timing_stats(timing),
-        warnings=warnings,
-    )
-
-
-def score_without_groundtruth(
-    n_frames: int,
-    t_est_s: np.ndarray,
-    *,
-    estimator: str = "",
-    statuses: SequenceT[str] | None = None,
-    timing: dict[str, np.ndarray] | None = None,
-    why: str = NO_GROUND_TRUTH,
-) -> Score:
-    """Tracking and timing of a run that has no ground truth to compare with (``why`` says so)."""
-    return Score(
-        estimator=estimator,
-        run_dir="",
-        seq_dir="",
-        n_ref=0,
-        n_est=len(t_est_s),
-        n_matched=0,
-        ate={},
-        rpe_frame={},
-        rpe_distance=[],
-        drift={},
-        segments=[],
-        tracking=tracking_stats(None if statuses is None else list(statuses), n_frames, len(t_est_s)),
-        timing=timing_stats(timing),
-        ground_truth=why,
-    )
-
-
-def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, purpose: str):
-    """``(groundtruth path, (t_ref, T_ref), run)`` of a run; ``run`` is its :class:`~floorvo.runfolder.RunFolder`.
-
-    ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
-    ("score", "calibrate") words the error when there is no ground truth.
-    """
-    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
-    if not gt_path.is_file():
-        raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
-    ref = read_tum(gt_path)
-    return gt_path, ref, RunFolder.read(run_dir)
-
-
-def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
-    """Score ``RUN/trajectory.txt`` (+ ``timing.csv``, ``result.json``) against ``SEQ/groundtruth.txt``.
-
-    When the run covered a sub-range of the sequence (``result.json`` ``frames``), the
-    reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
-    """
-    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
-        score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
-        log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)
-        return score
-    _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
-    timing, result = run.timing, run.result
-    if len(run.timestamps_s) >= 2 and len(associate(t_ref, run.timestamps_s, max_diff_s)[0]) == 0:
-        why = f"the estimate shares no timestamp with the ground truth (within {max_diff_s} s)"
-        log.warning("%s: %s; scored tracking and timing only", run_dir, why)
-        score = _score_without_groundtruth(run_dir, seq_dir, why)
-        score.warnings.append(why + ": check the frame times of the run and of groundtruth.txt")
-        return score
-    if timing and "frame" in timing and len(timing["frame"]):
-        # The estimator saw only these frames: cut the reference to the poses taken at their times.
-        frames = timing["frame"].astype(int)
-        t_frames = _frame_times_of(seq_dir, t_ref, frames)
-        i_ref, _ = associate(t_ref, t_frames, max_diff_s)
-        if len(i_ref) >= 2:
-            keep = np.sort(i_ref)
-            t_ref, T_ref = t_ref[keep], T_ref[keep]
-    score = score_trajectories(
-        t_ref,
-        T_ref,
-        run.timestamps_s,
-        run.T_world_cam,
-        estimator=str(result.get("estimator", "")),
-        statuses=run.statuses,
-        timing=timing,
-        max_diff_s=max_diff_s,
-    )
-    score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
-    if result:
-        score.extra["result"] = {
-            k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
-        }
-    for w in score.warnings:
-        log.warning("%s: %s", run_dir, w)
-    return score
-
-
-def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
-    run = RunFolder.read(run_dir)
-    n_frames = len(run.timing["frame"]) if run.timing and "frame" in run.timing else None
-    if n_frames is None:  # a run without timing.csv (a program's): every frame of the sequence
-        n_frames = int(run.result.get("frames") or read_json(seq_dir / "sequence.json").get("frame_count", 0))
-    score = score_without_groundtruth(
-        n_frames,
-        run.timestamps_s,
-        estimator=str(run.result.get("estimator", "")),
-        statuses=run.statuses,
-        timing=None if run.timing is None else dict(run.timing),
-        why=why,
-    )
-    score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
-    return score
-
-
-def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray) -> np.ndarray:
-    """Times (s) of the sequence's ``frames``: from the sequence folder (``timestamps.txt`` or
-    ``i / fps``), or, for a bare ground-truth file, frame i at i over its median rate."""
-    if (seq_dir / "sequence.json").is_file():
-        from floorvo.sequence import Sequence  # sequence.py uses associate(): scoring sits above it
-
-        ts = Sequence.open(seq_dir).timestamps_s
-        return ts[frames[(frames >= 0) & (frames < len(ts))]]
-    d = np.diff(t_ref)
-    fps = float(1.0 / np.median(d)) if len(d) else 1.0
-    return frames / fps

@@ -7,7 +7,7 @@ from _bench_data import write_run, write_sequence
 
 from floorsim.bench.gates import DEFAULT_TOLERANCES, compare, load_baseline, parse_baseline, save_baseline
 from floorvo.errors import ConfigError
-from floorvo.metrics import score_run
+from floorvo.scoring import score_run
 
 
 def _rows(tmp_path, tag, **run_kw):
@@ -62,6 +62,20 @@ def test_tolerance_decides(tmp_path):
         allow_new=True,
     )
     assert r.ok and r.only_in_baseline == ["u/e"] and r.only_in_bench == ["t/e"]
+
+
+def test_direction_comes_from_the_metric_declaration():
+    """tracked_fraction and fps are declared higher-is-better: falling is worse, rising is better."""
+    tol = {"tracked_fraction": {"abs": 0.01, "rel": 0.0}, "fps": {"abs": 0.0, "rel": 0.5}}
+    baseline = {"tolerances": tol, "entries": {"s/e": {"tracked_fraction": 1.0, "fps": 100.0}}}
+    row = {"scene": "s", "estimator": "e", "tracked_fraction": 1.0, "fps": 100.0}
+    assert compare([row], baseline).ok
+    assert compare([{**row, "tracked_fraction": 0.995, "fps": 51.0}], baseline).ok  # within the tolerances
+    r = compare([{**row, "tracked_fraction": 0.9, "fps": 49.0}], baseline)
+    assert {g.metric for g in r.regressions} == {"tracked_fraction", "fps"}
+    assert "allowed down to 0.99" in r.summary()
+    up = compare([{**row, "fps": 300.0}], baseline)
+    assert up.ok and up.improved == ["s/e: fps 300 (baseline 100)"]
 
 
 def test_bad_baseline_files_are_refused_by_name(tmp_path):

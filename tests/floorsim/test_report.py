@@ -9,7 +9,7 @@ import pytest
 from _bench_data import write_run, write_sequence
 
 from floorsim.bench.report import RunRecord, build_bench_report, format_table
-from floorvo.metrics import score_run
+from floorvo.scoring import score_run
 
 CHROMIUM_FLAGS = [
     "--headless",

@@ -148,8 +148,8 @@ def _end_error_pct(run, seq) -> float:
 )
 def test_rendered_paper000_uniform_distance(tmp_path, rendered_p0u, shadows, limits):
     """Every mono estimator ends near the 100 mm travelled on the rendered paper-000 run."""
-    from floorvo.metrics import score_run
     from floorvo.run import run_estimator
+    from floorvo.scoring import score_run
 
     seq = rendered_p0u(**{"render.shadows": str(shadows).lower()})
     for name in MONO:

@@ -171,7 +171,7 @@ def test_floorvo_plot_draws_runs_against_ground_truth(line_sequence, tmp_path, c
 
 
 def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(line_sequence, tmp_path, capsys):
-    from floorvo.metrics import score_run
+    from floorvo.scoring import score_run
 
     # a run started at --initial-pose 50 mm away: the unaligned figures are left out with a warning
     assert (

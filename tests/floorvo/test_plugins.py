@@ -26,7 +26,7 @@ from floorvo.estimators import (
 )
 from floorvo.estimators.registry import refresh_plugins
 from floorvo.external import command_hash
-from floorvo.metrics import score_run
+from floorvo.scoring import score_run
 from floorvo.synthetic import line_poses, write_synthetic_sequence
 from floorvo.tum import read_tum
 

@@ -18,7 +18,7 @@ repetition) and gets the same runs, scores, report and gates. For each scene fil
    frame and peak memory; a run that fails (an external program that crashed, timed out or
    wrote no trajectory) is a ``failed`` row with the reason (and ``stderr_tail``), and the
    bench goes on;
-3. score each run (:func:`floorvo.metrics.score_run`, written to ``RUN/score.json``) and
+3. score each run (:func:`floorvo.scoring.score_run`, written to ``RUN/score.json``) and
    append one row to ``DIR/results.csv`` (:mod:`floorsim.bench.results`, atomically
    rewritten after every row).
 
@@ -72,10 +72,10 @@ from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json
-from floorvo.metrics import score_run
 from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
 from floorvo.runner import run_sequence
+from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
 
 log = logging.getLogger(__name__)
@@ -256,7 +256,7 @@ def run_one(
     kwargs = {} if T_world_start is None else {"T_world_start": T_world_start}
     figures = (runner or DEFAULT_RUNNER).run(seq_dir, estimator, run_dir, overrides, scale_calibration, **kwargs)
     score = score_run(run_dir, seq_dir)
-    atomic_write_json(run_dir / "score.json", score.to_dict())
+    write_score(score, run_dir / "score.json")
     row: dict[str, Any] = {**dict(figures or {}), **score.flat(), "ground_truth": score.ground_truth}
     if score.warnings:
         row["score_warnings"] = "; ".join(score.warnings)

@@ -6,8 +6,7 @@ A baseline file (JSON, written by :func:`save_baseline`, read by :func:`load_bas
      "tolerances": {"end_drift_pct": {"abs": 0.05, "rel": 0.05}, ...},
      "entries": {"SCENE/ESTIMATOR": {"end_drift_pct": 0.31, ...}, ...}}
 
-``tolerances`` names the gated metrics (every one "lower is better") with a finite,
-non-negative ``abs`` and ``rel``; ``entries`` holds, per ``scene/estimator``, the mean of
+``tolerances`` names the gated metrics with a finite, non-negative ``abs`` and ``rel``; ``entries`` holds, per ``scene/estimator``, the mean of
 each gated metric over the repetitions: a finite number, or ``null`` when the baseline run
 had no value for it (it failed or lost track). Anything else (an entry that is not a table,
 a value that is text, a list or NaN, a missing metric, no tolerances or no entries) is
@@ -18,7 +17,12 @@ A metric got worse when
 
     value > baseline + max(abs, rel * |baseline|)
 
-or when it was finite in the baseline and is missing or NaN now (the run lost track or
+for a metric whose declaration (:mod:`floorvo.metric_defs`) says lower is better (all the
+default gates, and any metric that is not declared), or
+
+    value < baseline - max(abs, rel * |baseline|)
+
+for one declared higher-is-better (``tracked_fraction``, ``fps``); or when it was finite in the baseline and is missing or NaN now (the run lost track or
 failed). Every ``scene/estimator`` of the current bench is expected in the baseline: one
 without an entry fails the gate unless ``allow_new`` (``floorsim bench --allow-new``), and
 a gate that checked no metric at all fails. The summary says how many metrics were checked
@@ -36,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from floorvo import metric_defs as md
 from floorvo.errors import ConfigError, shorten, shown
 from floorvo.io import atomic_write_json, read_json
 
@@ -59,15 +64,23 @@ BASELINE_VERSION = 1
 #: Gated metrics (all lower-is-better) and their default tolerances. Timing is machine
 #: dependent, so its tolerance is wide (twice as slow plus 2 ms fails).
 DEFAULT_TOLERANCES: dict[str, dict[str, float]] = {
-    "ate_none_rmse_mm": {"abs": 0.01, "rel": 0.05},
-    "ate_se2_rmse_mm": {"abs": 0.01, "rel": 0.05},
-    "rpe_frame_trans_rmse_mm": {"abs": 0.005, "rel": 0.05},
-    "rpe_frame_rot_rmse_deg": {"abs": 0.005, "rel": 0.05},
-    "end_drift_pct": {"abs": 0.05, "rel": 0.05},
-    "seg_mean_t_err_pct": {"abs": 0.05, "rel": 0.05},
-    "lost_frames": {"abs": 0.0, "rel": 0.0},
-    "time_total_ms_mean": {"abs": 2.0, "rel": 1.0},
+    md.ate_rmse("none").name: {"abs": 0.01, "rel": 0.05},
+    md.ate_rmse("se2").name: {"abs": 0.01, "rel": 0.05},
+    md.RPE_FRAME_TRANS_RMSE.name: {"abs": 0.005, "rel": 0.05},
+    md.RPE_FRAME_ROT_RMSE.name: {"abs": 0.005, "rel": 0.05},
+    md.END_DRIFT.name: {"abs": 0.05, "rel": 0.05},
+    md.SEG_MEAN_T_ERR.name: {"abs": 0.05, "rel": 0.05},
+    md.LOST_FRAMES.name: {"abs": 0.0, "rel": 0.0},
+    md.time_mean("total_ms").name: {"abs": 2.0, "rel": 1.0},
 }
+
+
+def _higher_is_better(metric: str) -> bool:
+    """True for a metric declared higher-is-better; undeclared metrics count as lower-is-better."""
+    try:
+        return md.metric(metric).lower_is_better is False
+    except ValueError:
+        return False
 
 
 def _key(row: Mapping[str, Any]) -> str:
@@ -104,9 +117,11 @@ class Tolerance:
     abs: float = 0.0
     rel: float = 0.0
 
-    def allowed(self, base: float) -> float:
-        """The largest value that still passes against ``base``."""
-        return base + max(self.abs, self.rel * abs(base))
+    def allowed(self, base: float, higher_is_better: bool = False) -> float:
+        """The worst value that still passes against ``base``: the largest for a lower-is-better
+        metric, the smallest for a higher-is-better one."""
+        margin = max(self.abs, self.rel * abs(base))
+        return base - margin if higher_is_better else base + margin
 
 
 @dataclass(frozen=True)
@@ -232,9 +247,10 @@ class Regression:
     def describe(self) -> str:
         if not math.isfinite(self.value):
             return f"{self.key}: {self.metric} is missing now (baseline {self.baseline:.6g})"
+        bound = "down to" if self.allowed < self.baseline else "up to"
         return (
             f"{self.key}: {self.metric} got worse: {self.value:.6g} against baseline {self.baseline:.6g} "
-            f"(allowed up to {self.allowed:.6g})"
+            f"(allowed {bound} {self.allowed:.6g})"
         )
 
 
@@ -309,10 +325,11 @@ def compare(
                 res.no_baseline_value.append((key, metric))
                 continue
             value = current[key][metric]
-            allowed = t.allowed(base)
+            higher = _higher_is_better(metric)
+            allowed = t.allowed(base, higher)
             res.checked += 1
-            if not math.isfinite(value) or value > allowed:
+            if not math.isfinite(value) or (value < allowed if higher else value > allowed):
                 res.regressions.append(Regression(key, metric, base, value, allowed))
-            elif value < base:
+            elif (value > base) if higher else (value < base):
                 res.improved.append(f"{key}: {metric} {value:.6g} (baseline {base:.6g})")
     return res

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from floorvo import metric_defs as md
 from floorvo.io import atomic_write_bytes, atomic_write_text
 from floorvo.plots import PlotRun, draw_errors, draw_trajectories, load_plot_run, pyplot
 from floorvo.runfolder import read_match_samples, read_timing_csv
@@ -40,20 +41,25 @@ SUMMARY_COLUMNS: list[tuple[str, str]] = [
     ("source", "source"),
     ("repetition", "rep"),
     ("status", "status"),
-    ("ate_none_rmse_mm", "ATE mm (no align)"),
-    ("ate_se2_rmse_mm", "ATE mm (SE2)"),
-    ("rpe_frame_trans_rmse_mm", "RPE mm/frame"),
-    ("end_drift_pct", "end drift %"),
-    ("seg_mean_t_err_pct", "segment err %"),
-    ("lost_frames", "lost"),
-    ("time_total_ms_mean", "ms/frame"),
+    *(
+        (m.name, m.label)
+        for m in (
+            md.ate_rmse("none"),
+            md.ate_rmse("se2"),
+            md.RPE_FRAME_TRANS_RMSE,
+            md.END_DRIFT,
+            md.SEG_MEAN_T_ERR,
+            md.LOST_FRAMES,
+            md.time_mean("total_ms"),
+        )
+    ),
     ("wall_ms_per_frame", "wall ms/frame"),
     ("peak_rss_mb", "peak MiB"),
 ]
 
 #: Columns that need ground truth: a row scored without it shows why in their cells.
 GROUND_TRUTH_COLUMNS = frozenset(
-    {"ate_none_rmse_mm", "ate_se2_rmse_mm", "rpe_frame_trans_rmse_mm", "end_drift_pct", "seg_mean_t_err_pct"}
+    m.name for m in (md.ate_rmse("none"), md.ate_rmse("se2"), md.RPE_FRAME_TRANS_RMSE, md.END_DRIFT, md.SEG_MEAN_T_ERR)
 )
 
 #: (column, header) of the comparison of estimators across their sources.
@@ -63,8 +69,8 @@ COMPARE_COLUMNS: list[tuple[str, str]] = [
     ("source_detail", "version / command"),
     ("runs", "runs"),
     ("failed", "failed"),
-    ("ate_se2_rmse_mm", "ATE mm (SE2), mean"),
-    ("end_drift_pct", "end drift %, mean"),
+    (md.ate_rmse("se2").name, f"{md.ate_rmse('se2').label}, mean"),
+    (md.END_DRIFT.name, f"{md.END_DRIFT.label}, mean"),
     ("wall_ms_per_frame", "wall ms/frame, mean"),
     ("peak_rss_mb", "peak MiB, max"),
 ]

@@ -71,6 +71,7 @@ from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
 from floorsim.bench.report import COMPARE_COLUMNS, Report, _plt, compare_estimators
 from floorsim.bench.results import read_results_csv, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
+from floorvo import metric_defs as md
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shorten, shown
 from floorvo.external import ExternalEstimator
 from floorvo.io import read_toml
@@ -481,8 +482,8 @@ def plot_sweep(
             for v in xs_sorted:
                 sel = [r for r in ok if r["estimator"] == est and _as_override(r.get(key)) == _as_override(v)]
                 sel = sel or [r for r in ok if r["estimator"] == est and _num(r.get(key)) == _num(v)]
-                d = [_num(r.get("end_drift_pct")) for r in sel]
-                lo = [_num(r.get("lost_frames")) for r in sel]
+                d = [_num(r.get(md.END_DRIFT.name)) for r in sel]
+                lo = [_num(r.get(md.LOST_FRAMES.name)) for r in sel]
                 drift.append(float(np.nanmean(d)) if d and np.isfinite(d).any() else np.nan)
                 lost.append(float(np.nanmean(lo)) if lo and np.isfinite(lo).any() else np.nan)
                 table.append(
@@ -513,7 +514,7 @@ def plot_sweep(
             [
                 ("estimator", "estimator"),
                 ("value", key),
-                ("drift", "end drift %"),
+                ("drift", md.END_DRIFT.label),
                 ("lost", "lost frames"),
                 ("n", "runs"),
             ],

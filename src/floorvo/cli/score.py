@@ -1,6 +1,6 @@
 """``floorvo score RUN --gt SEQ``: score an estimator run against ground truth.
 
-Prints a table and writes ``RUN/score.json`` (see :func:`floorvo.metrics.score_run`).
+Prints a table and writes ``RUN/score.json`` (see :func:`floorvo.scoring.score_run`).
 """
 
 from __future__ import annotations
@@ -10,8 +10,7 @@ import math
 from pathlib import Path
 
 from floorvo.cli.common import add_output_argument
-from floorvo.io import atomic_write_json
-from floorvo.metrics import Score, score_run
+from floorvo.scoring import Score, score_run, write_score
 
 __all__ = ["add_parser", "run", "format_score_table"]
 
@@ -95,7 +94,7 @@ def format_score_table(score: Score) -> str:
 def run(args: argparse.Namespace) -> int:
     score = score_run(args.run_dir, args.gt, max_diff_s=args.max_diff)
     out = args.output or (args.run_dir / "score.json")
-    atomic_write_json(out, score.to_dict())
+    write_score(score, out)
     print(format_score_table(score))
     print(f"score written to {out}")
     return 0

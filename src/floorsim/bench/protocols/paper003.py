@@ -45,8 +45,9 @@ from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_json
 from floorvo.mapping.localize_run import localize_sequence
 from floorvo.mapping.map import build_map, load_map, save_map
-from floorvo.metrics import associate, score_run
+from floorvo.metrics import associate
 from floorvo.runfolder import RunFolder
+from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
@@ -211,7 +212,7 @@ def run_paper003(
         }
         localize_sequence(kidnap_seq, map_dir, run_dir, odometry=odometry)
         score = score_run(run_dir, kidnap_seq)
-        atomic_write_json(run_dir / "score.json", score.to_dict())
+        write_score(score, run_dir / "score.json")
         reloc = relocalisation_metrics(kidnap_seq, run_dir)
         atomic_write_json(run_dir / "relocalisation.json", {**map_summary, **reloc})
         recover = reloc.pop("frames_to_recover")

@@ -1,0 +1,327 @@
+"""Scoring of a run folder against its ground truth: the file side of the metrics.
+
+:func:`score_run` reads a run folder (``RUN/trajectory.txt``, ``timing.csv``,
+``result.json``, through :class:`floorvo.runfolder.RunFolder`) and the sequence's
+``groundtruth.txt``, computes every metric of :mod:`floorvo.metrics`
+(pure functions on arrays) into a :class:`Score`, and :func:`write_score` writes it as
+``score.json``. :meth:`Score.flat` names each number as :mod:`floorvo.metric_defs`
+declares it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Sequence as SequenceT
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from floorvo import metric_defs as md
+from floorvo.errors import SequenceError
+from floorvo.io import atomic_write_json, read_json
+from floorvo.metrics import (
+    ALIGNMENTS,
+    SEGMENT_LENGTHS_MM,
+    associate,
+    ate,
+    check_trajectory,
+    end_point_drift,
+    path_distances_mm,
+    rpe,
+    segment_errors,
+    timing_stats,
+    tracking_stats,
+)
+from floorvo.runfolder import RunFolder
+from floorvo.sequence import Sequence
+from floorvo.tum import read_tum
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "NO_GROUND_TRUTH",
+    "Score",
+    "score_trajectories",
+    "score_without_groundtruth",
+    "read_run_and_groundtruth",
+    "score_run",
+    "write_score",
+]
+
+
+#: What a score without ground truth says in place of the metrics that need it.
+NO_GROUND_TRUTH = "no ground truth"
+#: An estimate whose first pose is farther than FAR_START_MM + FAR_START_FRACTION x path length
+#: from the ground truth at the same time is not in the ground truth's frame (a warning).
+FAR_START_MM = 10.0
+FAR_START_FRACTION = 0.05
+
+
+@dataclass
+class Score:
+    """Every metric of one run against its ground truth (see :meth:`to_dict`, :meth:`flat`).
+
+    Without ground truth (or when the estimate shares fewer than two timestamps with it),
+    ``ate``, ``rpe_*``, ``drift`` and ``segments`` are empty, ``ground_truth`` says why
+    (``"no ground truth"``), and only tracking and timing are scored. ``warnings``: what a
+    reader of the figures must know (no shared timestamps; an estimate that starts far from
+    the ground truth, whose unaligned metrics are then left out).
+    """
+
+    estimator: str
+    run_dir: str
+    seq_dir: str
+    n_ref: int
+    n_est: int
+    n_matched: int
+    ate: dict[str, dict]
+    rpe_frame: dict
+    rpe_distance: list[dict]
+    drift: dict
+    segments: list[dict]
+    tracking: dict
+    timing: dict
+    extra: dict = field(default_factory=dict)
+    ground_truth: str = "ok"
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (per-pose arrays dropped)."""
+        d = asdict(self)
+        for a in d["ate"].values():
+            a.pop("errors_mm", None)
+            if "T_align" in a:
+                a["T_align"] = np.asarray(a["T_align"]).tolist()
+        for r in [d["rpe_frame"], *d["rpe_distance"]]:
+            for k in ("pairs", "trans_errors_mm", "rot_errors_deg"):
+                r.pop(k, None)
+        return _jsonable(d)
+
+    def flat(self) -> dict[str, float]:
+        """One number per metric, named by :mod:`floorvo.metric_defs` (results.csv columns, gates)."""
+        f: dict[str, float] = {}
+        for name, a in self.ate.items():
+            f[md.ate_rmse(name).name] = a["trans_mm"]["rmse"]
+            f[md.ate_mean(name).name] = a["trans_mm"]["mean"]
+            f[md.ate_max(name).name] = a["trans_mm"]["max"]
+        f[md.ATE_SE3_ROT_RMSE.name] = self.ate["se3"]["rot_deg"]["rmse"] if "se3" in self.ate else float("nan")
+        if self.rpe_frame:
+            f[md.RPE_FRAME_TRANS_RMSE.name] = self.rpe_frame["trans_mm"]["rmse"]
+            f[md.RPE_FRAME_ROT_RMSE.name] = self.rpe_frame["rot_deg"]["rmse"]
+        for r in self.rpe_distance:
+            f[md.rpe_distance_trans_rmse(r["delta"]).name] = r["trans_mm"]["rmse"]
+        for d in (md.END_DRIFT, md.DISTANCE_ERROR, md.PATH_LENGTH, md.MEASURED):
+            if d.name in self.drift:
+                f[d.name] = self.drift[d.name]
+        for s in self.segments:
+            f[md.segment_t_err(s["length_mm"]).name] = s["t_err_pct"]
+        f[md.SEG_MEAN_T_ERR.name] = (
+            float(np.mean([s["t_err_pct"] for s in self.segments])) if self.segments else float("nan")
+        )
+        f[md.SEG_MEAN_R_ERR.name] = (
+            float(np.mean([s["r_err_deg_per_m"] for s in self.segments])) if self.segments else float("nan")
+        )
+        f[md.LOST_FRAMES.name] = float(self.tracking["lost_frames"])
+        f[md.LOSS_EVENTS.name] = float(self.tracking["loss_events"])
+        f[md.TRACKED_FRACTION.name] = float(self.tracking["tracked_fraction"])
+        for stage in md.TIMING_STAGES:
+            if stage in self.timing:
+                f[md.time_mean(stage).name] = self.timing[stage]["mean"]
+        if "fps" in self.timing:
+            f[md.FPS.name] = self.timing["fps"]
+        return f
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def score_trajectories(
+    t_ref_s: np.ndarray,
+    T_ref: np.ndarray,
+    t_est_s: np.ndarray,
+    T_est: np.ndarray,
+    *,
+    estimator: str = "",
+    statuses: SequenceT[str] | None = None,
+    timing: dict[str, np.ndarray] | None = None,
+    max_diff_s: float = 0.01,
+    rpe_deltas_mm: SequenceT[float] = (10.0, 100.0),
+    segment_lengths_mm: SequenceT[float] = SEGMENT_LENGTHS_MM,
+) -> Score:
+    """Score an estimated trajectory against the reference (both ``(ts (N,), T (N, 4, 4) mm)``)."""
+    t_ref_s, T_ref = check_trajectory(t_ref_s, T_ref, "reference")
+    t_est_s, T_est = check_trajectory(t_est_s, T_est, "estimate")
+    i_ref, i_est = associate(t_ref_s, t_est_s, max_diff_s)
+    if len(i_ref) < 2:
+        raise SequenceError(
+            f"estimate has {len(i_ref)} pose(s) matching a ground-truth timestamp within {max_diff_s} s; need >= 2 to score"
+        )
+    A, B = T_ref[i_ref], T_est[i_est]
+    ates = {m: ate(A, B, m) for m in ALIGNMENTS}
+    rpe_d = [rpe(A, B, delta_mm=d) for d in rpe_deltas_mm if path_distances_mm(A)[-1] >= d]
+    drift = end_point_drift(A, B, "none")
+    warnings = []
+    start_mm = float(np.linalg.norm(A[0, :3, 3] - B[0, :3, 3]))
+    if start_mm > FAR_START_MM + FAR_START_FRACTION * path_distances_mm(A)[-1]:
+        # Not in the ground truth's frame: the unaligned figures would measure the offset, not the estimator.
+        warnings.append(
+            f"the estimate starts {start_mm:.1f} mm from the ground truth at their first shared time: it is not in "
+            "the ground truth's world frame, so the unaligned ATE and the end drift are left out (see the aligned ATE)"
+        )
+        for m in ("none", "origin"):
+            ates.pop(m, None)
+        drift = {k: v for k, v in drift.items() if k not in ("end_drift_pct", "end_error_mm")}
+    return Score(
+        estimator=estimator,
+        run_dir="",
+        seq_dir="",
+        n_ref=len(T_ref),
+        n_est=len(T_est),
+        n_matched=len(i_ref),
+        ate=ates,
+        rpe_frame=rpe(A, B, delta_frames=1),
+        rpe_distance=rpe_d,
+        drift=drift,
+        segments=segment_errors(A, B, segment_lengths_mm),
+        tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est)),
+        timing=timing_stats(timing),
+        warnings=warnings,
+    )
+
+
+def score_without_groundtruth(
+    n_frames: int,
+    t_est_s: np.ndarray,
+    *,
+    estimator: str = "",
+    statuses: SequenceT[str] | None = None,
+    timing: dict[str, np.ndarray] | None = None,
+    why: str = NO_GROUND_TRUTH,
+) -> Score:
+    """Tracking and timing of a run that has no ground truth to compare with (``why`` says so)."""
+    return Score(
+        estimator=estimator,
+        run_dir="",
+        seq_dir="",
+        n_ref=0,
+        n_est=len(t_est_s),
+        n_matched=0,
+        ate={},
+        rpe_frame={},
+        rpe_distance=[],
+        drift={},
+        segments=[],
+        tracking=tracking_stats(None if statuses is None else list(statuses), n_frames, len(t_est_s)),
+        timing=timing_stats(timing),
+        ground_truth=why,
+    )
+
+
+def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, purpose: str):
+    """``(groundtruth path, (t_ref, T_ref), run)`` of a run; ``run`` is its :class:`~floorvo.runfolder.RunFolder`.
+
+    ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
+    ("score", "calibrate") words the error when there is no ground truth.
+    """
+    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
+    gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
+    if not gt_path.is_file():
+        raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+    ref = read_tum(gt_path)
+    return gt_path, ref, RunFolder.read(run_dir)
+
+
+def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
+    """Score ``RUN/trajectory.txt`` (+ ``timing.csv``, ``result.json``) against ``SEQ/groundtruth.txt``.
+
+    When the run covered a sub-range of the sequence (``result.json`` ``frames``), the
+    reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
+    """
+    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
+    if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
+        score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
+        log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)
+        return score
+    _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
+    timing, result = run.timing, run.result
+    if len(run.timestamps_s) >= 2 and len(associate(t_ref, run.timestamps_s, max_diff_s)[0]) == 0:
+        why = f"the estimate shares no timestamp with the ground truth (within {max_diff_s} s)"
+        log.warning("%s: %s; scored tracking and timing only", run_dir, why)
+        score = _score_without_groundtruth(run_dir, seq_dir, why)
+        score.warnings.append(why + ": check the frame times of the run and of groundtruth.txt")
+        return score
+    if timing and "frame" in timing and len(timing["frame"]):
+        # The estimator saw only these frames: cut the reference to the poses taken at their times.
+        frames = timing["frame"].astype(int)
+        t_frames = _frame_times_of(seq_dir, t_ref, frames)
+        i_ref, _ = associate(t_ref, t_frames, max_diff_s)
+        if len(i_ref) >= 2:
+            keep = np.sort(i_ref)
+            t_ref, T_ref = t_ref[keep], T_ref[keep]
+    score = score_trajectories(
+        t_ref,
+        T_ref,
+        run.timestamps_s,
+        run.T_world_cam,
+        estimator=str(result.get("estimator", "")),
+        statuses=run.statuses,
+        timing=timing,
+        max_diff_s=max_diff_s,
+    )
+    score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
+    if result:
+        score.extra["result"] = {
+            k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
+        }
+    for w in score.warnings:
+        log.warning("%s: %s", run_dir, w)
+    return score
+
+
+def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
+    run = RunFolder.read(run_dir)
+    n_frames = len(run.timing["frame"]) if run.timing and "frame" in run.timing else None
+    if n_frames is None:  # a run without timing.csv (a program's): every frame of the sequence
+        n_frames = int(run.result.get("frames") or read_json(seq_dir / "sequence.json").get("frame_count", 0))
+    score = score_without_groundtruth(
+        n_frames,
+        run.timestamps_s,
+        estimator=str(run.result.get("estimator", "")),
+        statuses=run.statuses,
+        timing=None if run.timing is None else dict(run.timing),
+        why=why,
+    )
+    score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
+    return score
+
+
+def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Times (s) of the sequence's ``frames``: from the sequence folder (``timestamps.txt`` or
+    ``i / fps``), or, for a bare ground-truth file, frame i at i over its median rate."""
+    if (seq_dir / "sequence.json").is_file():
+        ts = Sequence.open(seq_dir).timestamps_s
+        return ts[frames[(frames >= 0) & (frames < len(ts))]]
+    d = np.diff(t_ref)
+    fps = float(1.0 / np.median(d)) if len(d) else 1.0
+    return frames / fps
+
+
+def write_score(score: Score, path: str | os.PathLike) -> None:
+    """Write ``score`` as JSON (:meth:`Score.to_dict`) to ``path``, atomically (``RUN/score.json``)."""
+    atomic_write_json(path, score.to_dict())

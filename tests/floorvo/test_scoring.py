@@ -1,0 +1,125 @@
+"""Scoring a run folder (floorvo.scoring) and the metric names it uses (floorvo.metric_defs)."""
+
+import json
+
+import numpy as np
+import pytest
+from test_metrics import line_traj
+
+from floorvo import metric_defs as md
+from floorvo import scoring as S
+from floorvo.tum import write_tum
+
+
+# ----------------------------------------------------------------------------- score_run and the CLI
+def _fake_run(tmp_path, *, scale=1.01, lost=(7, 8)):
+    """A sequence folder (ground truth only) and a run folder with a scaled estimate and two lost frames."""
+    seq = tmp_path / "seq"
+    run = tmp_path / "run"
+    n = 26
+    ts = np.arange(n) / 10.0
+    ref = line_traj(n)
+    est = line_traj(n, scale=scale)
+    seq.mkdir()
+    write_tum(seq / "groundtruth.txt", ts, ref)
+    camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
+    meta = {"schema_version": 2, "camera": camera, "fps": 10.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    keep = np.array([i not in lost for i in range(n)])
+    run.mkdir()
+    write_tum(run / "trajectory.txt", ts[keep], est[keep])
+    rows = ["frame,detect_ms,match_ms,estimate_ms,total_ms,status"]
+    for i in range(n):
+        st = "init" if i == 0 else ("lost" if i in lost else "ok")
+        rows.append(f"{i},1.0,2.0,0.5,{3.5 + i % 2},{st}")
+    (run / "timing.csv").write_text("\n".join(rows) + "\n")
+    (run / "result.json").write_text(json.dumps({"estimator": "fake"}))
+    return seq, run
+
+
+def test_score_run_reads_run_folder(tmp_path):
+    seq, run = _fake_run(tmp_path)
+    s = S.score_run(run, seq)
+    assert s.estimator == "fake"
+    assert s.n_matched == 24 and s.tracking["lost_frames"] == 2 and s.tracking["loss_events"] == 1
+    assert s.drift["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert s.timing["total_ms"]["mean"] == pytest.approx(4.0)
+    f = s.flat()
+    assert f["lost_frames"] == 2 and f["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    json.dumps(s.to_dict())  # serialisable
+
+
+def test_floorvo_score_cli_prints_table_and_writes_score_json(tmp_path, capsys):
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path)
+    assert main(["score", str(run), "--gt", str(seq)]) == 0
+    out = capsys.readouterr().out
+    assert "ATE" in out and "end_drift_pct" in out and "score.json" in out
+    data = json.loads((run / "score.json").read_text())
+    assert data["drift"]["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert data["ate"]["se3"]["alignment"] == "se3"
+    assert main(["score", str(run), "--gt", str(tmp_path / "nope")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "groundtruth.txt" in err
+
+
+def test_timing_csv_keeps_text_columns_and_refuses_text_times(tmp_path, capsys):
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path)
+    lines = (run / "timing.csv").read_text().splitlines()
+    lines = [lines[0] + ",reason"] + [ln + (",map fix" if i % 2 else ",") for i, ln in enumerate(lines[1:])]
+    (run / "timing.csv").write_text("\n".join(lines) + "\n")  # as `floorvo localize` writes it
+    s = S.score_run(run, seq)
+    assert s.tracking["lost_frames"] == 2 and s.timing["total_ms"]["mean"] == pytest.approx(4.0)
+    (run / "timing.csv").write_text("\n".join([lines[0], lines[1].replace(",1.0,", ",fast,", 1)]) + "\n")
+    assert main(["score", str(run), "--gt", str(seq)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "column 'detect_ms' holds a value that is not a number" in err
+
+
+# ----------------------------------------------------------------------------- metric names
+def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(tmp_path):
+    """The column names results.csv has always had (written out by hand), now all from metric_defs."""
+    seq, run = _fake_run(tmp_path)
+    flat = S.score_run(run, seq).flat()
+    by_hand = (
+        [f"ate_{a}_{s}_mm" for a in ("none", "origin", "se2", "se3") for s in ("rmse", "mean", "max")]
+        + ["ate_se3_rot_rmse_deg", "rpe_frame_trans_rmse_mm", "rpe_frame_rot_rmse_deg"]
+        + ["rpe_10mm_trans_rmse_mm", "rpe_100mm_trans_rmse_mm"]
+        + ["end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"]
+        + ["seg_10mm_t_err_pct", "seg_25mm_t_err_pct", "seg_50mm_t_err_pct", "seg_100mm_t_err_pct"]
+        + ["seg_mean_t_err_pct", "seg_mean_r_err_deg_per_m", "lost_frames", "loss_events", "tracked_fraction"]
+        + ["time_total_ms_mean", "time_detect_ms_mean", "time_match_ms_mean", "time_estimate_ms_mean", "fps"]
+    )
+    assert list(flat) == by_hand
+    declared = md.all_metrics(segment_lengths_mm=(10.0, 25.0, 50.0, 100.0))
+    assert list(declared) == by_hand
+    for name in by_hand:
+        d = md.metric(name)
+        assert d.name == name and d.label and d.description
+        # The unit is the name's suffix where the name carries one.
+        suffix = {"_mm": "mm", "_deg": "deg", "_pct": "%", "_deg_per_m": "deg/m", "_ms_mean": "ms"}
+        assert all(d.unit == u for s, u in suffix.items() if name.endswith(s))
+    assert md.END_DRIFT.unit == "%" and md.END_DRIFT.lower_is_better is True
+    assert md.TRACKED_FRACTION.lower_is_better is False and md.FPS.lower_is_better is False
+    assert md.DISTANCE_ERROR.lower_is_better is None  # signed: its magnitude counts
+    assert md.ate_rmse("se2").unit == "mm" and md.time_mean("match_ms").name == "time_match_ms_mean"
+
+
+def test_unknown_metric_names_and_parameters_are_refused_by_name():
+    with pytest.raises(ValueError, match="metric 'ate_foo_rmse_mm': unknown"):
+        md.metric("ate_foo_rmse_mm")
+    with pytest.raises(ValueError, match="alignment 'sim3'"):
+        md.ate_rmse("sim3")
+    with pytest.raises(ValueError, match="timing stage 'io_ms'"):
+        md.time_mean("io_ms")
+
+
+def test_write_score_writes_json_atomically(tmp_path):
+    seq, run = _fake_run(tmp_path)
+    S.write_score(S.score_run(run, seq), tmp_path / "out" / "score.json")
+    data = json.loads((tmp_path / "out" / "score.json").read_text())
+    assert data["estimator"] == "fake" and data["tracking"]["lost_frames"] == 2
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["score.json"]  # no temporary file left
