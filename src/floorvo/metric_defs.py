@@ -70,28 +70,26 @@ def _check_alignment(alignment: str) -> str:
     return alignment
 
 
-def ate_rmse(alignment: str) -> MetricDef:
-    """RMS absolute trajectory error (translation, mm) after ``alignment``."""
+def _ate(alignment: str, stat: str, label: str, what: str) -> MetricDef:
     a = _check_alignment(alignment)
     return MetricDef(
-        f"ate_{a}_rmse_mm", "mm", f"ATE mm ({_ALIGN_LABEL[a]})", True, f"ATE translation RMSE, alignment {a}"
+        f"ate_{a}_{stat}_mm", "mm", label.format(_ALIGN_LABEL[a]), True, f"ATE translation {what}, alignment {a}"
     )
+
+
+def ate_rmse(alignment: str) -> MetricDef:
+    """RMS absolute trajectory error (translation, mm) after ``alignment``."""
+    return _ate(alignment, "rmse", "ATE mm ({})", "RMSE")
 
 
 def ate_mean(alignment: str) -> MetricDef:
     """Mean absolute trajectory error (translation, mm) after ``alignment``."""
-    a = _check_alignment(alignment)
-    return MetricDef(
-        f"ate_{a}_mean_mm", "mm", f"ATE mean mm ({_ALIGN_LABEL[a]})", True, f"ATE translation mean, alignment {a}"
-    )
+    return _ate(alignment, "mean", "ATE mean mm ({})", "mean")
 
 
 def ate_max(alignment: str) -> MetricDef:
     """Largest absolute trajectory error (translation, mm) after ``alignment``."""
-    a = _check_alignment(alignment)
-    return MetricDef(
-        f"ate_{a}_max_mm", "mm", f"ATE max mm ({_ALIGN_LABEL[a]})", True, f"ATE translation maximum, alignment {a}"
-    )
+    return _ate(alignment, "max", "ATE max mm ({})", "maximum")
 
 
 ATE_SE3_ROT_RMSE = MetricDef("ate_se3_rot_rmse_deg", "deg", "ATE deg (SE3)", True, "ATE rotation RMSE, SE(3) aligned")
@@ -103,14 +101,20 @@ RPE_FRAME_ROT_RMSE = MetricDef(
 )
 
 
+def _per_length(name: str, unit: str, label: str, description: str, length_mm: float) -> MetricDef:
+    """A metric of a path length: ``{}`` in name, label and description is the length (mm, ``%g``)."""
+    g = f"{length_mm:g}"
+    return MetricDef(name.format(g), unit, label.format(g), True, description.format(g))
+
+
 def rpe_distance_trans_rmse(delta_mm: float) -> MetricDef:
     """Relative pose error over ``delta_mm`` of reference path, translation RMSE (mm)."""
-    return MetricDef(
-        f"rpe_{delta_mm:g}mm_trans_rmse_mm",
+    return _per_length(
+        "rpe_{}mm_trans_rmse_mm",
         "mm",
-        f"RPE mm/{delta_mm:g} mm",
-        True,
-        f"relative pose error per {delta_mm:g} mm of path, translation RMSE",
+        "RPE mm/{} mm",
+        "relative pose error per {} mm of path, translation RMSE",
+        delta_mm,
     )
 
 
@@ -128,12 +132,12 @@ MEASURED = MetricDef("measured_mm", "mm", "measured mm", None, "estimated start-
 
 def segment_t_err(length_mm: float) -> MetricDef:
     """KITTI segment translation error over segments of ``length_mm`` (% of the length)."""
-    return MetricDef(
-        f"seg_{length_mm:g}mm_t_err_pct",
+    return _per_length(
+        "seg_{}mm_t_err_pct",
         "%",
-        f"segment {length_mm:g} mm err %",
-        True,
-        f"KITTI segment translation error over {length_mm:g} mm, in % of the length",
+        "segment {} mm err %",
+        "KITTI segment translation error over {} mm, in % of the length",
+        length_mm,
     )
 
 
