@@ -2,10 +2,11 @@
 
 Modelled on Kornia's ``feature/matching.py``: plain functions of two descriptor arrays
 that return index pairs and distances, no state and no file I/O. Exact nearest
-neighbours come from OpenCV's brute-force matcher (Hamming distance for binary uint8
-descriptors such as AKAZE's MLDB and ORB, L2 for float descriptors such as SIFT); a
-caller with its own (approximate) index passes its k-nearest neighbours to
-:func:`ratio_test`.
+neighbours are brute force (Hamming distance for binary uint8 descriptors such as
+AKAZE's MLDB and ORB, L2 for float descriptors such as SIFT) by ``cv2.batchDistance``,
+the kernel of OpenCV's ``BFMatcher``, which returns arrays (no per-match Python objects
+to unpack). A caller with its own (approximate) index passes its k nearest neighbours to
+:func:`ratio_test` (:func:`knn_from_dmatches` turns OpenCV ``knnMatch`` results into them).
 
 Conventions
 -----------
@@ -22,7 +23,9 @@ Conventions
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import chain
 
 import cv2
 import numpy as np
@@ -32,6 +35,7 @@ __all__ = [
     "Matches",
     "UNIQUE_RULES",
     "knn",
+    "knn_from_dmatches",
     "match_nn",
     "ratio_test",
     "match_ratio",
@@ -71,11 +75,12 @@ def _empty(with_ratio: bool = False) -> Matches:
     return Matches(np.zeros((0, 2), np.int64), np.zeros(0), np.zeros(0) if with_ratio else None)
 
 
-def _norm(desc0: np.ndarray, desc1: np.ndarray) -> int:
-    """OpenCV norm for the descriptor kind: Hamming for uint8 (binary) rows, L2 for float rows."""
+def _norm(desc0: np.ndarray, desc1: np.ndarray) -> tuple[int, int]:
+    """OpenCV norm and distance type for the descriptor kind: Hamming (int) for uint8 (binary)
+    rows, L2 (float) for float rows."""
     if desc0.dtype != desc1.dtype:
         raise ValueError(f"descriptors of two kinds: {desc0.dtype} and {desc1.dtype}")
-    return cv2.NORM_HAMMING if desc0.dtype == np.uint8 else cv2.NORM_L2
+    return (cv2.NORM_HAMMING, cv2.CV_32S) if desc0.dtype == np.uint8 else (cv2.NORM_L2, cv2.CV_32F)
 
 
 def _check(desc0: np.ndarray, desc1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -89,17 +94,42 @@ def knn(desc0: np.ndarray, desc1: np.ndarray, k: int = 2) -> tuple[np.ndarray, n
     """The ``k`` nearest rows of ``desc1`` for every row of ``desc0``, nearest first (exact).
 
     Returns ``(distance (N0, k) float64, index (N0, k) int64)``; where ``desc1`` has fewer
-    than ``k`` rows the missing neighbours have distance ``inf`` and index -1.
+    than ``k`` rows the missing neighbours have distance ``inf`` and index -1. The same
+    neighbours as OpenCV's brute-force ``knnMatch`` (``cv2.batchDistance``, which it runs),
+    as arrays.
     """
     d0, d1 = _check(desc0, desc1)
     dist = np.full((len(d0), k), np.inf)
     idx = np.full((len(d0), k), -1, dtype=np.int64)
     if len(d0) == 0 or len(d1) == 0:
         return dist, idx
-    for m in cv2.BFMatcher(_norm(d0, d1)).knnMatch(d0, d1, k=k):
-        for r, dm in enumerate(m):
-            dist[dm.queryIdx, r] = dm.distance
-            idx[dm.queryIdx, r] = dm.trainIdx
+    norm, dtype = _norm(d0, d1)
+    kk = min(k, len(d1))
+    d, i = cv2.batchDistance(d0, d1, dtype, normType=norm, K=kk)
+    dist[:, :kk], idx[:, :kk] = d, i
+    return dist, idx
+
+
+def knn_from_dmatches(found: Sequence[Sequence[cv2.DMatch]], n_query: int, k: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`knn`'s arrays from OpenCV ``knnMatch`` results (e.g. of a FLANN index, which
+    may return fewer than ``k`` neighbours for a row): ``(distance (n_query, k), index (n_query, k))``."""
+    if k == 2 and len(found) == n_query:
+        # The common case, without a Python object per neighbour: every row has two
+        # neighbours (OpenCV returns row i for query i).
+        try:
+            flat = np.fromiter(
+                chain.from_iterable((a.distance, b.distance, a.trainIdx, b.trainIdx) for a, b in found),
+                dtype=np.float64,
+                count=4 * n_query,
+            ).reshape(n_query, 4)
+            return flat[:, :2].copy(), flat[:, 2:].astype(np.int64)
+        except ValueError:  # a row with fewer (or more) neighbours
+            pass
+    dist = np.full((n_query, k), np.inf)
+    idx = np.full((n_query, k), -1, dtype=np.int64)
+    for m in found:
+        for r, dm in enumerate(m[:k]):
+            dist[dm.queryIdx, r], idx[dm.queryIdx, r] = dm.distance, dm.trainIdx
     return dist, idx
 
 
@@ -113,13 +143,12 @@ def match_nn(desc0: np.ndarray, desc1: np.ndarray, *, cross_check: bool = False)
     d0, d1 = _check(desc0, desc1)
     if len(d0) == 0 or len(d1) == 0:
         return _empty()
-    found = cv2.BFMatcher(_norm(d0, d1), crossCheck=cross_check).match(d0, d1)
-    if not found:
-        return _empty()
-    idx = np.array([(m.queryIdx, m.trainIdx) for m in found], dtype=np.int64)
-    dist = np.array([m.distance for m in found], dtype=float)
-    order = np.argsort(idx[:, 0], kind="stable")
-    return Matches(idx[order], dist[order])
+    dist, idx = knn(d0, d1, 1)
+    rows = np.arange(len(d0))
+    if cross_check:
+        _, back = knn(d1, d0, 1)
+        rows = rows[back[idx[:, 0], 0] == rows]
+    return Matches(np.column_stack([rows, idx[rows, 0]]).astype(np.int64), dist[rows, 0])
 
 
 def ratio_test(knn_distance: np.ndarray, knn_index: np.ndarray, ratio: float, *, unique: str = "none") -> Matches:

@@ -14,6 +14,7 @@ Hand-made one-byte binary descriptors, whose Hamming distances are counted by ha
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -21,6 +22,7 @@ from floorvo.matching import (
     Matches,
     hamming_distances,
     knn,
+    knn_from_dmatches,
     match_guided,
     match_nn,
     match_ratio,
@@ -52,6 +54,21 @@ def test_knn_nearest_first_and_missing_neighbours():
     assert idx[0].tolist() == [0, 2] and idx[1, 0] == 1 and idx[2, 0] == 3 and idx[3, 0] == 0
     dist, idx = knn(D0, D1[:1], 2)  # one row in desc1: no second neighbour
     assert np.isinf(dist[:, 1]).all() and (idx[:, 1] == -1).all()
+
+
+def test_knn_arrays_from_opencv_matches_short_rows_included():
+    """OpenCV knnMatch results (as a FLANN index returns them) become knn()'s arrays."""
+    full = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(D0, D1, k=2)
+    dist, idx = knn_from_dmatches(full, len(D0), 2)
+    np.testing.assert_array_equal(dist, knn(D0, D1, 2)[0])
+    np.testing.assert_array_equal(dist[:, 0], HAND.min(axis=1))
+    assert idx[0].tolist() == [0, 2] and idx[3, 0] == 0
+    # A row with one neighbour and a row with none (an approximate index may return fewer).
+    short = [full[0], full[1][:1], [], full[3]]
+    dist, idx = knn_from_dmatches(short, 4, 2)
+    assert idx[1].tolist() == [1, -1] and np.isinf(dist[1, 1]) and idx[2].tolist() == [-1, -1]
+    assert idx[0].tolist() == [0, 2] and idx[3, 0] == 0
+    assert ratio_test(dist, idx, 0.8).idx.tolist() == [[0, 0], [3, 0]]  # rows 1 and 2 have no ratio
 
 
 def test_match_nn_with_and_without_cross_check():

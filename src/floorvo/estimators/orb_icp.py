@@ -34,7 +34,7 @@ from floorvo.config import Config, param
 from floorvo.estimators.base import Frame, StepResult
 from floorvo.geometry import rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
-from floorvo.matching import ratio_test
+from floorvo.matching import knn_from_dmatches, ratio_test
 
 __all__ = ["OrbIcp", "OrbIcpConfig", "homogenise_keypoints"]
 
@@ -154,11 +154,8 @@ class OrbIcp:
         if len(d_prev) < 2 or len(d_cur) < 2:
             return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
         cv2.setRNGSeed(self.config.seed)  # the LSH index built on d_cur draws its hash bits from OpenCV's RNG
-        dist = np.full((len(d_prev), 2), np.inf)
-        idx = np.full((len(d_prev), 2), -1, dtype=np.int64)
-        for nn in self.flann.knnMatch(d_prev, d_cur, k=2):  # LSH may return fewer than 2 neighbours
-            for r, dm in enumerate(nn[:2]):
-                dist[dm.queryIdx, r], idx[dm.queryIdx, r] = dm.distance, dm.trainIdx
+        # LSH may return fewer than 2 neighbours for a row: that row has no ratio and no match.
+        dist, idx = knn_from_dmatches(self.flann.knnMatch(d_prev, d_cur, k=2), len(d_prev), 2)
         # Section 3: gamma = d / L under the threshold.
         m = ratio_test(dist, idx, self.config.ratio, unique="best")
         gamma = np.asarray(m.ratio)
