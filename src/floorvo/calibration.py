@@ -28,6 +28,7 @@ import math
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -89,7 +90,7 @@ def fit_scale_calibration(T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: 
             f"scale calibration: needs at least 2 paired poses, got {len(T_true)} true and {len(T_est)} estimated"
         )
     g, e = _steps(T_true), _steps(T_est)
-    out = {}
+    out: dict[str, Any] = {}
     for k, axis in enumerate("xy"):
         travel = float(np.abs(g[:, k]).sum())
         den = float(g[:, k] @ g[:, k])

@@ -263,7 +263,7 @@ def rpe(
 
 
 # ----------------------------------------------------------------------------- drift
-def end_point_drift(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none") -> dict[str, float]:
+def end_point_drift(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none") -> dict[str, Any]:
     """End-point error (mm) and its share of the reference path length (%).
 
     Also the measured against the true displacement from the first to the last pose

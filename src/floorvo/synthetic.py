@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -59,7 +60,7 @@ def floor_texture(height_px: int, width_px: int | None = None, seed: int = 0) ->
     h = np.zeros((height_px, width_px), np.float32)
     for sigma, amp in ((1.0, 1.0), (2.5, 1.5), (6.0, 2.0), (20.0, 3.0)):
         h += amp * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), sigma)
-    shade = np.gradient(h, axis=1)  # faces towards -x are lit
+    shade = np.asarray(np.gradient(h, axis=1))  # faces towards -x are lit
     albedo = 1.0 + 0.3 * cv2.GaussianBlur(rng.standard_normal((height_px, width_px)).astype(np.float32), (0, 0), 8.0)
     tex = np.clip(albedo * (1.0 + 0.5 * shade / (shade.std() + 1e-6)), 0.05, None)
     return (tex / tex.max()).astype(np.float32)
@@ -148,7 +149,7 @@ def write_synthetic_sequence(
     origin = (-lo[0] / gsd, hi[1] / gsd)  # texture px of world (0, 0)
     fall = led_falloff(camera)
     T01 = None
-    meta = {
+    meta: dict[str, Any] = {
         "name": name,
         "camera": camera.to_dict(),
         "fps": float(fps),
