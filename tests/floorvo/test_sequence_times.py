@@ -20,8 +20,8 @@ CAM = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0
 def test_timestamps_file_drives_run_and_score(tmp_path):
     """Uneven frame times: the run is stamped with them, starts at the ground truth of the first frame
     run, and score cuts the reference to the frames the run saw, by time."""
-    from floorvo.metrics import score_run
     from floorvo.run import run_estimator
+    from floorvo.scoring import score_run
 
     T = line_poses(24.0, 4.0, 100.0)
     root = write_synthetic_sequence(tmp_path / "s", CAM, T, seed=1)
