@@ -67,7 +67,7 @@ def test_tolerance_decides(tmp_path):
 def test_direction_comes_from_the_metric_declaration():
     """tracked_fraction and fps are declared higher-is-better: falling is worse, rising is better."""
     tol = {"tracked_fraction": {"abs": 0.01, "rel": 0.0}, "fps": {"abs": 0.0, "rel": 0.5}}
-    baseline = {"tolerances": tol, "entries": {"s/e": {"tracked_fraction": 1.0, "fps": 100.0}}}
+    baseline = _baseline(tol, {"s/e": {"tracked_fraction": 1.0, "fps": 100.0}})
     row = {"scene": "s", "estimator": "e", "tracked_fraction": 1.0, "fps": 100.0}
     assert compare([row], baseline).ok
     assert compare([{**row, "tracked_fraction": 0.995, "fps": 51.0}], baseline).ok  # within the tolerances
