@@ -23,7 +23,8 @@ import numpy as np
 
 from floorvo.config import Config as ConfigBase
 from floorvo.config import param
-from floorvo.estimators.base import Frame, StepResult, floor_rigid_to_T
+from floorvo.estimators.base import Frame, StepResult
+from floorvo.geometry import floor_rigid_to_T
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class FftShift:
         self, config: FftShiftConfig, camera: Any, *, height_mm: float, flatfield: np.ndarray | None = None, **rig: Any
     ):
         self.config, self.camera = config, camera
-        self.gsd_mm_per_px = height_mm / camera.fx_px
+        self.gsd_mm_per_px = camera.gsd_mm_per_px(height_mm)  # eq. (1) of paper 000
         h, w = camera.height_px, camera.width_px
         self.window = np.outer(np.hanning(h), np.hanning(w))
         self.flat = None if flatfield is None else np.maximum(np.asarray(flatfield, float) / np.max(flatfield), 1e-3)
