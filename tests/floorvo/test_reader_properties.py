@@ -211,8 +211,8 @@ CELLS = st.one_of(
 def test_run_folder(sequence, run_dir, data, which, raw):
     """timing.csv rows of any cells (under its header, or a random one), result.json edited, or
     either file replaced by bytes: RunFolder.read and floorvo score give a run or one line."""
-    from floorvo.metrics import score_run
     from floorvo.runfolder import TIMING_COLUMNS, RunFolder
+    from floorvo.scoring import score_run
 
     root, _ = sequence
     run, files = run_dir
