@@ -178,6 +178,13 @@ def _is_table(tp: Any) -> bool:
     return tp is dict or typing.get_origin(tp) in (dict, Mapping)
 
 
+def _nested_config(tp: Any) -> type | None:
+    """The dataclass of a nested table field: ``Spec`` for ``Spec`` or ``Spec | None``, else None."""
+    inner = _optional_inner(tp)
+    cand = tp if inner is None else inner
+    return cand if dataclasses.is_dataclass(cand) and isinstance(cand, type) else None
+
+
 def type_name(tp: Any) -> str:
     """The field type as a listing shows it: ``float``, ``int | none``, ``list of float``."""
     inner = _optional_inner(tp)
@@ -337,8 +344,9 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
     """Dataclass ``cls`` from a plain mapping, every key, type and rule checked (a field without a
     default is required).
 
-    ``data`` holds field values; a nested dataclass field takes a nested mapping; values
-    that are :class:`SetText` are read by their field's type. ``prefix`` names where the
+    ``data`` holds field values; a nested dataclass field (``Spec`` or ``Spec | None``)
+    takes a nested mapping; values that are :class:`SetText` are read by their field's
+    type. ``prefix`` names where the
     mapping came from in errors (``camera`` -> ``camera.height_mm = ...``). ``unknown``:
     the words after an unknown key in its error (``unknown key (known: a, b)``).
     """
@@ -354,7 +362,12 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
     kwargs = {}
     for key, value in data.items():
         where, tp = _join(prefix, key), hints[key]
-        if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+        nested = _nested_config(tp)
+        if nested is not None and value is None and tp is not nested:  # an optional table left empty
+            kwargs[key] = None
+            continue
+        if nested is not None:
+            tp = nested
             if isinstance(value, tp):
                 kwargs[key] = value
                 continue
@@ -465,8 +478,9 @@ def describe_fields(cls: type, prefix: str = "", exclude: Iterable[str] = ()) ->
         if not f.init or f.name in skip:
             continue
         key, tp, r = _join(prefix, f.name), hints[f.name], rule_of(f)
-        if dataclasses.is_dataclass(tp) and isinstance(tp, type):
-            rows.extend(describe_fields(tp, key))
+        nested = _nested_config(tp)
+        if nested is not None:
+            rows.extend(describe_fields(nested, key))
             continue
         if f.default is not dataclasses.MISSING:
             default = _default_text(f.default)

@@ -78,6 +78,21 @@ def test_build_reads_types_and_nested_tables():
     assert build(Probe, {}) == Probe()
 
 
+@dataclass(frozen=True)
+class WithOptional(Config):
+    inner: Inner | None = param(None, doc="an optional table")
+
+
+def test_an_optional_nested_table_is_built_checked_and_listed():
+    assert build(WithOptional, {}).inner is None
+    assert build(WithOptional, {"inner": {"depth_mm": 2}}).inner == Inner(2.0)
+    with pytest.raises(ConfigError, match=r"^w\.inner\.depth_mm = 6\.0 mm: must be <= 5\.0 mm$"):
+        build(WithOptional, {"inner": {"depth_mm": 6.0}}, "w")
+    with pytest.raises(ConfigError, match=r"^w\.inner = 3: must be a table$"):
+        build(WithOptional, {"inner": 3}, "w")
+    assert [f.key for f in describe_fields(WithOptional)] == ["inner.depth_mm"]
+
+
 @pytest.mark.parametrize(
     "data, message",
     [
