@@ -37,7 +37,7 @@ from floorvo.errors import ConfigError
 from floorvo.io import atomic_write_json, checked_output_path, read_json
 from floorvo.sequence import SequenceWriter
 
-__all__ = ["render_sequence", "prepare_scene", "plan_tiles", "LED_INTENSITY_UNIT"]
+__all__ = ["render_sequence", "prepare_scene", "plan_tiles", "package_versions", "LED_INTENSITY_UNIT"]
 
 log = logging.getLogger(__name__)
 
@@ -187,7 +187,8 @@ def _render_frame(
     return (acc / len(times)).astype(np.float32)
 
 
-def _versions() -> dict:
+def package_versions() -> dict:
+    """Versions of floorsim, floorvo, numpy, Python and the render backend (sequence.json, study records)."""
     v = {
         "floorsim": floorsim.__version__,
         "floorvo": floorvo.__version__,
@@ -278,7 +279,7 @@ def render_sequence(
         "calib": {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 16}
         if scene.render.flatfield
         else None,
-        "versions": _versions(),
+        "versions": package_versions(),
     }
     writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
     root = writer.root

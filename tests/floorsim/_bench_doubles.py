@@ -20,6 +20,7 @@ import numpy as np
 from _bench_data import write_run, write_sequence
 
 from floorsim.bench.estimators import EstimatorRunner
+from floorvo.errors import ConfigError
 from floorvo.estimators import EstimatorSource
 from floorvo.estimators.base import StepResult
 
@@ -122,6 +123,11 @@ class FakeRunner(EstimatorRunner):
 
     def source(self, name):
         return super().source(name) if self.is_external(name) else EstimatorSource("double", name)
+
+    def check_config(self, name, overrides):
+        for key in overrides:
+            if name != "scaled" or key != "scale":
+                raise ConfigError(f"{name}.{key}: unknown config key (known: {'scale' if name == 'scaled' else ''})")
 
     def build(self, seq, name, overrides=None):
         return _Stepper(name), None

@@ -12,7 +12,13 @@ Modules, lowest layer first (none imports one above it):
   ``[bench]`` table;
 * :mod:`floorsim.bench.bench`: :func:`run_bench` (``floorsim bench``), the render cache,
   the estimator runner;
-* :mod:`floorsim.bench.sweep`: lighting-robustness sweeps (``floorsim sweep``), locally or on Dask.
+* :mod:`floorsim.bench.search`: the pure core of studies: failure criteria, breaking-point
+  brackets by bisection, confidence intervals;
+* :mod:`floorsim.bench.study`: the study (sweep) file format and the record of a study;
+* :mod:`floorsim.bench.sweep_report`: a study's report: curves with their spread, the
+  search, envelopes and margins;
+* :mod:`floorsim.bench.sweep`: lighting-robustness studies (``floorsim sweep``): grids and
+  breaking-point searches, locally or on Dask.
 """
 
 from floorsim.bench.bench import BenchResult, render_cached, run_bench

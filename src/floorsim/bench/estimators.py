@@ -26,7 +26,7 @@ import numpy as np
 
 from floorvo.calibration import ScaleCalibration
 from floorvo.errors import ConfigError, FloorbenchError
-from floorvo.estimators import EstimatorSource, estimator_source, get_estimator, list_estimators
+from floorvo.estimators import EstimatorSource, estimator_source, get_estimator, list_estimators, make_config
 from floorvo.external import ExternalEstimator, run_external
 from floorvo.run import build_estimator, run_estimator
 from floorvo.sequence import Sequence
@@ -131,6 +131,15 @@ class EstimatorRunner:
         if name in self.externals:
             return set(self.externals[name].needs)
         return set(getattr(get_estimator(name), "requires", ()) or ())
+
+    def check_config(self, name: str, overrides: Mapping[str, Any]) -> None:
+        """Refuse config keys or values that estimator ``name`` does not take (a one-line
+        :class:`~floorvo.errors.ConfigError` naming ``name.key``), before any run."""
+        if name in self.externals:
+            if overrides:
+                raise ConfigError(f"{name}: an external program takes no config keys (put options in its command)")
+            return
+        make_config(name, overrides)
 
     def build(self, seq: Sequence, name: str, overrides: Mapping[str, str] | None = None) -> tuple[Any, Any]:
         """``(estimator, config)`` for ``seq`` (:func:`floorvo.run.build_estimator`); an external

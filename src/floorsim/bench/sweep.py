@@ -1,66 +1,55 @@
-"""Lighting-robustness sweeps: a grid of scene variations, run locally or on Dask.
+"""Lighting-robustness studies: grids, breaking-point searches and envelopes, run locally or on Dask.
 
-A sweep file (TOML)::
+:func:`run_sweep` is the library function behind ``floorsim sweep STUDY.toml -o DIR``. The
+study (or sweep) file format is :mod:`floorsim.bench.study`'s: a base scene, the scene keys
+to vary (``[vary]``: a grid) or to search (``[search]``: a breaking point), a failure
+``[criterion]``, repetitions with their seeds, estimators and their configs.
 
-    base = "../demo.toml"                 # scene file, relative to the sweep file
-    estimators = ["name_a", "name_b"]     # optional: default every estimator the sequence supports
-    repetitions = 1                       # optional: seeds scene seed + k
-
-    [render]                              # optional, for every job: frames, scale, spp
-    frames = 12
-    scale = 0.25
-
-    [set]                                 # optional fixed scene overrides
-    "sensor.read_noise_e" = 2.0
-
-    [vary]                                # the grid: every combination of these values
-    "lights.height_mm" = [0.5, 1, 3, 10, 50]
-
-    [operating_point]                     # optional: the paper rig's value of a varied key
-    "lights.height_mm" = 3.0              # (default: the base scene's own value)
-
-    sequences = ["../recordings/hall"]    # optional: sequence folders run beside the grid
-                                          # (relative to the sweep file; not rendered, not varied;
-                                          # a file of sequences alone needs no base and no [vary])
-
-Keys are scene keys in ``--set`` form (``section.key``), so a sweep can vary only what the
-scene file format has. One job is one grid point and repetition: it renders the scene (the
-render cache of :func:`floorsim.bench.bench.render_cached` reuses an identical sequence) and
-runs and scores every estimator on it, giving one row per estimator (paper protocols are
-the bench's, not the sweep's). Each sequence folder of ``sequences`` is one more job
-(``sequence=NAME``), run and scored as it is. External programs (``externals=``, from
+One job is one scene variation and repetition: it renders the scene (the render cache of
+:func:`floorsim.bench.bench.render_cached` reuses an identical sequence) and runs and scores
+every estimator on it, giving one row per estimator: one render serves every estimator.
+Each folder of the file's ``sequences`` is one more job (``sequence=NAME``), run and scored
+as it is (not rendered, not varied, not searched). External programs (``externals=``, from
 ``--external`` and ``--estimator-file``) run in every job beside the registry's estimators.
 
-Execution: local processes by default (``jobs`` of them); ``scheduler="tcp://HOST:PORT"``
-sends the same jobs to a Dask distributed cluster; ``workers=N`` starts a local Dask
-cluster of N workers. Local workers exit when the main process dies, even by SIGKILL
-(:func:`_exit_with_parent`; Dask's own workers watch their nanny the same way). Rows stream
-into ``DIR/results.csv`` (atomically rewritten) as jobs finish, so an interrupted sweep
-started again skips the jobs already there.
-Then ``DIR/sweep.html`` and ``DIR/sweep.md`` hold the robustness curves: drift and
-tracking loss against each varied parameter, one line per estimator, the operating point
-marked.
+* **Grid**: every combination of the ``[vary]`` values, times the repetitions.
+* **Search**: per combination of the ``[vary]`` values (none: one) and per repetition, each
+  estimator's breaking point is bracketed by bisection on the search grid
+  (:mod:`floorsim.bench.search`). Jobs run in rounds: the first renders both ends, each
+  later one the midpoints the open brackets ask for (shared between estimators); every
+  evaluated value narrows every estimator's bracket. The result states, per estimator, the
+  breaking point, its bracket, its confidence interval over the seeds, the renders it took
+  and the renders a grid at the same tolerance would have taken
+  (``DIR/breaking_points.csv``, the report, :meth:`SweepResult.summary_lines`).
+
+Execution: :func:`job_pool` (the one place workers are started and stopped): local
+processes by default (``jobs`` of them); ``scheduler="tcp://HOST:PORT"`` sends the same
+jobs to a Dask distributed cluster; ``workers=N`` starts a local Dask cluster of N workers.
+A Dask worker lost mid-job (killed, out of memory) is replaced by its nanny and the
+scheduler runs the job again elsewhere (up to ``distributed.scheduler.allowed-failures``
+times); its rows come back once, from the run that finished. Rows stream into
+``DIR/results.csv`` (atomically rewritten) as jobs finish, so an interrupted study started
+again skips the jobs already there (a search replays its rounds from them).
+
+``DIR/study.toml`` and ``DIR/study.json`` record the study (:func:`floorsim.bench.study.write_study_record`);
+``DIR/sweep.html`` and ``DIR/sweep.md`` hold the report (:mod:`floorsim.bench.sweep_report`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
-import json
 import logging
-import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from collections.abc import Sequence as SequenceT
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from floorsim.bench.bench import (
     RenderFn,
     SceneLoader,
-    is_sequence_folder,
     render_cached,
     run_one,
     scene_seed,
@@ -68,145 +57,68 @@ from floorsim.bench.bench import (
     supported_estimators,
 )
 from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
-from floorsim.bench.report import COMPARE_COLUMNS, Report, _plt, compare_estimators
 from floorsim.bench.results import read_results_csv, write_results_csv
+from floorsim.bench.search import (
+    Bracket,
+    EstimatorBreakingPoint,
+    SearchResult,
+    bracket,
+    combine_brackets,
+    search_grid,
+)
+from floorsim.bench.study import SweepSpec, as_override, load_sweep, scene_key_unit, write_study_record
+from floorsim.bench.sweep_report import write_sweep_report
 from floorsim.scene import load_scene as load_scene_file
-from floorvo import metric_defs as md
-from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shorten, shown
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
 from floorvo.external import ExternalEstimator
-from floorvo.io import read_toml
+from floorvo.io import atomic_write_csv
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SweepSpec", "load_sweep", "sweep_jobs", "run_sweep_job", "run_sweep", "SweepResult", "plot_sweep"]
+__all__ = [
+    "SweepSpec",
+    "load_sweep",
+    "sweep_jobs",
+    "make_job",
+    "run_sweep_job",
+    "run_sweep",
+    "job_pool",
+    "SweepResult",
+    "SearchResult",
+    "EstimatorBreakingPoint",
+    "plot_sweep",
+    "scene_key_unit",
+]
 
-_TOP_KEYS = {"base", "estimators", "repetitions", "render", "set", "vary", "operating_point", "name", "sequences"}
-_RENDER_KEYS = {"frames": int, "scale": float, "spp": int}
-#: The most jobs (grid points x repetitions) a sweep file may ask for.
-MAX_SWEEP_JOBS = 10_000
+_as_override = as_override  # the name the sweep tests and older callers use
 
-
-def _as_override(value: Any) -> str:
-    """A TOML value as a ``--set`` string."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, dict)):
-        return json.dumps(value)
-    return str(value)
-
-
-@dataclass(frozen=True)
-class SweepSpec:
-    """A parsed sweep file."""
-
-    name: str
-    base: Path | None  # None: a sweep of sequence folders alone (no grid)
-    vary: dict[str, list[Any]]
-    estimators: list[str] | None = None
-    repetitions: int = 1
-    render: dict[str, Any] = field(default_factory=dict)
-    fixed: dict[str, str] = field(default_factory=dict)
-    operating_point: dict[str, Any] = field(default_factory=dict)
-    sequences: list[Path] = field(default_factory=list)
+#: ``collect(job, rows or None, exception or None)``: what a pool calls as each job ends.
+Collect = Callable[[Mapping[str, Any], "list[dict[str, Any]] | None", "BaseException | None"], None]
+#: ``run_batch(jobs, collect)``: run jobs on the pool, calling ``collect`` as each ends; returns when all did.
+RunBatch = Callable[[list[dict[str, Any]], Collect], None]
 
 
-def _table(path: Path, d: Mapping[str, Any], key: str) -> dict[str, Any]:
-    value = d.get(key, {})
-    if not isinstance(value, dict):
-        raise ConfigError(f"{path}: {key} = {shown(value)}: must be a table")
-    return value
+# ----------------------------------------------------------------------------- jobs
+def make_job(params: Mapping[str, Any], repetition: int) -> dict[str, Any]:
+    """One job: ``{"job": id, "params": {key: value}, "repetition": k}``; the id is
+    ``key=value;...;rep=k`` (the ``job`` column of results.csv, how a restart finds it)."""
+    jid = ";".join(f"{k}={as_override(v)}" for k, v in params.items()) + f";rep={repetition}"
+    return {"job": jid, "params": dict(params), "repetition": int(repetition)}
 
 
-def _beside(path: Path, name: str, key: str) -> Path:
-    """``name`` (a path in the sweep file, relative to it) as an absolute path."""
-    try:
-        return (path.parent / name).resolve()
-    except (ValueError, OSError) as exc:  # an embedded NUL byte, a loop of links
-        raise ConfigError(f"{path}: {key} = {shown(name)}: not a usable path ({shorten(str(exc))})") from None
-
-
-def load_sweep(path: str | os.PathLike) -> SweepSpec:
-    """Read and check a sweep file (ConfigError naming the key, the value and the rule).
-
-    The grid (values of every varied key, times the repetitions) may hold at most
-    :data:`MAX_SWEEP_JOBS` jobs. The render settings follow the rules of ``floorsim render``'s
-    ``--frames`` (an integer >= 1), ``--scale`` (0, 4] and ``--spp`` (an integer >= 1).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: sweep file does not exist")
-    d = read_toml(path, ConfigError)
-    unknown = set(d) - _TOP_KEYS
-    if unknown:
-        raise ConfigError(
-            f"{path}: unknown key(s) {shorten(', '.join(sorted(unknown)))} (known: {', '.join(sorted(_TOP_KEYS))})"
-        )
-    seqs = d.get("sequences", [])
-    if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
-        raise ConfigError(f"{path}: sequences = {shown(seqs)}: must be a list of sequence folders")
-    sequences = [_beside(path, q, "sequences") for q in seqs]
-    for q, full in zip(seqs, sequences):
-        if not is_sequence_folder(full):
-            raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
-    base: Path | None = None
-    if "base" in d or not sequences:  # a sweep of sequence folders alone has no grid
-        if not isinstance(d.get("base"), str) or not d["base"]:
-            raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
-        base = _beside(path, d["base"], "base")
-        if not base.is_file():
-            raise ConfigError(f"{path}: base = {shown(d['base'])}: scene file {shorten(str(base))} does not exist")
-    vary = d.get("vary", {} if base is None else None)
-    if base is None and (vary or not isinstance(vary, dict)):
-        raise ConfigError(f"{path}: [vary] needs base = the scene file whose keys it varies")
-    if base is not None and (not isinstance(vary, dict) or not vary):
-        raise ConfigError(f"{path}: [vary] must name at least one scene key with a list of values")
-    jobs = 1
-    for k, v in vary.items():
-        if not isinstance(v, list) or not v:
-            raise ConfigError(f"{path}: vary.{shorten(k)} = {shown(v)}: must be a non-empty list of values")
-        if len({_as_override(x) for x in v}) != len(v):
-            raise ConfigError(f"{path}: vary.{shorten(k)} = {shown(v)}: values must be distinct")
-        jobs *= len(v)
-    est = d.get("estimators")
-    if est is not None and (not isinstance(est, list) or not all(isinstance(e, str) for e in est) or not est):
-        raise ConfigError(f"{path}: estimators = {shown(est)}: must be a non-empty list of names")
-    reps = d.get("repetitions", 1)
-    if not isinstance(reps, int) or isinstance(reps, bool) or reps < 1:
-        raise ConfigError(f"{path}: repetitions = {shown(reps)}: must be an integer >= 1")
-    if jobs * reps > MAX_SWEEP_JOBS:
-        raise ConfigError(f"{path}: the grid holds {jobs * reps} jobs (values x repetitions); at most {MAX_SWEEP_JOBS}")
-    render = _table(path, d, "render")
-    for k, v in render.items():
-        if k not in _RENDER_KEYS:
-            raise ConfigError(f"{path}: render.{shorten(k)}: unknown key (known: {', '.join(_RENDER_KEYS)})")
-        whole = _RENDER_KEYS[k] is int
-        if isinstance(v, bool) or not isinstance(v, int if whole else (int, float)) or not 0 < v < math.inf:
-            rule = "an integer >= 1" if whole else "a number > 0"
-            raise ConfigError(f"{path}: render.{k} = {shown(v)}: must be {rule}")
-        if k == "scale" and v > 4:
-            raise ConfigError(f"{path}: render.scale = {shown(v)}: must be <= 4")
-    render = {k: _RENDER_KEYS[k](v) for k, v in render.items()}
-    op = _table(path, d, "operating_point")
-    for k in op:
-        if k not in vary:
-            raise ConfigError(f"{path}: operating_point.{shorten(k)}: not a varied key (varied: {', '.join(vary)})")
-    fixed = {k: _as_override(v) for k, v in _table(path, d, "set").items()}
-    name = d.get("name", path.stem)
-    if not isinstance(name, str) or not name:
-        raise ConfigError(f"{path}: name = {shown(name)}: must be a non-empty string")
-    return SweepSpec(name, base, {k: list(v) for k, v in vary.items()}, est, reps, render, fixed, dict(op), sequences)
+def _combinations(vary: Mapping[str, list[Any]]) -> list[dict[str, Any]]:
+    """Every combination of the ``[vary]`` values (one empty one when nothing varies)."""
+    keys = list(vary)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(vary[k] for k in keys))]
 
 
 def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
-    """Every job: the grid's ``{"job": id, "params": {key: value}, "repetition": k}``, then one
-    ``{"job": "sequence=NAME", "params": {}, "repetition": 0, "sequence": folder}`` per sequence folder."""
-    keys = list(spec.vary)
-    jobs: list[dict[str, Any]] = []
-    for combo in itertools.product(*(spec.vary[k] for k in keys)) if spec.base is not None else ():
-        params = dict(zip(keys, combo))
-        for rep in range(spec.repetitions):
-            jid = ";".join(f"{k}={_as_override(v)}" for k, v in params.items()) + f";rep={rep}"
-            jobs.append({"job": jid, "params": params, "repetition": rep})
+    """Every job of the ``[vary]`` grid and the repetitions (none for a search: its jobs come from
+    its rounds), then one ``{"job": "sequence=NAME", "params": {}, "repetition": 0, "sequence":
+    folder}`` per sequence folder of the file."""
+    jobs = []
+    if spec.vary and spec.search is None:
+        jobs = [make_job(params, rep) for params in _combinations(spec.vary) for rep in range(spec.repetitions)]
     for q in spec.sequences:
         jobs.append({"job": f"sequence={q.name}", "params": {}, "repetition": 0, "sequence": str(q)})
     return jobs
@@ -221,7 +133,7 @@ def run_sweep_job(
     load_scene: SceneLoader = load_scene_file,
     runner: EstimatorRunner | None = None,
 ) -> list[dict[str, Any]]:
-    """Render one grid point and run and score every estimator on it; returns its rows.
+    """Render one job's scene and run and score every estimator on it; returns its rows.
 
     Runs in a worker (a local process or a Dask worker): takes and returns plain data (the
     collaborators ``render``, ``load_scene`` and ``runner`` are picklable: module-level
@@ -229,19 +141,19 @@ def run_sweep_job(
     A user error (bad scene value, a failed run) becomes a row with ``status`` saying why.
     """
     out, cache = Path(out_dir), Path(cache_dir)
-    base_row = {"job": job["job"], "repetition": job["repetition"], **{k: job["params"].get(k) for k in spec.vary}}
-    overrides = {**spec.fixed, **{k: _as_override(v) for k, v in job["params"].items()}}
+    base_row = {"job": job["job"], "repetition": job["repetition"], **job["params"]}
+    overrides = {**spec.fixed, **{k: as_override(v) for k, v in job["params"].items()}}
     runner = runner or DEFAULT_RUNNER
     estimators = spec.estimators
     if estimators is not None:
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
+    seed: int | None
     try:
         if job.get("sequence"):
             seq_dir, seed, scene_name = Path(job["sequence"]), None, Path(job["sequence"]).name
         else:
-            assert spec.base is not None  # grid jobs exist only with a base scene
             scene = load_scene(spec.base, overrides)
-            seed, scene_name = scene_seed(scene) + int(job["repetition"]), scene.name
+            seed, scene_name = spec.seed(scene_seed(scene), int(job["repetition"])), scene.name
             seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
         names, skipped = supported_estimators(seq_dir, estimators, runner)
     except FloorbenchError as exc:
@@ -260,7 +172,7 @@ def run_sweep_job(
         }
         try:
             row.update(source_columns(runner, name))
-            row.update(run_one(seq_dir, name, run_dir, runner=runner))
+            row.update(run_one(seq_dir, name, run_dir, spec.estimator_config.get(name), runner=runner))
             row["status"] = "ok"
         except ExternalEstimatorError as exc:
             row["status"] = f"failed: {exc.reason}"
@@ -273,88 +185,7 @@ def run_sweep_job(
     return rows
 
 
-@dataclass
-class SweepResult:
-    rows: list[dict[str, Any]]
-    results_csv: Path
-    ran: int
-    skipped: int
-    errors: list[str]
-    report_html: Path | None = None
-    report_md: Path | None = None
-
-
-def run_sweep(
-    sweep_path: str | os.PathLike,
-    out_dir: str | os.PathLike,
-    scheduler: str | None = None,
-    workers: int | None = None,
-    *,
-    jobs: int = 1,
-    cache_dir: str | os.PathLike | None = None,
-    processes: bool = True,
-    report: bool = True,
-    on_job: Callable[[int, int], None] | None = None,
-    externals: SequenceT[ExternalEstimator] = (),
-    render: RenderFn | None = None,
-    load_scene: SceneLoader = load_scene_file,
-    runner: EstimatorRunner | None = None,
-) -> SweepResult:
-    """Run a sweep file's grid (see the module doc); returns the rows and where things are.
-
-    ``scheduler``: a Dask scheduler address; ``workers``: start a local Dask cluster of
-    that many workers (``processes=False`` makes them threads, for tests); neither: a local
-    process pool of ``jobs`` workers. Collaborators of every job (defaults: the real ones,
-    as in :func:`floorsim.bench.bench.run_bench`): ``render``, ``load_scene``, ``runner``.
-    ``externals``: programs run in every job (:class:`floorvo.external.ExternalEstimator`).
-    """
-    runner = (runner or DEFAULT_RUNNER).with_externals(externals)
-    if scheduler is not None and workers is not None:
-        raise ConfigError("--scheduler and --workers: give one of them (a cluster to join, or a local one to start)")
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers {workers}: must be >= 1")
-    if jobs < 1:
-        raise ConfigError(f"--jobs {jobs}: must be >= 1")
-    spec = load_sweep(sweep_path)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
-    cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
-    results_csv = out_dir / "results.csv"
-    rows = read_results_csv(results_csv)
-    done = {r.get("job") for r in rows}
-    all_jobs = sweep_jobs(spec)
-    todo = [j for j in all_jobs if j["job"] not in done]
-    log.info(
-        "sweep %s: %d jobs, %d already done, %d to run", spec.name, len(all_jobs), len(all_jobs) - len(todo), len(todo)
-    )
-    errors: list[str] = []
-    finished = 0
-
-    def collect(job: Mapping[str, Any], result: list[dict[str, Any]] | None, exc: BaseException | None) -> None:
-        nonlocal finished
-        finished += 1
-        if exc is not None:
-            errors.append(f"{job['job']}: {type(exc).__name__}: {exc}")
-            log.error("sweep job %s failed: %s", job["job"], exc, exc_info=exc)
-        else:
-            rows.extend(result or [])
-            write_results_csv(results_csv, rows)
-        if on_job:
-            on_job(finished, len(todo))
-
-    if todo:
-        args = (spec, str(out_dir.resolve()), cache, render, load_scene, runner)
-        if scheduler is not None or workers is not None:
-            _run_dask(todo, args, collect, scheduler, workers, processes)
-        else:
-            _run_local(todo, args, collect, jobs)
-    res = SweepResult(rows, results_csv, len(todo), len(all_jobs) - len(todo), errors)
-    if report and rows:
-        res.report_html, res.report_md = plot_sweep(spec, rows, out_dir, load_scene=load_scene)
-    return res
-
-
+# ----------------------------------------------------------------------------- the pool
 def _exit_with_parent(parent_alive) -> None:
     """Worker initializer: exit at once when the sweep's main process dies (even by SIGKILL).
 
@@ -375,49 +206,77 @@ def _exit_with_parent(parent_alive) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _run_local(todo, args, collect, jobs: int) -> None:
-    import concurrent.futures as cf
-    import multiprocessing as mp
+@contextlib.contextmanager
+def job_pool(
+    scheduler: str | None = None, workers: int | None = None, jobs: int = 1, processes: bool = True
+) -> Iterator[Callable[..., None]]:
+    """The one place a study starts and stops its workers; yields ``run_batch(fn, todo, args, collect)``.
 
-    ctx = mp.get_context("spawn")
-    parent_alive, keep_alive = ctx.Pipe(duplex=False)  # keep_alive: never written, closed when this process ends
-    try:
-        with cf.ProcessPoolExecutor(
-            max_workers=jobs, mp_context=ctx, initializer=_exit_with_parent, initargs=(parent_alive,)
-        ) as pool:
-            futs = {pool.submit(run_sweep_job, job, *args): job for job in todo}
-            try:
-                for fut in cf.as_completed(futs):
-                    exc = fut.exception()
-                    collect(futs[fut], None if exc else fut.result(), exc)
-            except KeyboardInterrupt:
-                for f in futs:
-                    f.cancel()
-                raise
-    finally:
-        keep_alive.close()
-        parent_alive.close()
+    ``run_batch`` runs ``fn(job, *args)`` for every job of ``todo`` and calls
+    ``collect(job, result, None)`` or ``collect(job, None, exception)`` in this process as
+    each ends; it returns when all did, and may be called again (a search's rounds) on the
+    same workers. ``scheduler``: a Dask scheduler address to join; ``workers``: start a
+    local Dask cluster of that many single-threaded workers (``processes=False``: threads,
+    for tests); neither: a local process pool of ``jobs`` workers (spawned: no state
+    inherited from the parent). Workers are stopped when the ``with`` block ends; local
+    workers also exit when this process dies, even by SIGKILL (:func:`_exit_with_parent`;
+    Dask's own workers watch their nanny the same way).
+    """
+    if scheduler is None and workers is None:
+        import concurrent.futures as cf
+        import multiprocessing as mp
 
+        ctx = mp.get_context("spawn")
+        parent_alive, keep_alive = ctx.Pipe(duplex=False)  # keep_alive: never written, closed when this process ends
+        try:
+            with cf.ProcessPoolExecutor(
+                max_workers=jobs, mp_context=ctx, initializer=_exit_with_parent, initargs=(parent_alive,)
+            ) as pool:
 
-def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, processes: bool) -> None:
+                def run_local(fn: Callable[..., Any], todo: list, args: tuple, collect: Collect) -> None:
+                    futs = {pool.submit(fn, job, *args): job for job in todo}
+                    try:
+                        for fut in cf.as_completed(futs):
+                            exc = fut.exception()
+                            collect(futs[fut], None if exc else fut.result(), exc)
+                    except KeyboardInterrupt:
+                        for f in futs:
+                            f.cancel()
+                        raise
+
+                yield run_local
+        finally:
+            keep_alive.close()
+            parent_alive.close()
+        return
+
     from dask.distributed import Client, LocalCluster, as_completed  # heavy, and only for Dask runs
 
     cluster = None
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise FloorbenchError(
+                f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})"
+            ) from None
+    else:
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=processes,
+            dashboard_address=None,
+            silence_logs=logging.WARNING,
+        )
+        client = Client(cluster)
     try:
-        if scheduler is not None:
-            try:
-                client = Client(scheduler, timeout="10s")
-            except (OSError, TimeoutError) as exc:
-                raise FloorbenchError(
-                    f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})"
-                ) from None
-        else:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=None)
-            client = Client(cluster)
-        with client:
+
+        def run_dask(fn: Callable[..., Any], todo: list, args: tuple, collect: Collect) -> None:
             futs = {}
             for job in todo:
-                f = client.submit(run_sweep_job, job, *args, key=f"floorsim-sweep-{job['job']}", pure=False)
+                # A key per job: a job that a lost worker held is rescheduled under the same key,
+                # and its one result comes back here once.
+                f = client.submit(fn, job, *args, key=f"floorsim-sweep-{job['job']}", pure=False)
                 futs[f.key] = (f, job)
             for fut in as_completed([f for f, _ in futs.values()]):
                 job = futs[fut.key][1]
@@ -425,98 +284,367 @@ def _run_dask(todo, args, collect, scheduler: str | None, workers: int | None, p
                     collect(job, None, fut.exception())
                 else:
                     collect(job, fut.result(), None)
+
+        yield run_dask
     finally:
+        client.close()
         if cluster is not None:
             cluster.close()
 
 
-# ----------------------------------------------------------------------------- robustness curves
-def _operating_value(spec: SweepSpec, key: str, load_scene: SceneLoader) -> Any:
+# ----------------------------------------------------------------------------- results
+@dataclass
+class SweepResult:
+    rows: list[dict[str, Any]]
+    results_csv: Path
+    ran: int
+    skipped: int
+    errors: list[str]
+    report_html: Path | None = None
+    report_md: Path | None = None
+    search: SearchResult | None = None
+    breaking_points_csv: Path | None = None
+    record: Path | None = None
+
+    def summary_lines(self) -> list[str]:
+        """What ``floorsim sweep`` prints about the study's answer (the search's breaking points)."""
+        return self.search.summary_lines() if self.search is not None else []
+
+
+# ----------------------------------------------------------------------------- checks before any job
+def _scene_value(scene: Any, key: str) -> Any:
+    d = scene.to_dict()
+    for part in key.split("."):
+        d = d[part]
+    return d
+
+
+def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunner) -> Any:
+    """Refuse, before any job, what would make every job fail: unknown estimators or config
+    keys, scene keys or values the scene refuses, a search key that is not a number.
+    Returns the base scene (the ``[set]`` overrides applied)."""
+    where = spec.path.name if spec.path is not None else spec.name
+    for name in (spec.estimators or []) + list(spec.estimator_config):
+        if not runner.known(name):
+            known = ", ".join(sorted(runner.names()))
+            raise ConfigError(f"{where}: estimators: {name!r}: unknown estimator (known: {known})")
+    for name, cfg in spec.estimator_config.items():
+        try:
+            runner.check_config(name, cfg)
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: estimator_config.{exc}") from None
+    base = load_scene(spec.base, dict(spec.fixed))
+    tries = [(k, v) for k, vs in spec.vary.items() for v in vs]
+    if spec.search is not None:
+        tries += [(spec.search.key, spec.search.low), (spec.search.key, spec.search.high)]
+    for k, v in tries:
+        try:
+            load_scene(spec.base, {**spec.fixed, k: as_override(v)})
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {k} = {as_override(v)}: {exc}") from None
+    if spec.search is not None:
+        try:
+            value = _scene_value(base, spec.search.key)
+        except (KeyError, TypeError):
+            raise ConfigError(f"{where}: search.key = {spec.search.key!r}: not a key of the scene") from None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{where}: search.key = {spec.search.key!r}: not a number in the scene ({value!r})")
+    return base
+
+
+def _operating_value(spec: SweepSpec, key: str, base: Any) -> Any:
+    """The paper rig's value of ``key``: the study's ``[operating_point]``, else the base scene's."""
     if key in spec.operating_point:
         return spec.operating_point[key]
     try:
-        if spec.base is None:
-            return None
-        d = load_scene(spec.base, dict(spec.fixed)).to_dict()
-        for part in key.split("."):
-            d = d[part]
-        return d
-    except (FloorbenchError, KeyError, TypeError, ImportError):
+        return _scene_value(base, key)
+    except (KeyError, TypeError, AttributeError):
         return None
 
 
-def _num(v: Any) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
+# ----------------------------------------------------------------------------- the search
+def _run_search(
+    spec: SweepSpec, base: Any, rows: list[dict[str, Any]], run_round: Callable[[list[dict[str, Any]]], None]
+) -> SearchResult:
+    """Bisect every estimator's breaking point (per [vary] combination and seed), rendering in rounds.
+
+    ``rows``: every row so far (a restart's included), grown by ``run_round(jobs)``, which
+    runs the jobs it is given and appends their rows.
+    """
+    s, criterion = spec.search, spec.criterion
+    assert s is not None and criterion is not None
+    grid = search_grid(s.low, s.high, s.tolerance, s.scale, integer=isinstance(_scene_value(base, s.key), int))
+    contexts = _combinations(spec.vary)
+    pairs = [(c, rep) for c in range(len(contexts)) for rep in range(spec.repetitions)]
+
+    def job(c: int, rep: int, i: int) -> dict[str, Any]:
+        return make_job({**contexts[c], s.key: grid[i]}, rep)
+
+    def evaluated(by_job: Mapping[str, list[dict[str, Any]]], c: int, rep: int) -> tuple[dict, int | None]:
+        """``({grid index: {estimator: why it fails, or None}}, seed)`` of the values rendered
+        so far; a failed job (scene, render) raises FloorbenchError with its status."""
+        out: dict[int, dict[str, str | None]] = {}
+        seed = None
+        for i in range(len(grid)):
+            rs = by_job.get(job(c, rep, i)["job"], [])
+            for r in rs:
+                if not r.get("estimator"):
+                    raise FloorbenchError(f"{r['job']}: {r.get('status')}")
+            if rs:
+                used.add(rs[0]["job"])
+                out[i] = {
+                    r["estimator"]: criterion.failure(r) for r in rs if not str(r.get("status")).startswith("skipped")
+                }
+                seed = next((int(r["seed"]) for r in rs if r.get("seed") is not None), seed)
+        return out, seed
+
+    def rows_by_job() -> dict[str, list[dict[str, Any]]]:
+        by: dict[str, list[dict[str, Any]]] = {}
+        for r in rows:
+            by.setdefault(str(r.get("job")), []).append(r)
+        return by
+
+    def brackets_of(ev: Mapping[int, Mapping[str, str | None]]) -> dict[str, Bracket]:
+        names = sorted({e for v in ev.values() for e in v})
+        return {
+            e: bracket({i: v[e] is not None for i, v in ev.items() if e in v}, len(grid), s.fails_below) for e in names
+        }
+
+    used: set[str] = set()
+    stopped: dict[tuple[int, int], str] = {}
+    while True:
+        by_job = rows_by_job()
+        wanted: dict[str, dict[str, Any]] = {}
+        for c, rep in pairs:
+            if (c, rep) in stopped:
+                continue
+            try:
+                ev, _ = evaluated(by_job, c, rep)
+            except FloorbenchError as exc:
+                stopped[(c, rep)] = str(exc)
+                continue
+            need = [i for i in (0, len(grid) - 1) if i not in ev]  # round one: both ends at once
+            if not need:
+                need = [
+                    b.next_index for b in brackets_of(ev).values() if b.state == "open" and b.next_index is not None
+                ]
+            for i in need:
+                j = job(c, rep, i)
+                wanted[j["job"]] = j
+        if not wanted:
+            break
+        log.info("search %s: rendering %d value(s): %s", s.key, len(wanted), ", ".join(sorted(wanted)))
+        before = len(rows)
+        run_round(list(wanted.values()))
+        if len(rows) == before:  # every job of the round failed (see the errors): no progress possible
+            for c, rep in pairs:
+                stopped.setdefault((c, rep), "its jobs failed (see the job errors)")
+            break
+
+    res = SearchResult(
+        s.key,
+        scene_key_unit(s.key),
+        s.fails,
+        s.scale,
+        s.tolerance,
+        criterion.describe(),
+        grid,
+        [],
+        {},
+        len(grid) * spec.repetitions,
+        _operating_value(spec, s.key, base),
+        confidence=spec.confidence,
+        jobs=used,
+    )
+    by_job = rows_by_job()
+    for c, ctx in enumerate(contexts):
+        label = res.context_label(ctx)
+        per_seed, seeds = [], []
+        for rep in range(spec.repetitions):
+            if (c, rep) in stopped:
+                res.errors.append(f"{label}, repetition {rep}: {stopped[(c, rep)]}")
+            try:
+                ev, seed = evaluated(by_job, c, rep)
+            except FloorbenchError:
+                ev, seed = {}, None
+            per_seed.append(ev)
+            seeds.append(seed)
+        res.renders[label] = sum(len(ev) for ev in per_seed)
+        per_est: dict[str, list[Bracket]] = {}
+        for rep, ev in enumerate(per_seed):
+            for e, b in brackets_of(ev).items():
+                per_est.setdefault(e, [Bracket("open")] * spec.repetitions)[rep] = b
+        for e, brackets in per_est.items():
+            reasons = {(i, rep): v[e] for rep, ev in enumerate(per_seed) for i, v in ev.items() if e in v}
+            bp = combine_brackets(grid, brackets, s.scale, spec.confidence)
+            res.points.append(EstimatorBreakingPoint(dict(ctx), e, bp, tuple(brackets), tuple(seeds), reasons))
+    return res
+
+
+def _write_breaking_points(path: Path, res: SearchResult) -> None:
+    """``breaking_points.csv``: one row per context and estimator (the CLI's lines as numbers)."""
+    cols = [
+        *{k: None for p in res.points for k in p.context},
+        "estimator",
+        "key",
+        "unit",
+        "fails",
+        "state",
+        "breaking_value",
+        "interval_low",
+        "interval_high",
+        "bracket_low",
+        "bracket_high",
+        "seeds",
+        "noisy",
+        "margin",
+        "renders",
+        "grid_renders",
+        "seed_brackets",
+    ]
+    table = []
+    for p in res.points:
+        bp = p.point
+        seed_brackets = " ".join(
+            "{:g}-{:g}".format(*sorted((res.grid[b.fail_index], res.grid[b.work_index])))
+            if b.state == "found" and b.fail_index is not None and b.work_index is not None
+            else b.state
+            for b in p.brackets
+        )
+        row = {
+            **p.context,
+            "estimator": p.estimator,
+            "key": res.key,
+            "unit": res.unit,
+            "fails": res.fails,
+            "state": bp.state,
+            "breaking_value": bp.value,
+            "interval_low": bp.interval[0],
+            "interval_high": bp.interval[1],
+            "bracket_low": bp.bracket[0],
+            "bracket_high": bp.bracket[1],
+            "seeds": bp.seeds,
+            "noisy": bp.noisy,
+            "margin": res.margin(p),
+            "renders": res.renders.get(res.context_label(p.context)),
+            "grid_renders": res.grid_renders,
+            "seed_brackets": seed_brackets,
+        }
+        table.append([row.get(c) for c in cols])
+    atomic_write_csv(path, cols, table)
+
+
+# ----------------------------------------------------------------------------- the study
+def run_sweep(
+    sweep_path: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    *,
+    jobs: int = 1,
+    cache_dir: str | os.PathLike | None = None,
+    processes: bool = True,
+    report: bool = True,
+    on_job: Callable[[int, int], None] | None = None,
+    externals: SequenceT[ExternalEstimator] = (),
+    render: RenderFn | None = None,
+    load_scene: SceneLoader = load_scene_file,
+    runner: EstimatorRunner | None = None,
+) -> SweepResult:
+    """Run a study (sweep) file: its grid, its search, its report (see the module doc).
+
+    ``scheduler``: a Dask scheduler address; ``workers``: start a local Dask cluster of
+    that many workers (``processes=False`` makes them threads, for tests); neither: a local
+    process pool of ``jobs`` workers. Collaborators of every job (defaults: the real ones,
+    as in :func:`floorsim.bench.bench.run_bench`): ``render``, ``load_scene``, ``runner``.
+    ``externals``: programs run in every job (:class:`floorvo.external.ExternalEstimator`).
+    """
+    runner = (runner or DEFAULT_RUNNER).with_externals(externals)
+    if scheduler is not None and workers is not None:
+        raise ConfigError("--scheduler and --workers: give one of them (a cluster to join, or a local one to start)")
+    if workers is not None and workers < 1:
+        raise ConfigError(f"--workers {workers}: must be >= 1")
+    if jobs < 1:
+        raise ConfigError(f"--jobs {jobs}: must be >= 1")
+    spec = load_sweep(sweep_path)
+    base = _check_study(spec, load_scene, runner)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    record = write_study_record(spec, out_dir, base.to_dict())
+    # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
+    cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
+    results_csv = out_dir / "results.csv"
+    rows = read_results_csv(results_csv)
+    done_before = {r.get("job") for r in rows}
+    errors: list[str] = []
+    counts = {"ran": 0, "finished": 0, "submitted": 0}
+    used: set[str] = set()  # every job the study asked for, done before or now
+
+    def collect(job: Mapping[str, Any], result: list[dict[str, Any]] | None, exc: BaseException | None) -> None:
+        counts["finished"] += 1
+        if exc is not None:
+            errors.append(f"{job['job']}: {type(exc).__name__}: {exc}")
+            log.error("sweep job %s failed: %s", job["job"], exc, exc_info=exc)
+        else:
+            rows.extend(result or [])
+            write_results_csv(results_csv, rows)
+        if on_job:
+            on_job(counts["finished"], counts["submitted"])
+
+    args = (spec, str(out_dir.resolve()), cache, render, load_scene, runner)
+    search_res: SearchResult | None = None
+    with contextlib.ExitStack() as stack:
+        pool: Callable[..., None] | None = None
+
+        def run_round(todo: list[dict[str, Any]]) -> None:
+            nonlocal pool
+            used.update(j["job"] for j in todo)
+            have = {r.get("job") for r in rows}
+            todo = [j for j in todo if j["job"] not in have]
+            if not todo:
+                return
+            if pool is None:  # workers start on the first job that is not already done
+                pool = stack.enter_context(job_pool(scheduler, workers, jobs, processes))
+            counts["ran"] += len(todo)
+            counts["submitted"] += len(todo)
+            pool(run_sweep_job, todo, args, collect)
+
+        all_jobs = sweep_jobs(spec)  # the grid's, or none for a search; the sequence folders'
+        log.info(
+            "sweep %s: %d jobs%s, %d already done",
+            spec.name,
+            len(all_jobs),
+            " besides the search" if spec.search is not None else "",
+            sum(j["job"] in done_before for j in all_jobs),
+        )
+        run_round(all_jobs)
+        if spec.search is not None:
+            search_res = _run_search(spec, base, rows, run_round)
+            used.update(search_res.jobs)
+    skipped = len(used & done_before)
+    res = SweepResult(rows, results_csv, counts["ran"], skipped, errors, search=search_res, record=record)
+    if search_res is not None:
+        res.breaking_points_csv = out_dir / "breaking_points.csv"
+        _write_breaking_points(res.breaking_points_csv, search_res)
+    if report and rows:
+        res.report_html, res.report_md = plot_sweep(spec, rows, out_dir, base=base, search=search_res)
+    return res
 
 
 def plot_sweep(
-    spec: SweepSpec, rows: list[dict[str, Any]], out_dir: str | os.PathLike, load_scene: SceneLoader = load_scene_file
+    spec: SweepSpec,
+    rows: SequenceT[Mapping[str, Any]],
+    out_dir: str | os.PathLike,
+    load_scene: SceneLoader = load_scene_file,
+    base: Any = None,
+    search: SearchResult | None = None,
 ) -> tuple[Path, Path]:
-    """Write ``sweep.html`` / ``sweep.md``: per varied key, drift and tracking loss against
-    its values (mean over the other keys and repetitions), one line per estimator; the
-    operating point is the sweep's, else the base scene's value (read with ``load_scene``)."""
-    plt = _plt()
-    rep = Report(f"floorbench sweep: {spec.name}", Path(out_dir), stem="sweep")
-    ok = [r for r in rows if r.get("status") == "ok"]
-    rep.text(
-        f"Base scene {spec.base.name if spec.base else '(none: sequence folders only)'}; {len(rows)} rows, "
-        f"{len(ok)} scored. Each point is the mean over the "
-        "other varied keys and the repetitions; the dashed line marks the paper rig's operating point. "
-        "Failed or skipped jobs are listed in results.csv."
-    )
-    estimators = sorted({r["estimator"] for r in ok})
-    rep.heading("Estimators compared")
-    rep.table(compare_estimators(rows), COMPARE_COLUMNS)
-    for key, values in spec.vary.items():
-        rep.heading(key)
-        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
-        xs_sorted = sorted(values) if numeric else list(values)
-        pos = {(_as_override(v)): (float(v) if numeric else i) for i, v in enumerate(xs_sorted)}
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-        table = []
-        for est in estimators:
-            drift, lost = [], []
-            for v in xs_sorted:
-                sel = [r for r in ok if r["estimator"] == est and _as_override(r.get(key)) == _as_override(v)]
-                sel = sel or [r for r in ok if r["estimator"] == est and _num(r.get(key)) == _num(v)]
-                d = [_num(r.get(md.END_DRIFT.name)) for r in sel]
-                lo = [_num(r.get(md.LOST_FRAMES.name)) for r in sel]
-                drift.append(float(np.nanmean(d)) if d and np.isfinite(d).any() else np.nan)
-                lost.append(float(np.nanmean(lo)) if lo and np.isfinite(lo).any() else np.nan)
-                table.append(
-                    {"estimator": est, "value": _as_override(v), "drift": drift[-1], "lost": lost[-1], "n": len(sel)}
-                )
-            x = [pos[_as_override(v)] for v in xs_sorted]
-            axes[0].plot(x, drift, "o-", label=est)
-            axes[1].plot(x, lost, "o-", label=est)
-        op = _operating_value(spec, key, load_scene)
-        for ax, ylabel in zip(axes, ("end-point drift [% of distance]", "lost frames")):
-            if op is not None and _as_override(op) in pos:
-                ax.axvline(pos[_as_override(op)], color="k", ls="--", lw=1, label="paper rig")
-            elif op is not None and numeric and isinstance(op, (int, float)):
-                ax.axvline(float(op), color="k", ls="--", lw=1, label="paper rig")
-            if numeric and min(values) > 0 and max(values) / min(values) > 20:
-                ax.set_xscale("log")
-            if not numeric:
-                ax.set_xticks(range(len(xs_sorted)), [str(v) for v in xs_sorted])
-            ax.set_xlabel(key)
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=8)
-        fig.suptitle(f"robustness against {key}")
-        fig.tight_layout()
-        rep.figure(fig, f"drift and tracking loss against {key} (operating point {op!r})")
-        rep.table(
-            table,
-            [
-                ("estimator", "estimator"),
-                ("value", key),
-                ("drift", md.END_DRIFT.label),
-                ("lost", "lost frames"),
-                ("n", "runs"),
-            ],
-        )
-    return rep.write()
+    """Write ``sweep.html`` / ``sweep.md`` (:func:`floorsim.bench.sweep_report.write_sweep_report`);
+    the operating points default to the base scene's values (read with ``load_scene``)."""
+    if base is None:
+        try:
+            base = load_scene(spec.base, dict(spec.fixed))
+        except FloorbenchError:
+            base = None
+    ops = {k: _operating_value(spec, k, base) for k in [*spec.vary, *([spec.search.key] if spec.search else [])]}
+    return write_sweep_report(spec, list(rows), Path(out_dir), ops, search)

@@ -1,4 +1,4 @@
-"""``floorsim sweep SWEEP.toml -o DIR``: run a robustness sweep (locally or on Dask).
+"""``floorsim sweep STUDY.toml -o DIR``: run a robustness study: a grid, a breaking-point search (locally or on Dask).
 
 Thin call to :func:`floorsim.bench.sweep.run_sweep`.
 """
@@ -16,12 +16,17 @@ __all__ = ["add_parser", "run"]
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "sweep",
-        help="run a grid of scene variations x estimators; plot drift and tracking loss against each parameter",
-        description="Run every combination of the [vary] values of a sweep file, each rendered once and scored with "
-        "every estimator. Rows stream into DIR/results.csv as jobs finish; running the same command again skips "
-        "the jobs already there. Robustness curves go to DIR/sweep.html and DIR/sweep.md.",
+        help="run a study: a grid of scene variations or a breaking-point search, x estimators; report",
+        description="Run a study (sweep) file: every combination of its [vary] values, or a bisection of its "
+        "[search] key for the value where each estimator starts to fail its [criterion]; each scene variation "
+        "is rendered once and scored with every estimator. Rows stream into DIR/results.csv as jobs finish; "
+        "running the same command again skips the jobs already there. A search prints, per estimator, the "
+        "breaking point with its bracket and the renders it took (DIR/breaking_points.csv). Curves, envelopes "
+        "and the search go to DIR/sweep.html and DIR/sweep.md; DIR/study.toml and DIR/study.json record the study.",
     )
-    p.add_argument("sweep", metavar="SWEEP", type=Path, help="sweep TOML file (see scenes/sweeps/)")
+    p.add_argument(
+        "sweep", metavar="STUDY", type=Path, help="study or sweep TOML file (see scenes/studies/, scenes/sweeps/)"
+    )
     add_output_argument(p, "output folder DIR", type=Path)
     where = p.add_mutually_exclusive_group()
     where.add_argument(
@@ -54,6 +59,10 @@ def run(args: argparse.Namespace) -> int:
             **args.collaborators,
         )
     print(f"sweep: {res.ran} job(s) run, {res.skipped} already done; {len(res.rows)} row(s) in {res.results_csv}")
+    for line in res.summary_lines():
+        print(line)
+    if res.breaking_points_csv is not None:
+        print(f"breaking points: {res.breaking_points_csv}")
     for e in res.errors:
         print(f"job failed: {e}")
     if res.report_html is not None:

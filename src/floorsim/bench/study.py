@@ -1,0 +1,353 @@
+"""Study files: a sweep file grown into the whole record of a lighting-robustness study.
+
+A study (or sweep) file is TOML, read through the one configuration mechanism
+(:mod:`floorvo.config`: unknown keys, wrong types and broken rules refused in one line
+naming the key)::
+
+    name = "led_height_breaking"          # default: the file name
+    description = "..."                   # one line for the report
+    base = "../demo.toml"                 # scene file, relative to the study file
+    estimators = ["phase-corr"]           # default: every estimator the sequence supports
+    repetitions = 3                       # seeds: scene seed + k, or
+    seeds = [7, 8, 9]                     # the seeds themselves (floor, noise, jitter)
+    confidence = 0.95                     # of every interval the report states
+    sequences = ["../recordings/hall"]    # sequence folders run beside (not rendered, not varied)
+
+    [render]                              # every job: frames, scale, spp (as floorsim bench)
+    frames = 8
+
+    [set]                                 # fixed scene overrides
+    "sensor.read_noise_e" = 2.0
+
+    [estimator_config.phase-corr]         # an estimator's config (as --est-set NAME.KEY=VALUE)
+    upsample = 50
+
+    [vary]                                # a grid: every combination of these values
+    "lights.side" = ["both", "left"]
+
+    [search]                              # a breaking-point search (per [vary] combination)
+    key = "lights.height_mm"
+    low = 0.2
+    high = 3.0
+    fails = "below"                       # the criterion holds below the breaking point
+    tolerance = 0.1                       # bracket width: key units (linear), relative (log)
+    scale = "linear"                      # or "log"
+
+    [criterion]                           # fails when any declared metric is worse than its bound
+    end_drift_pct = 1.0                   # end drift above 1 %
+    lost_frames = 0                       # more than 0 frames lost
+
+    [operating_point]                     # the paper rig's value of a varied or searched key
+    "lights.height_mm" = 3.0              # (default: the base scene's own value)
+
+A file needs ``[vary]`` or ``[search]`` (or both); ``[search]`` needs ``[criterion]``.
+Criterion keys are metric names declared in :mod:`floorvo.metric_defs` with a direction
+(lower or higher is better). Scene keys are ``--set`` keys (``section.key``).
+
+:func:`write_study_record` writes what makes a results folder the record of its study:
+``study.toml`` (the file as it was) and ``study.json`` (the resolved study, the base
+scene as resolved, the package versions).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import platform
+import sys
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from floorsim.bench.bench import is_sequence_folder
+from floorsim.bench.search import Bound, Criterion
+from floorsim.scene import Scene
+from floorvo import metric_defs as md
+from floorvo.config import Config, build, describe_fields, param, to_plain
+from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.io import atomic_write_bytes, atomic_write_json
+
+__all__ = [
+    "StudyFile",
+    "StudyRender",
+    "SearchSpec",
+    "SweepSpec",
+    "as_override",
+    "load_sweep",
+    "parse_criterion",
+    "scene_key_unit",
+    "write_study_record",
+]
+
+
+def as_override(value: Any) -> str:
+    """A TOML value as a ``--set`` string (``true``, ``3.0``, ``"both"`` -> ``both``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+# ----------------------------------------------------------------------------- the file format
+@dataclass(frozen=True)
+class StudyRender(Config):
+    """``[render]``: render settings of every job (``floorsim bench --frames/--scale/--spp``)."""
+
+    frames: int | None = param(None, unit="frames", min=1, doc="frames per sequence (none: the scene's)")
+    scale: float | None = param(None, gt=0, max=1.0, doc="image size factor (none: full size)")
+    spp: int | None = param(None, min=1, doc="samples per pixel (none: the scene's)")
+
+
+@dataclass(frozen=True)
+class SearchSpec(Config):
+    """``[search]``: a breaking-point search over one numeric scene key (see :mod:`floorsim.bench.search`)."""
+
+    key: str = param(doc="the scene key searched (section.key)")
+    low: float = param(doc="lowest value searched")
+    high: float = param(doc="highest value searched")
+    fails: str = param(choices=("below", "above"), doc="side of the breaking point where the criterion holds")
+    tolerance: float = param(gt=0, doc="largest bracket at the end: key units (linear), a ratio - 1 (log)")
+    scale: str = param("linear", choices=("linear", "log"), doc="bisect the value or its logarithm")
+
+    def validate(self) -> None:
+        if not self.high > self.low:
+            raise ConfigFieldError("high", f" = {self.high}: must be > low ({self.low})")
+        if self.scale == "log" and self.low <= 0:
+            raise ConfigFieldError("low", f" = {self.low}: must be > 0 on a log scale")
+
+    @property
+    def fails_below(self) -> bool:
+        return self.fails == "below"
+
+
+@dataclass(frozen=True)
+class StudyFile(Config):
+    """A study (sweep) file as written (see the module doc)."""
+
+    base: str = param(doc="base scene file, relative to the study file")
+    name: str | None = param(None, doc="the study's name (none: the file name)")
+    description: str = param("", doc="one line for the report")
+    estimators: tuple[str, ...] | None = param(None, doc="estimator names (none: every one the sequence supports)")
+    estimator_config: dict = param(default_factory=dict, doc="per estimator: a table of its config keys")
+    repetitions: int = param(1, min=1, max=1000, doc="renders per point, seeds scene seed + k")
+    seeds: tuple[int, ...] | None = param(None, doc="the seeds of the repetitions (replaces repetitions)")
+    confidence: float = param(0.95, gt=0, lt=1, doc="confidence of the stated intervals")
+    render: StudyRender = param(default_factory=StudyRender)
+    set: dict = param(default_factory=dict, doc="fixed scene overrides")
+    vary: dict = param(default_factory=dict, doc="scene key -> list of values: the grid")
+    search: SearchSpec | None = param(None, doc="a breaking-point search")
+    criterion: dict = param(default_factory=dict, doc="declared metric -> bound: when a run fails")
+    operating_point: dict = param(default_factory=dict, doc="the paper rig's value of a varied or searched key")
+    sequences: tuple[str, ...] = param((), doc="sequence folders run beside, relative to the study file")
+
+    def validate(self) -> None:
+        if not self.vary and self.search is None and not self.sequences:
+            raise ConfigFieldError("vary", ": give [vary] (a grid) or [search] (a breaking point), or both")
+        for k, v in self.vary.items():
+            if not isinstance(v, list) or not v:
+                raise ConfigFieldError(f"vary.{k}", f" = {v!r}: must be a non-empty list of values")
+            if len({as_override(x) for x in v}) != len(v):
+                raise ConfigFieldError(f"vary.{k}", f" = {v!r}: values must be distinct")
+        if self.search is not None and self.search.key in self.vary:
+            raise ConfigFieldError("search.key", f" = {self.search.key!r}: is varied in [vary] too")
+        if self.search is not None and not self.criterion:
+            raise ConfigFieldError("criterion", ": a [search] needs a [criterion] (when does a run fail?)")
+        if self.estimators is not None and not self.estimators:
+            raise ConfigFieldError("estimators", " = []: must name at least one estimator (or be left out)")
+        if self.seeds is not None:
+            if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
+                raise ConfigFieldError("seeds", f" = {list(self.seeds)}: must be distinct integers >= 0")
+        for name, cfg in self.estimator_config.items():
+            if not isinstance(cfg, dict):
+                raise ConfigFieldError(f"estimator_config.{name}", f" = {cfg!r}: must be a table of config keys")
+            if self.estimators is not None and name not in self.estimators:
+                raise ConfigFieldError(
+                    f"estimator_config.{name}", f": {name!r} is not among estimators ({', '.join(self.estimators)})"
+                )
+        keys = set(self.vary) | ({self.search.key} if self.search is not None else set())
+        for k in self.operating_point:
+            if k not in keys:
+                raise ConfigFieldError(
+                    f"operating_point.{k}", f": not a varied or searched key (those: {', '.join(sorted(keys))})"
+                )
+        parse_criterion(self.criterion)
+
+
+def parse_criterion(table: dict[str, Any]) -> Criterion | None:
+    """The ``[criterion]`` table as a :class:`Criterion` (None when empty).
+
+    Every key must be a metric declared in :mod:`floorvo.metric_defs` with a direction;
+    every bound a finite number. Refusals name ``criterion.KEY``.
+    """
+    bounds = []
+    for name, limit in table.items():
+        try:
+            d = md.metric(name)
+        except ValueError:
+            raise ConfigFieldError(
+                f"criterion.{name}",
+                ": not a declared metric (floorvo.metric_defs: e.g. end_drift_pct, lost_frames, ate_se2_rmse_mm)",
+            ) from None
+        if d.lower_is_better is None:
+            raise ConfigFieldError(
+                f"criterion.{name}", f": {d.description} has no better direction, so no bound can fail it"
+            )
+        if (
+            isinstance(limit, bool)
+            or not isinstance(limit, (int, float))
+            or limit != limit
+            or abs(limit) == float("inf")
+        ):
+            raise ConfigFieldError(
+                f"criterion.{name}", f" = {limit!r}: must be a finite number ({d.unit or 'no unit'})"
+            )
+        bounds.append(Bound(name, float(limit), bool(d.lower_is_better), d.unit))
+    return Criterion(tuple(bounds)) if bounds else None
+
+
+def scene_key_unit(key: str) -> str:
+    """The unit a scene key declares (``lights.height_mm`` -> ``mm``), or ``""``."""
+    for f in describe_fields(Scene):
+        if f.key == key:
+            return f.unit
+    return ""
+
+
+# ----------------------------------------------------------------------------- the resolved study
+@dataclass(frozen=True)
+class SweepSpec:
+    """A parsed study (sweep) file, paths resolved and overrides as ``--set`` text.
+
+    ``vary``: the grid keys and their values; ``fixed``: the ``[set]`` overrides;
+    ``render``: the set ``[render]`` keys; ``search`` / ``criterion``: None when absent;
+    ``seeds``: the repetitions' seeds (None: scene seed + k); ``estimator_config``: per
+    estimator, its config keys; ``path``: the study file.
+    """
+
+    name: str
+    base: Path
+    vary: dict[str, list[Any]]
+    estimators: list[str] | None = None
+    repetitions: int = 1
+    render: dict[str, Any] = field(default_factory=dict)
+    fixed: dict[str, str] = field(default_factory=dict)
+    operating_point: dict[str, Any] = field(default_factory=dict)
+    search: SearchSpec | None = None
+    criterion: Criterion | None = None
+    seeds: tuple[int, ...] | None = None
+    confidence: float = 0.95
+    estimator_config: dict[str, dict[str, Any]] = field(default_factory=dict)
+    description: str = ""
+    path: Path | None = None
+    sequences: list[Path] = field(default_factory=list)
+
+    def seed(self, scene_seed: int, repetition: int) -> int:
+        """The render seed of ``repetition`` (the study's seeds, else scene seed + k)."""
+        return self.seeds[repetition] if self.seeds is not None else scene_seed + repetition
+
+
+def load_sweep(path: str | os.PathLike) -> SweepSpec:
+    """Read and check a study or sweep file (ConfigError naming the key, the value and the rule)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: study file does not exist")
+    try:
+        d = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read study file ({exc})") from None
+    known = [f.name for f in dataclasses.fields(StudyFile)]
+    unknown = set(d) - set(known)
+    if unknown:  # all of them at once, in the file's own words
+        raise ConfigError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(known))})")
+    if not isinstance(d.get("base"), str):
+        raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
+    try:
+        f: StudyFile = build(StudyFile, d)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    base = (path.parent / f.base).resolve()
+    if not base.is_file():
+        raise ConfigError(f"{path}: base = {f.base!r}: scene file {base} does not exist")
+    sequences = [(path.parent / q).resolve() for q in f.sequences]
+    for q, full in zip(f.sequences, sequences):
+        if not is_sequence_folder(full):
+            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
+    reps = len(f.seeds) if f.seeds is not None else f.repetitions
+    if f.seeds is not None and "repetitions" in d and d["repetitions"] != reps:
+        raise ConfigError(f"{path}: repetitions = {f.repetitions}: {len(f.seeds)} seeds are given")
+    return SweepSpec(
+        name=f.name or path.stem,
+        base=base,
+        vary={k: list(v) for k, v in f.vary.items()},
+        estimators=list(f.estimators) if f.estimators is not None else None,
+        repetitions=reps,
+        render={k: v for k, v in to_plain(f.render).items() if v is not None},
+        fixed={k: as_override(v) for k, v in f.set.items()},
+        operating_point=dict(f.operating_point),
+        search=f.search,
+        criterion=parse_criterion(f.criterion),
+        seeds=f.seeds,
+        confidence=f.confidence,
+        estimator_config={k: dict(v) for k, v in f.estimator_config.items()},
+        description=f.description,
+        path=path.resolve(),
+        sequences=sequences,
+    )
+
+
+# ----------------------------------------------------------------------------- the record
+def package_versions() -> dict[str, str]:
+    """Versions of what a study's numbers depend on (the renderer's, the estimators', Dask)."""
+    from importlib import metadata
+
+    from floorsim.simulate import package_versions as render_versions
+
+    v = dict(render_versions())
+    for dist in ("scipy", "opencv-python-headless", "scikit-image", "dask", "distributed"):
+        try:
+            v[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            v[dist] = "not installed"
+    v["platform"] = platform.platform()
+    return v
+
+
+def write_study_record(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None = None) -> Path:
+    """Write ``DIR/study.toml`` (the study file as it was) and ``DIR/study.json`` (the
+    resolved study, ``base_scene``: the base scene as resolved, the package versions, the
+    command line); returns the JSON's path. A re-run of the study overwrites both, so two
+    results folders of one study can be diffed."""
+    out = Path(out_dir)
+    if spec.path is not None:
+        atomic_write_bytes(out / "study.toml", spec.path.read_bytes())
+    record = {
+        "study": {
+            "name": spec.name,
+            "description": spec.description,
+            "file": str(spec.path) if spec.path else None,
+            "base": str(spec.base),
+            "estimators": spec.estimators,
+            "estimator_config": spec.estimator_config,
+            "repetitions": spec.repetitions,
+            "seeds": list(spec.seeds) if spec.seeds is not None else None,
+            "confidence": spec.confidence,
+            "render": spec.render,
+            "set": spec.fixed,
+            "vary": spec.vary,
+            "search": to_plain(spec.search) if spec.search is not None else None,
+            "criterion": {b.metric: b.limit for b in spec.criterion.bounds} if spec.criterion else None,
+            "operating_point": spec.operating_point,
+            "sequences": [str(q) for q in spec.sequences],
+        },
+        "base_scene": base_scene,
+        "versions": package_versions(),
+        "command": [Path(sys.argv[0]).name, *sys.argv[1:]],
+    }
+    path = out / "study.json"
+    atomic_write_json(path, record)
+    return path
