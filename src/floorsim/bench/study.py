@@ -56,7 +56,6 @@ import json
 import os
 import platform
 import sys
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -67,7 +66,7 @@ from floorsim.scene import Scene
 from floorvo import metric_defs as md
 from floorvo.config import Config, build, describe_fields, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError
-from floorvo.io import atomic_write_bytes, atomic_write_json
+from floorvo.io import atomic_write_bytes, atomic_write_json, read_toml
 
 __all__ = [
     "StudyFile",
@@ -254,12 +253,7 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: study file does not exist")
-    try:
-        d = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read study file ({exc})") from None
+    d = read_toml(path, ConfigError)
     known = [f.name for f in dataclasses.fields(StudyFile)]
     unknown = set(d) - set(known)
     if unknown:  # all of them at once, in the file's own words
