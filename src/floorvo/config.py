@@ -359,7 +359,7 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
     for key, f in fields.items():
         if key not in data and f.default is _MISSING and f.default_factory is _MISSING:
             raise ConfigError(f"{_join(prefix, key)}: missing (a required key)")
-    kwargs = {}
+    kwargs: dict[str, Any] = {}
     for key, value in data.items():
         where, tp = _join(prefix, key), hints[key]
         nested = _nested_config(tp)

@@ -100,11 +100,12 @@ SEARCH = 'estimators = ["scaled", "lossy"]\n' + SEARCH_TABLES
 def test_search_grid_neighbours_are_within_the_tolerance():
     g = search_grid(1.0, 10.0, 0.5)
     assert g[0] == 1.0 and g[-1] == 10.0 and len(g) == 19 and max(np.diff(g)) <= 0.5 + 1e-12
-    g = search_grid(0.2, 3.0, 0.3)  # 2.8 / 0.3 = 9.33: 10 steps of 0.28
-    assert len(g) == 11 and max(np.diff(g)) <= 0.3
+    g = search_grid(0.2, 3.0, 0.3)  # 2.8 / 0.3 = 9.33: 0.2, 0.5, ..., 2.9, then 3.0
+    assert len(g) == 11 and g[1] == 0.5 and g[-2] == 2.9 and max(np.diff(g)) <= 0.3 + 1e-12
     g = search_grid(0.01, 4.0, 0.25, "log")
     assert g[0] == 0.01 and g[-1] == 4.0 and max(np.array(g[1:]) / np.array(g[:-1])) <= 1.25 + 1e-9
-    assert search_grid(1, 8, 3, integer=True) == [1.0, 3.0, 6.0, 8.0]  # 1, 3.33, 5.67, 8 rounded
+    assert search_grid(1, 8, 3, integer=True) == [1.0, 4.0, 7.0, 8.0]
+    assert search_grid(1, 2, 0.4, integer=True) == [1.0, 2.0]  # 1, 1.4, 1.8, 2 rounded
 
 
 @pytest.mark.parametrize("fails_below", [True, False])

@@ -118,12 +118,13 @@ def _round(v: float) -> float:
 
 
 def search_grid(low: float, high: float, tolerance: float, scale: str = "linear", integer: bool = False) -> list[float]:
-    """The values a search may visit, ascending, ``low`` and ``high`` included.
+    """The values a search may visit, ascending, from ``low`` to ``high`` (both included).
 
-    ``scale="linear"``: N+1 evenly spaced values, N = ceil((high - low) / tolerance), so
-    neighbours are at most ``tolerance`` apart (key units). ``"log"``: evenly spaced in
-    log(value), neighbours' ratio at most ``1 + tolerance`` (``low`` > 0). ``integer``:
-    values rounded to whole numbers (duplicates dropped), for an integer key.
+    ``scale="linear"``: ``low + k * tolerance`` for k = 0, 1, ... while below ``high``,
+    then ``high``: N + 1 values, N = ceil((high - low) / tolerance), neighbours at most
+    ``tolerance`` apart (key units). ``"log"``: ``low * (1 + tolerance)**k``, then ``high``
+    (``low`` > 0): neighbours' ratio at most ``1 + tolerance``. ``integer``: values rounded
+    to whole numbers (duplicates dropped), for an integer key.
     """
     if not (high > low) or tolerance <= 0:
         raise ValueError(f"search grid: need low < high and tolerance > 0 (got {low}, {high}, {tolerance})")
@@ -131,11 +132,10 @@ def search_grid(low: float, high: float, tolerance: float, scale: str = "linear"
         if low <= 0:
             raise ValueError(f"search grid: a log scale needs low > 0 (got {low})")
         n = max(1, math.ceil(math.log(high / low) / math.log1p(tolerance) - 1e-9))
-        values = np.exp(np.linspace(math.log(low), math.log(high), n + 1))
+        values = [low * (1.0 + tolerance) ** k for k in range(n)] + [high]
     else:
         n = max(1, math.ceil((high - low) / tolerance - 1e-9))
-        values = np.linspace(low, high, n + 1)
-    values[0], values[-1] = low, high
+        values = [low + k * tolerance for k in range(n)] + [high]
     if integer:
         return sorted({float(round(v)) for v in values})
     return [_round(v) for v in values]
@@ -347,8 +347,11 @@ class SearchResult:
         text = f"fails {side} {self.value_text(bp.value)} (bracket {bp.bracket[0]:.4g}-{bp.bracket[1]:.4g}"
         if bp.seeds > 1:
             found = sum(b.state == "found" for b in p.brackets)
-            pct = round(100 * self.confidence)
-            text += f"; {pct} % interval {bp.interval[0]:.4g}-{bp.interval[1]:.4g} over {found} of {bp.seeds} seeds"
+            if bp.noisy:
+                pct = round(100 * self.confidence)
+                text += f"; {pct} % interval {bp.interval[0]:.4g}-{bp.interval[1]:.4g} over {found} of {bp.seeds} seeds"
+            else:
+                text += f"; every one of {bp.seeds} seeds in this bracket"
         text += ")"
         m = self.margin(p)
         if m is not None:  # m > 0: the operating point is on the working side

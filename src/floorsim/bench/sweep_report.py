@@ -158,8 +158,9 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
             table.append(row)
         x = [pos[as_override(v)] for v in values]
         for ax, metric in zip(axes, curves):
-            m, lo, hi = (np.array(c, dtype=float) for c in zip(*curves[metric]))
-            (line,) = ax.plot(x, m, "o-", label=est)
+            mean, lo, hi = np.array(curves[metric], dtype=float).T
+            lo = np.maximum(lo, 0.0)  # drift and lost frames are never negative
+            (line,) = ax.plot(x, mean, "o-", label=est)
             if np.isfinite(lo).any() and np.any(hi > lo):
                 ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
     for ax, metric, ylabel in zip(
@@ -171,6 +172,13 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
             ax.axvline(float(op), color="k", ls="--", lw=1, label="paper rig")
         if metric in bounds:
             ax.axhline(bounds[metric].limit, color="r", ls=":", lw=1, label="criterion bound")
+        top = max(
+            (abs(y) for ln in ax.get_lines() for y in np.asarray(ln.get_ydata(), dtype=float) if np.isfinite(y)),
+            default=0.0,
+        )
+        if top > 20:  # a failing estimator's hundreds of % beside a working one's tenths
+            ax.set_yscale("symlog", linthresh=1.0)
+        ax.set_ylim(bottom=0.0)
         if (
             numeric
             and min(float(v) for v in values) > 0
@@ -225,7 +233,7 @@ def _search_section(rep: Report, spec: SweepSpec, search: SearchResult, ops: Map
                 "estimator": p.estimator,
                 "state": bp.state,
                 "value": bp.value,
-                "interval": _fmt_interval(*bp.interval) if bp.seeds > 1 else "-",
+                "interval": _fmt_interval(*bp.interval) if bp.noisy else ("seeds agree" if bp.seeds > 1 else "-"),
                 "bracket": _fmt_interval(*bp.bracket),
                 "margin": s.margin(p),
                 "renders": s.renders.get(s.context_label(p.context)),
@@ -450,7 +458,7 @@ def _envelope_section(rep: Report, spec: SweepSpec, rows: SequenceT[Row], ops: M
 # ----------------------------------------------------------------------------- the page
 def write_sweep_report(
     spec: SweepSpec,
-    rows: list[dict[str, Any]],
+    rows: SequenceT[Row],
     out_dir: Path,
     ops: Mapping[str, Any],
     search: SearchResult | None = None,
