@@ -65,7 +65,7 @@ from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
 from floorvo import metric_defs as md
 from floorvo.config import Config, build, describe_fields, param, to_plain
-from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
 from floorvo.io import atomic_write_bytes, atomic_write_json, read_toml
 
 __all__ = [
@@ -147,11 +147,11 @@ class StudyFile(Config):
             raise ConfigFieldError("vary", ": give [vary] (a grid) or [search] (a breaking point), or both")
         for k, v in self.vary.items():
             if not isinstance(v, list) or not v:
-                raise ConfigFieldError(f"vary.{k}", f" = {v!r}: must be a non-empty list of values")
+                raise ConfigFieldError(f"vary.{shorten(k)}", f" = {shown(v)}: must be a non-empty list of values")
             if len({as_override(x) for x in v}) != len(v):
-                raise ConfigFieldError(f"vary.{k}", f" = {v!r}: values must be distinct")
+                raise ConfigFieldError(f"vary.{shorten(k)}", f" = {shown(v)}: values must be distinct")
         if self.search is not None and self.search.key in self.vary:
-            raise ConfigFieldError("search.key", f" = {self.search.key!r}: is varied in [vary] too")
+            raise ConfigFieldError("search.key", f" = {shown(self.search.key)}: is varied in [vary] too")
         if self.search is not None and not self.criterion:
             raise ConfigFieldError("criterion", ": a [search] needs a [criterion] (when does a run fail?)")
         if self.estimators is not None and not self.estimators:
@@ -161,16 +161,20 @@ class StudyFile(Config):
                 raise ConfigFieldError("seeds", f" = {list(self.seeds)}: must be distinct integers >= 0")
         for name, cfg in self.estimator_config.items():
             if not isinstance(cfg, dict):
-                raise ConfigFieldError(f"estimator_config.{name}", f" = {cfg!r}: must be a table of config keys")
+                raise ConfigFieldError(
+                    f"estimator_config.{shorten(name)}", f" = {shown(cfg)}: must be a table of config keys"
+                )
             if self.estimators is not None and name not in self.estimators:
                 raise ConfigFieldError(
-                    f"estimator_config.{name}", f": {name!r} is not among estimators ({', '.join(self.estimators)})"
+                    f"estimator_config.{shorten(name)}",
+                    f": {shown(name)} is not among estimators ({', '.join(self.estimators)})",
                 )
         keys = set(self.vary) | ({self.search.key} if self.search is not None else set())
         for k in self.operating_point:
             if k not in keys:
                 raise ConfigFieldError(
-                    f"operating_point.{k}", f": not a varied or searched key (those: {', '.join(sorted(keys))})"
+                    f"operating_point.{shorten(k)}",
+                    f": not a varied or searched key (those: {', '.join(sorted(keys))})",
                 )
         parse_criterion(self.criterion)
 
@@ -187,12 +191,12 @@ def parse_criterion(table: dict[str, Any]) -> Criterion | None:
             d = md.metric(name)
         except ValueError:
             raise ConfigFieldError(
-                f"criterion.{name}",
+                f"criterion.{shorten(name)}",
                 ": not a declared metric (floorvo.metric_defs: e.g. end_drift_pct, lost_frames, ate_se2_rmse_mm)",
             ) from None
         if d.lower_is_better is None:
             raise ConfigFieldError(
-                f"criterion.{name}", f": {d.description} has no better direction, so no bound can fail it"
+                f"criterion.{shorten(name)}", f": {d.description} has no better direction, so no bound can fail it"
             )
         if (
             isinstance(limit, bool)
@@ -201,7 +205,7 @@ def parse_criterion(table: dict[str, Any]) -> Criterion | None:
             or abs(limit) == float("inf")
         ):
             raise ConfigFieldError(
-                f"criterion.{name}", f" = {limit!r}: must be a finite number ({d.unit or 'no unit'})"
+                f"criterion.{shorten(name)}", f" = {shown(limit)}: must be a finite number ({d.unit or 'no unit'})"
             )
         bounds.append(Bound(name, float(limit), bool(d.lower_is_better), d.unit))
     return Criterion(tuple(bounds)) if bounds else None
@@ -257,20 +261,22 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     known = [f.name for f in dataclasses.fields(StudyFile)]
     unknown = set(d) - set(known)
     if unknown:  # all of them at once, in the file's own words
-        raise ConfigError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (known: {', '.join(sorted(known))})")
+        raise ConfigError(
+            f"{path}: unknown key(s) {shorten(', '.join(sorted(unknown)))} (known: {', '.join(sorted(known))})"
+        )
     if not isinstance(d.get("base"), str):
-        raise ConfigError(f"{path}: base = {d.get('base')!r}: must name the base scene file")
+        raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
     try:
         f: StudyFile = build(StudyFile, d)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
     base = (path.parent / f.base).resolve()
     if not base.is_file():
-        raise ConfigError(f"{path}: base = {f.base!r}: scene file {base} does not exist")
+        raise ConfigError(f"{path}: base = {shown(f.base)}: scene file {base} does not exist")
     sequences = [(path.parent / q).resolve() for q in f.sequences]
     for q, full in zip(f.sequences, sequences):
         if not is_sequence_folder(full):
-            raise ConfigError(f"{path}: sequences: {q!r}: not a sequence folder (no {full / 'sequence.json'})")
+            raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
     reps = len(f.seeds) if f.seeds is not None else f.repetitions
     if f.seeds is not None and "repetitions" in d and d["repetitions"] != reps:
         raise ConfigError(f"{path}: repetitions = {f.repetitions}: {len(f.seeds)} seeds are given")

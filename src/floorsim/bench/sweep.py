@@ -69,7 +69,7 @@ from floorsim.bench.search import (
 from floorsim.bench.study import SweepSpec, as_override, load_sweep, scene_key_unit, write_study_record
 from floorsim.bench.sweep_report import write_sweep_report
 from floorsim.scene import load_scene as load_scene_file
-from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shown
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_csv
 
@@ -327,7 +327,7 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
     for name in (spec.estimators or []) + list(spec.estimator_config):
         if not runner.known(name):
             known = ", ".join(sorted(runner.names()))
-            raise ConfigError(f"{where}: estimators: {name!r}: unknown estimator (known: {known})")
+            raise ConfigError(f"{where}: estimators: {shown(name)}: unknown estimator (known: {known})")
     for name, cfg in spec.estimator_config.items():
         try:
             runner.check_config(name, cfg)
@@ -346,9 +346,11 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
         try:
             value = _scene_value(base, spec.search.key)
         except (KeyError, TypeError):
-            raise ConfigError(f"{where}: search.key = {spec.search.key!r}: not a key of the scene") from None
+            raise ConfigError(f"{where}: search.key = {shown(spec.search.key)}: not a key of the scene") from None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{where}: search.key = {spec.search.key!r}: not a number in the scene ({value!r})")
+            raise ConfigError(
+                f"{where}: search.key = {shown(spec.search.key)}: not a number in the scene ({shown(value)})"
+            )
     return base
 
 
