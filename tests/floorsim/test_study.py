@@ -37,7 +37,7 @@ from floorsim.bench.sweep import _check_study, run_sweep, sweep_jobs
 from floorsim.bench.sweep_report import margin_text
 from floorsim.cli import main
 from floorsim.scene import load_scene
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, FloorbenchError
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -50,7 +50,7 @@ def seeded_render(scene, out, *, seed=None, **kw):
     D.render(scene, out, seed=seed, **kw)
     meta_path = Path(out) / "sequence.json"
     meta = json.loads(meta_path.read_text())
-    meta["render_seed"] = seed
+    meta["seeds"] = {"render": seed}
     meta_path.write_text(json.dumps(meta))
     return Path(out)
 
@@ -68,7 +68,7 @@ class SeededRunner(D.FakeRunner):
         if name != "seeded":
             return super().run(seq_dir, name, run_dir, overrides, scale_calibration, **kwargs)
         meta = json.loads((Path(seq_dir) / "sequence.json").read_text())
-        height = float(meta["scene"]["lights"]["height_mm"]) + SHIFT_MM[meta["render_seed"]]
+        height = float(meta["scene"]["lights"]["height_mm"]) + SHIFT_MM[meta["seeds"]["render"]]
         write_run(Path(run_dir), Path(seq_dir), scale=1.0 + 0.001 * height, estimator=name)
 
 
@@ -442,3 +442,18 @@ def test_shipped_study_files_are_toml_with_a_comment_saying_how_to_run_them():
         text = f.read_text()
         tomllib.loads(text)
         assert f"floorsim sweep scenes/studies/{f.name} -o " in text, f.name
+
+
+def refusing_render(scene, out, **kw):
+    """A renderer that refuses every scene, as a broken backend would."""
+    raise FloorbenchError(f"renderer unavailable for {scene.name}")
+
+
+def test_a_search_whose_renders_fail_says_so_and_exits_1(tmp_path, capsys):
+    study = _study(tmp_path, SEARCH)
+    collaborators = {**_threads(), "render": refusing_render}
+    assert main(["sweep", str(study), "-o", str(tmp_path / "out"), "--workers", "1"], collaborators=collaborators) == 1
+    out = capsys.readouterr().out
+    assert (
+        "  search stopped: all, repetition 0: lights.height_mm=1.0;rep=0: failed: renderer unavailable for tiny" in out
+    )

@@ -67,4 +67,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"job failed: {e}")
     if res.report_html is not None:
         print(f"report: {res.report_html} (summary: {res.report_md})")
-    return 1 if res.errors else 0
+    return 1 if res.errors or (res.search is not None and res.search.errors) else 0
