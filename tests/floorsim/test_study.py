@@ -217,6 +217,16 @@ def test_margin_to_the_nearest_breaking_point_along_a_key():
             "estimator_config.lossy: 'lossy' is not among estimators",
         ),
         ('[render]\nspp = 0\n[vary]\n"lights.power" = [1.0]\n', "render.spp = 0: must be >= 1"),
+        (
+            '[search]\nkey = "lights.height_mm"\nlow = 1\nhigh = 2\nfails = "below"\ntolerance = 1e-9\n'
+            "[criterion]\nlost_frames = 0\n",
+            "search.tolerance = 1e-09: the grid would hold more than 1000000 values",
+        ),
+        (
+            'repetitions = 1000\n[vary]\n"lights.power" = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]\n',
+            "vary: the study holds 11000 jobs \\(values x repetitions\\); at most 10000",
+        ),
+        ('name = ""\n[vary]\n"lights.power" = [1.0]\n', "name = '': must be a non-empty string"),
     ],
 )
 def test_study_file_refusals_name_the_key_in_one_line(tmp_path, body, message):

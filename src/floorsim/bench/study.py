@@ -40,7 +40,8 @@ naming the key)::
     [operating_point]                     # the paper rig's value of a varied or searched key
     "lights.height_mm" = 3.0              # (default: the base scene's own value)
 
-A file needs ``[vary]`` or ``[search]`` (or both); ``[search]`` needs ``[criterion]``.
+A file needs ``[vary]`` or ``[search]`` (or both) and their ``base``, or only ``sequences``;
+``[search]`` needs ``[criterion]``.
 Criterion keys are metric names declared in :mod:`floorvo.metric_defs` with a direction
 (lower or higher is better). Scene keys are ``--set`` keys (``section.key``).
 
@@ -53,6 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import platform
 import sys
@@ -69,6 +71,8 @@ from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
 from floorvo.io import atomic_write_bytes, atomic_write_json, read_toml
 
 __all__ = [
+    "MAX_SWEEP_JOBS",
+    "MAX_SEARCH_VALUES",
     "StudyFile",
     "StudyRender",
     "SearchSpec",
@@ -79,6 +83,12 @@ __all__ = [
     "scene_key_unit",
     "write_study_record",
 ]
+
+
+#: The most jobs (grid points x repetitions, or a search's combinations x repetitions) a study may ask for.
+MAX_SWEEP_JOBS = 10_000
+#: The most values a search grid may hold ((high - low) / tolerance); bisection renders about log2 of it.
+MAX_SEARCH_VALUES = 1_000_000
 
 
 def as_override(value: Any) -> str:
@@ -96,7 +106,7 @@ class StudyRender(Config):
     """``[render]``: render settings of every job (``floorsim bench --frames/--scale/--spp``)."""
 
     frames: int | None = param(None, unit="frames", min=1, doc="frames per sequence (none: the scene's)")
-    scale: float | None = param(None, gt=0, max=1.0, doc="image size factor (none: full size)")
+    scale: float | None = param(None, gt=0, max=4.0, doc="image size factor (none: full size)")
     spp: int | None = param(None, min=1, doc="samples per pixel (none: the scene's)")
 
 
@@ -116,6 +126,15 @@ class SearchSpec(Config):
             raise ConfigFieldError("high", f" = {self.high}: must be > low ({self.low})")
         if self.scale == "log" and self.low <= 0:
             raise ConfigFieldError("low", f" = {self.low}: must be > 0 on a log scale")
+        steps = (
+            math.log(self.high / self.low) / math.log1p(self.tolerance)
+            if self.scale == "log"
+            else (self.high - self.low) / self.tolerance
+        )
+        if not steps < MAX_SEARCH_VALUES:
+            raise ConfigFieldError(
+                "tolerance", f" = {self.tolerance}: the grid would hold more than {MAX_SEARCH_VALUES} values"
+            )
 
     @property
     def fails_below(self) -> bool:
@@ -126,7 +145,7 @@ class SearchSpec(Config):
 class StudyFile(Config):
     """A study (sweep) file as written (see the module doc)."""
 
-    base: str = param(doc="base scene file, relative to the study file")
+    base: str | None = param(None, doc="base scene file, relative to the study file (none: sequences alone)")
     name: str | None = param(None, doc="the study's name (none: the file name)")
     description: str = param("", doc="one line for the report")
     estimators: tuple[str, ...] | None = param(None, doc="estimator names (none: every one the sequence supports)")
@@ -143,8 +162,14 @@ class StudyFile(Config):
     sequences: tuple[str, ...] = param((), doc="sequence folders run beside, relative to the study file")
 
     def validate(self) -> None:
-        if not self.vary and self.search is None and not self.sequences:
+        if self.name is not None and not self.name:
+            raise ConfigFieldError("name", " = '': must be a non-empty string")
+        if self.base is not None and not self.vary and self.search is None:
             raise ConfigFieldError("vary", ": give [vary] (a grid) or [search] (a breaking point), or both")
+        if self.base is None and (self.vary or self.search is not None):
+            raise ConfigFieldError(
+                "[vary]" if self.vary else "[search]", " needs base = the scene file whose keys it varies"
+            )
         for k, v in self.vary.items():
             if not isinstance(v, list) or not v:
                 raise ConfigFieldError(f"vary.{shorten(k)}", f" = {shown(v)}: must be a non-empty list of values")
@@ -169,6 +194,12 @@ class StudyFile(Config):
                     f"estimator_config.{shorten(name)}",
                     f": {shown(name)} is not among estimators ({', '.join(self.estimators)})",
                 )
+        jobs = self.repetitions if self.seeds is None else len(self.seeds)
+        for v in self.vary.values():
+            jobs *= len(v)
+        if jobs > MAX_SWEEP_JOBS:
+            what = "combinations x repetitions, each searched" if self.search is not None else "values x repetitions"
+            raise ConfigFieldError("vary", f": the study holds {jobs} jobs ({what}); at most {MAX_SWEEP_JOBS}")
         keys = set(self.vary) | ({self.search.key} if self.search is not None else set())
         for k in self.operating_point:
             if k not in keys:
@@ -231,7 +262,7 @@ class SweepSpec:
     """
 
     name: str
-    base: Path
+    base: Path | None  # None: a study of sequence folders alone (no grid, no search)
     vary: dict[str, list[Any]]
     estimators: list[str] | None = None
     repetitions: int = 1
@@ -252,8 +283,20 @@ class SweepSpec:
         return self.seeds[repetition] if self.seeds is not None else scene_seed + repetition
 
 
+def _beside(path: Path, name: str, key: str) -> Path:
+    """``name`` (a path in the study file, relative to it) as an absolute path."""
+    try:
+        return (path.parent / name).resolve()
+    except (ValueError, OSError) as exc:  # an embedded NUL byte, a loop of links
+        raise ConfigError(f"{path}: {key} = {shown(name)}: not a usable path ({shorten(str(exc))})") from None
+
+
 def load_sweep(path: str | os.PathLike) -> SweepSpec:
-    """Read and check a study or sweep file (ConfigError naming the key, the value and the rule)."""
+    """Read and check a study or sweep file (ConfigError naming the key, the value and the rule).
+
+    A file of sequence folders alone (``sequences``) needs no base and no grid. A grid may
+    hold at most :data:`MAX_SWEEP_JOBS` jobs, a search grid :data:`MAX_SEARCH_VALUES` values.
+    """
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"{path}: study file does not exist")
@@ -264,19 +307,24 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
         raise ConfigError(
             f"{path}: unknown key(s) {shorten(', '.join(sorted(unknown)))} (known: {', '.join(sorted(known))})"
         )
-    if not isinstance(d.get("base"), str):
-        raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
+    seqs = d.get("sequences", [])
+    if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
+        raise ConfigError(f"{path}: sequences = {shown(seqs)}: must be a list of sequence folders")
+    sequences = [_beside(path, q, "sequences") for q in seqs]
+    for q, full in zip(seqs, sequences):
+        if not is_sequence_folder(full):
+            raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
+    base: Path | None = None
+    if "base" in d or not sequences:  # a study of sequence folders alone has no grid
+        if not isinstance(d.get("base"), str) or not d["base"]:
+            raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
+        base = _beside(path, d["base"], "base")
+        if not base.is_file():
+            raise ConfigError(f"{path}: base = {shown(d['base'])}: scene file {shorten(str(base))} does not exist")
     try:
         f: StudyFile = build(StudyFile, d)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
-    base = (path.parent / f.base).resolve()
-    if not base.is_file():
-        raise ConfigError(f"{path}: base = {shown(f.base)}: scene file {base} does not exist")
-    sequences = [(path.parent / q).resolve() for q in f.sequences]
-    for q, full in zip(f.sequences, sequences):
-        if not is_sequence_folder(full):
-            raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
     reps = len(f.seeds) if f.seeds is not None else f.repetitions
     if f.seeds is not None and "repetitions" in d and d["repetitions"] != reps:
         raise ConfigError(f"{path}: repetitions = {f.repetitions}: {len(f.seeds)} seeds are given")
@@ -330,7 +378,7 @@ def write_study_record(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: 
             "name": spec.name,
             "description": spec.description,
             "file": str(spec.path) if spec.path else None,
-            "base": str(spec.base),
+            "base": str(spec.base) if spec.base is not None else None,
             "estimators": spec.estimators,
             "estimator_config": spec.estimator_config,
             "repetitions": spec.repetitions,

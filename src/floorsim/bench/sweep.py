@@ -152,6 +152,7 @@ def run_sweep_job(
         if job.get("sequence"):
             seq_dir, seed, scene_name = Path(job["sequence"]), None, Path(job["sequence"]).name
         else:
+            assert spec.base is not None  # grid and search jobs exist only with a base scene
             scene = load_scene(spec.base, overrides)
             seed, scene_name = spec.seed(scene_seed(scene), int(job["repetition"])), scene.name
             seq_dir = render_cached(scene, cache, seed=seed, render=render, **spec.render)
@@ -322,7 +323,7 @@ def _scene_value(scene: Any, key: str) -> Any:
 def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunner) -> Any:
     """Refuse, before any job, what would make every job fail: unknown estimators or config
     keys, scene keys or values the scene refuses, a search key that is not a number.
-    Returns the base scene (the ``[set]`` overrides applied)."""
+    Returns the base scene (the ``[set]`` overrides applied), None for sequence folders alone."""
     where = spec.path.name if spec.path is not None else spec.name
     for name in (spec.estimators or []) + list(spec.estimator_config):
         if not runner.known(name):
@@ -333,6 +334,8 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
             runner.check_config(name, cfg)
         except ConfigError as exc:
             raise ConfigError(f"{where}: estimator_config.{exc}") from None
+    if spec.base is None:
+        return None
     base = load_scene(spec.base, dict(spec.fixed))
     tries = [(k, v) for k, vs in spec.vary.items() for v in vs]
     if spec.search is not None:
@@ -572,7 +575,7 @@ def run_sweep(
     base = _check_study(spec, load_scene, runner)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    record = write_study_record(spec, out_dir, base.to_dict())
+    record = write_study_record(spec, out_dir, base.to_dict() if base is not None else None)
     # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
     cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
     results_csv = out_dir / "results.csv"
@@ -643,7 +646,7 @@ def plot_sweep(
 ) -> tuple[Path, Path]:
     """Write ``sweep.html`` / ``sweep.md`` (:func:`floorsim.bench.sweep_report.write_sweep_report`);
     the operating points default to the base scene's values (read with ``load_scene``)."""
-    if base is None:
+    if base is None and spec.base is not None:
         try:
             base = load_scene(spec.base, dict(spec.fixed))
         except FloorbenchError:

@@ -2,6 +2,8 @@
 
 ``DIR/sweep.html`` (self-contained) and ``DIR/sweep.md`` (:class:`floorsim.bench.report.Report`):
 
+* **Estimators compared**: every estimator's runs, failures, mean ATE and drift, time and
+  memory, and where it comes from (:func:`floorsim.bench.report.compare_estimators`).
 * **Breaking points** (a ``[search]``): per estimator the line ``floorsim sweep`` prints,
   a table (breaking value, confidence interval over the seeds, bracket, margin from the
   operating point, renders against a grid at the same tolerance) and a figure of the
@@ -29,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from floorsim.bench.report import Report, _plt
+from floorsim.bench.report import COMPARE_COLUMNS, Report, _plt, compare_estimators
 from floorsim.bench.search import SearchResult, mean_interval
 from floorsim.bench.study import SweepSpec, as_override, scene_key_unit
 from floorvo import metric_defs as md
@@ -477,12 +479,15 @@ def write_sweep_report(
     )
     if spec.description:
         rep.text(spec.description)
+    where = f"Base scene {spec.base.name}" if spec.base is not None else "Sequence folders only (no base scene)"
     rep.text(
-        f"Base scene {spec.base.name}; {len(rows)} rows, {len(ok)} scored; {seeds}. Each point is the mean over the "
+        f"{where}; {len(rows)} rows, {len(ok)} scored; {seeds}. Each point is the mean over the "
         "other varied keys and the repetitions; the dashed line marks the paper rig's operating point. "
         "Failed or skipped jobs are listed in results.csv. The study file and the package versions are in "
         "study.toml and study.json."
     )
+    rep.heading("Estimators compared")
+    rep.table(compare_estimators(rows), COMPARE_COLUMNS)
     if search is not None:
         _search_section(rep, spec, search, ops)
     if spec.criterion is not None and len(spec.vary) == 2:
