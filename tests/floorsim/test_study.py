@@ -467,3 +467,17 @@ def test_a_search_whose_renders_fail_says_so_and_exits_1(tmp_path, capsys):
     assert (
         "  search stopped: all, repetition 0: lights.height_mm=1.0;rep=0: failed: renderer unavailable for tiny" in out
     )
+
+
+def test_a_study_of_sequence_folders_alone_runs_and_is_recorded(tmp_path):
+    D.reset()
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec", height=2.0)), tmp_path / "rec")
+    p = tmp_path / "s.toml"
+    p.write_text('estimators = ["scaled"]\nsequences = ["rec"]\n')
+    res = run_sweep(p, tmp_path / "out", workers=1, processes=False, **D.COLLABORATORS)
+    assert res.errors == [] and [(r["job"], r["sequence"]) for r in res.rows] == [("sequence=rec", str(rec.resolve()))]
+    assert res.rows[0]["end_drift_pct"] == pytest.approx(0.2, rel=1e-4)  # recorded at 2 mm: 0.1 % per mm
+    record = json.loads((tmp_path / "out" / "study.json").read_text())
+    assert record["study"]["base"] is None and record["base_scene"] is None
+    assert record["study"]["sequences"] == [str(rec.resolve())]
+    assert "Sequence folders only (no base scene)" in (tmp_path / "out" / "sweep.md").read_text()
