@@ -346,9 +346,9 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
 
     ``data`` holds field values; a nested dataclass field (``Spec`` or ``Spec | None``)
     takes a nested mapping; values that are :class:`SetText` are read by their field's
-    type. ``prefix`` names where the
-    mapping came from in errors (``camera`` -> ``camera.height_mm = ...``). ``unknown``:
-    the words after an unknown key in its error (``unknown key (known: a, b)``).
+    type. ``prefix`` names where the mapping came from in errors (``camera`` ->
+    ``camera.height_mm = ...``). ``unknown``: the words after an unknown key in its error
+    (``unknown key (known: a, b)``).
     """
     data = dict(data or {})
     hints = typing.get_type_hints(cls)
