@@ -46,6 +46,7 @@ from floorvo.io import (
     plain,
     read_json,
     read_png,
+    read_text,
     remove_stale_temporaries,
     write_png,
 )
@@ -517,7 +518,7 @@ class Sequence:
 def _read_timestamps(path: Path) -> np.ndarray:
     """The numbers of a ``timestamps.txt`` (one per line; ``#`` comments and blank lines skipped)."""
     out = []
-    for lineno, line in enumerate(path.read_text().splitlines(), 1):
+    for lineno, line in enumerate(read_text(path, SequenceError, what="a text file").splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue

@@ -231,3 +231,59 @@ def test_run_folder(sequence, run_dir, data, which, raw):
     finally:
         for name, content in files.items():
             (run / name).write_bytes(content)
+
+
+# --------------------------------------------------------------------------- other text files
+def _readers():
+    from floorsim.bench.results import read_results_csv
+    from floorvo.calibration import load_scale_calibration
+    from floorvo.external import load_estimator_file
+    from floorvo.importers.camera_files import read_camera_file
+    from floorvo.importers.images import list_images
+    from floorvo.importers.times import read_groundtruth_file, read_timestamps_file
+    from floorvo.sequence import _read_timestamps
+
+    return {
+        "timestamps.txt": _read_timestamps,
+        "times.csv": read_timestamps_file,
+        "gt.csv": read_groundtruth_file,
+        "camera.yaml": read_camera_file,
+        "scale.json": load_scale_calibration,
+        "results.csv": read_results_csv,
+        "estimator.toml": load_estimator_file,
+        "images.txt": list_images,
+    }
+
+
+LINES = st.lists(st.lists(CELLS, max_size=9).map(lambda cs: ",".join(cs)), max_size=5).map("\n".join)
+YAMLISH = st.sampled_from(
+    [
+        "%YAML:1.0\n",
+        "camera_matrix: {rows: 3, cols: 3, data: [1, 0, 1, 0, 1, 1, 0, 0, 1]}\n",
+        "image_width: 10\n",
+        "cam0: {intrinsics: [1, 1, 1, 1], resolution: [4, 4]}\n",
+        "K: [1, 2]\n",
+        "- a\n",
+        "a: !!opencv-matrix {}\n",
+        "distortion_coefficients: {data: [nan]}\n",
+        "image_height: x\n",
+        "T_cn_cnm1: [[1]]\n",
+    ]
+)
+
+
+@given(
+    st.sampled_from(sorted(_readers())),
+    st.one_of(
+        st.binary(max_size=120),
+        LINES.map(str.encode),
+        st.lists(YAMLISH, max_size=4).map(lambda ls: "".join(ls).encode()),
+        values.map(lambda v: json.dumps(v).encode()),
+    ),
+)
+def test_text_file_readers(workdir, name, data):
+    """Frame-time files, imported timestamps and ground truth, camera files, scale
+    calibrations, results.csv, external estimator files and image lists."""
+    p = workdir / name
+    p.write_bytes(data)
+    one_line_or_valid(lambda: _readers()[name](p))

@@ -69,9 +69,9 @@ from floorsim.bench.results import write_results_csv
 from floorsim.scene import load_scene as load_scene_file
 from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
-from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_json
+from floorvo.io import atomic_write_json, read_json
 from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
 from floorvo.runner import run_sequence
@@ -153,11 +153,12 @@ def render_cached(
     marker = out / "bench-cache.json"
     if marker.is_file():
         try:
-            if json.loads(marker.read_text()).get("key") == key:
-                log.info("scene %s: reusing the sequence rendered in %s", scene.name, out)
-                return out
-        except json.JSONDecodeError:
-            pass
+            mark = read_json(marker, SequenceError)
+        except SequenceError:  # a damaged marker: render again
+            mark = None
+        if isinstance(mark, dict) and mark.get("key") == key:
+            log.info("scene %s: reusing the sequence rendered in %s", scene.name, out)
+            return out
     log.info("scene %s: rendering into %s", scene.name, out)
     render(scene, out, frames=frames, scale=scale, spp=spp, seed=seed, on_frame=on_frame)
     atomic_write_json(

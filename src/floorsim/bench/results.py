@@ -10,13 +10,15 @@ other key in the order first seen. Numbers are written as plain decimals
 from __future__ import annotations
 
 import csv
+import io
 import os
 from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from pathlib import Path
 from typing import Any
 
-from floorvo.io import atomic_write_csv
+from floorvo.errors import SequenceError, shorten, shown
+from floorvo.io import atomic_write_csv, read_text
 
 __all__ = ["ID_COLUMNS", "TEXT_COLUMNS", "write_results_csv", "read_results_csv"]
 
@@ -70,25 +72,36 @@ def write_results_csv(
 
 
 def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Rows of a results.csv; numeric cells become floats (empty cells None), ``repetition`` an int."""
+    """Rows of a results.csv; numeric cells become floats (empty cells None), ``repetition`` an int.
+
+    A file that is not CSV text, or a ``repetition`` that is not a whole number, is a
+    one-line :class:`~floorvo.errors.SequenceError` (a sweep that resumes reads its results.csv).
+    """
     path = Path(path)
     if not path.is_file():
         return []
+    text = read_text(path, SequenceError, what="a CSV text file")
+    try:
+        rows = list(csv.DictReader(io.StringIO(text, newline="")))
+    except csv.Error as exc:  # a NUL byte, a field beyond the csv module's limit
+        raise SequenceError(f"{path}: not a readable CSV file ({shorten(str(exc))})") from None
     out = []
-    with path.open(newline="") as fh:
-        for r in csv.DictReader(fh):
-            d: dict[str, Any] = {}
-            for k, v in r.items():
-                if k in TEXT_COLUMNS:
+    for lineno, r in enumerate(rows, 2):
+        d: dict[str, Any] = {}
+        for k, v in r.items():
+            if k in TEXT_COLUMNS:
+                d[k] = v
+            elif v == "":
+                d[k] = None
+            else:
+                try:
+                    d[k] = float(v)
+                except (ValueError, TypeError):
                     d[k] = v
-                elif v == "":
-                    d[k] = None
-                else:
-                    try:
-                        d[k] = float(v)
-                    except ValueError:
-                        d[k] = v
-            if d.get("repetition") is not None:
-                d["repetition"] = int(d["repetition"])
-            out.append(d)
+        rep = d.get("repetition")
+        if rep is not None:
+            if not isinstance(rep, float) or not rep.is_integer() or rep < 0:
+                raise SequenceError(f"{path}:{lineno}: repetition = {shown(rep)}: must be a whole number >= 0")
+            d["repetition"] = int(rep)
+        out.append(d)
     return out

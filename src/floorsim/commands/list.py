@@ -36,12 +36,13 @@ def print_scene_keys() -> None:
 
 def run(args) -> int:
     # Imported when the command runs, as in every command module: `floorsim --help` stays quick.
-    import tomllib
 
     from floorsim.bench.protocols import PROTOCOLS
     from floorsim.materials import MATERIALS
     from floorsim.scene import list_scenes
     from floorsim.trajectories import TRAJECTORIES
+    from floorvo.errors import ConfigError
+    from floorvo.io import read_toml
 
     if args.scene_keys:
         print_scene_keys()
@@ -58,8 +59,8 @@ def run(args) -> int:
     print("scenes:")
     for path in list_scenes():
         try:
-            desc = tomllib.loads(path.read_text()).get("description", "")
-        except (tomllib.TOMLDecodeError, OSError):
+            desc = str(read_toml(path, ConfigError).get("description", ""))
+        except ConfigError:
             desc = "(unreadable)"
         print(f"  {path.stem:<24} {desc}")
     return 0

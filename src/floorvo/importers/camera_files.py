@@ -29,6 +29,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, shown
 from floorvo.geometry import invert_T
+from floorvo.io import read_text
 
 __all__ = [
     "CameraCalibration",
@@ -71,10 +72,7 @@ def load_yaml(path: str | os.PathLike, what: str = "camera file") -> Any:
 
     _Loader.add_constructor("tag:yaml.org,2002:opencv-matrix", _matrix)
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_text(path, ConfigError, label=f"{what} {path}", what="a YAML text file")
     if text.startswith("%YAML:"):  # OpenCV writes a directive PyYAML does not know
         text = text.split("\n", 1)[1] if "\n" in text else ""
     try:

@@ -27,6 +27,7 @@ from floorvo.geometry import invert_T
 from floorvo.importers.camera_files import CameraCalibration, load_yaml, read_camera_file, transform_m_to_mm
 from floorvo.importers.recording import FrameImages, Recording, read_image_file
 from floorvo.importers.times import read_euroc_groundtruth
+from floorvo.io import read_text
 
 __all__ = ["detect", "read", "mav0_of"]
 
@@ -49,7 +50,7 @@ def _camera_stream(cam_dir: Path) -> tuple[np.ndarray, list[Path]]:
     """``(stamps_ns (N,) int64, files)`` of ``cam_dir/data.csv``, in time order."""
     csv_path = cam_dir / "data.csv"
     stamps, files = [], []
-    for lineno, line in enumerate(csv_path.read_text().splitlines(), 1):
+    for lineno, line in enumerate(read_text(csv_path, SequenceError, what="a CSV text file").splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue

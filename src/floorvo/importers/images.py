@@ -19,6 +19,7 @@ import numpy as np
 
 from floorvo.errors import SequenceError, shown
 from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file
+from floorvo.io import read_text
 
 __all__ = ["IMAGE_SUFFIXES", "detect", "read", "list_images"]
 
@@ -48,7 +49,7 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
     if not source.is_file():
         raise SequenceError(f"{source}: does not exist")
     files, times = [], []
-    for lineno, line in enumerate(source.read_text().splitlines(), 1):
+    for lineno, line in enumerate(read_text(source, SequenceError, what="a text file").splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
@@ -63,7 +64,11 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
             name = line
         path = Path(name)
         files.append(path if path.is_absolute() else source.parent / path)
-        if not files[-1].is_file():
+        try:
+            exists = files[-1].is_file()
+        except OSError:  # a name longer than the file system allows
+            exists = False
+        if not exists:
             raise SequenceError(f"{source}:{lineno}: image {shown(name)} does not exist")
     if not files:
         raise SequenceError(f"{source}: lists no images")

@@ -18,6 +18,7 @@ import numpy as np
 
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat
+from floorvo.io import read_text
 from floorvo.tum import read_tum
 
 __all__ = ["TIME_UNITS_S", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
@@ -28,15 +29,13 @@ TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 def _rows(path: Path, what: str) -> list[tuple[int, list[str]]]:
     """``(line number, fields)`` of the data lines of a text file (``#`` and blank lines skipped)."""
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SequenceError(f"{what} {path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_text(path, SequenceError, label=f"{what} {path}", what="a text file")
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.strip()
-        if line and not line.startswith("#"):
-            out.append((lineno, line.replace(",", " ").split()))
+        fields = line.replace(",", " ").split()
+        if fields and not line.startswith("#"):  # a line of commas alone holds no field either
+            out.append((lineno, fields))
     return out
 
 
