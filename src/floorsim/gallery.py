@@ -2,7 +2,7 @@
 
 ``floorsim gallery -o DIR`` renders (small, quick) the first frame of a base scene for
 every registered material under the paper rig's lighting, and the vinyl floor under each
-lighting variant, then lays them out as ``DIR/gallery.png`` with a label under each tile,
+lighting and sensor variant, then lays them out as ``DIR/gallery.png`` with a label under each tile,
 so a person can judge the realism at a glance. The frames are kept as sequences under
 ``DIR/frames/`` (re-running reuses them).
 """
@@ -33,6 +33,14 @@ LIGHTING_VARIANTS: dict[str, dict[str, str]] = {
     "ambient leak 0.3": {"lights.ambient_leak": "0.3"},
     "vignetting + blur 10 ms": {"camera.vignetting": "0.8", "sensor.exposure_ms": "10"},
     "dirt + dust": {"floor.dirt_density": "0.3", "floor.dust_density": "0.2"},
+    "rolling shutter 30 ms": {"sensor.readout_ms": "30"},
+    "fixed pattern: PRNU 5 %, hot/dead": {
+        "sensor.prnu": "0.05",
+        "sensor.dsnu_e": "50",
+        "sensor.hot_pixel_fraction": "0.003",
+        "sensor.dead_pixel_fraction": "0.003",
+    },
+    "gamma 2.2": {"sensor.gamma": "2.2"},
 }
 
 

@@ -25,6 +25,10 @@ hidden, and noisy only in penumbrae; ``every_led=True`` traces a shadow ray to e
 instead. Mitsuba's own ``direct`` integrator (one random light per sample, and images
 scaled by ``emitter_samples`` with point lights) is not used.
 
+A rolling-shutter frame is traced with one camera pose (and one set of LED positions) per
+image row, gathered per lane from arrays of the H row poses: each row is exactly the row a
+global-shutter render from that row's pose gives, in one pass over the image.
+
 The camera pose and the LED parameters enter the JIT kernel as opaque variables, so one
 compiled kernel serves every frame; moving the camera and the LEDs touches no shape, so
 the BVH is never rebuilt within a tile (DESIGN: a shape transform rebuilds it).
@@ -129,6 +133,9 @@ class LedArray:
     radiant intensity on the axis (arbitrary units), ``lobe_exponent`` m of the
     cos^m emission profile, ``bar`` (N,) optional bar index of each LED (LEDs of one bar
     share a shadow ray per sample); by default the side of the camera's x axis.
+    For a rolling-shutter render (:meth:`FloorRenderer.render` with one pose per image
+    row) ``positions_mm`` and ``aim`` may be (H, N, 3): the LEDs where they are when row
+    r is exposed.
     """
 
     positions_mm: np.ndarray
@@ -374,6 +381,11 @@ class FloorRenderer:
     ) -> np.ndarray:
         """Radiance image (H, W) float32 of the loaded floor from pose ``T_world_cam`` (mm).
 
+        ``T_world_cam`` (4, 4), or (H, 4, 4) for a rolling shutter: one pose per image row,
+        row r traced from pose r and lit by the LEDs of row r (``leds`` then (H, N, 3)
+        positions and aims, or (N, 3) LEDs that are the same for every row). Row r of such a
+        render equals row r of a render from pose r alone.
+
         ``spp`` stratified primary samples per pixel (``ldsampler`` when spp is a power of
         4, ``multijitter`` otherwise). Direct light of the LEDs, per primary sample:
 
@@ -414,8 +426,17 @@ class FloorRenderer:
             x = (u - float(cam.cx_px)) * (1.0 / float(cam.fx_px))
             y = (v - float(cam.cy_px)) * (1.0 / float(cam.fy_px))
         T = np.asarray(T_world_cam, dtype=np.float64)
-        R = self._opaque(T[:3, :3].ravel())
-        o = mi.Point3f(*self._opaque(T[:3, 3] - self.origin_mm))
+        per_row = T.ndim == 3
+        if per_row and T.shape != (h, 4, 4):
+            raise ValueError(f"render: T_world_cam must be (4, 4) or ({h}, 4, 4) (one pose per row), got {T.shape}")
+        row = pix // w
+        if per_row:
+            R = self._per_row(T[:, :3, :3].reshape(h, 9), row)
+            o = mi.Point3f(*self._per_row(T[:, :3, 3] - self.origin_mm, row))
+            T = T[(h - 1) // 2]  # the centre row's pose: which bar an LED is on
+        else:
+            R = self._opaque(T[:3, :3].ravel())
+            o = mi.Point3f(*self._opaque(T[:3, 3] - self.origin_mm))
         d = mi.Vector3f(R[0] * x + R[1] * y + R[2], R[3] * x + R[4] * y + R[5], R[6] * x + R[7] * y + R[8])
         ray = mi.Ray3f(o, dr.normalize(d))
         si = self.scene.ray_intersect(ray)
@@ -430,11 +451,29 @@ class FloorRenderer:
         spec = self.specular
 
         led_terms = []  # (bar, position, unshadowed contribution f_k)
-        bars = self._bars(T, leds)
-        for k, (p, a, inten) in enumerate(zip(leds.positions_mm, leds.aim, leds.intensity)):
+        led_pos = np.asarray(leds.positions_mm, dtype=np.float64)
+        led_aim = np.asarray(leds.aim, dtype=np.float64)
+        rows_of_leds = led_pos.ndim == 3
+        if rows_of_leds and (not per_row or led_pos.shape[0] != h or led_aim.shape != led_pos.shape):
+            raise ValueError(
+                f"render: LEDs of shape {led_pos.shape} need one pose per row and aims alike (got {led_aim.shape})"
+            )
+        bars = self._bars(
+            T,
+            leds
+            if not rows_of_leds
+            else LedArray(led_pos[(h - 1) // 2], led_aim[(h - 1) // 2], leds.intensity, m, leds.bar),
+        )
+        for k, inten in enumerate(leds.intensity):
             if inten <= 0:
                 continue
-            px, py, pz, ax, ay, az, ik = self._opaque([*(np.asarray(p, dtype=np.float64) - self.origin_mm), *a, inten])
+            if rows_of_leds:
+                px, py, pz, ax, ay, az = self._per_row(
+                    np.concatenate([led_pos[:, k] - self.origin_mm, led_aim[:, k]], axis=1), row
+                )
+                (ik,) = self._opaque([inten])
+            else:
+                px, py, pz, ax, ay, az, ik = self._opaque([*(led_pos[k] - self.origin_mm), *led_aim[k], inten])
             lp = mi.Point3f(px, py, pz)
             dl = lp - si.p
             r2 = dr.squared_norm(dl)
@@ -482,6 +521,18 @@ class FloorRenderer:
         img = dr.block_sum(L, spp, mode="evaluated") * (1.0 / spp)
         return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
 
+    def _per_row(self, values: np.ndarray, row) -> list:
+        """Columns of ``values`` (H, K) as K per-lane arrays: lane l gets row ``row[l]``'s value.
+
+        The same float32 rounding as :meth:`_opaque`, so a row traced from its own pose
+        matches a render from that pose alone."""
+        mi, dr = self.mi, self.dr
+        v = np.asarray(values, dtype=np.float64)
+        return [
+            dr.gather(mi.Float, mi.Float(np.ascontiguousarray(v[:, k]).astype(np.float32)), row)
+            for k in range(v.shape[1])
+        ]
+
     def _shadow_ray(self, si, target):
         """Shadow ray from the hit ``si`` to the point ``target`` (tile-local mm).
 
@@ -506,16 +557,24 @@ class FloorRenderer:
         return (rel @ T_world_cam[:3, 0] > 0).astype(int)
 
     def depth(self, T_world_cam: np.ndarray) -> np.ndarray:
-        """Depth (distance along the optical axis, mm) of the floor at each pixel centre; NaN where no hit."""
+        """Depth (distance along the optical axis, mm) of the floor at each pixel centre; NaN where no hit.
+
+        ``T_world_cam`` (4, 4), or (H, 4, 4): one pose per image row (rolling shutter)."""
         mi = self.mi
         cam = self.camera
         u, v = np.meshgrid(np.arange(cam.width_px, dtype=float), np.arange(cam.height_px, dtype=float))
         d_cam = cam.unproject(np.stack([u.ravel(), v.ravel()], 1), 1.0)  # z = 1
         norm = np.linalg.norm(d_cam, axis=1)
         T = np.asarray(T_world_cam, dtype=np.float64)
-        d_world = ((d_cam / norm[:, None]) @ T[:3, :3].T).astype(np.float32)
-        o = T[:3, 3] - self.origin_mm
-        ray = mi.Ray3f(mi.Point3f(*[float(x) for x in o]), mi.Vector3f(d_world[:, 0], d_world[:, 1], d_world[:, 2]))
+        if T.ndim == 3:
+            rows = np.repeat(np.arange(cam.height_px), cam.width_px)
+            d_world = np.einsum("nij,nj->ni", T[rows, :3, :3], d_cam / norm[:, None]).astype(np.float32)
+            o_np = (T[rows, :3, 3] - self.origin_mm).astype(np.float32)
+            origin = mi.Point3f(o_np[:, 0], o_np[:, 1], o_np[:, 2])
+        else:
+            d_world = ((d_cam / norm[:, None]) @ T[:3, :3].T).astype(np.float32)
+            origin = mi.Point3f(*[float(x) for x in T[:3, 3] - self.origin_mm])
+        ray = mi.Ray3f(origin, mi.Vector3f(d_world[:, 0], d_world[:, 1], d_world[:, 2]))
         si = self.scene.ray_intersect(ray)
         t = np.asarray(si.t.numpy(), dtype=np.float64)  # distance along the unit ray
         t[~np.asarray(si.is_valid().numpy(), dtype=bool)] = np.nan

@@ -27,6 +27,8 @@ A scene file (``scenes/NAME.toml``)::
 
     [sensor]
     bit_depth = 8
+    readout_ms = 0.0    # rolling shutter (0: global)
+    exposure_mode = "fixed"   # or "auto" (per frame)
 
     [render]
     spp = 4
@@ -62,6 +64,7 @@ import numpy as np
 
 from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
+from floorsim.sensor import FixedPattern, SensorModel
 from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
 from floorvo.config import Config, apply_overrides, build, param, to_plain
@@ -184,11 +187,21 @@ class LightsSpec(Config):
 
 @dataclass(frozen=True)
 class SensorSpec(Config):
-    """Sensor: exposure (0 = auto from the first frame), noise and quantisation.
+    """Sensor: exposure, noise, fixed pattern, response and quantisation (:mod:`floorsim.sensor`).
 
-    ``exposure_ms`` > 0 adds motion blur: the frame integrates ``blur_samples`` sub-frame
-    renders at poses spread evenly over the exposure, centred on the frame time (the
-    ground-truth pose is the one at the centre).
+    ``exposure_gain``: electrons per radiance unit; 0 chooses it from the first frame
+    (``target_percentile`` at ``target_level``). ``exposure_mode = "auto"`` then adjusts it
+    per frame from the brightness of frame i - ``ae_delay_frames``
+    (:class:`floorsim.sensor.AutoExposure`); each frame's gain is written to
+    ``calib/exposure.csv``. ``noise = false`` drops the temporal noise; the fixed pattern
+    (``prnu``, ``dsnu_e``, hot and dead pixels, seeded by the scene seed and the same in
+    every frame) has its own keys. ``exposure_ms`` > 0 adds motion blur: the frame
+    integrates ``blur_samples`` sub-frame renders at poses spread evenly over the exposure,
+    centred on the frame time (the ground-truth pose is the one at the centre).
+    ``readout_ms`` > 0 is a rolling shutter: row r is exposed
+    (r - (H - 1) / 2) / (H - 1) x readout after the frame time, along the continuous
+    trajectory; the ground truth is the pose of the centre row
+    (:func:`floorsim.sensor.rolling_row_offsets_s`).
     """
 
     bit_depth: int = param(8, choices=(8, 16), doc="bits per pixel of the PNG frames")
@@ -203,6 +216,38 @@ class SensorSpec(Config):
     noise: bool = param(True, doc="false: a noiseless sensor")
     exposure_ms: float = param(0.0, unit="ms", min=0, max=1000.0, doc="exposure time; > 0 adds motion blur")
     blur_samples: int = param(8, min=1, max=256, doc="sub-frame renders integrated over the exposure")
+    readout_ms: float = param(
+        0.0, unit="ms", min=0, max=1000.0, doc="rolling-shutter readout, first to last row (0: global shutter)"
+    )
+    exposure_mode: str = param("fixed", choices=("fixed", "auto"), doc="fixed per sequence, or auto per frame")
+    ae_loop_gain: float = param(0.5, gt=0, max=1.0, doc="auto exposure: fraction of the log error corrected")
+    ae_delay_frames: int = param(1, unit="frames", min=1, max=100, doc="auto exposure: frames before it reacts")
+    prnu: float = param(0.0, min=0, max=0.5, doc="fixed pattern: relative spread of the pixel gains (PRNU)")
+    dsnu_e: float = param(0.0, unit="e-", min=0, doc="fixed pattern: spread of the pixel offsets (DSNU)")
+    hot_pixel_fraction: float = param(0.0, min=0, max=0.1, doc="fixed pattern: pixels stuck at full scale")
+    dead_pixel_fraction: float = param(0.0, min=0, max=0.1, doc="fixed pattern: pixels stuck at zero")
+    gamma: float = param(1.0, min=0.1, max=10.0, doc="response curve DN ~ (e / full well)^(1/gamma); 1: linear")
+
+    def validate(self) -> None:
+        if self.exposure_mode == "auto" and self.target_level <= 0:
+            raise ConfigFieldError(
+                "target_level", f" = {self.target_level}: auto exposure needs a target level > 0 (exposure_mode = auto)"
+            )
+
+    def fixed_pattern(self) -> FixedPattern:
+        return FixedPattern(self.prnu, self.dsnu_e, self.hot_pixel_fraction, self.dead_pixel_fraction)
+
+    def model(self, gain_e_per_unit: float) -> SensorModel:
+        """The sensor model of a frame captured with exposure ``gain_e_per_unit``."""
+        return SensorModel(
+            gain_e_per_unit,
+            self.full_well_e,
+            self.read_noise_e,
+            self.shot_noise,
+            self.bit_depth,
+            self.fixed_pattern(),
+            self.gamma,
+        )
 
 
 @dataclass(frozen=True)
@@ -272,6 +317,12 @@ class Scene(Config):
             raise ConfigFieldError(
                 "schema_version",
                 f" = {self.schema_version}: this floorsim reads scene schema version {SCENE_SCHEMA_VERSION}",
+            )
+        if self.sensor.readout_ms > 1000.0 / self.fps:
+            raise ConfigFieldError(
+                "sensor.readout_ms",
+                f" = {self.sensor.readout_ms} ms: a rolling shutter reads out within a frame period "
+                f"(1000 / fps = {1000.0 / self.fps:.4g} ms)",
             )
         if self.lights.height_mm >= self.camera.height_mm:
             raise ConfigFieldError(

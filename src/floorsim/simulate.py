@@ -29,12 +29,12 @@ from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import get_material, sample_material
 from floorsim.render import FloorRenderer, LedArray, backend_info, stratified_spp
 from floorsim.scene import Scene, scene_T_world_leds
-from floorsim.sensor import SensorModel, exposure_gain
+from floorsim.sensor import AutoExposure, SensorModel, exposure_gain, image_level, rolling_row_offsets_s
 from floorsim.spectral import mono_response
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError
-from floorvo.io import atomic_write_json, checked_output_path, read_json
+from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
 from floorvo.sequence import SequenceWriter
 
 __all__ = ["render_sequence", "prepare_scene", "plan_tiles", "package_versions", "LED_INTENSITY_UNIT"]
@@ -175,9 +175,18 @@ def _render_frame(
     for k, t in enumerate(times):
         T0 = traj.pose_at(t)[0]
         Tc = T0 if T_cam_rig is None else T0 @ T_cam_rig
+        leds = _leds(scene, T0, i)
+        if scene.sensor.readout_ms > 0:
+            # Rolling shutter: row r from the rig pose (and its LEDs) at its own time; the centre row's time is t.
+            T_rows = traj.pose_at(t + rolling_row_offsets_s(renderer.camera.height_px, scene.sensor.readout_ms))
+            Tc = T_rows if T_cam_rig is None else T_rows @ T_cam_rig
+            rows = [scene_T_world_leds(scene, T_r) for T_r in T_rows]
+            leds = dataclasses.replace(
+                leds, positions_mm=np.stack([p for p, _ in rows]), aim=np.stack([a for _, a in rows])
+            )
         rad = renderer.render(
             Tc,
-            _leds(scene, T0, i),
+            leds,
             scene.render.spp,
             seed=_frame_seed(seed, i * 1009 + k if n > 1 else i),
             ambient=ambient_irradiance(scene, T0),
@@ -281,6 +290,9 @@ def render_sequence(
         else None,
         "versions": package_versions(),
     }
+    sensor_meta = _sensor_meta(scene)
+    if sensor_meta is not None:  # written only when the sensor is not a global shutter of fixed exposure
+        meta["sensor"] = sensor_meta
     writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
     root = writer.root
     writer.write_groundtruth(ts, T_all)
@@ -305,10 +317,11 @@ def render_sequence(
             log.warning("%s: unusable (%s); choosing the exposure again", sensor_path, exc)
             gain = 0.0
     margin = 2.0 + 2 * spacing
-    if scene.sensor.exposure_ms > 0 and len(T_all) > 1:
-        # Motion blur reaches poses up to half an exposure away from the frame's.
+    reach_ms = scene.sensor.exposure_ms + scene.sensor.readout_ms
+    if reach_ms > 0 and len(T_all) > 1:
+        # Motion blur and a rolling shutter reach poses up to half an exposure plus half a readout away.
         step_mm = float(np.max(np.linalg.norm(np.diff(T_all[:, :3, 3], axis=0), axis=1)))
-        margin += step_mm * scene.sensor.exposure_ms / 1000.0 * scene.fps
+        margin += step_mm * reach_ms / 1000.0 * scene.fps
     # The tile must hold what both cameras see: widen the margin by the baseline.
     tiles = plan_tiles(
         T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm)
@@ -325,9 +338,19 @@ def render_sequence(
                 f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
             )
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
-    sensor = SensorModel(
-        gain, scene.sensor.full_well_e, scene.sensor.read_noise_e, scene.sensor.shot_noise, scene.sensor.bit_depth
-    )
+    sensor = scene.sensor.model(gain)
+    ae = None
+    if scene.sensor.exposure_mode == "auto":
+        ss = scene.sensor
+        ae = AutoExposure(
+            gain, ss.target_level, ss.target_percentile, ss.ae_loop_gain, ss.ae_delay_frames, ss.bit_depth
+        )
+        ae_gains, ae_levels = _read_exposure_log(root / EXPOSURE_FILE, gain)
+        # Each frame's exposure depends on the frames before it: render on from the first frame
+        # that is missing or has no recorded exposure.
+        first = min([len(ae_gains), *missing])
+        del ae_gains[first:], ae_levels[first:]
+        missing = list(range(first, total))
 
     done = total - len(missing)
     missing_set = set(missing)
@@ -339,6 +362,8 @@ def render_sequence(
             continue
         _load_tile(renderer, scene, box, spacing)
         for i in todo:
+            if ae is not None:
+                sensor = dataclasses.replace(sensor, gain_e_per_unit=ae.next_gain(i, ae_gains, ae_levels))
             rad = _render_frame(renderer, scene, traj, i, None, scene.seed)
             if vig is not None:
                 rad = rad * vig
@@ -348,9 +373,17 @@ def render_sequence(
                     rad1 = rad1 * vig
                 writer.write_frame(i, sensor.capture(rad1, scene.seed + 1, i, noise=scene.sensor.noise), "cam1")
             if scene.render.depth:
-                writer.write_depth(i, apply_depth_noise(renderer.depth(T_all[i]), scene.depth_noise, scene.seed, i))
+                T_depth = T_all[i]
+                if scene.sensor.readout_ms > 0:
+                    T_depth = traj.pose_at(ts[i] + rolling_row_offsets_s(cam.height_px, scene.sensor.readout_ms))
+                writer.write_depth(i, apply_depth_noise(renderer.depth(T_depth), scene.depth_noise, scene.seed, i))
+            dn = sensor.capture(rad, scene.seed, i, noise=scene.sensor.noise)
+            if ae is not None:
+                ae_gains.append(sensor.gain_e_per_unit)
+                ae_levels.append(image_level(dn, ae.bit_depth, ae.percentile))
+                _write_exposure_log(root / EXPOSURE_FILE, ae_gains, ae_levels)
             # cam0 last: its frame on disk marks the whole frame as done for a resume.
-            writer.write_frame(i, sensor.capture(rad, scene.seed, i, noise=scene.sensor.noise))
+            writer.write_frame(i, dn)
             done += 1
             if on_frame:
                 on_frame(done, total)
@@ -362,6 +395,55 @@ def render_sequence(
             render_flatfield(renderer, scene, T_all[0], sensor, writer, cam_pose=T_all_cam1[0], name="cam1_flatfield")
     log.info("rendered %d frames in %.1f s into %s", len(missing), time.perf_counter() - t0, root)
     return root
+
+
+#: Per-frame exposure of an auto-exposure sequence (relative to the sequence folder).
+EXPOSURE_FILE = "calib/exposure.csv"
+_EXPOSURE_HEADER = ("frame", "gain_e_per_unit", "level")
+
+
+def _sensor_meta(scene: Scene) -> dict | None:
+    """The ``sensor`` block of sequence.json: shutter timing and exposure mode (None for a
+    global shutter with a fixed exposure, so such sequences keep the older metadata)."""
+    ss = scene.sensor
+    if ss.readout_ms <= 0 and ss.exposure_mode == "fixed":
+        return None
+    h = scene.camera.height_px
+    return {
+        "shutter": "rolling" if ss.readout_ms > 0 else "global",
+        "readout_ms": ss.readout_ms,
+        "row_time": "t_frame + (r - (height_px - 1) / 2) * readout_ms / (height_px - 1)",
+        "groundtruth_row": (h - 1) / 2.0,
+        "exposure_mode": ss.exposure_mode,
+        "exposure_file": EXPOSURE_FILE if ss.exposure_mode == "auto" else None,
+    }
+
+
+def _read_exposure_log(path: Path, initial_gain: float) -> tuple[list[float], list[float]]:
+    """Gains and metered levels of frames 0, 1, ... from an auto-exposure log; empty lists when
+    the file is absent, unreadable or from another exposure (its frame 0 has not ``initial_gain``)."""
+    if not path.is_file():
+        return [], []
+    gains: list[float] = []
+    levels: list[float] = []
+    try:
+        lines = read_text(path, ConfigError).splitlines()
+        for k, line in enumerate(lines[1:]):
+            frame, g, m = line.split(",")
+            if int(frame) != k:
+                break
+            gains.append(float(g))
+            levels.append(float(m))
+    except (ConfigError, ValueError) as exc:
+        log.warning("%s: unusable (%s); rendering the auto-exposure frames again", path, exc)
+        return [], []
+    if gains and gains[0] != initial_gain:
+        return [], []
+    return gains, levels
+
+
+def _write_exposure_log(path: Path, gains: list[float], levels: list[float]) -> None:
+    atomic_write_csv(path, _EXPOSURE_HEADER, ((k, g, m) for k, (g, m) in enumerate(zip(gains, levels))))
 
 
 def _frame_seed(seed: int, index: int) -> int:
@@ -380,8 +462,8 @@ def render_flatfield(
 ) -> np.ndarray:
     """Render and write ``calib/NAME.png``: the rig over a flat floor of uniform albedo.
 
-    Same exposure as the sequence, no noise, 16-bit (the full-well scale of a 16-bit
-    sensor), so estimators can divide a frame by it to remove the LED falloff. The LEDs
+    Same exposure as the sequence (the first frame's, with auto exposure), no noise, no
+    fixed pattern and a linear response, 16-bit (the full-well scale of a 16-bit sensor), so estimators can divide a frame by it to remove the LED falloff. The LEDs
     are placed for the rig pose ``T_world_cam`` (cam0); ``cam_pose`` is the pose of the
     camera that sees it (cam1 of a stereo rig), cam0 by default.
     """

@@ -242,14 +242,14 @@ def _check_meta(meta: dict, meta_path: Path) -> None:
 #: Folders of per-frame files.
 _FRAME_FOLDERS = ("cam0", "cam1", "depth")
 _FRAME_FILE = re.compile(r"\d{6,}\.(png|npy)")
-_CALIB_FILE = re.compile(r"cam\d+_flatfield\.png|sensor\.json")
+_CALIB_FILE = re.compile(r"cam\d+_flatfield\.png|sensor\.json|exposure\.csv")
 
 
 def sequence_files(root: str | os.PathLike) -> list[Path]:
     """The files of the sequence format present in ``root`` (except ``sequence.json``).
 
     ``groundtruth.txt``, ``timestamps.txt``, ``cam0/``, ``cam1/`` and ``depth/`` frames (``NNNNNN.png``/``.npy``),
-    ``calib/CAM_flatfield.png`` and ``calib/sensor.json``. Nothing else: other files and
+    ``calib/CAM_flatfield.png``, ``calib/sensor.json`` and ``calib/exposure.csv``. Nothing else: other files and
     folders in the sequence folder are not the format's (``--overwrite`` leaves them).
     """
     root = Path(root)

@@ -27,6 +27,8 @@ __all__ = [
     "RigBlock",
     "DepthBlock",
     "CalibBlock",
+    "SensorBlock",
+    "rolling_row_offsets_s",
     "SequenceMeta",
     "check_sequence_meta",
 ]
@@ -111,6 +113,39 @@ class CalibBlock(Config):
 
 
 @dataclass(frozen=True)
+class SensorBlock(Config):
+    """Shutter timing and exposure of a render (optional: absent means a global shutter and
+    one exposure for the whole sequence, as in every sequence written before it existed)."""
+
+    shutter: str = param("global", choices=("global", "rolling"), doc="global or rolling shutter")
+    readout_ms: float = param(0.0, unit="ms", min=0, doc="rolling shutter: time from the first row to the last")
+    row_time: str = param("", doc="when row r is exposed, relative to the frame time")
+    groundtruth_row: float | None = param(None, min=0, doc="image row whose pose groundtruth.txt holds")
+    exposure_mode: str = param("fixed", choices=("fixed", "auto"), doc="one exposure, or one per frame")
+    exposure_file: str | None = param(None, doc="per-frame exposure (frame, gain_e_per_unit, level) CSV")
+
+    def row_offsets_s(self, height_px: int) -> np.ndarray:
+        """(H,) exposure time of each row relative to the frame time (s) (:func:`rolling_row_offsets_s`)."""
+        return rolling_row_offsets_s(height_px, self.readout_ms if self.shutter == "rolling" else 0.0)
+
+
+def rolling_row_offsets_s(height_px: int, readout_ms: float) -> np.ndarray:
+    """(H,) exposure time of each image row relative to the frame time (s), for a rolling shutter.
+
+    Convention (``sequence.json``'s ``sensor`` block): row r is exposed at
+    ``t_frame + (r - (H - 1) / 2) * readout / (H - 1)``: the first row ``readout / 2`` before
+    the frame time, the last ``readout / 2`` after it, the centre row at the frame time,
+    where the ground-truth pose is defined. A straight run at speed v is therefore sheared
+    by v x readout between the first and the last row. ``readout_ms = 0``: global shutter
+    (all zeros).
+    """
+    h = int(height_px)
+    if h <= 1 or readout_ms <= 0:
+        return np.zeros(max(h, 0))
+    return (np.arange(h) - (h - 1) / 2.0) * (readout_ms / 1000.0 / (h - 1))
+
+
+@dataclass(frozen=True)
 class SequenceMeta(Config):
     """The keys of ``sequence.json``."""
 
@@ -128,6 +163,9 @@ class SequenceMeta(Config):
         None, doc="depth/ frames: format ('png16', 1/100 mm, or 'npy_float32_mm'), scale_per_mm"
     )
     calib: dict[str, Any] | None = param(None, doc="calib/ frames: flatfield (path), flatfield_bit_depth (8 or 16)")
+    sensor: dict[str, Any] | None = param(
+        None, doc="shutter (global/rolling), readout_ms, row_time, groundtruth_row, exposure_mode, exposure_file"
+    )
     floor_spacing_mm: float | None = param(None, unit="mm", gt=0, doc="floor mesh spacing of a render")
     events: dict[str, Any] | None = param(None, doc="trajectory events (teleport_frames)")
     seeds: dict[str, Any] | None = param(None, doc="provenance: random seeds")
@@ -148,8 +186,15 @@ class SequenceMeta(Config):
             _nested(DepthBlock, self.depth, "depth")
         if self.calib is not None:
             _nested(CalibBlock, self.calib, "calib")
+        if self.sensor is not None:
+            _nested(SensorBlock, self.sensor, "sensor")
         if self.stereo and ("cam1" not in self.cameras or self.rig.T_cam0_cam1 is None):
             raise ConfigError("stereo = true: needs cameras.cam1 and rig.T_cam0_cam1")
+
+    @property
+    def sensor_block(self) -> SensorBlock:
+        """The ``sensor`` block (a global shutter with a fixed exposure when the sequence has none)."""
+        return build(SensorBlock, self.sensor or {}, "sensor")
 
 
 def _nested(cls: type, value: Any, key: str) -> None:

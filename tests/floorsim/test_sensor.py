@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from floorsim.sensor import SensorModel, exposure_gain
+from floorsim.sensor import AutoExposure, FixedPattern, SensorModel, exposure_gain
 
 
 def test_exposure_puts_percentile_at_target_level():
@@ -53,3 +53,74 @@ def test_noise_seeded_per_frame():
     assert not np.array_equal(a, s.capture(rad, seed=2, frame_index=3))
     assert not np.array_equal(a, s.capture(rad, seed=1, frame_index=4))
     np.testing.assert_array_equal(s.capture(rad, 1, 3, noise=False), s.capture(rad, 9, 9, noise=False))
+
+
+def test_default_model_is_the_linear_model_of_before():
+    """With no fixed pattern and gamma 1 the capture is byte for byte the earlier linear model,
+    written out here: Poisson, then read noise, from the same generator, then round(clip(e / fw) x max)."""
+    rad = np.random.default_rng(4).gamma(2.0, 1.0, size=(30, 40))
+    for bits in (8, 16):
+        s = SensorModel(700.0, 10000.0, 5.0, True, bits)
+        rng = np.random.default_rng([11, 2, 0x5E50])
+        e = rng.poisson(np.maximum(rad * 700.0, 0.0)).astype(np.float64)
+        e = e + rng.normal(0.0, 5.0, size=e.shape)
+        old = np.round(np.clip(e / 10000.0, 0.0, 1.0) * ((1 << bits) - 1))
+        np.testing.assert_array_equal(s.capture(rad, 11, 2), old)
+
+
+def test_prnu_and_dsnu_have_their_spread_and_stay_fixed():
+    fp = FixedPattern(prnu=0.02, dsnu_e=40.0)
+    s = SensorModel(1.0, 10000.0, 0.0, False, 16, fp)
+    flat = np.full((200, 200), 5000.0)
+    e = s.capture(flat, seed=3, frame_index=0, noise=False) / 65535 * 10000.0
+    # e = 5000 (1 + 0.02 P) + 40 D: spread sqrt(100^2 + 40^2) e- (P, D independent standard normals).
+    assert e.std() == pytest.approx(np.hypot(100.0, 40.0), rel=0.03)
+    assert e.mean() == pytest.approx(5000.0, abs=2.0)
+    np.testing.assert_array_equal(e, s.capture(flat, seed=3, frame_index=9, noise=False) / 65535 * 10000.0)
+    assert not np.array_equal(e, s.capture(flat, seed=4, frame_index=0, noise=False) / 65535 * 10000.0)
+    dark = SensorModel(1.0, 10000.0, 0.0, False, 16, FixedPattern(dsnu_e=40.0)).capture(flat * 0 + 1000.0, 3, 0, False)
+    assert (dark / 65535 * 10000.0).std() == pytest.approx(40.0, rel=0.03)  # DSNU alone: offsets of 40 e-
+    # Raising the PRNU scales the same pattern (maps drawn in a fixed order).
+    twice = SensorModel(1.0, 10000.0, 0.0, False, 16, FixedPattern(prnu=0.04, dsnu_e=40.0)).capture(flat, 3, 0, False)
+    d1, d2 = e - 5000.0, twice / 65535 * 10000.0 - 5000.0
+    assert np.corrcoef(d1.ravel(), d2.ravel())[0, 1] > 0.9
+
+
+def test_hot_and_dead_pixels_are_stuck():
+    fp = FixedPattern(hot_pixel_fraction=0.01, dead_pixel_fraction=0.02)
+    s = SensorModel(1.0, 10000.0, 5.0, True, 8, fp)
+    a = s.capture(np.full((300, 300), 5000.0), seed=1, frame_index=0)
+    b = s.capture(np.full((300, 300), 100.0), seed=1, frame_index=5)
+    assert (a == 255).mean() == pytest.approx(0.01, abs=0.002)
+    assert (a == 0).mean() == pytest.approx(0.02, abs=0.003)
+    np.testing.assert_array_equal(a == 255, b == 255)  # stuck wherever the light
+    np.testing.assert_array_equal(a == 0, b == 0)
+
+
+def test_gamma_response_by_hand():
+    s = SensorModel(1000.0, 10000.0, 0.0, False, 8, gamma=2.0)
+    # e / full well = 0.36, 0.04, 1: DN = round(sqrt(.) * 255) = 153, 51, 255.
+    np.testing.assert_array_equal(s.capture(np.array([[3.6, 0.4, 10.0]]), 0, 0, noise=False), [[153, 51, 255]])
+
+
+def test_auto_exposure_converges_and_reacts_after_its_delay():
+    # A constant scene whose level is proportional to the gain: m = 0.2 at g = 1.
+    for k in (1.0, 0.5):
+        ae = AutoExposure(1.0, target_level=0.8, loop_gain=k, delay_frames=1)
+        gains, levels = [], []
+        for i in range(12):
+            gains.append(ae.next_gain(i, gains, levels))
+            levels.append(0.2 * gains[-1])
+        if k == 1.0:
+            assert gains[1] == pytest.approx(4.0)  # dead-beat: one frame
+        # log error shrinks by (1 - k) per frame
+        err = np.abs(np.log(np.array(levels) / 0.8))
+        assert err[-1] < 1e-3 and (k == 1.0 or err[3] == pytest.approx(err[2] * 0.5, rel=1e-9))
+    # A step in the light at frame 5 reaches the exposure at frame 5 + delay, not before.
+    ae = AutoExposure(4.0, target_level=0.8, loop_gain=1.0, delay_frames=3)
+    gains, levels = [], []
+    for i in range(12):
+        gains.append(ae.next_gain(i, gains, levels))
+        levels.append(min(1.0, (0.2 if i < 5 else 0.1) * gains[-1]))  # the floor turns darker
+    assert gains[:8] == [4.0] * 8 and gains[8] == pytest.approx(8.0)
+    assert AutoExposure(1.0).next_gain(1, [1.0], [0.0]) == pytest.approx((0.8 / (0.5 / 255)) ** 0.5)  # black frame
