@@ -15,7 +15,7 @@ from floorsim import __version__
 from floorvo.cli import build_parser, run_cli
 
 #: Command modules under ``floorsim.commands``, in the order ``--help`` lists them.
-COMMANDS: list[str] = ["render", "list", "bench", "sweep", "export", "gallery"]
+COMMANDS: list[str] = ["render", "list", "bench", "sweep", "export", "gallery", "cache"]
 
 
 def main(argv: list[str] | None = None, *, collaborators: Mapping[str, Any] | None = None) -> int:

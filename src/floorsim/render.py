@@ -263,11 +263,21 @@ class FloorRenderer:
 
     # --------------------------------------------------------------------- geometry
     def load_heightfield(
-        self, x0_mm: float, y0_mm: float, spacing_mm: float, height_mm: np.ndarray, albedo: np.ndarray
-    ) -> None:
-        """Build the floor mesh: vertex (i, j) at (x0 + j s, y0 + i s, height[i, j]).
+        self,
+        x0_mm: float,
+        y0_mm: float,
+        spacing_mm: float,
+        height_mm: np.ndarray,
+        albedo: np.ndarray,
+        normals: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Build the floor mesh: vertex (i, j) at (x0 + j s, y0 + i s, height[i, j]); returns its normals.
 
         ``height_mm`` and ``albedo`` are (H, W) grids. Replaces any previous floor.
+        ``normals``: (H, W, 3) float32 vertex normals returned by an earlier call with the same
+        spacing and heights (:mod:`floorsim.tilecache` keeps them); None computes them
+        (:func:`heightfield_vertex_normals`). They depend only on the spacing and the heights,
+        not on x0, y0 (the mesh is tile-local).
         """
         height_mm = np.asarray(height_mm, dtype=np.float32)
         albedo = np.asarray(albedo, dtype=np.float32)
@@ -282,7 +292,7 @@ class FloorRenderer:
         xs = (spacing_mm * (np.arange(nx) - cx)).astype(np.float32)
         ys = (spacing_mm * (np.arange(ny) - cy)).astype(np.float32)
         origin = (float(x0_mm) + spacing_mm * cx, float(y0_mm) + spacing_mm * cy)
-        self._set_grid(xs, ys, height_mm, albedo, origin)
+        return self._set_grid(xs, ys, height_mm, albedo, origin, normals)
 
     def load_flat(self, xmin: float, xmax: float, ymin: float, ymax: float, albedo: float) -> None:
         """A perfectly flat floor of uniform ``albedo`` (for the flat-field frame)."""
@@ -293,25 +303,35 @@ class FloorRenderer:
         self._set_grid(xs, ys, np.zeros((2, 2), np.float32), np.full((2, 2), albedo, np.float32), origin)
 
     def _set_grid(
-        self, xs: np.ndarray, ys: np.ndarray, height_mm: np.ndarray, albedo: np.ndarray, origin_xy_mm
-    ) -> None:
+        self,
+        xs: np.ndarray,
+        ys: np.ndarray,
+        height_mm: np.ndarray,
+        albedo: np.ndarray,
+        origin_xy_mm,
+        normals: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Triangulate the grid of vertices (xs[j], ys[i], height[i, j]) (tile-local mm) and load it.
 
         ``xs`` (nx,), ``ys`` (ny,), ``height_mm`` and ``albedo`` (ny, nx), all float32. Cell
         (i, j) with a = i nx + j is split along its diagonal into (a, a+1, a+1+nx) and
-        (a, a+1+nx, a+nx).
+        (a, a+1+nx, a+nx). ``normals``: precomputed (ny, nx, 3) vertex normals, or None.
+        Returns the normals.
         """
         ny, nx = height_mm.shape
         V = np.empty((ny, nx, 3), dtype=np.float32)
         V[..., 0] = xs[None, :]
         V[..., 1] = ys[:, None]
         V[..., 2] = height_mm
-        N = heightfield_vertex_normals(xs, ys, height_mm)
+        if normals is not None and np.asarray(normals).shape != (ny, nx, 3):
+            raise ValueError(f"_set_grid: normals {np.asarray(normals).shape} must be {(ny, nx, 3)}")
+        N = heightfield_vertex_normals(xs, ys, height_mm) if normals is None else np.asarray(normals, np.float32)
         a = (np.arange(ny - 1, dtype=np.uint32)[:, None] * nx + np.arange(nx - 1, dtype=np.uint32)[None, :]).ravel()
         F = np.empty((2 * a.size, 3), dtype=np.uint32)
         F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
         F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
         self._set_mesh(V.reshape(-1), F.reshape(-1), N.reshape(-1), albedo.reshape(-1), nx * ny, len(F), origin_xy_mm)
+        return N
 
     def _set_mesh(self, V, F, N, albedo, n_vertices, n_faces, origin_xy_mm) -> None:
         """Load the mesh; ``V`` (3 n,) float32 in tile-local mm, the tile's origin at world ``origin_xy_mm``;

@@ -31,8 +31,11 @@ from floorsim.render import FloorRenderer, LedArray, backend_info, stratified_sp
 from floorsim.scene import Scene, scene_T_world_leds
 from floorsim.sensor import AutoExposure, SensorModel, exposure_gain, image_level, rolling_row_offsets_s
 from floorsim.spectral import mono_response
+from floorsim.tilecache import TileCache, default_cache
 from floorsim.trajectories import Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
+from floorvo.config import build as build_config
+from floorvo.config import to_plain
 from floorvo.errors import ConfigError
 from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
 from floorvo.sequence import SequenceWriter
@@ -211,7 +214,13 @@ def package_versions() -> dict:
     return v
 
 
-def _load_tile(renderer, scene: Scene, box, spacing: float) -> None:
+def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | None | str = "default") -> None:
+    """Load the floor under ``box`` = (xmin, xmax, ymin, ymax) (mm) into ``renderer``.
+
+    The height, albedo and normal grids come from the tile cache (:mod:`floorsim.tilecache`)
+    when it holds them (``cache``: "default" is the one the environment names, None none),
+    and are stored there otherwise.
+    """
     xmin, xmax, ymin, ymax = box
     # Snap the grid to multiples of the spacing in world coordinates: every tile samples
     # the same floor points.
@@ -220,11 +229,41 @@ def _load_tile(renderer, scene: Scene, box, spacing: float) -> None:
     xs = np.arange(i0, i1 + 1) * spacing
     ys = np.arange(j0, j1 + 1) * spacing
     f = scene.floor
-    h, a = sample_material(
-        f.material, xs, ys, scene.floor_seed, f.params, f.relief_scale, f.dirt_density, f.dust_density
-    )
-    renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
-    renderer.specular = get_material(f.material).specular
+    mat = get_material(f.material)
+    tiles = default_cache() if cache == "default" else cache
+
+    def build() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        h, a = sample_material(
+            f.material, xs, ys, scene.floor_seed, f.params, f.relief_scale, f.dirt_density, f.dust_density
+        )
+        return h, a, renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
+
+    if not isinstance(tiles, TileCache):
+        build()
+    else:
+        key = TileCache.key(
+            {
+                "material": f.material,
+                "params": to_plain(build_config(mat.Params, f.params, f"floor.{f.material}")),
+                "seed": scene.floor_seed,
+                "relief_scale": f.relief_scale,
+                "dirt_density": f.dirt_density,
+                "dust_density": f.dust_density,
+                "spacing_mm": spacing,
+                "grid": [i0, i1, j0, j1],
+            },
+            mat.sample.__module__,
+        )
+        built: list[bool] = []
+
+        def build_once() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            built.append(True)
+            return build()
+
+        h, a, n = tiles.load_or_build(key, (len(ys), len(xs)), build_once)
+        if not built:
+            renderer.load_heightfield(xs[0], ys[0], spacing, h, a, normals=n)
+    renderer.specular = mat.specular
 
 
 def render_sequence(

@@ -1,0 +1,145 @@
+"""The disk cache of floor tiles: keyed by content, bit-identical frames, size limit, damage, concurrency, CLI."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from _tiny import tiny_scene
+
+import floorsim.render
+import floorsim.simulate
+from floorsim.cli import main
+from floorsim.simulate import render_sequence
+from floorsim.tilecache import TileCache, default_cache
+from floorvo.sequence import Sequence
+
+
+def _arrays(seed: int, shape=(40, 50)):
+    rng = np.random.default_rng(seed)
+    return tuple(rng.standard_normal(s).astype(np.float32) for s in (shape, shape, (*shape, 3)))
+
+
+@pytest.mark.render
+def test_a_warm_cache_skips_the_floor_and_gives_the_same_frames(tmp_path, monkeypatch):
+    monkeypatch.setenv("FLOORSIM_CACHE", str(tmp_path / "cache"))
+    calls = {"material": 0, "normals": 0}
+    sample, normals = floorsim.simulate.sample_material, floorsim.render.heightfield_vertex_normals
+
+    def counted_sample(*a, **k):
+        calls["material"] += 1
+        return sample(*a, **k)
+
+    def counted_normals(xs, ys, height, *a, **k):
+        calls["normals"] += np.shape(height) != (2, 2)  # not the flat-field frame's flat floor
+        return normals(xs, ys, height, *a, **k)
+
+    monkeypatch.setattr(floorsim.simulate, "sample_material", counted_sample)
+    monkeypatch.setattr(floorsim.render, "heightfield_vertex_normals", counted_normals)
+    cold = Sequence.open(render_sequence(tiny_scene(), tmp_path / "cold"))
+    assert calls["material"] >= 1 and calls["normals"] >= 1
+    n_tiles, size = default_cache().size_bytes()
+    assert n_tiles == calls["material"] and size > 0
+    calls.update(material=0, normals=0)
+    warm = Sequence.open(render_sequence(tiny_scene(), tmp_path / "warm"))
+    assert calls == {"material": 0, "normals": 0}
+    for i in range(cold.frame_count):
+        np.testing.assert_array_equal(warm.image(i), cold.image(i))
+    # Another floor (seed) is another tile; another light is the same tile.
+    render_sequence(tiny_scene(**{"floor.seed": 5, "trajectory.distance_mm": 4.0}), tmp_path / "seed5")
+    assert calls["material"] >= 1
+    calls.update(material=0)
+    render_sequence(tiny_scene(**{"lights.height_mm": 6.0}), tmp_path / "led6")
+    assert calls["material"] == 0
+
+
+def test_keys_follow_the_floor_content():
+    base = {"material": "vinyl", "params": {"bump_amplitude_mm": 0.03}, "seed": 1, "spacing_mm": 0.25, "grid": [0, 9]}
+    k = TileCache.key(base)
+    assert k == TileCache.key(dict(base)) and len(k) == 64
+    for change in ({"seed": 2}, {"spacing_mm": 0.3}, {"grid": [1, 10]}, {"params": {"bump_amplitude_mm": 0.04}}):
+        assert TileCache.key({**base, **change}) != k, change
+
+
+def test_size_limit_evicts_the_least_recently_used(tmp_path):
+    one = len(_tile_bytes())
+    cache = TileCache(tmp_path, max_bytes=int(2.5 * one))
+    for i, key in enumerate(("a" * 64, "b" * 64)):
+        cache.put(key, _arrays(i))
+    import os
+    import time
+
+    os.utime(cache.path("a" * 64), (time.time() - 100, time.time() - 100))
+    os.utime(cache.path("b" * 64), (time.time() - 50, time.time() - 50))
+    assert cache.get("a" * 64, (40, 50)) is not None  # a hit makes "a" the most recent
+    cache.put("c" * 64, _arrays(2))
+    assert cache.get("b" * 64, (40, 50)) is None
+    assert cache.get("a" * 64, (40, 50)) is not None and cache.get("c" * 64, (40, 50)) is not None
+    assert cache.size_bytes()[1] <= 2.5 * one
+
+
+def _tile_bytes() -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    h, a, n = _arrays(0)
+    np.savez(buf, height_mm=h, albedo=a, normals=n)
+    return buf.getvalue()
+
+
+def test_a_damaged_tile_is_built_again(tmp_path, caplog):
+    cache = TileCache(tmp_path)
+    key = "d" * 64
+    cache.put(key, _arrays(0))
+    p = cache.path(key)
+    p.write_bytes(p.read_bytes()[:300])  # cut short
+    assert cache.get(key, (40, 50)) is None
+    assert "damaged tile" in caplog.text
+    got = cache.load_or_build(key, (40, 50), lambda: _arrays(0))
+    for x, y in zip(got, _arrays(0)):
+        np.testing.assert_array_equal(x, y)
+    assert cache.get(key, (40, 50)) is not None
+    assert cache.get(key, (41, 50)) is None  # a tile of another shape is not served
+
+
+def test_concurrent_writers_of_one_tile_leave_one_whole_tile(tmp_path):
+    cache = TileCache(tmp_path)
+    key = "e" * 64
+    out: list = []
+    start = threading.Barrier(6)
+
+    def work():
+        start.wait()
+        out.append(cache.load_or_build(key, (40, 50), lambda: _arrays(3)))
+
+    threads = [threading.Thread(target=work) for _ in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(out) == 6
+    for got in out:
+        np.testing.assert_array_equal(got[2], _arrays(3)[2])
+    assert [p.name for p in cache.path(key).parent.iterdir()] == [cache.path(key).name]  # no temporaries
+
+
+def test_cache_cli_info_clear_and_bad_settings(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("FLOORSIM_CACHE", str(tmp_path / "c"))
+    TileCache(tmp_path / "c").put("f" * 64, _arrays(0))
+    assert main(["cache", "info"]) == 0
+    assert "1 tiles" in capsys.readouterr().out
+    assert main(["cache", "clear"]) == 0
+    assert "deleted 1 tiles" in capsys.readouterr().out
+    assert TileCache(tmp_path / "c").size_bytes() == (0, 0)
+    (tmp_path / "file").write_text("x")
+    monkeypatch.setenv("FLOORSIM_CACHE", str(tmp_path / "file"))
+    assert main(["cache", "info"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "FLOORSIM_CACHE" in err and "not a folder" in err and "\n" not in err
+    monkeypatch.setenv("FLOORSIM_CACHE", str(tmp_path / "c"))
+    monkeypatch.setenv("FLOORSIM_CACHE_MAX_MB", "lots")
+    assert main(["cache", "info"]) == 1
+    assert "FLOORSIM_CACHE_MAX_MB = 'lots'" in capsys.readouterr().err
+    monkeypatch.setenv("FLOORSIM_CACHE", "off")
+    assert default_cache() is None
