@@ -33,6 +33,8 @@ LIGHTING_VARIANTS: dict[str, dict[str, str]] = {
     "ambient leak 0.3": {"lights.ambient_leak": "0.3"},
     "vignetting + blur 10 ms": {"camera.vignetting": "0.8", "sensor.exposure_ms": "10"},
     "dirt + dust": {"floor.dirt_density": "0.3", "floor.dust_density": "0.2"},
+    "LEDs 2.8 x 3.5 mm (SMD 3528)": {"lights.led_size_mm": "2.8", "lights.led_size_z_mm": "3.5"},
+    "bar emitter, window 4 mm": {"lights.emitter": '"bar"'},
     "rolling shutter 30 ms": {"sensor.readout_ms": "30"},
     "fixed pattern: PRNU 5 %, hot/dead": {
         "sensor.prnu": "0.05",

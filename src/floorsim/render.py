@@ -17,7 +17,13 @@ sub-pixel shading noise), and lit by the LEDs only. For LED k at distance r_k::
     L   = sum_k f_k V_k
 
 (w_k: unit vector from the hit to LED k, a_k: LED aim, m: emission lobe exponent, V_k:
-visibility, a shadow ray against the real relief). The unshadowed ``f_k`` of every LED
+visibility, a shadow ray against the real relief). An LED with an extent (a rectangle or a
+disc facing its aim, or a piece of a continuous bar window) spreads I_k evenly over its
+area A_k, so its light is the area average (1/A_k) int f_k(y) V_k(y) dA(y); each sample
+draws one point y_k uniformly on every emitter (a 2-D sampler dimension per LED, so
+stratified across the pixel's samples), evaluates f_k(y_k) there and aims the shadow ray
+at y_k: unbiased, and a penumbra as wide as the emitter's extent predicts. Size 0 draws
+nothing and is the point-LED renderer bit for bit. The unshadowed ``f_k`` of every LED
 is evaluated exactly at every sample; visibility is estimated with one shadow ray per
 LED bar, to an LED picked with probability f_k / F_bar (F_bar = sum of the bar's f_k),
 the sample adding F_bar V. This is unbiased, exact wherever a bar is wholly visible or
@@ -134,8 +140,14 @@ class LedArray:
     cos^m emission profile, ``bar`` (N,) optional bar index of each LED (LEDs of one bar
     share a shadow ray per sample); by default the side of the camera's x axis.
     For a rolling-shutter render (:meth:`FloorRenderer.render` with one pose per image
-    row) ``positions_mm`` and ``aim`` may be (H, N, 3): the LEDs where they are when row
-    r is exposed.
+    row) ``positions_mm``, ``aim`` and ``along`` may be (H, N, 3): the LEDs where they are
+    when row r is exposed.
+
+    Extent: ``size_mm`` = (w, h) > 0 makes each LED an emitting area centred on its
+    position and facing its aim: a w x h rectangle (w along ``along`` made perpendicular
+    to the aim, h across) or, with ``shape = "disc"``, a disc of diameter w; the
+    intensity is spread evenly over it. ``along`` (N, 3): default the horizontal direction
+    perpendicular to the aim. (0, 0): point LEDs.
     """
 
     positions_mm: np.ndarray
@@ -143,6 +155,24 @@ class LedArray:
     intensity: np.ndarray
     lobe_exponent: float = 1.0
     bar: np.ndarray | None = None
+    size_mm: tuple[float, float] = (0.0, 0.0)
+    shape: str = "rectangle"
+    along: np.ndarray | None = None
+
+    def emitter_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit axes (b, u) of each emitter's plane, shaped as ``aim``: b = ``along`` made
+        perpendicular to the aim (the width's direction), u = aim x b (the height's)."""
+        a = np.asarray(self.aim, dtype=np.float64)
+        if self.along is None:
+            b = np.cross(np.array([0.0, 0.0, 1.0]), a)
+        else:
+            b = np.broadcast_to(np.asarray(self.along, dtype=np.float64), a.shape).copy()
+        b = b - np.sum(b * a, axis=-1, keepdims=True) * a
+        norm = np.linalg.norm(b, axis=-1, keepdims=True)
+        if np.any(norm < 1e-9):
+            raise ValueError("LedArray: 'along' (or, by default, the horizontal) is parallel to an LED's aim")
+        b = b / norm
+        return b, np.cross(a, b)
 
 
 def _is_power_of_four(n: int) -> bool:
@@ -484,6 +514,14 @@ class FloorRenderer:
             if not rows_of_leds
             else LedArray(led_pos[(h - 1) // 2], led_aim[(h - 1) // 2], leds.intensity, m, leds.bar),
         )
+        size_w, size_h = (float(v) for v in leds.size_mm)
+        extended = size_w > 0 or size_h > 0
+        if extended:
+            if leds.shape not in ("rectangle", "disc"):
+                raise ValueError(f"render: LED shape {leds.shape!r} is not 'rectangle' or 'disc'")
+            axis_b, axis_u = leds.emitter_axes()
+            if leds.shape == "disc":
+                size_h = size_w
         for k, inten in enumerate(leds.intensity):
             if inten <= 0:
                 continue
@@ -495,6 +533,21 @@ class FloorRenderer:
             else:
                 px, py, pz, ax, ay, az, ik = self._opaque([*(led_pos[k] - self.origin_mm), *led_aim[k], inten])
             lp = mi.Point3f(px, py, pz)
+            if extended:
+                # A point drawn uniformly on the emitter (stratified over the pixel's samples): f at that point
+                # is an unbiased estimate of the emitter's light (intensity spread evenly over its area), and
+                # the shadow ray below goes to the same point.
+                if rows_of_leds:
+                    bx, by, bz, ux, uy, uz = self._per_row(np.concatenate([axis_b[:, k], axis_u[:, k]], axis=1), row)
+                else:
+                    bx, by, bz, ux, uy, uz = self._opaque([*axis_b[k], *axis_u[k]])
+                sq = sampler.next_2d()
+                if leds.shape == "disc":
+                    disk = mi.warp.square_to_uniform_disk_concentric(sq)
+                    s_b, s_u = disk.x * (0.5 * size_w), disk.y * (0.5 * size_w)
+                else:
+                    s_b, s_u = (sq.x - 0.5) * size_w, (sq.y - 0.5) * size_h
+                lp = mi.Point3f(px + s_b * bx + s_u * ux, py + s_b * by + s_u * uy, pz + s_b * bz + s_u * uz)
             dl = lp - si.p
             r2 = dr.squared_norm(dl)
             wl = dl * dr.rsqrt(r2)

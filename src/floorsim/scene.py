@@ -159,6 +159,14 @@ class LightsSpec(Config):
     point (default: the floor under the camera centre). ``colour_temperature_k``: the LEDs'
     spectrum as a black body; the mono camera's response to it relative to 5000 K scales
     the power (:func:`floorsim.spectral.mono_response`), at equal luminous power.
+
+    Emitter extent: ``led_size_mm`` (with ``led_shape`` rectangle or disc, and
+    ``led_size_z_mm`` for a rectangle that is not square) gives each LED an emitting area
+    facing its aim, with the LED's intensity spread evenly over it; ``emitter = "bar"``
+    replaces the row of LEDs by one continuous diffuse window ``bar_length_mm`` x
+    ``bar_window_mm`` per bar (default 4 mm, what a window centred ``height_mm`` = 3 mm
+    above the floor allows; paper 000's OPTEX bar suggests 15 mm), facing the image centre (rendered as ``count`` adjacent
+    rectangles, each sampled per sample; :mod:`floorsim.render`). 0 and "leds" are point LEDs.
     """
 
     height_mm: float = param(3.0, unit="mm", gt=0, doc="LED emitters above the floor")
@@ -183,6 +191,33 @@ class LightsSpec(Config):
     colour_temperature_k: float = param(
         5000.0, unit="K", min=1500.0, max=20000.0, doc="black-body spectrum of the LEDs"
     )
+    emitter: str = param("leds", choices=("leds", "bar"), doc="a row of LEDs, or a continuous diffuse bar window")
+    led_size_mm: float = param(
+        0.0, unit="mm", min=0, max=50.0, doc="LED emitting side along the bar, or disc diameter (0: point LEDs)"
+    )
+    led_size_z_mm: float | None = param(
+        None, unit="mm", gt=0, max=50.0, doc="a rectangular LED's other side (none: square)"
+    )
+    led_shape: str = param("rectangle", choices=("rectangle", "disc"), doc="shape of an LED's emitting area")
+    bar_window_mm: float = param(
+        4.0, unit="mm", gt=0, max=100.0, doc="emitter = bar: height of the window (its length: bar_length_mm)"
+    )
+
+    def validate(self) -> None:
+        if self.led_shape == "disc" and self.led_size_z_mm is not None:
+            raise ConfigFieldError("led_size_z_mm", f" = {self.led_size_z_mm} mm: a disc LED has one size, led_size_mm")
+        if self.emitter == "bar" and self.bar_length_mm <= 0:
+            raise ConfigFieldError("bar_length_mm", " = 0 mm: a bar emitter needs a window length > 0")
+
+    def emitter_size_mm(self) -> tuple[float, float, str]:
+        """(side along the bar, side across it, shape) of each emitting element: an LED's area, or
+        for a bar its window cut into ``count`` adjacent rectangles; (0, 0, ...) for point LEDs."""
+        if self.emitter == "bar":
+            return self.bar_length_mm / self.count, self.bar_window_mm, "rectangle"
+        if self.led_shape == "disc":
+            return self.led_size_mm, self.led_size_mm, "disc"
+        side_z = self.led_size_mm if self.led_size_z_mm is None else self.led_size_z_mm
+        return self.led_size_mm, (side_z if self.led_size_mm > 0 else 0.0), "rectangle"
 
 
 @dataclass(frozen=True)
@@ -324,6 +359,14 @@ class Scene(Config):
                 f" = {self.sensor.readout_ms} ms: a rolling shutter reads out within a frame period "
                 f"(1000 / fps = {1000.0 / self.fps:.4g} ms)",
             )
+        _, across_mm, _ = self.lights.emitter_size_mm()
+        if across_mm / 2 >= self.lights.height_mm:
+            which = "lights.bar_window_mm" if self.lights.emitter == "bar" else "the LED size"
+            raise ConfigFieldError(
+                "lights.height_mm",
+                f" = {self.lights.height_mm} mm: an emitter {across_mm:g} mm tall ({which}) would reach the floor; "
+                "at least half its height is needed",
+            )
         if self.lights.height_mm >= self.camera.height_mm:
             raise ConfigFieldError(
                 "lights.height_mm",
@@ -383,11 +426,14 @@ class Scene(Config):
 
         The bars lie along the camera's y axis at x = -distance (left) and +distance
         (right), ``lights.height_mm`` above the floor, i.e. at camera depth
-        ``camera.height_mm - lights.height_mm``.
+        ``camera.height_mm - lights.height_mm``. A bar emitter: the centres of its ``count``
+        window pieces.
         """
         L = self.lights
         z = self.camera.height_mm - L.height_mm
         ys = np.zeros(1) if L.count == 1 else np.linspace(-L.bar_length_mm / 2, L.bar_length_mm / 2, L.count)
+        if L.emitter == "bar":  # the centres of count rectangles tiling the window
+            ys = np.asarray((np.arange(L.count) + 0.5) * (L.bar_length_mm / L.count) - L.bar_length_mm / 2, np.float64)
         pos, side = [], []
         for s, on in ((-1, L.side in ("both", "left")), (1, L.side in ("both", "right"))):
             if not on:
@@ -478,7 +524,13 @@ def scene_T_world_leds(scene: Scene, T_world_cam: np.ndarray) -> tuple[np.ndarra
     target = T[:3, 3] + s * axis
     # Each bar aims away from its own side: a left LED (side -1) aims towards +x.
     target = target[None, :] - side[:, None] * scene.lights.aim_offset_mm * T[:3, 0][None, :]
-    aim = target - p_world
+    if scene.lights.emitter == "bar":  # one flat window per bar: every piece faces as the bar's centre does
+        p_aim = p_cam.copy()
+        p_aim[:, 1] = 0.0
+        p_aim = p_aim @ T[:3, :3].T + T[:3, 3]
+    else:
+        p_aim = p_world
+    aim = target - p_aim
     aim /= np.linalg.norm(aim, axis=1, keepdims=True)
     if scene.lights.aim_elevation_deg:
         up = np.array([0.0, 0.0, 1.0])

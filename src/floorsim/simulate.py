@@ -137,7 +137,11 @@ def _leds(scene: Scene, T_world_cam: np.ndarray, frame_index: int | None = None)
         rng = np.random.default_rng([int(scene.seed), int(frame_index), 0xF11C])
         power *= max(0.0, 1.0 + scene.lights.flicker * float(rng.standard_normal()))
     inten = np.full(len(pos), power * LED_INTENSITY_UNIT / n_per_bar)
-    return LedArray(pos, aim, inten, scene.lights.lobe_exponent)
+    w_mm, h_mm, shape = scene.lights.emitter_size_mm()
+    if w_mm <= 0 and h_mm <= 0:
+        return LedArray(pos, aim, inten, scene.lights.lobe_exponent)
+    along = np.broadcast_to(np.asarray(T_world_cam, dtype=float)[:3, 1], pos.shape)  # the bars lie along camera y
+    return LedArray(pos, aim, inten, scene.lights.lobe_exponent, size_mm=(w_mm, h_mm), shape=shape, along=along)
 
 
 def ambient_irradiance(scene: Scene, T_world_cam: np.ndarray) -> float:
@@ -185,7 +189,10 @@ def _render_frame(
             Tc = T_rows if T_cam_rig is None else T_rows @ T_cam_rig
             rows = [scene_T_world_leds(scene, T_r) for T_r in T_rows]
             leds = dataclasses.replace(
-                leds, positions_mm=np.stack([p for p, _ in rows]), aim=np.stack([a for _, a in rows])
+                leds,
+                positions_mm=np.stack([p for p, _ in rows]),
+                aim=np.stack([a for _, a in rows]),
+                along=None if leds.along is None else np.repeat(T_rows[:, None, :3, 1], len(rows[0][0]), axis=1),
             )
         rad = renderer.render(
             Tc,
