@@ -90,7 +90,7 @@ def value_noise(x_mm: np.ndarray, y_mm: np.ndarray, cell_mm: float, seed: int, c
 
 def fbm(x_mm, y_mm, cell_mm: float, seed: int, octaves: int = 4, gain: float = 0.5, channel: int = 0) -> np.ndarray:
     """Fractal sum of value noise, roughly in [-1, 1]; finest cell = cell_mm / 2**(octaves-1)."""
-    total = 0.0
+    total: np.ndarray | float = 0.0
     amp, norm = 1.0, 0.0
     cell = cell_mm
     for o in range(octaves):
@@ -98,7 +98,7 @@ def fbm(x_mm, y_mm, cell_mm: float, seed: int, octaves: int = 4, gain: float = 0
         norm += amp
         amp *= gain
         cell *= 0.5
-    return total / norm
+    return np.asarray(total / norm)
 
 
 def _segments_distance(X, Y, cell_mm, seed, channel, per_cell, length_range, max_len, max_dist=np.inf):

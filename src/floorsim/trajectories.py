@@ -81,7 +81,7 @@ class Disturbance(Config):
     def active(self) -> bool:
         return self.bounce_amp_mm > 0 or self.tilt_amp_rad > 0 or self.vibration_rms_mm > 0
 
-    def offsets(self, t_s: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def offsets(self, t_s: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(dxyz_mm (M, 3), roll_rad (M,), pitch_rad (M,)) at times ``t_s`` (M,)."""
         t = np.asarray(t_s, dtype=float)
         dxyz = np.zeros((len(t), 3))
@@ -92,7 +92,8 @@ class Disturbance(Config):
             rng = np.random.default_rng([seed, 0x7E1B])
             k = 8
             for axis in range(3):
-                freqs = rng.uniform(*self.vibration_band_hz, size=k)
+                lo_hz, hi_hz = self.vibration_band_hz
+                freqs = rng.uniform(lo_hz, hi_hz, size=k)
                 phases = rng.uniform(0, 2 * np.pi, size=k)
                 # Each unit sinusoid has RMS 1/sqrt(2); k of them with random phases sum to RMS sqrt(k/2).
                 amp = self.vibration_rms_mm / np.sqrt(k / 2)
@@ -545,12 +546,12 @@ def footprint_bounds_mm(
             raise ConfigError("camera: a corner ray does not hit the floor (tilt too large)")
         s = -o[2] / d[:, 2]
         pts.append(o[None, :2] + s[:, None] * d[:, :2])
-    pts = np.concatenate(pts)
+    xy = np.concatenate(pts)
     return (
-        float(pts[:, 0].min() - margin_mm),
-        float(pts[:, 0].max() + margin_mm),
-        float(pts[:, 1].min() - margin_mm),
-        float(pts[:, 1].max() + margin_mm),
+        float(xy[:, 0].min() - margin_mm),
+        float(xy[:, 0].max() + margin_mm),
+        float(xy[:, 1].min() - margin_mm),
+        float(xy[:, 1].max() + margin_mm),
     )
 
 

@@ -95,7 +95,13 @@ class CameraModel:
         if not isinstance(distortion, (list, tuple)):
             raise ConfigError(f"camera: distortion = {shown(distortion)}: must be a list of numbers")
         return cls(
-            d["width_px"], d["height_px"], float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), distortion
+            d["width_px"],
+            d["height_px"],
+            float(K[0, 0]),
+            float(K[1, 1]),
+            float(K[0, 2]),
+            float(K[1, 2]),
+            tuple(distortion),
         )
 
     def to_dict(self) -> dict:
@@ -194,7 +200,9 @@ class CameraModel:
         if self.has_distortion:
             import cv2
 
-            pts = cv2.undistortPoints(uv.reshape(-1, 1, 2), self.K, np.asarray(self.distortion)).reshape(-1, 2)
+            pts = np.asarray(
+                cv2.undistortPoints(uv.reshape(-1, 1, 2), self.K, np.asarray(self.distortion)), dtype=float
+            ).reshape(-1, 2)
             x, y = pts[:, 0], pts[:, 1]
         z = np.broadcast_to(np.asarray(depth_mm, dtype=float), x.shape)
         return np.stack([x * z, y * z, z], axis=1)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -59,7 +60,7 @@ class MapFused:
     name = "map-fused"
     description = "keyframe-map relocalisation (paper 003) fused with an odometry estimator; needs --est-set map=MAP"
     Config = MapFusedConfig
-    requires = frozenset()
+    requires: frozenset[str] = frozenset()
 
     def __init__(
         self,
@@ -112,7 +113,7 @@ class MapFused:
             fix = self.localizer.localize(frame.image)
         t2 = time.perf_counter()
         timing = {"detect": 1e3 * (t1 - t0), "match": 0.0, "estimate": 1e3 * (t2 - t1), "total": 1e3 * (t2 - t0)}
-        counts = dict(
+        counts: dict[str, Any] = dict(
             n_keypoints=fix.n_keypoints if fix else 0,
             n_matches=fix.n_matches if fix else 0,
             n_inliers=fix.n_inliers if fix else 0,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -137,7 +138,7 @@ class Localizer:
         }
         n_matches = max((f.n_matches for _, f in fits), default=0)
         n_inl = max((f.n_inliers for _, f in fits), default=0)
-        common = dict(n_keypoints=len(feats), n_matches=n_matches, n_inliers=n_inl, timing_ms=timing)
+        common: dict[str, Any] = dict(n_keypoints=len(feats), n_matches=n_matches, n_inliers=n_inl, timing_ms=timing)
         if best is None:
             why = fits[0][1].reason if fits else "empty map"
             return Localization(False, reason=f"no candidate keyframe fits (best: {why})", **common)

@@ -267,7 +267,8 @@ def build_map(
             f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
         )
     gt = seq.groundtruth()
-    T_frames, found = seq.groundtruth_at(seq.timestamps_s, max_diff_s=1e-3)
+    T_at, found = seq.groundtruth_at(seq.timestamps_s, max_diff_s=1e-3)
+    T_frames: np.ndarray | None = T_at
     if not found.all():
         if gt is not None:
             log.warning("map: ground truth does not cover every frame; keyframe poses are chained (eq. 24)")
