@@ -141,12 +141,13 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
-        if seq.has_stereo:
+        T_cam0_cam1 = seq.T_cam0_cam1
+        if T_cam0_cam1 is not None:
             conns["/tf_static"] = w.add_connection("/tf_static", TFMessage.__msgtype__, typestore=ts)
             tfs = TFMessage(
                 transforms=[
                     TransformStamped(
-                        header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(seq.T_cam0_cam1)
+                        header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(T_cam0_cam1)
                     )
                 ]
             )
@@ -159,7 +160,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
             t_s = float(stamps[i])
             for c in cams:
                 cam = seq.camera_model(c)
-                tx = 0.0 if c == "cam0" else float(seq.T_cam0_cam1[0, 3]) / 1000.0
+                tx = 0.0 if c == "cam0" or T_cam0_cam1 is None else float(T_cam0_cam1[0, 3]) / 1000.0
                 put(f"/{c}/image_raw", t_s, image_msg(seq.image(i, c), t_s, c))
                 put(f"/{c}/camera_info", t_s, cam_info(cam, t_s, c, tx))
             if seq.has_depth:
@@ -259,10 +260,10 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
         t, Ts = gt
         p = Ts[:, :3, 3] / 1000.0
         v = np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p)
-        rows = []
+        gt_rows: list[list[object]] = []
         for k, ns in enumerate(_stamps_ns(t, stamps)):
             _, q = xyz_quat_from_T(Ts[k])
-            rows.append(
+            gt_rows.append(
                 [
                     ns,
                     *[f"{x:.9f}" for x in p[k]],
@@ -297,7 +298,7 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
                 "b_a_RS_S_z [m s^-2]",
             )
         ]
-        atomic_write_csv(g / "data.csv", header, rows)
+        atomic_write_csv(g / "data.csv", header, gt_rows)
     return out
 
 

@@ -184,7 +184,7 @@ def detect_features(image_u8: np.ndarray, cfg: SimilarityConfig) -> Features:
     key = (cfg.n_features, cfg.fast_threshold)
     orb = _ORB_CACHE.get(key)
     if orb is None:
-        orb = cv2.ORB_create(
+        orb = cv2.ORB.create(
             nfeatures=cfg.n_features,
             scaleFactor=1.2,
             nlevels=2,
