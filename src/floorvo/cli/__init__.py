@@ -11,6 +11,11 @@ Flags that mean the same in every command of both CLIs (``floorvo``, ``floorsim`
 :func:`floorvo.cli.common.add_output_argument`), ``--set KEY=VALUE``, and ``-v/--verbose``
 (debug logging of floorvo and floorsim) and ``-q/--quiet`` (warnings and errors only),
 which work before or after the subcommand.
+
+A command's ``run`` imports the library modules it needs when it runs: ``floorvo --help``
+and a mistyped flag answer at once, without loading OpenCV, SciPy and the estimators.
+These imports dodge no cycle (the command modules are leaves; each import works at module
+level too).
 """
 
 from __future__ import annotations

@@ -33,6 +33,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from floorvo import __version__
 from floorvo.config import from_overrides
 from floorvo.errors import ConfigError, EstimatorLoadError, shorten
 from floorvo.estimators.base import Estimator
@@ -172,8 +173,6 @@ def _distribution(ep: importlib.metadata.EntryPoint) -> tuple[str, str]:
 
 def estimator_source(name: str) -> EstimatorSource:
     """Where estimator ``name`` comes from (:class:`ConfigError` for an unknown name)."""
-    from floorvo import __version__
-
     if name in BUILTIN_ESTIMATORS:
         return EstimatorSource("built-in", BUILTIN_ESTIMATORS[name], "floorbench", __version__)
     if name in _REGISTERED:
