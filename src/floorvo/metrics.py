@@ -214,7 +214,15 @@ def rpe_pairs_by_frames(n: int, delta: int = 1) -> np.ndarray:
 
 
 def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float) -> np.ndarray:
-    """(K, 2) pairs ``(i, j)``: j is the first pose where the reference path is >= delta_mm past i."""
+    """(K, 2) pairs ``(i, j)``: j is the first pose where the reference path is >= delta_mm past i.
+
+    Every pose ``i`` that has such a ``j`` starts a pair, so the pairs overlap. evo's
+    ``evo_rpe --delta D --delta_unit m`` (``filters.filter_pairs_by_path``, ``all_pairs``
+    off) uses the same rule for the end of a pair but chains the pairs from pose 0, each
+    starting where the previous one ended: its pairs are a subset of these, the errors on
+    them are equal, and the statistics over all pairs differ by the sampling alone (a test
+    checks both against evo).
+    """
     if delta_mm <= 0:
         raise ValueError(f"rpe delta_mm = {delta_mm}: must be > 0")
     dist = path_distances_mm(T_ref)

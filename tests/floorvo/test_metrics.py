@@ -176,6 +176,27 @@ def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
         for k in ("rmse", "mean", "max"):
             assert ours[k] == pytest.approx(theirs[k] * unit, rel=1e-6, abs=1e-7), (key, k)
 
+    # RPE per distance. evo_rpe --delta 0.01 --delta_unit m pairs consecutive segments from
+    # pose 0 (each ends at the first pose >= 10 mm of path past the previous end); ours pairs
+    # EVERY pose with the first pose >= 10 mm past it (overlapping). evo's pairs are a subset
+    # of ours, on them our errors are evo's, and over all of ours the statistics differ by
+    # the sampling alone (the difference README "Scoring" states).
+    from evo.core import filters
+
+    delta_mm = 10.0
+    evo_pairs = filters.filter_pairs_by_path(traj_ref.poses_se3, delta_mm / 1000.0)
+    ours_mm = M.rpe(A, B, delta_frames=None, delta_mm=delta_mm)
+    row_of_start = {int(i): r for r, (i, _) in enumerate(ours_mm["pairs"])}
+    assert len(evo_pairs) >= 5 and len(ours_mm["pairs"]) > 2 * len(evo_pairs)
+    assert all(int(ours_mm["pairs"][row_of_start[i]][1]) == j for i, j in evo_pairs)
+    rows = [row_of_start[i] for i, _ in evo_pairs]
+    m = em.RPE(em.PoseRelation.translation_part, delta=delta_mm / 1000.0, delta_unit=em.Unit.meters, all_pairs=False)
+    m.process_data((traj_ref, traj_est))
+    theirs = m.get_all_statistics()
+    on_evo_pairs = M.error_stats(ours_mm["trans_errors_mm"][rows])
+    for k in ("rmse", "mean", "max"):
+        assert on_evo_pairs[k] == pytest.approx(theirs[k] * 1000.0, rel=1e-6, abs=1e-7), k
+
     # And the evo_ape command line on the very same files, SE(3)-aligned.
     evo_ape_bin = Path(sys.executable).parent / "evo_ape"
     assert evo_ape_bin.exists(), f"{evo_ape_bin}: evo's command line is missing (install the [test] extra)"
