@@ -34,7 +34,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
-from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
@@ -61,21 +61,48 @@ def mean_std_filter(movement: np.ndarray, passes: int = 2) -> np.ndarray:
 
 @dataclass(frozen=True)
 class AkazeConfig(Config):
-    """AKAZE detector threshold, keypoint budget, guided-matching and filter settings.
+    """AKAZE detector threshold, keypoint budget, guided-matching, filter and self-check settings.
 
-    ``search_radius_px`` and ``max_candidates`` bound the guided search around each
-    prediction; ``hamming_threshold`` is in bits (the MLDB descriptor has 486). Grazing
-    light changes a bump's shading as the LEDs move with the rig, so true matches differ
-    by more bits than under diffuse light; the nearest-first order keeps geometry first.
+    Guided matching (section II-B): around each eq. (2) prediction the new frame's
+    keypoints within ``search_radius_mm`` (on the floor; the largest change of the
+    per-frame motion from one frame to the next that the prediction absorbs) are visited
+    nearest first, up to ``max_candidates``, and the first whose Hamming distance is under
+    ``hamming_threshold`` bits (of the MLDB descriptor's 486) is the match. Paper 000's
+    sigmoid models change the per-frame motion by up to 2 mm (2 -> 4 mm/frame on the 1-mm
+    strip, 16 px at 100 mm), so the radius covers 3 mm. The threshold separates the
+    descriptor of the same floor point in the next frame from that of a neighbour: on the
+    rendered vinyl strip (4 frame pairs, 1-4 mm apart) a true match differs by a median 62
+    bits and 77 % of them by under 120, a keypoint 4-30 px away from the true position by
+    under 120 bits in 0.02 % of cases (1 % under 160, 13 % under 200).
+
+    Self-checks of each step (a step failing one is reported ``lost`` with the reason):
+    at least ``min_matches`` matches and ``min_inliers`` pairs left by the section II-C
+    filter; the RMS distance of those pairs from the fitted rigid motion at most
+    ``max_rms_px``; at least ``min_consensus`` of all matches within ``inlier_tol_px`` of
+    it. A guided step whose prediction is doubtful (it fails a check, or its correction of
+    the prediction reaches ``doubt_radius_fraction`` of the search radius) is matched
+    again by brute force, and the step's ``reason`` says so.
     """
 
     akaze_threshold: float = param(0.0005, gt=0.0, doc="AKAZE detector response threshold")
     max_keypoints: int = param(1500, min=10, doc="strongest keypoints kept per frame")
-    hamming_threshold: int = param(200, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
-    search_radius_px: float = param(12.0, unit="px", gt=0.0, doc="guided search radius around each predicted position")
-    max_candidates: int = param(8, min=1, max=64, doc="nearest candidates tried per keypoint in the guided search")
+    hamming_threshold: int = param(120, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
+    search_radius_mm: float = param(
+        3.0, unit="mm", gt=0.0, doc="guided search radius around each predicted position, on the floor"
+    )
+    max_candidates: int = param(32, min=1, max=256, doc="nearest candidates tried per keypoint in the guided search")
     filter_passes: int = param(2, min=0, max=10, doc="passes of the mean +/- one std movement filter (section II-C)")
+    refine_passes: int = param(2, min=0, max=10, doc="re-fits on the matches within inlier_tol_px of the fit")
     min_matches: int = param(6, min=2, doc="fewer matches: the frame is lost")
+    min_inliers: int = param(8, min=2, doc="fewer pairs behind the fit: the frame is lost")
+    max_rms_px: float = param(1.25, unit="px", gt=0.0, doc="larger RMS distance of the pairs from the fit: lost")
+    inlier_tol_px: float = param(2.0, unit="px", gt=0.0, doc="a match this close to the fitted motion agrees with it")
+    min_consensus: float = param(
+        0.2, min=0.0, max=1.0, doc="smaller fraction of the matches agreeing with the fit: the frame is lost"
+    )
+    doubt_radius_fraction: float = param(
+        0.75, gt=0.0, max=1.0, doc="a guided fit correcting the prediction by this much of the radius: brute force"
+    )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
 
 
@@ -87,9 +114,27 @@ class _State:
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
 
 
+@dataclass(frozen=True)
+class _Fit:
+    """A rigid image motion fitted to matches, and what its self-checks found.
+
+    ``M``: 3x3 prev-centred px -> cur-centred px; ``src``, ``dst``: (K, 2) px, the pairs
+    the section II-C filter kept; ``problem``: '' when every check passed, else why not.
+    """
+
+    M: np.ndarray | None
+    src: np.ndarray
+    dst: np.ndarray
+    n_matches: int
+    rms_px: float = float("nan")
+    consensus: float = 0.0
+    problem: str = ""
+
+
 class _AkazeBase:
     Config = AkazeConfig
     requires = frozenset()
+    guided: bool = False
 
     def __init__(
         self, config: AkazeConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
@@ -100,6 +145,7 @@ class _AkazeBase:
         self.flatfield = flatfield if config.use_flatfield else None
         self.detector = cv2.AKAZE_create(threshold=config.akaze_threshold)
         self.centre = np.array([camera.cx_px, camera.cy_px])
+        self.search_radius_px = config.search_radius_mm * camera.fx_px / self.height_mm
 
     def start(self) -> _State:
         return _State()
@@ -120,94 +166,140 @@ class _AkazeBase:
         m = match_nn(state.desc, desc, cross_check=True)
         return state.kps[m.i0], kps[m.i1]
 
+    def _predict(self, M: np.ndarray, pts_px: np.ndarray) -> np.ndarray:
+        """Eq. (2) in its general rigid form: (N, 2) previous-frame px -> predicted current-frame px."""
+        return (pts_px - self.centre) @ M[:2, :2].T + M[:2, 2] + self.centre
+
     def _guided(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Eq. (2) prediction, then nearest-first candidates accepted under the Hamming threshold."""
+        """Eq. (2) prediction, then nearest-first candidates accepted under the Hamming threshold (Fig. 6)."""
         cfg = self.config
-        M = state.M_last
-        p = state.kps - self.centre
-        pred = p @ M[:2, :2].T + M[:2, 2] + self.centre  # eq. (2), general rigid form
         m = match_guided(
-            pred,
+            self._predict(state.M_last, state.kps),
             kps,
             state.packed,
             pack_descriptors(desc),
-            radius_px=cfg.search_radius_px,
+            radius_px=self.search_radius_px,
             max_candidates=cfg.max_candidates,
             max_distance=cfg.hamming_threshold,
         )
         return state.kps[m.i0], kps[m.i1]
 
+    def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray) -> _Fit:
+        """Section II-C filter and the SE(2) fit of the matches ``src -> dst`` (px), then the self-checks."""
+        cfg = self.config
+        n = len(src)
+        if n < cfg.min_matches:
+            return _Fit(None, src, dst, n, problem=f"too few matches ({n} < {cfg.min_matches})")
+        # Section II-C: twice mean +/- std on the movement (relative to the prediction).
+        keep = mean_std_filter(dst - self._predict(pred_M, src), cfg.filter_passes)
+        s, d = src[keep], dst[keep]
+        if len(s) < cfg.min_inliers:
+            return _Fit(None, s, d, n, problem=f"too few pairs left by the filter ({len(s)} < {cfg.min_inliers})")
+        M = self._rigid_px(s, d)
+        # Refinement: the fit again on every match within inlier_tol_px of it. The filter
+        # keeps a band of +/- one standard deviation and drops most true matches with
+        # them; under yaw that band is a strip of the image, which conditions the
+        # rotation poorly. The matches that agree with the filtered fit are all used.
+        inl = np.linalg.norm(self._predict(M, src) - dst, axis=1) <= cfg.inlier_tol_px
+        for _ in range(cfg.refine_passes):
+            if inl.sum() < cfg.min_inliers:
+                break
+            M = self._rigid_px(src[inl], dst[inl])
+            inl = np.linalg.norm(self._predict(M, src) - dst, axis=1) <= cfg.inlier_tol_px
+        if cfg.refine_passes and inl.sum() >= cfg.min_inliers:
+            s, d = src[inl], dst[inl]
+        rms = float(np.sqrt(np.mean(np.sum((self._predict(M, s) - d) ** 2, axis=1))))
+        consensus = float(inl.mean())
+        problem = ""
+        if rms > cfg.max_rms_px:
+            problem = f"fit residual {rms:.2f} px RMS > {cfg.max_rms_px:g}"
+        elif consensus < cfg.min_consensus:
+            problem = (
+                f"only {100 * consensus:.0f} % of {n} matches agree with the fit "
+                f"(within {cfg.inlier_tol_px:g} px; needs {100 * cfg.min_consensus:.0f} %)"
+            )
+        return _Fit(M, s, d, n, rms, consensus, problem)
+
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """3x3 least-squares rigid motion (prev-centred px -> cur-centred px) of the pairs ``src -> dst`` (N, 2) px."""
+        R, t = rigid_fit(src - self.centre, dst - self.centre)
+        M = np.eye(3)
+        M[:2, :2], M[:2, 2] = R, t
+        return M
+
+    def _prediction_doubt(self, fit: _Fit, pred_M: np.ndarray) -> str:
+        """Why the eq. (2) prediction behind a guided fit is doubtful ('' if it is not)."""
+        if fit.problem:
+            return fit.problem
+        # The largest correction of the prediction over the frame's keypoints: near the
+        # search radius, true matches may lie beyond it and the nearer wrong ones were taken.
+        corr = float(np.max(np.linalg.norm(self._predict(fit.M, fit.src) - self._predict(pred_M, fit.src), axis=1)))
+        limit = self.config.doubt_radius_fraction * self.search_radius_px
+        if corr > limit:
+            return (
+                f"the motion differs from the prediction by {corr:.1f} px (search radius {self.search_radius_px:.1f})"
+            )
+        return ""
+
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
+        bad = frame_problem(frame.image, self.camera)
+        if bad:
+            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         kps, desc = self._detect(frame.image)
         t1 = time.perf_counter()
         if state.kps is None:
+            if len(kps) < self.config.min_matches:
+                return StepResult(
+                    "lost",
+                    reason=f"too few keypoints ({len(kps)}) to start from",
+                    n_keypoints=len(kps),
+                    timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                )
             state.kps, state.desc, state.packed = kps, desc, pack_descriptors(desc)
             return StepResult(
                 "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
-        if len(kps) < self.config.min_matches or len(state.kps) < self.config.min_matches:
-            if len(kps) < self.config.min_matches:
-                # This frame cannot be tracked: the next one is matched against the last frame
-                # kept (estimator contract), with no motion to predict from across the gap.
-                why = f"too few keypoints ({len(kps)})"
-                state.M_last = None
-            else:
-                # The frame kept has too few keypoints (an untextured first frame): this one replaces it.
-                why = f"too few keypoints in the previous frame ({len(state.kps)})"
-                state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
-            return StepResult(
-                "lost", reason=why, n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
-            )
-        if self.guided and state.M_last is not None:
-            src, dst = self._guided(state, kps, desc)
-            pred_M = state.M_last
+        note = ""
+        if len(kps) < self.config.min_matches:
+            fit = _Fit(None, kps, kps, 0, problem=f"too few keypoints ({len(kps)})")
+        elif self.guided and state.M_last is not None:
+            fit = self._fit(*self._guided(state, kps, desc), state.M_last)
+            doubt = self._prediction_doubt(fit, state.M_last)
+            if doubt:
+                # The prediction is doubtful: match again without it (brute force, as at the start).
+                note = f"guided prediction doubtful ({doubt}): matched by brute force"
+                fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3))
         else:
-            src, dst = self._bruteforce(state, kps, desc)
-            pred_M = np.eye(3)
+            fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3))
         t2 = time.perf_counter()
-        n_matches = len(src)
-        if n_matches < self.config.min_matches:
-            state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
+        if fit.problem:
+            # Lost: the next frame is matched against the last good one, without a prediction.
+            state.M_last = None
             return StepResult(
                 "lost",
-                reason=f"too few matches ({n_matches})",
+                reason=f"{note}; {fit.problem}" if note else fit.problem,
                 n_keypoints=len(kps),
-                n_matches=n_matches,
+                n_matches=fit.n_matches,
+                n_inliers=len(fit.src),
                 timing_ms=_timing(t0, t1, t2, time.perf_counter()),
             )
-        # Section II-C: twice mean +/- std on the movement (relative to the prediction).
-        p = src - self.centre
-        predicted = p @ pred_M[:2, :2].T + pred_M[:2, 2] + self.centre
-        keep = mean_std_filter(dst - predicted, self.config.filter_passes)
-        src, dst = src[keep], dst[keep]
-        if len(src) < max(2, self.config.min_matches // 2):
-            state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), None
-            return StepResult(
-                "lost",
-                reason=f"too few inliers ({len(src)})",
-                n_keypoints=len(kps),
-                n_matches=n_matches,
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
-            )
-        # Eq. (1) via the camera model, then the SE(2) least-squares rigid fit.
-        q_prev = pixels_to_floor_mm(src, self.camera, self.height_mm)
-        q_cur = pixels_to_floor_mm(dst, self.camera, self.height_mm)
+        # Eq. (1) via the camera model, then the SE(2) least-squares rigid fit in floor mm.
+        q_prev = pixels_to_floor_mm(fit.src, self.camera, self.height_mm)
+        q_cur = pixels_to_floor_mm(fit.dst, self.camera, self.height_mm)
         R2, t2_mm = rigid_fit(q_prev, q_cur)
         T = floor_rigid_to_T(R2, t2_mm)
-        Rpx, tpx = rigid_fit(src - self.centre, dst - self.centre)
-        M = np.eye(3)
-        M[:2, :2], M[:2, 2] = Rpx, tpx
-        state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), M
+        state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), fit.M
         t3 = time.perf_counter()
         return StepResult(
             "ok",
             T,
+            reason=note,
             n_keypoints=len(kps),
-            n_matches=n_matches,
-            n_inliers=int(keep.sum()),
+            n_matches=fit.n_matches,
+            n_inliers=len(fit.src),
             timing_ms=_timing(t0, t1, t2, t3),
-            matches_px=np.hstack([src, dst]),
+            matches_px=np.hstack([fit.src, fit.dst]),
         )
 
 

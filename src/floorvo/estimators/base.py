@@ -30,6 +30,7 @@ __all__ = [
     "Frame",
     "StepResult",
     "Estimator",
+    "frame_problem",
 ]
 
 
@@ -89,3 +90,25 @@ class Estimator(Protocol):
     def start(self) -> Any: ...
 
     def step(self, state: Any, frame: Frame) -> StepResult: ...
+
+
+def frame_problem(image: np.ndarray | None, camera: CameraModel, what: str = "frame") -> str:
+    """Why ``image`` cannot be a frame of ``camera`` ('' when it can).
+
+    A frame is a 2-D (H, W) mono image (integer or float) of the camera's size; an
+    (H, W, C) array (colour, or a single channel kept as an axis), another size or an
+    empty array is refused, so an estimator reports its step ``lost`` with this reason
+    instead of measuring a wrong motion.
+    """
+    if image is None:
+        return f"{what} has no image"
+    a = np.asarray(image)
+    if a.ndim != 2:
+        chans = f"{a.shape[2]} channels" if a.ndim == 3 else f"{a.ndim} dimensions"
+        return f"{what} has {chans} (shape {a.shape}): a mono (H, W) image is expected"
+    h, w = a.shape
+    if (w, h) != (camera.width_px, camera.height_px):
+        return f"{what} is {w}x{h} px: the camera is {camera.width_px}x{camera.height_px}"
+    if a.dtype.kind not in "uif":
+        return f"{what} has pixels of type {a.dtype}: numbers are expected"
+    return ""
