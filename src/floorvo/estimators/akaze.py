@@ -202,12 +202,21 @@ class _AkazeBase:
         # rotation poorly. The matches that agree with the filtered fit are all used.
         inl = np.linalg.norm(self._predict(M, src) - dst, axis=1) <= cfg.inlier_tol_px
         for _ in range(cfg.refine_passes):
-            if inl.sum() < cfg.min_inliers:
+            if inl.sum() < 3:
                 break
             M = self._rigid_px(src[inl], dst[inl])
             inl = np.linalg.norm(self._predict(M, src) - dst, axis=1) <= cfg.inlier_tol_px
-        if cfg.refine_passes and inl.sum() >= cfg.min_inliers:
+        if cfg.refine_passes:
             s, d = src[inl], dst[inl]
+            if len(s) < cfg.min_inliers:
+                return _Fit(
+                    M,
+                    s,
+                    d,
+                    n,
+                    consensus=float(inl.mean()),
+                    problem=f"too few matches agree with the fit ({len(s)} < {cfg.min_inliers})",
+                )
         rms = float(np.sqrt(np.mean(np.sum((self._predict(M, s) - d) ** 2, axis=1))))
         consensus = float(inl.mean())
         problem = ""

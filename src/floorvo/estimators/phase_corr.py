@@ -27,7 +27,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit
 from floorvo.imaging import illumination_corrected
 
@@ -212,8 +212,11 @@ class PhaseCorr:
     # ------------------------------------------------------------------ step
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
+        bad = frame_problem(frame.image, self.camera)
+        if bad:
+            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         img = np.asarray(frame.image)
-        if img.size == 0 or float(img.std()) == 0.0:
+        if float(img.std()) == 0.0:
             return StepResult(
                 "lost",
                 reason="empty frame (no texture)",
@@ -235,13 +238,9 @@ class PhaseCorr:
             M, min_peak, resid = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
-        crop = cur[
-            self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
-        ]
-        new_blocks = self._blocks(crop)
         if self._failed(min_peak, resid):
+            # Lost: the next frame is measured against the last good one, from no prediction.
             state.M_pred = np.eye(3)
-            state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
             why = (
                 f"weak correlation peak {min_peak:.3f}"
                 if min_peak < self.config.min_peak
@@ -250,6 +249,10 @@ class PhaseCorr:
             return StepResult(
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
             )
+        crop = cur[
+            self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
+        ]
+        new_blocks = self._blocks(crop)
         # M maps prev-centred px to cur-centred px: the floor's motion in the image.
         R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.camera, self.height_mm, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
