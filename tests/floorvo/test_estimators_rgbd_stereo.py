@@ -126,6 +126,30 @@ def test_lost_frames_give_status_and_the_run_goes_on():
     assert r.status == "lost" and "empty" in r.reason
 
 
+def test_frames_of_the_wrong_size_are_refused_with_a_reason():
+    """A left, right or depth image of another size than the camera's: lost with a reason, no exception."""
+    T_true = _motion(2.0, 0.0, 0.0)
+    prev, cur, flat = frame_pair(CAM, T_true)
+    depth = flat_floor_depth(CAM)
+    est = get_estimator("orb-icp")(make_config("orb-icp"), CAM, height_mm=100.0, flatfield=flat)
+    st = est.start()
+    est.step(st, Frame(0, 0.0, prev, depth_mm=depth))
+    r = est.step(st, Frame(1, 0.1, cur, depth_mm=depth[:200, :300]))
+    assert r.status == "lost" and "depth image is 300x200 px: the camera is 324x247" in r.reason
+    r = est.step(st, Frame(2, 0.2, cur[:, :200], depth_mm=depth))
+    assert r.status == "lost" and "frame is 200x247 px" in r.reason
+    _check(est.step(st, Frame(3, 0.3, cur, depth_mm=depth)), T_true, "orb-icp")  # against the last good frame
+
+    (L0, R0), (L1, R1), flat2, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
+    ss = get_estimator("stereo-sift")(
+        make_config("stereo-sift"), CAM, height_mm=100.0, camera_right=CAM, T_cam0_cam1=T01
+    )
+    st = ss.start()
+    ss.step(st, Frame(0, 0.0, L0, image_right=R0))
+    r = ss.step(st, Frame(1, 0.1, L1, image_right=np.dstack([R1, R1, R1])))
+    assert r.status == "lost" and "right frame has 3 channels" in r.reason
+
+
 def test_homogenised_keypoints_capped_per_cell():
     import cv2
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
-from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -167,7 +167,10 @@ class OrbIcp:
         img = np.asarray(frame.image)
         if frame.depth_mm is None:
             return StepResult("lost", reason="frame has no depth image", timing_ms=_timing(t0, t0, t0, t0))
-        if img.size == 0 or float(img.std()) == 0.0:
+        bad = frame_problem(img, self.camera) or frame_problem(frame.depth_mm, self.camera, "depth image")
+        if bad:
+            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+        if float(img.std()) == 0.0:
             return StepResult(
                 "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
             )

@@ -35,7 +35,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import invert_T, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_ratio
@@ -157,8 +157,13 @@ class StereoSift:
         t0 = time.perf_counter()
         if frame.image_right is None:
             return StepResult("lost", reason="frame has no right image", timing_ms=_timing(t0, t0, t0, t0))
+        bad = frame_problem(frame.image, self.camera) or frame_problem(
+            frame.image_right, self.camera_right, "right frame"
+        )
+        if bad:
+            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         for im in (frame.image, frame.image_right):
-            if np.asarray(im).size == 0 or float(np.asarray(im).std()) == 0.0:
+            if float(np.asarray(im).std()) == 0.0:
                 return StepResult(
                     "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
                 )

@@ -1,0 +1,138 @@
+"""Estimators on motion that is not a constant-speed straight line, and on input they cannot track.
+
+Issue 14: an estimator reports ``lost`` with a reason instead of a wrong step. A step
+reported ok is held to the issue's bound: 0.05 mm + 2 % of the true step in translation,
+0.3 degrees in yaw. Frames are code-made (:mod:`floorvo.synthetic`: an exact warp of a
+procedural floor texture, LED falloff, 1 DN noise) at the paper-000 camera's full size,
+where paper 000's steps are as many pixels as on the rig.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.estimators import Frame, get_estimator, make_config
+from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
+from floorvo.sequence import Sequence
+from floorvo.synthetic import led_falloff, write_synthetic_sequence
+
+CAM = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)  # GSD 0.1233 mm at 100 mm
+MONO = ["phase-corr", "akaze-guided", "akaze-bruteforce"]
+
+
+def _step_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
+    """Translation error (mm) and yaw error (deg) of one step."""
+    e_t = float(np.linalg.norm(T_est[:2, 3] - T_true[:2, 3]))
+    e_yaw = abs(float(np.degrees(yaw_of_R(T_est[:3, :3] @ T_true[:3, :3].T))))
+    return e_t, e_yaw
+
+
+def _within_bound(T_est: np.ndarray, T_true: np.ndarray) -> bool:
+    e_t, e_yaw = _step_error(T_est, T_true)
+    return e_t <= 0.05 + 0.02 * float(np.linalg.norm(T_true[:2, 3])) and e_yaw <= 0.3
+
+
+def _run(name: str, seq: Sequence, **overrides):
+    """Step results of estimator ``name`` over every frame of ``seq``, and the true steps T_prev_cur."""
+    est = get_estimator(name)(make_config(name, overrides), seq.camera, height_mm=100.0, flatfield=seq.flatfield())
+    state = est.start()
+    results = [est.step(state, Frame(i, i / 30.0, seq.image(i))) for i in range(seq.frame_count)]
+    T = seq.groundtruth()[1]
+    return results, [invert_T(T[i - 1]) @ T[i] for i in range(1, len(T))]
+
+
+def _sequence(tmp_path, xy_yaw: list[tuple[float, float, float]], seed: int = 0) -> Sequence:
+    poses = np.stack([T_world_cam_down(x, y, 100.0, np.radians(yaw)) for x, y, yaw in xy_yaw])
+    return Sequence.open(write_synthetic_sequence(tmp_path / "seq", CAM, poses, seed=seed))
+
+
+def test_guided_matching_follows_paper000_sigmoid_acceleration(tmp_path):
+    """Paper 000's sigmoid model on the 1-mm strip: steps 1, 2, 4, 2, 1 mm (10 mm in all).
+
+    The steepest step is 4 mm predicted from the previous 2 mm (eq. (2)): the true matches
+    lie 16 px from the prediction. The guided search must reach them and take them over
+    nearer keypoints of other floor points; before the fix it measured the 4 mm step as
+    2 mm (the prediction) and the run as 8 mm.
+    """
+    seq = _sequence(tmp_path, [(x, 0.0, 0.0) for x in (0.0, 1.0, 3.0, 7.0, 9.0, 10.0)])
+    results, truth = _run("akaze-guided", seq)
+    assert results[0].status == "init"
+    for k, (res, T_true) in enumerate(zip(results[1:], truth), start=1):
+        assert res.status == "ok", f"step {k}: {res.reason}"
+        assert _within_bound(res.T_prev_cur, T_true), f"step {k}: error {_step_error(res.T_prev_cur, T_true)}"
+    # Steps 2 onwards are matched by the guided search itself, not by a brute-force fallback.
+    assert all(r.reason == "" for r in results[2:]), [r.reason for r in results[2:]]
+    total = sum(float(r.T_prev_cur[0, 3]) for r in results[1:])
+    assert total == pytest.approx(10.0, abs=0.05)
+
+
+def test_doubtful_prediction_falls_back_to_brute_force(tmp_path):
+    """The rig reverses (+4 mm, then -4 mm): the eq. (2) prediction is 65 px off, beyond the
+    guided search; the step is matched again by brute force, measured right and says so."""
+    seq = _sequence(tmp_path, [(0.0, 0.0, 0.0), (4.0, 0.0, 0.0), (8.0, 0.0, 0.0), (4.0, 0.0, 0.0)])
+    results, truth = _run("akaze-guided", seq)
+    assert [r.status for r in results] == ["init", "ok", "ok", "ok"], [r.reason for r in results]
+    for res, T_true in zip(results[1:], truth):
+        assert _within_bound(res.T_prev_cur, T_true), _step_error(res.T_prev_cur, T_true)
+    assert results[2].reason == ""
+    assert "guided prediction doubtful" in results[3].reason and "brute force" in results[3].reason
+    assert results[3].timing_ms["match"] > 0
+
+
+def test_guided_prediction_on_a_turn_whose_rate_changes(tmp_path):
+    """Yaw rate 0, +4, -4 degrees per frame at 4 mm/frame (an S-bend): the prediction from the
+    last turn is wrong by 8 degrees (up to 37 px at the frame's corners). Every step is
+    right or refused; none is a wrong step reported ok."""
+    seq = _sequence(tmp_path, [(0.0, 0.0, 0.0), (4.0, 0.0, 0.0), (8.0, 0.3, 4.0), (12.0, 0.3, 0.0)])
+    results, truth = _run("akaze-guided", seq)
+    assert results[0].status == "init"
+    for k, (res, T_true) in enumerate(zip(results[1:], truth), start=1):
+        assert res.status == "ok", f"step {k}: {res.reason}"
+        assert _within_bound(res.T_prev_cur, T_true), f"step {k}: {_step_error(res.T_prev_cur, T_true)}"
+
+
+def _featureless_frames(n: int, seed: int = 0) -> tuple[list[np.ndarray], np.ndarray]:
+    """A flat, uniform floor under the LEDs: the LED falloff and 1 DN of sensor noise, nothing that moves."""
+    rng = np.random.default_rng(seed)
+    fall = led_falloff(CAM)
+    base = fall / fall.max() * 200.0
+    frames = [np.clip(np.round(base + rng.normal(0.0, 1.0, base.shape)), 0, 255).astype(np.uint8) for _ in range(n)]
+    flat = np.clip(fall / fall.max() * 60000.0, 0, 65535).astype(np.uint16)
+    return frames, flat
+
+
+@pytest.mark.parametrize("name", MONO)
+def test_featureless_floor_is_lost_not_a_wrong_motion(name):
+    """Noise alone gives keypoints and matches, but no motion: every step is lost with a reason."""
+    frames, flat = _featureless_frames(4)
+    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0, flatfield=flat)
+    state = est.start()
+    results = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+    assert results[0].status in ("init", "lost")
+    for r in results[1:]:
+        assert r.status == "lost" and r.T_prev_cur is None and r.reason, (r.status, r.reason)
+
+
+@pytest.mark.parametrize("name", MONO)
+@pytest.mark.parametrize(
+    "shape, rule",
+    [((240, 320), "320x240 px: the camera is 648x494"), ((494, 648, 3), "3 channels")],
+)
+def test_frame_of_the_wrong_size_or_channels_is_refused(tmp_path, name, shape, rule):
+    """A wrong frame is lost with a reason naming the problem (no exception, no motion), and
+    the next frame is measured against the last good one."""
+    seq = _sequence(tmp_path, [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0)])
+    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0, flatfield=seq.flatfield())
+    state = est.start()
+    assert est.step(state, Frame(0, 0.0, seq.image(0))).status == "init"
+    bad = np.zeros(shape, np.uint8)
+    bad[...] = seq.image(1)[: shape[0], : shape[1], None] if len(shape) == 3 else seq.image(1)[: shape[0], : shape[1]]
+    r = est.step(state, Frame(1, 1 / 30.0, bad))
+    assert r.status == "lost" and r.T_prev_cur is None
+    assert rule in r.reason
+    r2 = est.step(state, Frame(2, 2 / 30.0, seq.image(1)))
+    assert r2.status == "ok", r2.reason
+    T_true = invert_T(seq.groundtruth()[1][0]) @ seq.groundtruth()[1][1]
+    assert _within_bound(r2.T_prev_cur, T_true), _step_error(r2.T_prev_cur, T_true)
