@@ -93,7 +93,7 @@ def run_estimator(
         "sequence": str(seq.root),
         "source": estimator_source(name).to_dict(),
     }
-    run.run_folder(header=header, result=result).write(out)
+    run.run_folder(header=header, result=result, reasons=True).write(out)
     counts = run.status_counts
     log.info("%s on %s: %d ok, %d lost, %.1f frames/s", name, seq.root, counts["ok"], counts["lost"], run.fps)
     return run

@@ -79,6 +79,15 @@ def test_doubtful_prediction_falls_back_to_brute_force(tmp_path):
     assert results[2].reason == ""
     assert "guided prediction doubtful" in results[3].reason and "brute force" in results[3].reason
     assert results[3].timing_ms["match"] > 0
+    # A run writes the reason of every frame, the fallback's too, in timing.csv.
+    from floorvo.metrics import read_timing_csv
+    from floorvo.run import run_estimator
+
+    res = run_estimator(seq, "akaze-guided", tmp_path / "run")
+    assert res.lost == 0
+    timing = read_timing_csv(tmp_path / "run" / "timing.csv")
+    assert list(timing["status"]) == ["init", "ok", "ok", "ok"]
+    assert timing["reason"][2] == "" and "brute force" in timing["reason"][3]
 
 
 def test_guided_prediction_on_a_turn_whose_rate_changes(tmp_path):
