@@ -4,13 +4,18 @@ Paper 000 (Nakashima et al., IEEE Access 2019), faithfully, then extended to yaw
 
 * AKAZE keypoints and binary (MLDB) descriptors on the illumination-corrected frame
   (with default thresholds AKAZE finds almost nothing on a raw grazing-light frame).
-* **Motion-predicted matching.** Each previous keypoint's position in the new frame is
-  predicted from the previous frame's motion, eq. (2): x' = x - R(theta) v, here in the
-  general form p' = M_last(p) with M_last the last measured rigid image motion about the
-  principal point (eq. (2) with rotation; eq. (3) when theta = 0). The new frame's
-  keypoints are visited in order of distance from the prediction and the first whose
-  Hamming distance is under ``hamming_threshold`` is the match; otherwise the next
-  nearest is tried (up to ``max_candidates`` within ``search_radius_px``).
+* **Motion-predicted matching** (section II-B, Fig. 6). Each previous keypoint's position
+  in the new frame is predicted from the previous frame's motion, eq. (2):
+  x' = x - R(theta) v, here in the general form p' = M_last(p) with M_last the last
+  measured rigid image motion about the principal point (eq. (2) with rotation; eq. (3)
+  when theta = 0). The new frame's keypoints within ``search_radius_mm`` of the
+  prediction are visited nearest first and the first whose Hamming distance is under
+  ``hamming_threshold`` is the match; otherwise the next nearest is tried (up to
+  ``max_candidates``). The radius is the change of the per-frame motion the prediction
+  must absorb: paper 000's acceleration models change it by up to 2 mm in one frame
+  (16 px), and the threshold is low enough (120 of 486 bits) that a nearer keypoint of
+  another floor point is refused and the search goes on to the true one (with 12 px and
+  200 bits the steepest sigmoid step was measured as the prediction, BENCHMARKS.md).
 * **Outlier removal**, section II-C: the movement of every matched pair is computed, and
   pairs outside mean +/- one standard deviation (per axis, x and y) are dropped; the
   filter is applied twice. The movement is measured relative to the prediction, which is
@@ -18,10 +23,22 @@ Paper 000 (Nakashima et al., IEEE Access 2019), faithfully, then extended to yaw
 * **Pixels to millimetres**, eq. (1): 2 d tan(theta) / w per pixel, generalised to the
   full camera model (each pixel back-projected onto the floor at the camera height).
 * **SE(2) extension**: the motion is the least-squares rigid fit (rotation + translation)
-  of the surviving pairs in floor millimetres, instead of the mean x/y movement.
+  in floor millimetres, instead of the mean x/y movement, of the filtered pairs and then
+  (``refine_passes``) of every match within ``inlier_tol_px`` of that fit. The filter
+  keeps a band of one standard deviation and drops most true matches with the false
+  ones; under yaw the band is a strip of the image, which conditions the rotation poorly
+  (0.1-0.2 degrees per frame of error on a rendered S-curve, 0.01 with the refit).
 
-The first pair, and the pair after a lost frame, have no motion to predict from; they
-are matched by brute force (as ``akaze-bruteforce`` does) to bootstrap.
+Never silently wrong (issue 14): each step checks itself and is reported ``lost`` with
+the reason when it fails a check: too few matches, too few pairs behind the fit, the
+pairs' RMS distance from the fit, too small a fraction of all matches agreeing with it
+(random matches on a featureless floor agree with no motion). A guided step whose
+prediction is doubtful (a check failed, or the fit corrects the prediction by most of
+the search radius, so that true matches may lie beyond it) is matched again by brute
+force, and its ``reason`` (``timing.csv``'s reason column) says so. A frame of another
+size or channel count than the camera's is refused. After a lost frame the next one is
+matched against the last good frame by brute force (there is no motion to predict from),
+as the first pair is.
 """
 
 from __future__ import annotations
