@@ -36,6 +36,7 @@ Conventions
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from typing import Any
 
@@ -55,6 +56,8 @@ __all__ = [
     "rpe_pairs_by_frames",
     "rpe_pairs_by_distance",
     "rpe",
+    "step_errors",
+    "wrong_steps",
     "end_point_drift",
     "segment_errors",
     "translation_error_along_path",
@@ -268,6 +271,41 @@ def rpe(
         "trans_errors_mm": e_t,
         "rot_errors_deg": e_r,
     }
+
+
+# ----------------------------------------------------------------------------- steps
+#: Issue 14's bound on a step reported ok: 0.05 mm + 2 % of the true step, 0.3 degrees.
+WRONG_STEP_MM = 0.05
+WRONG_STEP_FRACTION = 0.02
+WRONG_STEP_DEG = 0.3
+
+
+def step_errors(T_ref: np.ndarray, T_est: np.ndarray) -> dict[str, np.ndarray]:
+    """Error of each step between consecutive associated poses (N, 4, 4), mm.
+
+    An estimator measures each tracked frame from its last tracked one, so the poses of a
+    run (lost frames left out) and the reference poses at the same frames give one
+    measured step per tracked frame. Returns ``trans_mm`` (N-1,) and ``rot_deg`` (N-1,),
+    the translation and rotation of ``(A_i^-1 A_i+1)^-1 (B_i^-1 B_i+1)``, and ``step_mm``
+    (N-1,), the true step's translation.
+    """
+    A, B = _check_pair(T_ref, T_est)
+    pairs = rpe_pairs_by_frames(len(A), 1)
+    e_t, e_r = _relative_errors(A, B, pairs)
+    step = np.linalg.norm(A[1:, :3, 3] - A[:-1, :3, 3], axis=1)
+    return {"trans_mm": e_t, "rot_deg": e_r, "step_mm": step}
+
+
+def wrong_steps(
+    errors: Mapping[str, np.ndarray],
+    *,
+    abs_mm: float = WRONG_STEP_MM,
+    fraction: float = WRONG_STEP_FRACTION,
+    rot_deg: float = WRONG_STEP_DEG,
+) -> np.ndarray:
+    """(K,) bool: the steps of :func:`step_errors` off by more than ``abs_mm + fraction * step``
+    in translation or ``rot_deg`` in rotation (issue 14's bound by default)."""
+    return (errors["trans_mm"] > abs_mm + fraction * errors["step_mm"]) | (errors["rot_deg"] > rot_deg)
 
 
 # ----------------------------------------------------------------------------- drift

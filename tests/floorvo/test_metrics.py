@@ -70,6 +70,21 @@ def test_origin_alignment_maps_first_pose_onto_reference():
 
 
 # ----------------------------------------------------------------------------- RPE, drift, segments
+def test_wrong_steps_by_issue_14s_bound_hand_computed():
+    """Steps of 4 mm: the bound is 0.05 + 0.08 = 0.13 mm and 0.3 degrees."""
+    ref = line_traj(n=5, step_mm=4.0)
+    est = ref.copy()
+    est[2:, 0, 3] += 0.12  # step 2 is 0.12 mm long: within the bound
+    est[3:, 0, 3] += 0.14  # step 3 is 0.14 mm long: over it
+    est[4] = est[4] @ make_T(rot_z(np.radians(0.31)), [0, 0, 0])  # step 4 turns 0.31 degrees
+    e = M.step_errors(ref, est)
+    np.testing.assert_allclose(e["step_mm"], [4.0, 4.0, 4.0, 4.0])
+    np.testing.assert_allclose(e["trans_mm"], [0.0, 0.12, 0.14, 0.0], atol=1e-9)
+    np.testing.assert_allclose(e["rot_deg"], [0.0, 0.0, 0.0, 0.31], atol=1e-6)
+    assert M.wrong_steps(e).tolist() == [False, False, True, True]
+    assert M.wrong_steps(e, rot_deg=0.5).tolist() == [False, False, True, False]
+
+
 def test_rpe_and_drift_of_a_scale_error_are_hand_computable():
     ref = line_traj(n=26, step_mm=4.0)
     est = line_traj(n=26, step_mm=4.0, scale=1.01)  # 1 % too long
