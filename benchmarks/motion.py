@@ -35,7 +35,6 @@ from floorvo.estimators import get_estimator  # noqa: E402
 from floorvo.metrics import (  # noqa: E402
     associate,
     read_run_and_groundtruth,
-    read_timing_csv,
     score_run,
     step_errors,
     wrong_steps,
@@ -111,9 +110,9 @@ def render_case(name: str, out: Path, scale: float, frames: int | None) -> Path:
 
 def score_steps(run: Path, seq_dir: Path) -> dict:
     """Steps reported ok, wrong ones among them, lost ones and ok ones with a note, from the run's files."""
-    _, (t_ref, T_ref), (t_est, T_est), _ = read_run_and_groundtruth(run, seq_dir, "score")
-    i_ref, i_est = associate(t_ref, t_est, 0.01)
-    timing = read_timing_csv(run / "timing.csv") or {}
+    _, (t_ref, T_ref), folder = read_run_and_groundtruth(run, seq_dir, "score")
+    i_ref, i_est = associate(t_ref, folder.timestamps_s, 0.01)
+    timing = folder.timing or {}
     status = list(timing.get("status", []))
     reason = list(timing.get("reason", [""] * len(status)))
     total = np.asarray(timing.get("total_ms", []))[1:]
@@ -126,7 +125,7 @@ def score_steps(run: Path, seq_dir: Path) -> dict:
         "ms_per_frame": round(float(np.median(total)), 1) if len(total) else float("nan"),
     }
     if len(i_ref) >= 2:
-        out["wrong_ok"] = int(wrong_steps(step_errors(T_ref[i_ref], T_est[i_est])).sum())
+        out["wrong_ok"] = int(wrong_steps(step_errors(T_ref[i_ref], folder.T_world_cam[i_est])).sum())
     return out
 
 
@@ -160,7 +159,8 @@ def main() -> None:
             row = {"case": sname, "size": f"{seq.camera.width_px}x{seq.camera.height_px}", "estimator": name}
             row.update(score_steps(run, sdir))
             try:
-                row["end_drift_pct"] = round(score_run(run, sdir).flat()["end_drift_pct"], 3)
+                drift = score_run(run, sdir).flat()["end_drift_pct"]
+                row["end_drift_pct"] = round(drift, 3) if np.isfinite(drift) else "-"  # "-": no path (spin)
             except FloorbenchError:  # fewer than two tracked frames: no drift to score
                 row["end_drift_pct"] = "-"
             rows.append(row)
