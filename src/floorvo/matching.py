@@ -230,11 +230,12 @@ def match_guided(
     k = min(int(max_candidates), len(pts))
     dist, idx = cKDTree(pts).query(pred, k=k, distance_upper_bound=radius_px)
     dist, idx = dist.reshape(len(pred), k), idx.reshape(len(pred), k)
-    valid = np.isfinite(dist)
-    idx_safe = np.where(valid, idx, 0)
-    ham = hamming_distances(packed0[:, None, :], packed1[idx_safe])  # (N0, k), nearest position first
-    good = valid & (ham < max_distance)
-    rows = np.nonzero(good.any(axis=1))[0]
-    first = np.argmax(good[rows], axis=1)  # the nearest candidate passing the threshold
-    cols = idx_safe[rows, first]
-    return Matches(np.column_stack([rows, cols]).astype(np.int64), ham[rows, first].astype(float))
+    # Only the candidates inside the radius are compared (row-major: each row's nearest
+    # position first); with many candidates most of the (N0, k) table lies outside it.
+    rows, cols = np.nonzero(np.isfinite(dist))
+    cand = idx[rows, cols]
+    ham = hamming_distances(packed0[rows], packed1[cand])
+    passed = ham < max_distance
+    rows, cand, ham = rows[passed], cand[passed], ham[passed]
+    rows, first = np.unique(rows, return_index=True)  # the nearest candidate passing the threshold
+    return Matches(np.column_stack([rows, cand[first]]).astype(np.int64), ham[first].astype(float))

@@ -80,12 +80,11 @@ def test_doubtful_prediction_falls_back_to_brute_force(tmp_path):
     assert "guided prediction doubtful" in results[3].reason and "brute force" in results[3].reason
     assert results[3].timing_ms["match"] > 0
     # A run writes the reason of every frame, the fallback's too, in timing.csv.
-    from floorvo.metrics import read_timing_csv
     from floorvo.run import run_estimator
+    from floorvo.runfolder import RunFolder
 
-    res = run_estimator(seq, "akaze-guided", tmp_path / "run")
-    assert res.lost == 0
-    timing = read_timing_csv(tmp_path / "run" / "timing.csv")
+    run_estimator(seq, "akaze-guided", tmp_path / "run")
+    timing = RunFolder.read(tmp_path / "run").timing
     assert list(timing["status"]) == ["init", "ok", "ok", "ok"]
     assert timing["reason"][2] == "" and "brute force" in timing["reason"][3]
 
@@ -145,3 +144,15 @@ def test_frame_of_the_wrong_size_or_channels_is_refused(tmp_path, name, shape, r
     assert r2.status == "ok", r2.reason
     T_true = invert_T(seq.groundtruth()[1][0]) @ seq.groundtruth()[1][1]
     assert _within_bound(r2.T_prev_cur, T_true), _step_error(r2.T_prev_cur, T_true)
+
+
+@pytest.mark.parametrize("name", MONO)
+def test_tracking_restarts_after_lost_frames(tmp_path, name):
+    """The rig is carried to unrelated floor (a kidnap): the frames there are lost against the
+    last good one, then tracking restarts from the current frame (``restart_after_lost``) and
+    the next step is measured again."""
+    seq = _sequence(tmp_path, [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (500.0, 0.0, 0.0), (502.0, 0.0, 0.0), (504.0, 0, 0)])
+    results, truth = _run(name, seq)
+    assert [r.status for r in results] == ["init", "ok", "lost", "lost", "ok"], [r.reason for r in results]
+    assert "restarts" not in results[2].reason and "tracking restarts from this frame" in results[3].reason
+    assert _within_bound(results[4].T_prev_cur, truth[3]), _step_error(results[4].T_prev_cur, truth[3])

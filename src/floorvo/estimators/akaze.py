@@ -38,7 +38,8 @@ the search radius, so that true matches may lie beyond it) is matched again by b
 force, and its ``reason`` (``timing.csv``'s reason column) says so. A frame of another
 size or channel count than the camera's is refused. After a lost frame the next one is
 matched against the last good frame by brute force (there is no motion to predict from),
-as the first pair is.
+as the first pair is; after ``restart_after_lost`` lost frames in a row tracking restarts
+from the current frame (the motion over the gap is unknown; the lost frames show it).
 """
 
 from __future__ import annotations
@@ -117,6 +118,9 @@ class AkazeConfig(Config):
     min_consensus: float = param(
         0.2, min=0.0, max=1.0, doc="smaller fraction of the matches agreeing with the fit: the frame is lost"
     )
+    restart_after_lost: int = param(
+        2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
+    )
     doubt_radius_fraction: float = param(
         0.75, gt=0.0, max=1.0, doc="a guided fit correcting the prediction by this much of the radius: brute force"
     )
@@ -129,6 +133,7 @@ class _State:
     desc: np.ndarray | None = None  # (N, B) uint8
     packed: np.ndarray | None = None  # (N, W) uint64, the same descriptors packed
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
+    n_lost: int = 0  # frames lost in a row since the reference
 
 
 @dataclass(frozen=True)
@@ -187,14 +192,18 @@ class _AkazeBase:
         """Eq. (2) in its general rigid form: (N, 2) previous-frame px -> predicted current-frame px."""
         return (pts_px - self.centre) @ M[:2, :2].T + M[:2, 2] + self.centre
 
-    def _guided(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Eq. (2) prediction, then nearest-first candidates accepted under the Hamming threshold (Fig. 6)."""
+    def _guided(self, state: _State, kps: np.ndarray, packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. (2) prediction, then nearest-first candidates accepted under the Hamming threshold (Fig. 6).
+
+        ``kps`` (M, 2) px and ``packed`` (M, W) descriptors of the new frame; returns the
+        matched (K, 2) previous and current positions.
+        """
         cfg = self.config
         m = match_guided(
             self._predict(state.M_last, state.kps),
             kps,
             state.packed,
-            pack_descriptors(desc),
+            packed,
             radius_px=self.search_radius_px,
             max_candidates=cfg.max_candidates,
             max_distance=cfg.hamming_threshold,
@@ -273,6 +282,7 @@ class _AkazeBase:
         if bad:
             return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         kps, desc = self._detect(frame.image)
+        packed = pack_descriptors(desc)
         t1 = time.perf_counter()
         if state.kps is None:
             if len(kps) < self.config.min_matches:
@@ -282,7 +292,7 @@ class _AkazeBase:
                     n_keypoints=len(kps),
                     timing_ms=_timing(t0, t1, t1, time.perf_counter()),
                 )
-            state.kps, state.desc, state.packed = kps, desc, pack_descriptors(desc)
+            state.kps, state.desc, state.packed = kps, desc, packed
             return StepResult(
                 "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
@@ -290,7 +300,7 @@ class _AkazeBase:
         if len(kps) < self.config.min_matches:
             fit = _Fit(None, kps, kps, 0, problem=f"too few keypoints ({len(kps)})")
         elif self.guided and state.M_last is not None:
-            fit = self._fit(*self._guided(state, kps, desc), state.M_last)
+            fit = self._fit(*self._guided(state, kps, packed), state.M_last)
             doubt = self._prediction_doubt(fit, state.M_last)
             if doubt:
                 # The prediction is doubtful: match again without it (brute force, as at the start).
@@ -300,11 +310,18 @@ class _AkazeBase:
             fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3))
         t2 = time.perf_counter()
         if fit.problem:
-            # Lost: the next frame is matched against the last good one, without a prediction.
+            # Lost: the next frame is matched against the last good one, without a prediction;
+            # after restart_after_lost such frames the current one becomes the reference (the
+            # motion over the gap is unknown, and the gap shows in the run).
             state.M_last = None
+            state.n_lost += 1
+            why = f"{note}; {fit.problem}" if note else fit.problem
+            if state.n_lost >= self.config.restart_after_lost and len(kps) >= self.config.min_matches:
+                state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
+                why += "; tracking restarts from this frame"
             return StepResult(
                 "lost",
-                reason=f"{note}; {fit.problem}" if note else fit.problem,
+                reason=why,
                 n_keypoints=len(kps),
                 n_matches=fit.n_matches,
                 n_inliers=len(fit.src),
@@ -315,7 +332,7 @@ class _AkazeBase:
         q_cur = pixels_to_floor_mm(fit.dst, self.camera, self.height_mm)
         R2, t2_mm = rigid_fit(q_prev, q_cur)
         T = floor_rigid_to_T(R2, t2_mm)
-        state.kps, state.desc, state.packed, state.M_last = kps, desc, pack_descriptors(desc), fit.M
+        state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
         t3 = time.perf_counter()
         return StepResult(
             "ok",

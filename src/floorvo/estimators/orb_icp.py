@@ -179,8 +179,10 @@ class OrbIcp:
         first = state.kps is None
         prev = (state.kps, state.desc, state.xyz, state.img8)
         n_depth = int(np.isfinite(xyz).all(axis=1).sum())
-        if first:
+        if n_depth >= self.config.min_matches or first:
+            # A frame is kept as the next reference only if it is usable (else: the last good one).
             state.kps, state.desc, state.xyz, state.img8 = uv, desc, xyz, img8
+        if first:
             return StepResult(
                 "init", reason="first frame", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
@@ -250,8 +252,6 @@ class OrbIcp:
         R, t, keep = rigid_fit_robust(P_cur, P_prev, iterations=self.config.icp_iterations)
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, t
-        # Only a tracked frame becomes the next reference (after a lost one: the last good frame).
-        state.kps, state.desc, state.xyz, state.img8 = uv, desc, xyz, img8
         t3 = time.perf_counter()
         m_px = np.hstack([uv_prev[has_depth][keep], uv_cur[has_depth][keep]])
         return StepResult(

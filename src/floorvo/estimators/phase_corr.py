@@ -61,6 +61,9 @@ class PhaseCorrConfig(Config):
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     predict: bool = param(True, doc="start each frame from the last motion")
+    restart_after_lost: int = param(
+        2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
+    )
 
 
 def _hann2(h: int, w: int) -> np.ndarray:
@@ -120,6 +123,7 @@ class _State:
     prev_blocks: list | None = None  # spectra of the previous frame's blocks
     prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
+    n_lost: int = 0  # frames lost in a row since the reference
 
 
 class PhaseCorr:
@@ -238,25 +242,31 @@ class PhaseCorr:
             M, min_peak, resid = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
+        crop = cur[
+            self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
+        ]
         if self._failed(min_peak, resid):
-            # Lost: the next frame is measured against the last good one, from no prediction.
+            # Lost: the next frame is measured against the last good one, from no prediction;
+            # after restart_after_lost such frames the current one becomes the reference (the
+            # motion over the gap is unknown, and the gap shows in the run).
             state.M_pred = np.eye(3)
+            state.n_lost += 1
             why = (
                 f"weak correlation peak {min_peak:.3f}"
                 if min_peak < self.config.min_peak
                 else f"blocks disagree by {resid:.2f} px"
             )
+            if state.n_lost >= self.config.restart_after_lost:
+                state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
+                why += "; tracking restarts from this frame"
             return StepResult(
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
             )
-        crop = cur[
-            self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
-        ]
         new_blocks = self._blocks(crop)
         # M maps prev-centred px to cur-centred px: the floor's motion in the image.
         R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.camera, self.height_mm, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
-        state.M_pred = M
+        state.M_pred, state.n_lost = M, 0
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))

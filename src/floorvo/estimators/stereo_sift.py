@@ -186,6 +186,7 @@ class StereoSift:
                 n_keypoints=n_kp,
                 timing_ms=_timing(t0, t1, t1, time.perf_counter()),
             )
+        state.prev = cur
         qi, ti = self._ratio_match(prev.desc, cur.desc)  # M_1 (restricted to stereo-matched points)
         t2 = time.perf_counter()
         n_m = len(qi)
@@ -227,7 +228,6 @@ class StereoSift:
             T[:2, :2], T[:2, 3] = R2, t_xy
             T[2, 3] = float(np.mean(P1[keep, 2] - P2[keep, 2]))
             n_in = int(keep.sum())
-        state.prev = cur  # only a tracked frame becomes the next reference
         t3 = time.perf_counter()
         return StepResult(
             "ok",
