@@ -8,7 +8,7 @@ Paper 000 (Nakashima et al., IEEE Access 2019), faithfully, then extended to yaw
   in the new frame is predicted from the previous frame's motion, eq. (2):
   x' = x - R(theta) v, here in the general form p' = M_last(p) with M_last the last
   measured rigid image motion about the principal point (eq. (2) with rotation; eq. (3)
-  when theta = 0). The new frame's keypoints within ``search_radius_mm`` of the
+  when theta = 0). The new frame's keypoints within ``search_radius_px`` of the
   prediction are visited nearest first and the first whose Hamming distance is under
   ``hamming_threshold`` is the match; otherwise the next nearest is tried (up to
   ``max_candidates``). The radius is the change of the per-frame motion the prediction
@@ -82,12 +82,12 @@ class AkazeConfig(Config):
     """AKAZE detector threshold, keypoint budget, guided-matching, filter and self-check settings.
 
     Guided matching (section II-B): around each eq. (2) prediction the new frame's
-    keypoints within ``search_radius_mm`` (on the floor; the largest change of the
-    per-frame motion from one frame to the next that the prediction absorbs) are visited
-    nearest first, up to ``max_candidates``, and the first whose Hamming distance is under
+    keypoints within ``search_radius_px`` (the largest change of the per-frame image
+    motion from one frame to the next that the prediction absorbs) are visited nearest
+    first, up to ``max_candidates``, and the first whose Hamming distance is under
     ``hamming_threshold`` bits (of the MLDB descriptor's 486) is the match. Paper 000's
     sigmoid models change the per-frame motion by up to 2 mm (2 -> 4 mm/frame on the 1-mm
-    strip, 16 px at 100 mm), so the radius covers 3 mm. The threshold separates the
+    strip, 16 px at 100 mm with 0.1233 mm/px), so the radius covers 24 px (3 mm). The threshold separates the
     descriptor of the same floor point in the next frame from that of a neighbour: on the
     rendered vinyl strip (4 frame pairs, 1-4 mm apart) a true match differs by a median 62
     bits and 77 % of them by under 120, a keypoint 4-30 px away from the true position by
@@ -105,8 +105,8 @@ class AkazeConfig(Config):
     akaze_threshold: float = param(0.0005, gt=0.0, doc="AKAZE detector response threshold")
     max_keypoints: int = param(1500, min=10, doc="strongest keypoints kept per frame")
     hamming_threshold: int = param(120, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
-    search_radius_mm: float = param(
-        3.0, unit="mm", gt=0.0, doc="guided search radius around each predicted position, on the floor"
+    search_radius_px: float = param(
+        24.0, unit="px", gt=0.0, doc="guided search radius around each predicted position (24 px: 3 mm on the rig)"
     )
     max_candidates: int = param(32, min=1, max=256, doc="nearest candidates tried per keypoint in the guided search")
     filter_passes: int = param(2, min=0, max=10, doc="passes of the mean +/- one std movement filter (section II-C)")
@@ -167,7 +167,6 @@ class _AkazeBase:
         self.flatfield = flatfield if config.use_flatfield else None
         self.detector = cv2.AKAZE_create(threshold=config.akaze_threshold)
         self.centre = np.array([camera.cx_px, camera.cy_px])
-        self.search_radius_px = config.search_radius_mm * camera.fx_px / self.height_mm
 
     def start(self) -> _State:
         return _State()
@@ -204,7 +203,7 @@ class _AkazeBase:
             kps,
             state.packed,
             packed,
-            radius_px=self.search_radius_px,
+            radius_px=cfg.search_radius_px,
             max_candidates=cfg.max_candidates,
             max_distance=cfg.hamming_threshold,
         )
@@ -269,11 +268,9 @@ class _AkazeBase:
         # The largest correction of the prediction over the frame's keypoints: near the
         # search radius, true matches may lie beyond it and the nearer wrong ones were taken.
         corr = float(np.max(np.linalg.norm(self._predict(fit.M, fit.src) - self._predict(pred_M, fit.src), axis=1)))
-        limit = self.config.doubt_radius_fraction * self.search_radius_px
+        limit = self.config.doubt_radius_fraction * self.config.search_radius_px
         if corr > limit:
-            return (
-                f"the motion differs from the prediction by {corr:.1f} px (search radius {self.search_radius_px:.1f})"
-            )
+            return f"the motion differs from the prediction by {corr:.1f} px (search radius {self.config.search_radius_px:.1f})"
         return ""
 
     def step(self, state: _State, frame: Frame) -> StepResult:
