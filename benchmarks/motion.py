@@ -32,14 +32,9 @@ import numpy as np  # noqa: E402
 
 from floorvo.errors import FloorbenchError  # noqa: E402
 from floorvo.estimators import get_estimator  # noqa: E402
-from floorvo.metrics import (  # noqa: E402
-    associate,
-    read_run_and_groundtruth,
-    score_run,
-    step_errors,
-    wrong_steps,
-)
+from floorvo.metrics import score_run, step_errors, wrong_steps  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
+from floorvo.runfolder import RunFolder  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 #: case -> (shipped scene, its [trajectory] table, other scene keys (--set)). None of these
@@ -108,13 +103,19 @@ def render_case(name: str, out: Path, scale: float, frames: int | None) -> Path:
     return render_sequence(scene, out, scale=scale, frames=frames)
 
 
-def score_steps(run: Path, seq_dir: Path) -> dict:
-    """Steps reported ok, wrong ones among them, lost ones and ok ones with a note, from the run's files."""
-    _, (t_ref, T_ref), folder = read_run_and_groundtruth(run, seq_dir, "score")
-    i_ref, i_est = associate(t_ref, folder.timestamps_s, 0.01)
+def score_steps(run: Path, seq: Sequence) -> dict:
+    """Steps reported ok, wrong ones among them, lost ones and ok ones with a note, from the run's files.
+
+    Each ok step is scored against the true motion from the frame it was measured from:
+    the last placed frame, or the lost frame on which the estimator restarted its track
+    (its reason says "tracking restarts"; the motion over such a gap is unknown, and its
+    lost frames show it).
+    """
+    folder = RunFolder.read(run)
     timing = folder.timing or {}
+    frames = np.asarray(timing.get("frame", []), dtype=int)
     status = list(timing.get("status", []))
-    reason = list(timing.get("reason", [""] * len(status)))
+    reason = [str(r) for r in timing.get("reason", [""] * len(status))]
     total = np.asarray(timing.get("total_ms", []))[1:]
     out = {
         "steps": max(0, len(status) - 1),
@@ -124,8 +125,19 @@ def score_steps(run: Path, seq_dir: Path) -> dict:
         "ok_with_note": sum(s == "ok" and bool(r) for s, r in zip(status, reason)),
         "ms_per_frame": round(float(np.median(total)), 1) if len(total) else float("nan"),
     }
-    if len(i_ref) >= 2:
-        out["wrong_ok"] = int(wrong_steps(step_errors(T_ref[i_ref], folder.T_world_cam[i_est])).sum())
+    T_gt = seq.groundtruth()[1]
+    placed, measured_from, ref = [], [], None
+    for f, st, why in zip(frames, status, reason):
+        if st in ("init", "ok"):
+            if placed:
+                measured_from.append(ref)
+            placed.append(f)
+            ref = f
+        elif "tracking restarts" in why:
+            ref = f
+    if len(placed) >= 2:
+        errors = step_errors(T_gt[placed], folder.T_world_cam, T_ref_from=T_gt[measured_from])
+        out["wrong_ok"] = int(wrong_steps(errors).sum())
     return out
 
 
@@ -157,7 +169,7 @@ def main() -> None:
             run = out / "runs" / sname / name
             run_estimator(seq, name, run)
             row = {"case": sname, "size": f"{seq.camera.width_px}x{seq.camera.height_px}", "estimator": name}
-            row.update(score_steps(run, sdir))
+            row.update(score_steps(run, seq))
             try:
                 drift = score_run(run, sdir).flat()["end_drift_pct"]
                 row["end_drift_pct"] = round(drift, 3) if np.isfinite(drift) else "-"  # "-": no path (spin)

@@ -280,20 +280,29 @@ WRONG_STEP_FRACTION = 0.02
 WRONG_STEP_DEG = 0.3
 
 
-def step_errors(T_ref: np.ndarray, T_est: np.ndarray) -> dict[str, np.ndarray]:
+def step_errors(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Error of each step between consecutive associated poses (N, 4, 4), mm.
 
     An estimator measures each tracked frame from its last tracked one, so the poses of a
     run (lost frames left out) and the reference poses at the same frames give one
-    measured step per tracked frame. Returns ``trans_mm`` (N-1,) and ``rot_deg`` (N-1,),
-    the translation and rotation of ``(A_i^-1 A_i+1)^-1 (B_i^-1 B_i+1)``, and ``step_mm``
-    (N-1,), the true step's translation.
+    measured step per tracked frame: ``B_i^-1 B_i+1`` against the truth ``A_i^-1 A_i+1``.
+    When a step was measured from another frame (an estimator that restarted its track
+    on a lost frame), ``T_ref_from`` (N-1, 4, 4) gives the true pose of the frame each
+    step was measured from (default ``A_i``). Returns ``trans_mm`` (N-1,) and ``rot_deg``
+    (N-1,), the translation and rotation of the error ``(true step)^-1 (measured step)``,
+    and ``step_mm`` (N-1,), the true step's translation.
     """
     A, B = _check_pair(T_ref, T_est)
-    pairs = rpe_pairs_by_frames(len(A), 1)
-    e_t, e_r = _relative_errors(A, B, pairs)
-    step = np.linalg.norm(A[1:, :3, 3] - A[:-1, :3, 3], axis=1)
-    return {"trans_mm": e_t, "rot_deg": e_r, "step_mm": step}
+    A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
+    if A_from.shape != (len(A) - 1, 4, 4):
+        raise ValueError(f"step_errors: T_ref_from has shape {A_from.shape}, expected ({len(A) - 1}, 4, 4)")
+    d_true = invert_T(A_from) @ A[1:]
+    E = invert_T(d_true) @ (invert_T(B[:-1]) @ B[1:])
+    return {
+        "trans_mm": np.linalg.norm(E[:, :3, 3], axis=1),
+        "rot_deg": _rotation_angle_deg(E[:, :3, :3]),
+        "step_mm": np.linalg.norm(d_true[:, :3, 3], axis=1),
+    }
 
 
 def wrong_steps(

@@ -83,6 +83,12 @@ def test_wrong_steps_by_issue_14s_bound_hand_computed():
     np.testing.assert_allclose(e["rot_deg"], [0.0, 0.0, 0.0, 0.31], atol=1e-6)
     assert M.wrong_steps(e).tolist() == [False, False, True, True]
     assert M.wrong_steps(e, rot_deg=0.5).tolist() == [False, False, True, False]
+    # Frame 2 lost and the track restarted on it: frame 3's 4 mm step was measured from frame 2.
+    ref3, est3 = ref[[0, 1, 3]], ref[[0, 1, 3]].copy()
+    est3[2] = est3[1] @ make_T(np.eye(3), [4.0, 0.0, 0.0])  # the chain continues from frame 1
+    e3 = M.step_errors(ref3, est3, T_ref_from=ref[[0, 2]])
+    np.testing.assert_allclose(e3["trans_mm"], [0.0, 0.0], atol=1e-9)
+    assert M.step_errors(ref3, est3)["trans_mm"][1] == pytest.approx(4.0)  # against frame 1 it is 4 mm short
 
 
 def test_rpe_and_drift_of_a_scale_error_are_hand_computable():
