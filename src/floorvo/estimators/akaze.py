@@ -155,7 +155,7 @@ class _Fit:
 
 class _AkazeBase:
     Config = AkazeConfig
-    requires = frozenset()
+    requires: frozenset[str] = frozenset()
     guided: bool = False
 
     def __init__(
@@ -184,8 +184,10 @@ class _AkazeBase:
 
     def _bruteforce(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mutual nearest Hamming neighbours (cross-checked brute force)."""
-        m = match_nn(state.desc, desc, cross_check=True)
-        return state.kps[m.i0], kps[m.i1]
+        prev_kps, prev_desc = state.kps, state.desc
+        assert prev_kps is not None and prev_desc is not None  # kept since the first frame
+        m = match_nn(prev_desc, desc, cross_check=True)
+        return prev_kps[m.i0], kps[m.i1]
 
     def _predict(self, M: np.ndarray, pts_px: np.ndarray) -> np.ndarray:
         """Eq. (2) in its general rigid form: (N, 2) previous-frame px -> predicted current-frame px."""
@@ -198,16 +200,18 @@ class _AkazeBase:
         matched (K, 2) previous and current positions.
         """
         cfg = self.config
+        prev_kps, prev_packed, M_last = state.kps, state.packed, state.M_last
+        assert prev_kps is not None and prev_packed is not None and M_last is not None  # a guided step has them
         m = match_guided(
-            self._predict(state.M_last, state.kps),
+            self._predict(M_last, prev_kps),
             kps,
-            state.packed,
+            prev_packed,
             packed,
             radius_px=cfg.search_radius_px,
             max_candidates=cfg.max_candidates,
             max_distance=cfg.hamming_threshold,
         )
-        return state.kps[m.i0], kps[m.i1]
+        return prev_kps[m.i0], kps[m.i1]
 
     def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray) -> _Fit:
         """Section II-C filter and the SE(2) fit of the matches ``src -> dst`` (px), then the self-checks."""
@@ -263,8 +267,8 @@ class _AkazeBase:
 
     def _prediction_doubt(self, fit: _Fit, pred_M: np.ndarray) -> str:
         """Why the eq. (2) prediction behind a guided fit is doubtful ('' if it is not)."""
-        if fit.problem:
-            return fit.problem
+        if fit.problem or fit.M is None:
+            return fit.problem or "no fit"
         # The largest correction of the prediction over the frame's keypoints: near the
         # search radius, true matches may lie beyond it and the nearer wrong ones were taken.
         corr = float(np.max(np.linalg.norm(self._predict(fit.M, fit.src) - self._predict(pred_M, fit.src), axis=1)))
