@@ -32,9 +32,10 @@ import numpy as np  # noqa: E402
 
 from floorvo.errors import FloorbenchError  # noqa: E402
 from floorvo.estimators import get_estimator  # noqa: E402
-from floorvo.metrics import score_run, step_errors, wrong_steps  # noqa: E402
+from floorvo.metrics import step_errors, wrong_steps  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
 from floorvo.runfolder import RunFolder  # noqa: E402
+from floorvo.scoring import score_run  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 #: case -> (shipped scene, its [trajectory] table, other scene keys (--set)). Only
