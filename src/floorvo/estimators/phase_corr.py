@@ -2,6 +2,12 @@
 
 Per frame:
 
+0. The whole camera model (issue 14): a camera with lens distortion or non-square pixels
+   (``fx != fy``) has the region that is correlated resampled once per frame, through a
+   map precomputed at start (``cv2.initUndistortRectifyMap`` / ``cv2.remap``), into an
+   ideal pinhole with square pixels ``f = max(fx, fy)`` and the same principal point,
+   where the floor's motion is a rigid image motion again; the principal point centres
+   the crop. An ideal square-pixel camera is used as it is (no resampling).
 1. Divide out the LED falloff (flat-field frame, or a blur estimate without one).
 2. Resample the current frame into the previous frame's coordinates through the
    predicted rigid motion (constant velocity: the last measured motion), so the
@@ -145,6 +151,9 @@ class PhaseCorr:
     ):
         self.config = config
         self.camera = camera
+        # The ideal pinhole the frames are measured in (step 0 of the module doc): square
+        # pixels, no distortion, the camera's principal point.
+        self.pinhole = _square_pinhole(camera)
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         side = min(camera.width_px, camera.height_px)
@@ -165,6 +174,13 @@ class PhaseCorr:
         self.rx0, self.ry0 = max(0, self.x0 - m), max(0, self.y0 - m)
         self.rx1 = min(camera.width_px, self.x0 + self.crop + m)
         self.ry1 = min(camera.height_px, self.y0 + self.crop + m)
+        # Rectifying map of the normalised region (None: the camera is an ideal square pinhole).
+        self.rect_map: tuple[np.ndarray, np.ndarray] | None = None
+        if self.pinhole is not camera:
+            mx, my = cv2.initUndistortRectifyMap(
+                camera.K, np.asarray(camera.distortion), None, self.pinhole.K, camera.size, cv2.CV_32FC1
+            )
+            self.rect_map = (mx[self.ry0 : self.ry1, self.rx0 : self.rx1], my[self.ry0 : self.ry1, self.rx0 : self.rx1])
         self.inv_flat = None
         if self.flatfield is not None:
             flat = np.asarray(self.flatfield, dtype=np.float32)
@@ -174,6 +190,10 @@ class PhaseCorr:
                 )
             flat = flat / (float(flat.max()) or 1.0)
             self.inv_flat = np.where(flat > 0.005, 1.0 / np.maximum(flat, 1e-6), 0.0).astype(np.float32)
+            if self.rect_map is not None:  # the flat field in the pinhole's pixels, region only
+                inv = np.zeros((camera.height_px, camera.width_px), np.float32)
+                inv[self.ry0 : self.ry1, self.rx0 : self.rx1] = self._rectified(self.inv_flat)
+                self.inv_flat = inv
         self.sp = _Spectral(bs, config.low_freq_fraction)
         self.sp_crop = _Spectral(self.crop, config.low_freq_fraction)
         c = (np.arange(g) + 0.5) * bs
@@ -184,9 +204,20 @@ class PhaseCorr:
         return _State()
 
     # ------------------------------------------------------------------ helpers
+    def _rectified(self, img: np.ndarray) -> np.ndarray:
+        """The region around the crop of a full frame, resampled into the ideal pinhole (float32)."""
+        assert self.rect_map is not None
+        return cv2.remap(
+            np.asarray(img, dtype=np.float32),
+            *self.rect_map,
+            interpolation=cv2.INTER_CUBIC,
+            borderMode=cv2.BORDER_REFLECT,
+        )
+
     def _normalised(self, img: np.ndarray) -> np.ndarray:
-        """Flat-field corrected (or blur-normalised) region around the crop, float32, frame coordinates offset by (rx0, ry0)."""
-        reg = img[self.ry0 : self.ry1, self.rx0 : self.rx1]
+        """Flat-field corrected (or blur-normalised) region around the crop, float32, frame coordinates offset by
+        (rx0, ry0), in the ideal pinhole's pixels."""
+        reg = img[self.ry0 : self.ry1, self.rx0 : self.rx1] if self.rect_map is None else self._rectified(img)
         if self.inv_flat is not None:
             out = reg.astype(np.float32) * self.inv_flat[self.ry0 : self.ry1, self.rx0 : self.rx1]
             mean = float(out.mean())
@@ -264,7 +295,7 @@ class PhaseCorr:
             )
         new_blocks = self._blocks(crop)
         # M maps prev-centred px to cur-centred px: the floor's motion in the image.
-        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.camera, self.height_mm, centred=True)
+        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.pinhole, self.height_mm, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         state.M_pred, state.n_lost = M, 0
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
@@ -321,6 +352,15 @@ class PhaseCorr:
             if same_warp:
                 break
         return M, min_peak, resid
+
+
+def _square_pinhole(camera: CameraModel) -> CameraModel:
+    """``camera`` itself when it is an ideal pinhole with square pixels, else that pinhole:
+    ``f = max(fx, fy)`` (no axis is undersampled), the same size and principal point, no distortion."""
+    if camera.fx_px == camera.fy_px and not camera.has_distortion:
+        return camera
+    f = max(camera.fx_px, camera.fy_px)
+    return CameraModel(camera.width_px, camera.height_px, f, f, camera.cx_px, camera.cy_px)
 
 
 def _translation(d: np.ndarray) -> np.ndarray:
