@@ -16,6 +16,8 @@ Types (registry :data:`TRAJECTORIES`, parameters validated by name):
   has theta).
 * ``spin``: rotation in place about the optical axis.
 * ``s_curve``: x at constant speed, y = A sin(2 pi x / wavelength), yaw along the tangent.
+* ``turns``: straight legs joined by turns of ``turn_rad`` (90 degrees by default) on arcs,
+  yaw along the tangent: a robot's path with corners.
 * ``lawnmower``: back-and-forth lanes covering a rectangle (mapping, paper 003).
 * ``kidnap``: straight segments joined by teleports; the first frame of each segment after
   the first is listed in ``events["teleport_frames"]`` (paper 003).
@@ -260,6 +262,22 @@ class SCurveParams(Config):
 
 
 @dataclass(frozen=True)
+class TurnsParams(Config):
+    """Straight legs of ``leg_mm`` joined by turns of ``turn_rad`` on arcs of ``turn_radius_mm``."""
+
+    legs: int = param(2, min=1, max=1000, doc="straight legs; a turn joins each leg to the next")
+    leg_mm: float = param(60.0, unit="mm", gt=0, doc="length of each straight leg")
+    turn_rad: float = param(float(np.pi / 2), unit="rad", doc="heading change of each turn, positive turns left")
+    turn_radius_mm: float = param(30.0, unit="mm", min=1.0, doc="radius of each turn (on the floor)")
+    speed_mm_s: float = param(120.0, unit="mm/s", gt=0, doc="ground speed")
+    start_yaw_rad: float = param(0.0, unit="rad", doc="heading at the start")
+
+    def validate(self) -> None:
+        if self.turn_rad == 0 or abs(self.turn_rad) > 2 * np.pi:
+            raise ConfigFieldError("turn_rad", f" = {self.turn_rad}: must be non-zero and at most 2 pi in magnitude")
+
+
+@dataclass(frozen=True)
 class LawnmowerParams(Config):
     """Back-and-forth lanes along x covering ``width_mm`` x ``depth_mm`` from (x0, y0).
 
@@ -402,6 +420,42 @@ def _build_s_curve(p: SCurveParams, fps: float, seed: int):
     return n, path, {}
 
 
+def _build_turns(p: TurnsParams, fps: float, seed: int):
+    # Pieces by arc length s: leg, turn, leg, ..., leg. A turn of signed angle a on radius r
+    # moves the heading by a over r |a| mm, about a centre r to the left (a > 0) or right.
+    arc_mm = p.turn_radius_mm * abs(p.turn_rad)
+    pieces = []  # (s_start, length_mm, x0, y0, yaw0, turn: bool)
+    x, y, yaw, s0 = 0.0, 0.0, p.start_yaw_rad, 0.0
+    sign = float(np.sign(p.turn_rad))
+    for leg in range(p.legs):
+        pieces.append((s0, p.leg_mm, x, y, yaw, False))
+        x, y, s0 = x + p.leg_mm * np.cos(yaw), y + p.leg_mm * np.sin(yaw), s0 + p.leg_mm
+        if leg == p.legs - 1:
+            break
+        pieces.append((s0, arc_mm, x, y, yaw, True))
+        cx, cy = x - sign * p.turn_radius_mm * np.sin(yaw), y + sign * p.turn_radius_mm * np.cos(yaw)
+        yaw += p.turn_rad
+        x, y, s0 = cx + sign * p.turn_radius_mm * np.sin(yaw), cy - sign * p.turn_radius_mm * np.cos(yaw), s0 + arc_mm
+    total_mm = s0
+    r = p.turn_radius_mm
+
+    def path(t: np.ndarray) -> np.ndarray:
+        d = np.clip(p.speed_mm_s * t, 0.0, total_mm)
+        out = np.empty((len(d), 3))
+        for start, length, x0, y0, yaw0, turn in pieces:
+            sel = (d >= start) & (d <= start + length)
+            u = d[sel] - start
+            if turn:
+                h = yaw0 + sign * u / r
+                cx, cy = x0 - sign * r * np.sin(yaw0), y0 + sign * r * np.cos(yaw0)
+                out[sel] = np.stack([cx + sign * r * np.sin(h), cy - sign * r * np.cos(h), h], axis=1)
+            else:
+                out[sel] = np.stack([x0 + u * np.cos(yaw0), y0 + u * np.sin(yaw0), np.full_like(u, yaw0)], axis=1)
+        return out
+
+    return _n_frames(total_mm / p.speed_mm_s, fps), path, {}
+
+
 def _polyline_path(vertices: np.ndarray, yaws: np.ndarray, speed: float) -> tuple[float, PathFn]:
     seg = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
@@ -478,6 +532,9 @@ TRAJECTORIES: dict[str, TrajectoryType] = {
         TrajectoryType("arc", ArcParams, "constant-curvature arc, yaw along the tangent", _build_arc),
         TrajectoryType("spin", SpinParams, "rotation in place about the optical axis", _build_spin),
         TrajectoryType("s_curve", SCurveParams, "sinusoidal S-curve at constant ground speed", _build_s_curve),
+        TrajectoryType(
+            "turns", TurnsParams, "straight legs joined by turns (90 degrees by default) on arcs", _build_turns
+        ),
         TrajectoryType(
             "lawnmower", LawnmowerParams, "back-and-forth lanes covering a rectangle (mapping)", _build_lawnmower
         ),

@@ -67,6 +67,35 @@ def test_s_curve_constant_ground_speed():
     np.testing.assert_allclose(steps, 2.0, rtol=2e-3)
 
 
+def test_turns_straight_legs_and_right_angle_turns():
+    # 3 legs of 40 mm joined by two left turns of 90 degrees on 20 mm radius, at 2 mm/frame.
+    p = {"legs": 3, "leg_mm": 40.0, "turn_rad": float(np.pi / 2), "turn_radius_mm": 20.0, "speed_mm_s": 60.0}
+    tr = build_trajectory("turns", p, height_mm=100.0, fps=30.0)
+    arc = 20.0 * np.pi / 2
+    total = 3 * 40.0 + 2 * arc
+    assert tr.frame_count == int(np.floor(total / 2.0 + 1e-9)) + 1
+    t = np.array([0.0, 40.0, 40.0 + arc / 2, 40.0 + arc, 80.0 + arc, 80.0 + 2 * arc, total]) / 60.0
+    s = tr.se2_at(t)
+    # By hand: the first leg along +x; the turn's centre (40, 20); the second leg along +y from
+    # (60, 20); the second turn's centre (40, 60); the last leg along -x from (40, 80).
+    h = np.sqrt(0.5) * 20.0
+    expect = [
+        [0, 0, 0],
+        [40, 0, 0],
+        [40 + h, 20 - h, np.pi / 4],
+        [60, 20, np.pi / 2],
+        [60, 60, np.pi / 2],
+        [40, 80, np.pi],
+        [0, 80, np.pi],
+    ]
+    np.testing.assert_allclose(s, expect, atol=1e-9)
+    # Constant ground speed: every chord of 2 mm of path, shorter only inside a turn.
+    steps = np.linalg.norm(np.diff(_se2(tr)[:, :2], axis=0), axis=1)
+    assert np.all(steps <= 2.0 + 1e-9) and np.all(steps >= 2.0 * np.sinc(1 / (20.0 * np.pi)) - 1e-9)
+    with pytest.raises(ConfigError, match=r"trajectory.turn_rad = 0.0"):
+        build_trajectory("turns", {"turn_rad": 0.0}, height_mm=100.0, fps=30.0)
+
+
 def test_lawnmower_covers_rectangle():
     tr = build_trajectory(
         "lawnmower", {"width_mm": 100.0, "depth_mm": 60.0, "lane_spacing_mm": 30.0}, height_mm=100.0, fps=30.0
@@ -138,4 +167,6 @@ def test_paper000_protocol_counts():
 
 
 def test_registry_has_the_design_types():
-    assert {"uniform", "sigmoid", "line", "arc", "spin", "s_curve", "lawnmower", "kidnap", "strip"} <= set(TRAJECTORIES)
+    assert {"uniform", "sigmoid", "line", "arc", "spin", "s_curve", "turns", "lawnmower", "kidnap", "strip"} <= set(
+        TRAJECTORIES
+    )
