@@ -1,6 +1,9 @@
-"""``floorsim bench SCENES... [--estimators A,B] [--external NAME=CMD] -o DIR``: render, run, score, report, gate.
+"""``floorsim bench [SCENES...] [--suite NAME] [--estimators A,B] [--external NAME=CMD] -o DIR``: render, run,
+score, report, gate.
 
-SCENES are scene files and sequence folders (recordings: run as they are, not rendered).
+SCENES are scene files and sequence folders (recordings: run as they are, not rendered);
+``--suite`` adds the scene files a suite lists (:mod:`floorsim.bench.suites`: a shipped
+suite's name such as ``motion``, or a suite file).
 
 Thin call to :func:`floorsim.bench.run_bench`; prints the score table and the report's
 path. With ``--baseline FILE`` it prints what got worse and how many metrics it checked of how
@@ -40,9 +43,16 @@ def add_parser(subparsers) -> None:
     p.add_argument(
         "scenes",
         metavar="SCENE",
-        nargs="+",
+        nargs="*",
         type=Path,
         help="scene TOML files and sequence folders (anything with a sequence.json, e.g. from floorvo import)",
+    )
+    p.add_argument(
+        "--suite",
+        action="append",
+        metavar="NAME",
+        help="run every scene of a suite as well: a shipped suite (motion: scenes/motion/suite.toml) or a suite "
+        "file listing scene files (repeatable)",
     )
     add_output_argument(p, "output folder DIR", type=Path)
     p.add_argument(
@@ -123,12 +133,19 @@ def run(args: argparse.Namespace) -> int:
     # Imported when the command runs, as in every command module: `floorsim --help` stays quick.
     from floorsim.bench import run_bench
     from floorsim.bench.report import format_table
+    from floorsim.bench.suites import suite_scenes
     from floorvo.run import InitialPose
+
+    scenes = list(args.scenes)
+    for suite in args.suite or []:
+        scenes += suite_scenes(suite)
+    if not scenes:
+        raise ConfigError("bench: give scene files, sequence folders or --suite NAME")
 
     estimators = [e.strip() for e in args.estimators.split(",") if e.strip()] if args.estimators else None
     with progress_callback("render", "frame") as bar:
         res = run_bench(
-            args.scenes,
+            scenes,
             estimators,
             args.output,
             repetitions=args.repeat,
