@@ -32,7 +32,6 @@ import numpy as np  # noqa: E402
 
 from floorvo.errors import FloorbenchError  # noqa: E402
 from floorvo.estimators import get_estimator  # noqa: E402
-from floorvo.metrics import step_errors, wrong_steps  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
 from floorvo.runfolder import RunFolder  # noqa: E402
 from floorvo.scoring import score_run  # noqa: E402
@@ -110,17 +109,11 @@ def render_case(name: str, out: Path, scale: float, frames: int | None) -> Path:
     return render_sequence(scene, out, scale=scale, frames=frames)
 
 
-def score_steps(run: Path, seq: Sequence) -> dict:
-    """Steps reported ok, wrong ones among them, lost ones and ok ones with a note, from the run's files.
-
-    Each ok step is scored against the true motion from the frame it was measured from:
-    the last placed frame, or the lost frame on which the estimator restarted its track
-    (its reason says "tracking restarts"; the motion over such a gap is unknown, and its
-    lost frames show it).
-    """
+def score_steps(run: Path, seq_dir: Path) -> dict:
+    """Steps, steps reported ok, wrong ones among them (``floorvo.scoring``: each ok step scored
+    from the frame it was measured from), lost ones and ok ones with a note, and the end drift."""
     folder = RunFolder.read(run)
     timing = folder.timing or {}
-    frames = np.asarray(timing.get("frame", []), dtype=int)
     status = list(timing.get("status", []))
     reason = [str(r) for r in timing.get("reason", [""] * len(status))]
     total = np.asarray(timing.get("total_ms", []))[1:]
@@ -131,20 +124,15 @@ def score_steps(run: Path, seq: Sequence) -> dict:
         "lost": status.count("lost"),
         "ok_with_note": sum(s == "ok" and bool(r) for s, r in zip(status, reason)),
         "ms_per_frame": round(float(np.median(total)), 1) if len(total) else float("nan"),
+        "end_drift_pct": "-",
     }
-    T_gt = seq.groundtruth()[1]
-    placed, measured_from, ref = [], [], None
-    for f, st, why in zip(frames, status, reason):
-        if st in ("init", "ok"):
-            if placed:
-                measured_from.append(ref)
-            placed.append(f)
-            ref = f
-        elif "tracking restarts" in why:
-            ref = f
-    if len(placed) >= 2:
-        errors = step_errors(T_gt[placed], folder.T_world_cam, T_ref_from=T_gt[measured_from])
-        out["wrong_ok"] = int(wrong_steps(errors).sum())
+    try:
+        score = score_run(run, seq_dir)
+    except FloorbenchError:  # fewer than two tracked frames: nothing to score
+        return out
+    out["wrong_ok"] = int(score.tracking.get("wrong_ok_steps", 0))
+    drift = score.flat().get("end_drift_pct", float("nan"))
+    out["end_drift_pct"] = round(drift, 3) if np.isfinite(drift) else "-"  # "-": no path (spin)
     return out
 
 
@@ -176,12 +164,7 @@ def main() -> None:
             run = out / "runs" / sname / name
             run_estimator(seq, name, run)
             row = {"case": sname, "size": f"{seq.camera.width_px}x{seq.camera.height_px}", "estimator": name}
-            row.update(score_steps(run, seq))
-            try:
-                drift = score_run(run, sdir).flat()["end_drift_pct"]
-                row["end_drift_pct"] = round(drift, 3) if np.isfinite(drift) else "-"  # "-": no path (spin)
-            except FloorbenchError:  # fewer than two tracked frames: no drift to score
-                row["end_drift_pct"] = "-"
+            row.update(score_steps(run, sdir))
             rows.append(row)
             print(json.dumps(rows[-1]), flush=True)
     cols = ["case", "size", "estimator", "steps", "ok", "wrong_ok", "lost", "ok_with_note", "end_drift_pct"]

@@ -37,6 +37,7 @@ __all__ = [
     "LOST_FRAMES",
     "LOSS_EVENTS",
     "TRACKED_FRACTION",
+    "WRONG_OK_STEPS",
     "TIMING_STAGES",
     "time_mean",
     "FPS",
@@ -150,6 +151,13 @@ SEG_MEAN_R_ERR = MetricDef(
 LOST_FRAMES = MetricDef("lost_frames", "frames", "lost", True, "frames the estimator reported lost")
 LOSS_EVENTS = MetricDef("loss_events", "", "loss events", True, "runs of consecutive lost frames")
 TRACKED_FRACTION = MetricDef("tracked_fraction", "", "tracked", False, "fraction of frames tracked")
+WRONG_OK_STEPS = MetricDef(
+    "wrong_ok_steps",
+    "steps",
+    "wrong ok",
+    True,
+    "steps reported ok that are off by more than 0.05 mm + 2 % of the true step or 0.3 degrees (issue 14)",
+)
 
 #: The stages an estimator times (timing.csv columns).
 TIMING_STAGES = ("total_ms", "detect_ms", "match_ms", "estimate_ms")
@@ -175,7 +183,7 @@ def all_metrics(
     defs += [rpe_distance_trans_rmse(d) for d in rpe_deltas_mm]
     defs += [END_DRIFT, DISTANCE_ERROR, PATH_LENGTH, MEASURED]
     defs += [segment_t_err(L) for L in segment_lengths_mm]
-    defs += [SEG_MEAN_T_ERR, SEG_MEAN_R_ERR, LOST_FRAMES, LOSS_EVENTS, TRACKED_FRACTION]
+    defs += [SEG_MEAN_T_ERR, SEG_MEAN_R_ERR, LOST_FRAMES, LOSS_EVENTS, TRACKED_FRACTION, WRONG_OK_STEPS]
     defs += [time_mean(s) for s in TIMING_STAGES] + [FPS]
     return {d.name: d for d in defs}
 

@@ -36,6 +36,7 @@ Conventions
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from typing import Any
@@ -58,6 +59,8 @@ __all__ = [
     "rpe",
     "step_errors",
     "wrong_steps",
+    "reason_kind",
+    "lost_reasons",
     "end_point_drift",
     "segment_errors",
     "translation_error_along_path",
@@ -388,25 +391,64 @@ def translation_error_along_path(
 
 
 # ----------------------------------------------------------------------------- tracking and timing
-def tracking_stats(statuses: SequenceT[str] | None, n_ref: int, n_est: int) -> dict[str, Any]:
+def reason_kind(reason: str) -> str:
+    """The kind of a lost step's ``reason``, for counting reasons over a run.
+
+    The last ``"; "``-separated clause that is not the restart note (the cause; an earlier
+    clause says what was tried first, such as a brute-force fallback), without its
+    parenthesised details, numbers replaced by ``#``: ``"weak correlation peak 0.012"``
+    -> ``"weak correlation peak #"``; ``"guided prediction doubtful (...): matched by brute
+    force; too few matches (3 < 6)"`` -> ``"too few matches"``. Empty: ``"(no reason)"``.
+    """
+    text = str(reason)
+    while True:  # innermost parentheses first, so nested ones go too
+        cut = re.sub(r"\s*\([^()]*\)", "", text)
+        if cut == text:
+            break
+        text = cut
+    clauses = [c.strip() for c in text.split("; ") if c.strip() and not c.strip().startswith("tracking restarts")]
+    text = clauses[-1] if clauses else ""
+    text = re.sub(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", text)
+    text = re.sub(r"\s+", " ", text).strip(" :;,")
+    return text or "(no reason)"
+
+
+def lost_reasons(statuses: SequenceT[str], reasons: SequenceT[str]) -> dict[str, int]:
+    """``{kind: count}`` of the lost steps of a run (:func:`reason_kind`), most frequent first."""
+    counts: dict[str, int] = {}
+    for st, why in zip(statuses, reasons):
+        if st == "lost":
+            k = reason_kind(why)
+            counts[k] = counts.get(k, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def tracking_stats(
+    statuses: SequenceT[str] | None, n_ref: int, n_est: int, reasons: SequenceT[str] | None = None
+) -> dict[str, Any]:
     """Tracking-loss statistics.
 
     ``statuses``: per-frame status strings (``init``/``ok``/``lost``) from ``timing.csv``,
     or None, in which case the frames without an estimated pose (``n_ref - n_est``) count
     as lost. Returns ``lost_frames``, ``loss_events`` (runs of consecutive lost frames),
-    ``tracked_fraction`` and ``source``.
+    ``tracked_fraction`` and ``source``; with ``reasons`` (per frame, ``timing.csv``'s
+    reason column) also ``lost_reasons``, the lost steps counted per kind of reason
+    (:func:`lost_reasons`).
     """
     if statuses is not None and len(statuses) > 0:
         lost = np.array([s == "lost" for s in statuses], dtype=bool)
         events = int(np.sum(lost[1:] & ~lost[:-1]) + (1 if lost[0] else 0))
         n = len(lost)
-        return {
+        out: dict[str, Any] = {
             "lost_frames": int(lost.sum()),
             "loss_events": events,
             "tracked_fraction": float(1 - lost.mean()),
             "frames": n,
             "source": "timing.csv",
         }
+        if reasons is not None and len(reasons) == n:
+            out["lost_reasons"] = lost_reasons(statuses, reasons)
+        return out
     lost_n = max(0, int(n_ref) - int(n_est))
     return {
         "lost_frames": lost_n,

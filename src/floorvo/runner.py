@@ -31,6 +31,7 @@ import numpy as np
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
 from floorvo.estimators.base import Frame, StepResult
+from floorvo.metrics import lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
@@ -144,6 +145,7 @@ class RunResult:
             "ok": self.ok,
             "lost": self.lost,
             "lost_frames": self.lost_frames,
+            "lost_reasons": lost_reasons(list(self.status), [str(r) for r in self.reason]),
             "fps": self.fps,
             "median_total_ms": self.median_total_ms,
             "status_counts": self.status_counts,

@@ -22,6 +22,7 @@ import numpy as np
 
 from floorvo import metric_defs as md
 from floorvo.errors import SequenceError
+from floorvo.estimators.base import RESTART_NOTE
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import (
     ALIGNMENTS,
@@ -33,8 +34,10 @@ from floorvo.metrics import (
     path_distances_mm,
     rpe,
     segment_errors,
+    step_errors,
     timing_stats,
     tracking_stats,
+    wrong_steps,
 )
 from floorvo.runfolder import RunFolder
 from floorvo.sequence import Sequence
@@ -49,6 +52,7 @@ __all__ = [
     "score_without_groundtruth",
     "read_run_and_groundtruth",
     "score_run",
+    "ok_step_errors",
     "write_score",
 ]
 
@@ -128,6 +132,8 @@ class Score:
         f[md.LOST_FRAMES.name] = float(self.tracking["lost_frames"])
         f[md.LOSS_EVENTS.name] = float(self.tracking["loss_events"])
         f[md.TRACKED_FRACTION.name] = float(self.tracking["tracked_fraction"])
+        if "wrong_ok_steps" in self.tracking:
+            f[md.WRONG_OK_STEPS.name] = float(self.tracking["wrong_ok_steps"])
         for stage in md.TIMING_STAGES:
             if stage in self.timing:
                 f[md.time_mean(stage).name] = self.timing[stage]["mean"]
@@ -159,6 +165,7 @@ def score_trajectories(
     *,
     estimator: str = "",
     statuses: SequenceT[str] | None = None,
+    reasons: SequenceT[str] | None = None,
     timing: dict[str, np.ndarray] | None = None,
     max_diff_s: float = 0.01,
     rpe_deltas_mm: SequenceT[float] = (10.0, 100.0),
@@ -199,7 +206,7 @@ def score_trajectories(
         rpe_distance=rpe_d,
         drift=drift,
         segments=segment_errors(A, B, segment_lengths_mm),
-        tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est)),
+        tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est), reasons),
         timing=timing_stats(timing),
         warnings=warnings,
     )
@@ -211,6 +218,7 @@ def score_without_groundtruth(
     *,
     estimator: str = "",
     statuses: SequenceT[str] | None = None,
+    reasons: SequenceT[str] | None = None,
     timing: dict[str, np.ndarray] | None = None,
     why: str = NO_GROUND_TRUTH,
 ) -> Score:
@@ -227,7 +235,7 @@ def score_without_groundtruth(
         rpe_distance=[],
         drift={},
         segments=[],
-        tracking=tracking_stats(None if statuses is None else list(statuses), n_frames, len(t_est_s)),
+        tracking=tracking_stats(None if statuses is None else list(statuses), n_frames, len(t_est_s), reasons),
         timing=timing_stats(timing),
         ground_truth=why,
     )
@@ -281,10 +289,15 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         run.T_world_cam,
         estimator=str(result.get("estimator", "")),
         statuses=run.statuses,
+        reasons=_reasons(run),
         timing=timing,
         max_diff_s=max_diff_s,
     )
     score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
+    steps = _ok_steps_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
+    if steps is not None:
+        score.tracking["ok_steps_scored"] = len(steps["trans_mm"])
+        score.tracking["wrong_ok_steps"] = int(wrong_steps(steps).sum())
     if result:
         score.extra["result"] = {
             k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
@@ -292,6 +305,67 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     for w in score.warnings:
         log.warning("%s: %s", run_dir, w)
     return score
+
+
+def _reasons(run: RunFolder) -> list[str] | None:
+    """``timing.csv``'s reason per frame, or None when it has no reason column."""
+    if not run.timing or "reason" not in run.timing:
+        return None
+    return [str(r) for r in run.timing["reason"]]
+
+
+def ok_step_errors(
+    statuses: SequenceT[str],
+    reasons: SequenceT[str] | None,
+    T_ref_per_frame: np.ndarray,
+    T_est_placed: np.ndarray,
+) -> dict[str, np.ndarray] | None:
+    """:func:`floorvo.metrics.step_errors` of every step a run reported ``ok``, each against
+    the true motion from the frame it was measured from.
+
+    ``statuses``, ``reasons`` (F,): a run's frames (``timing.csv``); ``T_ref_per_frame``
+    (F, 4, 4): the true pose at each of those frames (NaN where there is none);
+    ``T_est_placed`` (P, 4, 4): the run's poses, one per ``init``/``ok`` frame. A step is
+    measured from the last placed frame, or from a lost frame on which the estimator
+    restarted its track (its reason holds :data:`~floorvo.estimators.base.RESTART_NOTE`:
+    the motion over that gap is unknown, and the lost frames show it). Steps with no true
+    pose at either end are left out. None when the run does not fit its trajectory (P is
+    not the number of placed frames, or fewer than 2 are placed).
+    """
+    placed = [i for i, st in enumerate(statuses) if st in ("init", "ok")]
+    if len(placed) < 2 or len(placed) != len(T_est_placed):
+        return None
+    measured_from, ref = [], None
+    for i, st in enumerate(statuses):
+        if st in ("init", "ok"):
+            if ref is not None:
+                measured_from.append(ref)
+            ref = i
+        elif reasons is not None and RESTART_NOTE in str(reasons[i]):
+            ref = i
+    A = np.asarray(T_ref_per_frame, dtype=float)
+    errors = step_errors(A[placed], np.asarray(T_est_placed, dtype=float), T_ref_from=A[measured_from])
+    known = np.isfinite(errors["trans_mm"]) & np.isfinite(errors["rot_deg"])
+    if not known.any():
+        return None
+    return {k: v[known] for k, v in errors.items()}
+
+
+def _ok_steps_of_run(
+    run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float
+) -> dict[str, np.ndarray] | None:
+    """:func:`ok_step_errors` of a run folder (None without ``timing.csv`` frames and statuses)."""
+    statuses = run.statuses
+    if not statuses or not run.timing or "frame" not in run.timing:
+        return None
+    frames = np.asarray(run.timing["frame"], dtype=int)
+    t_frames = _frame_times_of(seq_dir, t_ref, frames)
+    if len(t_frames) != len(frames):
+        return None
+    T_per_frame = np.full((len(frames), 4, 4), np.nan)
+    i_ref, i_frame = associate(t_ref, t_frames, max_diff_s)
+    T_per_frame[i_frame] = T_ref[i_ref]
+    return ok_step_errors(statuses, _reasons(run), T_per_frame, run.T_world_cam)
 
 
 def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
@@ -304,6 +378,7 @@ def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
         run.timestamps_s,
         estimator=str(run.result.get("estimator", "")),
         statuses=run.statuses,
+        reasons=_reasons(run),
         timing=None if run.timing is None else dict(run.timing),
         why=why,
     )

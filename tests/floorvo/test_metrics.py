@@ -91,6 +91,35 @@ def test_wrong_steps_by_issue_14s_bound_hand_computed():
     assert M.step_errors(ref3, est3)["trans_mm"][1] == pytest.approx(4.0)  # against frame 1 it is 4 mm short
 
 
+def test_lost_steps_are_counted_per_kind_of_reason():
+    reasons = [
+        "first frame",
+        "weak correlation peak 0.012",
+        "weak correlation peak 0.003; tracking restarts from this frame",
+        "guided prediction doubtful (the motion differs from the prediction by 20.1 px (search radius 24.0)): "
+        "matched by brute force; too few matches (3 < 6)",
+        "only 12 % of 50 matches agree with the fit (within 2 px; needs 20 %)",
+        "matched by brute force",
+        "",
+    ]
+    statuses = ["init", "lost", "lost", "lost", "lost", "ok", "lost"]
+    assert [M.reason_kind(r) for r in reasons[1:5]] == [
+        "weak correlation peak #",
+        "weak correlation peak #",
+        "too few matches",
+        "only # % of # matches agree with the fit",
+    ]
+    assert M.lost_reasons(statuses, reasons) == {
+        "weak correlation peak #": 2,
+        "(no reason)": 1,
+        "only # % of # matches agree with the fit": 1,
+        "too few matches": 1,
+    }
+    t = M.tracking_stats(statuses, 7, 2, reasons)
+    assert t["lost_frames"] == 5 and sum(t["lost_reasons"].values()) == 5
+    assert "lost_reasons" not in M.tracking_stats(statuses, 7, 2)
+
+
 def test_rpe_and_drift_of_a_scale_error_are_hand_computable():
     ref = line_traj(n=26, step_mm=4.0)
     est = line_traj(n=26, step_mm=4.0, scale=1.01)  # 1 % too long

@@ -8,6 +8,7 @@ from test_metrics import line_traj
 
 from floorvo import metric_defs as md
 from floorvo import scoring as S
+from floorvo.estimators.base import RESTART_NOTE
 from floorvo.tum import write_tum
 
 
@@ -79,6 +80,54 @@ def test_timing_csv_keeps_text_columns_and_refuses_text_times(tmp_path, capsys):
     assert err.count("\n") == 1 and "column 'detect_ms' holds a value that is not a number" in err
 
 
+def _dir(path):
+    path.mkdir()
+    return path
+
+
+def _with_reasons(run, reasons: dict[int, str]) -> None:
+    """Add timing.csv's reason column (as ``floorvo run`` writes it): ``reasons[frame]``, else empty."""
+    lines = (run / "timing.csv").read_text().splitlines()
+    out = [lines[0] + ",reason"] + [ln + "," + reasons.get(i, "") for i, ln in enumerate(lines[1:])]
+    (run / "timing.csv").write_text("\n".join(out) + "\n")
+
+
+def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_path):
+    """Steps of 4 mm (issue 14's bound: 0.13 mm), frames 7 and 8 lost. The estimate is exact, so
+    the chain's step from frame 6 to 9 is the true 12 mm: right when it was measured from 6,
+    8 mm wrong when the track restarted on frame 8 (it then measured only 8 -> 9, 4 mm, so the
+    run's 12 mm step is what it placed from a 4 mm measurement)."""
+    seq, run = _fake_run(_dir(tmp_path / "a"), scale=1.0)
+    _with_reasons(run, {0: "first frame", 7: "weak correlation peak 0.010", 8: "blocks disagree by 2.5 px"})
+    s = S.score_run(run, seq)
+    assert s.tracking["ok_steps_scored"] == 23 and s.tracking["wrong_ok_steps"] == 0
+    assert s.tracking["lost_reasons"] == {"blocks disagree by # px": 1, "weak correlation peak #": 1}
+    assert s.flat()["wrong_ok_steps"] == 0
+    seq, run = _fake_run(_dir(tmp_path / "b"), scale=1.0)
+    _with_reasons(run, {7: "weak correlation peak 0.010", 8: "weak correlation peak 0.012; " + RESTART_NOTE})
+    s = S.score_run(run, seq)
+    assert s.tracking["wrong_ok_steps"] == 1 and s.tracking["lost_reasons"] == {"weak correlation peak #": 2}
+    errors = S.ok_step_errors(
+        ["init", "ok", "lost", "lost", "ok"],
+        ["", "", "x", "x; " + RESTART_NOTE, ""],
+        line_traj(5),
+        line_traj(5)[[0, 1, 4]],
+    )
+    np.testing.assert_allclose(errors["trans_mm"], [0.0, 8.0], atol=1e-9)  # the 12 mm step against 8 -> 9's 4 mm
+    np.testing.assert_allclose(errors["step_mm"], [4.0, 4.0])
+    # 1 % too long: within 0.05 mm + 2 % of every 4 mm step; 5 % too long: every ok step is wrong.
+    seq, run = _fake_run(_dir(tmp_path / "c"), scale=1.01)
+    assert S.score_run(run, seq).tracking["wrong_ok_steps"] == 0
+    seq, run = _fake_run(_dir(tmp_path / "d"), scale=1.05)
+    # 23 ok steps: 4 mm ones 0.2 mm off (bound 0.13), 6 -> 9 0.6 mm off in 12 mm (bound 0.29).
+    assert S.score_run(run, seq).tracking["wrong_ok_steps"] == 23
+    # A trajectory that does not fit its timing.csv (a program's run): not scored, no number.
+    seq, run = _fake_run(_dir(tmp_path / "e"), scale=1.0)
+    lines = (run / "trajectory.txt").read_text().splitlines()
+    (run / "trajectory.txt").write_text("\n".join(lines[:-1]) + "\n")
+    assert "wrong_ok_steps" not in S.score_run(run, seq).tracking
+
+
 # ----------------------------------------------------------------------------- metric names
 def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(tmp_path):
     """The column names results.csv has always had (written out by hand), now all from metric_defs."""
@@ -91,6 +140,7 @@ def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(
         + ["end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"]
         + ["seg_10mm_t_err_pct", "seg_25mm_t_err_pct", "seg_50mm_t_err_pct", "seg_100mm_t_err_pct"]
         + ["seg_mean_t_err_pct", "seg_mean_r_err_deg_per_m", "lost_frames", "loss_events", "tracked_fraction"]
+        + ["wrong_ok_steps"]
         + ["time_total_ms_mean", "time_detect_ms_mean", "time_match_ms_mean", "time_estimate_ms_mean", "fps"]
     )
     assert list(flat) == by_hand

@@ -259,6 +259,9 @@ def run_one(
     score = score_run(run_dir, seq_dir)
     write_score(score, run_dir / "score.json")
     row: dict[str, Any] = {**dict(figures or {}), **score.flat(), "ground_truth": score.ground_truth}
+    reasons = score.tracking.get("lost_reasons") or {}
+    if reasons:  # the lost steps counted per kind of reason (floorvo.metrics.lost_reasons)
+        row["lost_reasons"] = "; ".join(f"{kind}: {n}" for kind, n in reasons.items())
     if score.warnings:
         row["score_warnings"] = "; ".join(score.warnings)
     return row

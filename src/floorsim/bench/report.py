@@ -50,6 +50,7 @@ SUMMARY_COLUMNS: list[tuple[str, str]] = [
             md.END_DRIFT,
             md.SEG_MEAN_T_ERR,
             md.LOST_FRAMES,
+            md.WRONG_OK_STEPS,
             md.time_mean("total_ms"),
         )
     ),
@@ -376,6 +377,22 @@ def _compare_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> None:
 
 
 # ----------------------------------------------------------------------------- the bench report
+def _lost_reasons_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> None:
+    """The lost steps of each run counted per kind of reason (results.csv's ``lost_reasons``), when any was lost."""
+    lost = [r for r in rows if r.get("lost_reasons")]
+    if not lost:
+        return
+    rep.heading("Lost frames by reason")
+    rep.text(
+        "Each estimator checks its own steps and reports a step lost, with the reason, instead of a wrong motion "
+        "(numbers in a reason are shown as #). Wrong ok: steps reported ok that are off by more than 0.05 mm + 2 % "
+        "of the true step or 0.3 degrees."
+    )
+    cols = [("scene", "scene"), ("estimator", "estimator"), ("repetition", "rep")]
+    cols += [(md.LOST_FRAMES.name, md.LOST_FRAMES.label), (md.WRONG_OK_STEPS.name, md.WRONG_OK_STEPS.label)]
+    rep.table(lost, cols + [("lost_reasons", "lost frames by reason")])
+
+
 def build_bench_report(
     out_dir: str | os.PathLike,
     rows: SequenceT[Mapping[str, Any]],
@@ -399,6 +416,7 @@ def build_bench_report(
     )
     rep.table(display_rows(rows), SUMMARY_COLUMNS)
     _compare_section(rows, rep)
+    _lost_reasons_section(rows, rep)
     if gate_summary:
         rep.heading("Regression gate")
         rep.text(gate_summary)

@@ -45,6 +45,7 @@ TEXT_COLUMNS = frozenset(
         "source_detail",
         "status",
         "stderr_tail",
+        "lost_reasons",
         "sequence",
         "run_dir",
         "job",

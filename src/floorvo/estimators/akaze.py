@@ -52,7 +52,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
-from floorvo.estimators.base import Frame, StepResult, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
@@ -319,7 +319,7 @@ class _AkazeBase:
             why = f"{note}; {fit.problem}" if note else fit.problem
             if state.n_lost >= self.config.restart_after_lost and len(kps) >= self.config.min_matches:
                 state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
-                why += "; tracking restarts from this frame"
+                why += f"; {RESTART_NOTE}"
             return StepResult(
                 "lost",
                 reason=why,

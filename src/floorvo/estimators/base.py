@@ -31,7 +31,13 @@ __all__ = [
     "StepResult",
     "Estimator",
     "frame_problem",
+    "RESTART_NOTE",
 ]
+
+#: The note a lost step's reason ends with when the estimator restarts its track on that
+#: frame (the next step is measured from it): scoring (:func:`floorvo.scoring.score_run`)
+#: scores the next ok step from this frame.
+RESTART_NOTE = "tracking restarts from this frame"
 
 
 @dataclass(frozen=True)

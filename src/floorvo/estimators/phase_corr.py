@@ -33,7 +33,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit
 from floorvo.imaging import illumination_corrected
 
@@ -289,7 +289,7 @@ class PhaseCorr:
             )
             if state.n_lost >= self.config.restart_after_lost:
                 state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
-                why += "; tracking restarts from this frame"
+                why += f"; {RESTART_NOTE}"
             return StepResult(
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
             )
