@@ -21,6 +21,7 @@ Conventions
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
@@ -41,6 +42,7 @@ __all__ = [
     "umeyama",
     "rigid_fit",
     "rigid_fit_robust",
+    "rival_homography_support",
     "pixels_to_floor_mm",
     "floor_mm_to_pixels",
     "pixel_rigid_to_floor",
@@ -274,3 +276,27 @@ def floor_rigid_to_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
     ``T_cur_prev`` (:func:`planar_T`); the result is its inverse.
     """
     return invert_T(planar_T(R2, t2_mm))
+
+
+def rival_homography_support(
+    src_px: np.ndarray, dst_px: np.ndarray, inliers: np.ndarray, threshold_px: float, *, seed: int = 0
+) -> int:
+    """How many of the matches outside ``inliers`` a second floor homography explains.
+
+    A self-check of a step (issue 14: agreement of independent sets of matches): the floor
+    seen by a downward camera moves by one homography between two frames, so the matches a
+    RANSAC fit left out should be random and agree on nothing. When many of them agree on
+    another homography (a static glare or dirt on the lens, a repeated pattern, an object
+    moving on the floor), the frame shows two motions and the one kept may be the wrong
+    one. ``src_px``, ``dst_px``: (N, 2) matched pixels; ``inliers``: (N,) bool of the fit
+    kept; RANSAC (OpenCV, seeded with ``seed``) at ``threshold_px`` on the others. Returns
+    the rival's inlier count (0 when fewer than 8 matches are left).
+    """
+    out = ~np.asarray(inliers, dtype=bool)
+    if int(out.sum()) < 8:
+        return 0
+    cv2.setRNGSeed(int(seed))
+    a = np.asarray(src_px, dtype=np.float32)[out]
+    b = np.asarray(dst_px, dtype=np.float32)[out]
+    H, mask = cv2.findHomography(a, b, cv2.RANSAC, float(threshold_px), maxIters=1000, confidence=0.995)
+    return 0 if H is None or mask is None else int(mask.sum())

@@ -53,7 +53,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
-from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
+from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit, rival_homography_support
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
 
@@ -117,6 +117,11 @@ class AkazeConfig(Config):
     inlier_tol_px: float = param(2.0, unit="px", gt=0.0, doc="a match this close to the fitted motion agrees with it")
     min_consensus: float = param(
         0.2, min=0.0, max=1.0, doc="smaller fraction of the matches agreeing with the fit: the frame is lost"
+    )
+    max_rival_fraction: float = param(
+        0.1,
+        gt=0.0,
+        doc="a second homography of the disagreeing matches backed by more than this fraction of the agreeing: lost",
     )
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
@@ -256,6 +261,12 @@ class _AkazeBase:
                 f"only {100 * consensus:.0f} % of {n} matches agree with the fit "
                 f"(within {cfg.inlier_tol_px:g} px; needs {100 * cfg.min_consensus:.0f} %)"
             )
+        else:
+            # Two motions in one frame (a static glare or dirt, an object moving on the floor):
+            # the matches that disagree with the fit must not agree on another motion.
+            rival = rival_homography_support(src, dst, inl, cfg.inlier_tol_px)
+            if rival > max(cfg.min_inliers, cfg.max_rival_fraction * inl.sum()) and rival >= 0.5 * (~inl).sum():
+                problem = f"two motions: {rival} of the {int((~inl).sum())} other matches agree on a second homography ({int(inl.sum())} agree)"
         return _Fit(M, s, d, n, rms, consensus, problem)
 
     def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import rigid_fit_robust
+from floorvo.geometry import rigid_fit_robust, rival_homography_support
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
@@ -60,6 +60,15 @@ class OrbIcpConfig(Config):
     prosac_threshold_px: float = param(2.0, unit="px", gt=0.0, doc="PROSAC reprojection threshold")
     icp_iterations: int = param(3, min=0, max=20, doc="SVD re-solves with residual rejection")
     min_matches: int = param(8, min=4, doc="fewer matches: the frame is lost")
+    min_inlier_fraction: float = param(
+        0.2, min=0.0, max=1.0, doc="smaller fraction of the matches in PROSAC's consensus: the frame is lost"
+    )
+    max_rival_fraction: float = param(
+        0.1,
+        gt=0.0,
+        doc="a second homography of the other matches backed by more than this fraction of the inliers: lost",
+    )
+    max_residual_mm: float = param(1.0, unit="mm", gt=0.0, doc="larger RMS residual of the ICP fit: the frame is lost")
     refine_win_px: int = param(
         15, unit="px", min=0, max=63, doc="window of the sub-pixel (Lucas-Kanade) refinement; 0 = off"
     )
@@ -226,6 +235,24 @@ class OrbIcp:
         if H is None or mask is None:
             return lost("PROSAC found no consistent homography")
         inl = mask.ravel().astype(bool)
+        # Self-checks (issue 14): the consensus is a large enough share of the matches, and no
+        # second motion is nearly as well supported by the matches PROSAC left out.
+        frac = float(inl.mean())
+        if frac < self.config.min_inlier_fraction:
+            return lost(
+                f"only {100 * frac:.0f} % of {n_matches} matches agree with the homography "
+                f"(needs {100 * self.config.min_inlier_fraction:.0f} %)",
+                int(inl.sum()),
+            )
+        rival = rival_homography_support(src, dst, inl, self.config.prosac_threshold_px, seed=self.config.seed)
+        if (
+            rival > max(self.config.min_matches, self.config.max_rival_fraction * inl.sum())
+            and rival >= 0.5 * (~inl).sum()
+        ):
+            return lost(
+                f"two motions: {rival} of the {int((~inl).sum())} other matches agree on a second homography ({int(inl.sum())} inliers)",
+                int(inl.sum()),
+            )
         uv_prev, uv_cur = kp0[qi[inl]], uv[ti[inl]]
         P_prev, P_cur = xyz0[qi[inl]], xyz[ti[inl]]
         w = self.config.refine_win_px
@@ -250,6 +277,11 @@ class OrbIcp:
             return lost(f"too few inliers with depth ({len(P_prev)})", len(P_prev))
         # ICP by SVD (eqs. (8)-(21)) with residual rejection: p_prev = R p_cur + t (eq. (9)), so (R, t) is T_prev_cur.
         R, t, keep = rigid_fit_robust(P_cur, P_prev, iterations=self.config.icp_iterations)
+        if keep.sum() < self.config.min_matches:
+            return lost(f"too few points behind the ICP fit ({int(keep.sum())})", int(keep.sum()))
+        rms_mm = float(np.sqrt(np.mean(np.sum((P_cur[keep] @ R.T + t - P_prev[keep]) ** 2, axis=1))))
+        if rms_mm > self.config.max_residual_mm:
+            return lost(f"ICP residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum()))
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, t
         t3 = time.perf_counter()

@@ -36,7 +36,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import invert_T, rigid_fit_robust
+from floorvo.geometry import invert_T, rigid_fit_robust, rival_homography_support
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_ratio
 
@@ -59,6 +59,15 @@ class StereoSiftConfig(Config):
     )
     ransac_threshold_px: float = param(2.0, unit="px", gt=0.0, doc="RANSAC homography threshold")
     min_matches: int = param(8, min=4, doc="fewer matches: the frame is lost")
+    min_inlier_fraction: float = param(
+        0.2, min=0.0, max=1.0, doc="smaller fraction of the temporal matches in RANSAC's consensus: the frame is lost"
+    )
+    max_rival_fraction: float = param(
+        0.1,
+        gt=0.0,
+        doc="a second homography of the other matches backed by more than this fraction of the inliers: lost",
+    )
+    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each RANSAC")
     update: str = param(
         "planar",
         choices=("planar", "rigid", "mean"),
@@ -203,12 +212,30 @@ class StereoSift:
 
         if n_m < self.config.min_matches:
             return lost(f"too few temporal matches ({n_m})")
-        H, mask = cv2.findHomography(
-            prev.uv[qi].astype(np.float32), cur.uv[ti].astype(np.float32), cv2.RANSAC, self.config.ransac_threshold_px
-        )
+        cv2.setRNGSeed(self.config.seed)
+        src, dst = prev.uv[qi].astype(np.float32), cur.uv[ti].astype(np.float32)
+        H, mask = cv2.findHomography(src, dst, cv2.RANSAC, self.config.ransac_threshold_px)
         if H is None or mask is None:
             return lost("RANSAC found no consistent homography")
         inl = mask.ravel().astype(bool)
+        # Self-checks (issue 14): the consensus is a large enough share of the matches, and no
+        # second motion is nearly as well supported by the matches RANSAC left out.
+        frac = float(inl.mean())
+        if frac < self.config.min_inlier_fraction:
+            return lost(
+                f"only {100 * frac:.0f} % of {n_m} temporal matches agree with the homography "
+                f"(needs {100 * self.config.min_inlier_fraction:.0f} %)",
+                int(inl.sum()),
+            )
+        rival = rival_homography_support(src, dst, inl, self.config.ransac_threshold_px, seed=self.config.seed)
+        if (
+            rival > max(self.config.min_matches, self.config.max_rival_fraction * inl.sum())
+            and rival >= 0.5 * (~inl).sum()
+        ):
+            return lost(
+                f"two motions: {rival} of the {int((~inl).sum())} other matches agree on a second homography ({int(inl.sum())} inliers)",
+                int(inl.sum()),
+            )
         P1, P2 = prev.xyz[qi[inl]], cur.xyz[ti[inl]]
         if len(P1) < self.config.min_matches:
             return lost(f"too few RANSAC inliers ({len(P1)})", len(P1))
