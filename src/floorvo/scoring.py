@@ -47,6 +47,7 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "NO_GROUND_TRUTH",
+    "NO_TRACK",
     "Score",
     "score_trajectories",
     "score_without_groundtruth",
@@ -59,6 +60,8 @@ __all__ = [
 
 #: What a score without ground truth says in place of the metrics that need it.
 NO_GROUND_TRUTH = "no ground truth"
+#: What a score of a run that placed fewer than two frames says in place of the pose metrics.
+NO_TRACK = "fewer than two frames tracked"
 #: An estimate whose first pose is farther than FAR_START_MM + FAR_START_FRACTION x path length
 #: from the ground truth at the same time is not in the ground truth's frame (a warning).
 FAR_START_MM = 10.0
@@ -268,6 +271,13 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         return score
     _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
     timing, result = run.timing, run.result
+    if len(run.timestamps_s) < 2 and run.statuses:
+        # Every step lost (a featureless floor): nothing to compare with the ground truth, but
+        # the run is scored: its lost frames, their reasons and no ok step that is wrong.
+        score = _score_without_groundtruth(run_dir, seq_dir, NO_TRACK)
+        score.tracking["ok_steps_scored"], score.tracking["wrong_ok_steps"] = 0, 0
+        log.info("%s: %s; scored tracking and timing only", run_dir, NO_TRACK)
+        return score
     if len(run.timestamps_s) >= 2 and len(associate(t_ref, run.timestamps_s, max_diff_s)[0]) == 0:
         why = f"the estimate shares no timestamp with the ground truth (within {max_diff_s} s)"
         log.warning("%s: %s; scored tracking and timing only", run_dir, why)

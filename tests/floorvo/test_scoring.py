@@ -121,6 +121,13 @@ def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_pat
     seq, run = _fake_run(_dir(tmp_path / "d"), scale=1.05)
     # 23 ok steps: 4 mm ones 0.2 mm off (bound 0.13), 6 -> 9 0.6 mm off in 12 mm (bound 0.29).
     assert S.score_run(run, seq).tracking["wrong_ok_steps"] == 23
+    # Every step lost (a featureless floor): scored all the same, without the pose metrics.
+    seq, run = _fake_run(_dir(tmp_path / "f"), scale=1.0, lost=tuple(range(1, 26)))
+    _with_reasons(run, {i: "weak correlation peak 0.003" for i in range(1, 26)})
+    s = S.score_run(run, seq)
+    assert s.ground_truth == S.NO_TRACK and not s.ate and not s.drift
+    assert s.tracking["lost_frames"] == 25 and s.tracking["wrong_ok_steps"] == 0
+    assert s.tracking["lost_reasons"] == {"weak correlation peak #": 25} and s.flat()["wrong_ok_steps"] == 0
     # A trajectory that does not fit its timing.csv (a program's run): not scored, no number.
     seq, run = _fake_run(_dir(tmp_path / "e"), scale=1.0)
     lines = (run / "trajectory.txt").read_text().splitlines()
