@@ -31,7 +31,9 @@ def _listed(suite: str = "motion") -> list[str]:
 
 def test_bench_runs_every_scene_of_the_motion_suite_in_one_command(tmp_path, doubles, capsys):
     out = tmp_path / "out"
-    rc = main(["bench", "--suite", "motion", "--estimators", "scaled,lossy", "--frames", "4", "-o", str(out)])
+    rc = main(
+        ["bench", "--suite", "motion", "--estimators", "scaled,lossy", "--frames", "4", "--no-report", "-o", str(out)]
+    )
     assert rc == 0, capsys.readouterr().err
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -52,7 +54,9 @@ def test_a_suite_file_and_scene_arguments_run_together(tmp_path, doubles):
     suite = tmp_path / "mine.toml"
     suite.write_text('name = "mine"\nscenes = ["b.toml", "a.toml"]\n')
     out = tmp_path / "out"
-    assert main(["bench", str(extra), "--suite", str(suite), "--estimators", "scaled", "-o", str(out)]) == 0
+    assert (
+        main(["bench", str(extra), "--suite", str(suite), "--estimators", "scaled", "--no-report", "-o", str(out)]) == 0
+    )
     with open(out / "results.csv", newline="") as f:
         assert [r["scene"] for r in csv.DictReader(f)] == ["extra", "b", "a"]
 
