@@ -1,6 +1,7 @@
 """Render benchmark: frames per second, PSNR against a high-spp reference, peak memory.
 
     .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--spp 4,8,12] [--ref-spp 1024]
+    .venv/bin/python benchmarks/render.py --profile [--frames 6] [--set lights.led_size_mm=3]
 
 Renders ``--frames`` full-size frames of the scene at its default quality (or at each
 ``--spp`` given) and reports:
@@ -38,9 +39,18 @@ def main() -> None:
     ap.add_argument("--spp", default=None, help="comma-separated list; default: the scene's render.spp")
     ap.add_argument("--ref-spp", type=int, default=1024)
     ap.add_argument("--json", help="also write the figures to this file")
+    ap.add_argument(
+        "--profile",
+        action="store_true",
+        help="instead: where a frame's time goes (primary rays, shading, shadow rays, sensor, PNG, tracing)",
+    )
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override (repeatable)")
     args = ap.parse_args()
+    if args.profile:
+        profile(args)
+        return
 
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, dict(kv.split("=", 1) for kv in args.set))
     spps = [int(s) for s in args.spp.split(",")] if args.spp else [scene.render.spp]
     traj = _trajectory_of(scene)
     cam = scene.camera_model()
@@ -112,6 +122,76 @@ def main() -> None:
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=2)
+
+
+def profile(args) -> None:
+    """Median wall and CPU seconds per frame of each stage of a frame, at the scene's spp.
+
+    primary: primary rays and the albedo lookup (every LED off); shading: the LED sums
+    (shadows off) less primary; shadow rays: the full render less shading; sensor: the
+    capture of a frame (shot and read noise, quantisation); png: encoding and writing it;
+    tracing: a full render of an 8 x 8 camera (the Python and JIT-tracing cost of a frame,
+    which does not grow with the image).
+    """
+    import dataclasses
+    import tempfile
+
+    from floorsim.sensor import SensorModel
+    from floorvo.io import write_png
+
+    scene = load_scene(args.scene, dict(kv.split("=", 1) for kv in args.set))
+    spp = int(args.spp.split(",")[0]) if args.spp else scene.render.spp
+    traj = _trajectory_of(scene)
+    cam = scene.camera_model()
+    T = traj.T_world_cam
+    n = min(args.frames, traj.frame_count)
+    renderer = FloorRenderer(cam)
+    spacing = scene.floor_spacing_mm()
+    _load_tile(renderer, scene, plan_tiles(T[:n], cam, scene.floor.tile_length_mm, 2.0 + 2 * spacing)[0][1], spacing)
+
+    def timed(fn) -> tuple[float, float]:
+        fn(0)  # warm-up: JIT compilation
+        wall, cpu = [], []
+        for i in range(1, n):
+            t, c = time.perf_counter(), time.process_time()
+            fn(i)
+            wall.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+        return float(np.median(wall)), float(np.median(cpu))
+
+    def dark(i):
+        leds = _leds(scene, T[i])
+        return dataclasses.replace(leds, intensity=np.zeros_like(leds.intensity))
+
+    stages = {
+        "primary": timed(lambda i: renderer.render(T[i], dark(i), spp, seed=i, ambient=1.0)),
+        "no_shadows": timed(lambda i: renderer.render(T[i], _leds(scene, T[i]), spp, seed=i, shadows=False)),
+        "full": timed(lambda i: renderer.render(T[i], _leds(scene, T[i]), spp, seed=i)),
+    }
+    rad = renderer.render(T[0], _leds(scene, T[0]), spp, seed=0)
+    sensor = SensorModel(
+        exposure_gain(rad, scene.sensor.full_well_e, 99.0, 0.8), scene.sensor.full_well_e, 5.0, True, 8
+    )
+    stages["sensor"] = timed(lambda i: sensor.capture(rad, 0, i))
+    dn = sensor.capture(rad, 0, 0)
+    with tempfile.TemporaryDirectory() as tmp:
+        stages["png"] = timed(lambda i: write_png(f"{tmp}/{i:06d}.png", dn))
+    small = FloorRenderer(type(cam).from_sensor(8, 8, 7.4 * cam.width_px / 8, scene.camera.focal_length_mm))
+    small.scene, small.origin_mm, small.shadow_offset_mm = renderer.scene, renderer.origin_mm, renderer.shadow_offset_mm
+    stages["tracing"] = timed(lambda i: small.render(T[i], _leds(scene, T[i]), spp, seed=i))
+    rows = {
+        "primary rays + albedo": stages["primary"],
+        "LED shading": tuple(a - b for a, b in zip(stages["no_shadows"], stages["primary"])),
+        "shadow rays": tuple(a - b for a, b in zip(stages["full"], stages["no_shadows"])),
+        "sensor model": stages["sensor"],
+        "PNG writing": stages["png"],
+        "Python + JIT tracing (8x8 render)": stages["tracing"],
+        "render total": stages["full"],
+    }
+    print(f"{scene.name} {cam.width_px}x{cam.height_px}, {renderer.effective_spp(spp)} spp, {n - 1} frames timed")
+    for name, (wall, cpu) in rows.items():
+        print(f"  {name:36s} {wall:7.3f} s wall  {cpu:7.3f} s CPU")
+    print(f"  load average {os.getloadavg()[0]:.1f}; {platform.machine()}, {os.cpu_count()} cores")
 
 
 if __name__ == "__main__":

@@ -23,8 +23,11 @@ import time
 from pathlib import Path
 
 
-def _run(scene: str, scale: float, cache: Path, out: Path) -> float:
-    env = {**os.environ, "FLOORSIM_CACHE": str(cache)}
+def _run(scene: str, scale: float, cache: Path, out: Path, src: str | None = None) -> float:
+    scenes = str(Path(__file__).resolve().parents[1] / "scenes")
+    env = {"FLOORSIM_SCENES": scenes, **os.environ, "FLOORSIM_CACHE": str(cache)}
+    if src:
+        env["PYTHONPATH"] = src
     cmd = [sys.executable, "-m", "floorsim.cli", "-q", "render", scene, "-o", str(out), "--frames", "1"]
     if scale != 1.0:
         cmd += ["--scale", str(scale)]
@@ -39,7 +42,16 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--json", help="also write the figures to this file")
+    ap.add_argument(
+        "--against",
+        metavar="SRC",
+        help="also time another source tree (its src/ folder, e.g. a git archive of an older commit), "
+        "alternating with this one in the same run",
+    )
     args = ap.parse_args()
+    if args.against:
+        against(args)
+        return
     cold, warm = [], []
     with tempfile.TemporaryDirectory(prefix="tile-cache-bench-") as tmp:
         root = Path(tmp)
@@ -65,6 +77,25 @@ def main() -> None:
     )
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=2) + "\n")
+
+
+def against(args) -> None:
+    """Cold-cache time to the first frame of this tree and of ``--against``, alternating, in one run."""
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    times: dict[str, list[float]] = {"this": [], "against": []}
+    with tempfile.TemporaryDirectory(prefix="tile-cache-bench-") as tmp:
+        root = Path(tmp)
+        _run(args.scene, args.scale, root / "warmup-cache", root / "warmup", here)
+        for r in range(args.repeats):
+            for name, src in (("against", args.against), ("this", here)):
+                times[name].append(_run(args.scene, args.scale, root / f"c-{name}{r}", root / f"{name}{r}", src))
+            print(f"repeat {r}: this {times['this'][-1]:.2f} s, against {times['against'][-1]:.2f} s", flush=True)
+    this, other = statistics.median(times["this"]), statistics.median(times["against"])
+    print(
+        f"{args.scene} x{args.scale}: time to first frame, empty cache: this {this:.2f} s, {args.against} "
+        f"{other:.2f} s (x{other / this:.2f}); {platform.machine()}, {os.cpu_count()} CPUs, "
+        f"load {os.getloadavg()[0]:.1f}"
+    )
 
 
 if __name__ == "__main__":

@@ -372,10 +372,14 @@ def render_sequence(
     tiles = plan_tiles(
         T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm)
     )
+    loaded_box = None  # the floor tile the renderer holds
+    rad_first = None  # frame 0's radiance when the exposure was chosen from it
     if gain <= 0:
-        # Exposure from the first frame's radiance (rendered again here if it is on disk).
-        _load_tile(renderer, scene, footprint_bounds_mm(T_all[:1], cam, margin), spacing)
-        rad0 = _render_frame(renderer, scene, traj, 0, None, scene.seed)
+        # Exposure from the first frame's radiance (rendered again here if it is on disk), on the first
+        # tile of the plan, which stays loaded for its frames; frame 0's render is kept for frame 0.
+        loaded_box = tiles[0][1]
+        _load_tile(renderer, scene, loaded_box, spacing)
+        rad0 = rad_first = _render_frame(renderer, scene, traj, 0, None, scene.seed)
         vig0 = vignetting_factor(cam, scene.camera.vignetting)
         rad0 = rad0 if vig0 is None else rad0 * vig0
         gain = exposure_gain(rad0, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
@@ -406,11 +410,17 @@ def render_sequence(
         todo = [i for i in idx if i in missing_set]
         if not todo:
             continue
-        _load_tile(renderer, scene, box, spacing)
+        if box != loaded_box:
+            _load_tile(renderer, scene, box, spacing)
+            loaded_box = box
         for i in todo:
             if ae is not None:
                 sensor = dataclasses.replace(sensor, gain_e_per_unit=ae.next_gain(i, ae_gains, ae_levels))
-            rad = _render_frame(renderer, scene, traj, i, None, scene.seed)
+            rad = (
+                rad_first
+                if i == 0 and rad_first is not None
+                else _render_frame(renderer, scene, traj, i, None, scene.seed)
+            )
             if vig is not None:
                 rad = rad * vig
             if T_all_cam1 is not None:
@@ -433,7 +443,7 @@ def render_sequence(
             done += 1
             if on_frame:
                 on_frame(done, total)
-        renderer.scene = None
+        renderer.scene, loaded_box = None, None
         gc.collect()
     if need_flat:
         render_flatfield(renderer, scene, T_all[0], sensor, writer)
