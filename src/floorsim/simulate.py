@@ -388,7 +388,7 @@ def render_sequence(
                 f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
             )
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
-    sensor = scene.sensor.model(gain)
+    sensor = sensor_first = scene.sensor.model(gain)
     ae = None
     if scene.sensor.exposure_mode == "auto":
         ss = scene.sensor
@@ -445,10 +445,12 @@ def render_sequence(
                 on_frame(done, total)
         renderer.scene, loaded_box = None, None
         gc.collect()
-    if need_flat:
-        render_flatfield(renderer, scene, T_all[0], sensor, writer)
+    if need_flat:  # at the first frame's exposure (auto exposure changes `sensor` per frame)
+        render_flatfield(renderer, scene, T_all[0], sensor_first, writer)
         if T_all_cam1 is not None:
-            render_flatfield(renderer, scene, T_all[0], sensor, writer, cam_pose=T_all_cam1[0], name="cam1_flatfield")
+            render_flatfield(
+                renderer, scene, T_all[0], sensor_first, writer, cam_pose=T_all_cam1[0], name="cam1_flatfield"
+            )
     log.info("rendered %d frames in %.1f s into %s", len(missing), time.perf_counter() - t0, root)
     return root
 

@@ -128,6 +128,10 @@ def test_auto_exposure_follows_the_previous_frame_and_resumes(tmp_path):
     assert np.ptp(gains) > 0.05 * gains[0]  # the flicker made it move
     block = check_sequence_meta(json.loads((root / "sequence.json").read_text())).sensor_block
     assert block.exposure_mode == "auto" and block.exposure_file == "calib/exposure.csv"
+    # The flat-field frame is at the first frame's exposure: the one a fixed-exposure render chooses.
+    fixed = render_sequence(tiny_scene(**{**kw, "sensor.exposure_mode": "fixed"}), tmp_path / "fixed")
+    assert _gain(fixed) == gains[0]
+    np.testing.assert_array_equal(seq.flatfield(), Sequence.open(fixed).flatfield())
     before = [seq.image(i) for i in range(4)]
     (root / "cam0" / "000002.png").unlink()
     render_sequence(tiny_scene(**kw), root)
