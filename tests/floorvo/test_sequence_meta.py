@@ -113,3 +113,26 @@ def test_list_config_sequence_prints_every_key(capsys):
     assert set(rows) >= {f for f in SequenceMeta.__dataclass_fields__ if f not in ("camera", "rig")}
     assert "camera.K" in rows and "(required)" in rows["camera.K"]
     assert "mm" in rows["rig.height_mm"].split() and "> 0" in rows["rig.height_mm"]
+
+
+def test_the_optional_sensor_block_states_the_row_times_and_is_checked(tmp_path):
+    from floorvo.sequence_meta import check_sequence_meta
+
+    # A sequence without it (every sequence written before it existed) reads as a global shutter.
+    block = check_sequence_meta(copy.deepcopy(GOOD)).sensor_block
+    assert block.shutter == "global" and block.exposure_mode == "fixed"
+    np.testing.assert_array_equal(block.row_offsets_s(24), np.zeros(24))
+    rolling = _with("sensor", {"shutter": "rolling", "readout_ms": 23.0, "groundtruth_row": 11.5})
+    offsets = check_sequence_meta(rolling).sensor_block.row_offsets_s(24)
+    # Row r at (r - 11.5) / 23 x 23 ms: the first row 11.5 ms early, the last 11.5 ms late, 1 ms apart.
+    np.testing.assert_allclose(offsets, (np.arange(24) - 11.5) * 1e-3)
+    assert Sequence.open(_folder(tmp_path, rolling)).frame_count == 2
+    for value, message in (
+        ({"shutter": "sideways"}, "sensor.shutter = 'sideways': must be one of"),
+        ({"readout_ms": -1.0}, "sensor.readout_ms = -1.0 ms"),
+        ({"exposure_mode": "auto", "lens": 1}, "sensor.lens"),
+        ("rolling", "sensor = 'rolling': must be a table"),
+    ):
+        with pytest.raises(SequenceError) as info:
+            Sequence.open(_folder(tmp_path, _with("sensor", value)))
+        assert message in str(info.value) and "\n" not in str(info.value)
