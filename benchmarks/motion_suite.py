@@ -7,7 +7,9 @@ Runs ``floorsim bench --suite motion`` as a library call (:func:`floorsim.bench.
 :func:`floorsim.bench.suites.suite_scenes`, OpenCV on one thread), then prints one Markdown row
 per scene x estimator from the bench's rows: steps, ok steps, **wrong ok steps**
 (``wrong_ok_steps``: off by more than 0.05 mm + 2 % of the true step or 0.3 degrees, issue
-14's bound), lost frames, end drift in % of the path, frames per second (from the mean total
+14's bound), the same against the planar step of the camera's footprint
+(``wrong_ok_steps_footprint``: the bound for a planar estimator on a tilted or bouncing run),
+lost frames, end drift in % of the path, frames per second (from the mean total
 time per frame of the run, one core) and the lost frames per kind of reason. With
 ``--from-cache DIR`` the suite's scenes are not rendered: the newest ``DIR/SCENE-*`` sequence
 of each (a bench's render cache) is benched as it is.
@@ -69,7 +71,8 @@ def main() -> None:
         cache_dir=args.cache,
         report=True,
     )
-    cols = ["scene", "estimator", "steps", "ok", "wrong ok", "lost", "end drift %", "frames/s", "lost frames by reason"]
+    cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %", "frames/s"]
+    cols.append("lost frames by reason")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in res.rows:
@@ -81,6 +84,7 @@ def main() -> None:
             str(steps),
             str(steps - lost) if steps else "-",
             _fmt(r.get("wrong_ok_steps"), 0),
+            _fmt(r.get("wrong_ok_steps_footprint"), 0),
             str(lost),
             _fmt(r.get("end_drift_pct")),
             _fmt(r.get("fps"), 1),

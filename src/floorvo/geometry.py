@@ -38,6 +38,7 @@ __all__ = [
     "xyz_quat_from_T",
     "se2_from_T",
     "T_from_se2",
+    "footprint_T",
     "yaw_of_R",
     "umeyama",
     "rigid_fit",
@@ -132,6 +133,25 @@ def se2_from_T(T_world_cam: np.ndarray) -> np.ndarray:
 def T_from_se2(x_mm: float, y_mm: float, yaw_rad: float, height_mm: float) -> np.ndarray:
     """Downward camera pose from an SE(2) pose and a height (inverse of :func:`se2_from_T`)."""
     return T_world_cam_down(x_mm, y_mm, height_mm, yaw_rad)
+
+
+def footprint_T(T_world_cam: np.ndarray, height_mm: float) -> np.ndarray:
+    """The camera's floor footprint as a level downward camera: (N, 4, 4) poses at
+    ``height_mm`` over the floor point on each camera's optical axis, with its yaw.
+
+    What a planar mono estimator sees of a tilted camera: a tilt change of d rad moves the
+    footprint by about height x d, which the image shows as a shift (issue 14). For a
+    camera looking straight down the footprint is under the camera and this is the pose
+    with the height set to ``height_mm``. ``T_world_cam``: (N, 4, 4) or (4, 4), mm; a
+    camera whose optical axis does not meet the floor gives NaN.
+    """
+    T = np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4)
+    z_axis, c = T[:, :3, 2], T[:, :3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(z_axis[:, 2] < 0, -c[:, 2] / z_axis[:, 2], np.nan)
+    xy = c[:, :2] + d[:, None] * z_axis[:, :2]
+    yaw = np.arctan2(T[:, 1, 0], T[:, 0, 0])
+    return np.stack([T_world_cam_down(x, y, height_mm, a) for (x, y), a in zip(xy, yaw)])
 
 
 # ----------------------------------------------------------------------------- rigid fits

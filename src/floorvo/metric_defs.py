@@ -38,6 +38,7 @@ __all__ = [
     "LOSS_EVENTS",
     "TRACKED_FRACTION",
     "WRONG_OK_STEPS",
+    "WRONG_OK_STEPS_FOOTPRINT",
     "TIMING_STAGES",
     "time_mean",
     "FPS",
@@ -158,6 +159,14 @@ WRONG_OK_STEPS = MetricDef(
     True,
     "steps reported ok that are off by more than 0.05 mm + 2 % of the true step or 0.3 degrees (issue 14)",
 )
+WRONG_OK_STEPS_FOOTPRINT = MetricDef(
+    "wrong_ok_steps_footprint",
+    "steps",
+    "wrong ok (footprint)",
+    True,
+    "as wrong_ok_steps against the planar step of the camera's footprint: the bound for a planar mono estimator "
+    "on a tilted or bouncing run (issue 14)",
+)
 
 #: The stages an estimator times (timing.csv columns).
 TIMING_STAGES = ("total_ms", "detect_ms", "match_ms", "estimate_ms")
@@ -184,6 +193,7 @@ def all_metrics(
     defs += [END_DRIFT, DISTANCE_ERROR, PATH_LENGTH, MEASURED]
     defs += [segment_t_err(L) for L in segment_lengths_mm]
     defs += [SEG_MEAN_T_ERR, SEG_MEAN_R_ERR, LOST_FRAMES, LOSS_EVENTS, TRACKED_FRACTION, WRONG_OK_STEPS]
+    defs += [WRONG_OK_STEPS_FOOTPRINT]
     defs += [time_mean(s) for s in TIMING_STAGES] + [FPS]
     return {d.name: d for d in defs}
 

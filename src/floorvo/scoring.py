@@ -23,6 +23,7 @@ import numpy as np
 from floorvo import metric_defs as md
 from floorvo.errors import SequenceError
 from floorvo.estimators.base import RESTART_NOTE
+from floorvo.geometry import footprint_T
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import (
     ALIGNMENTS,
@@ -137,6 +138,8 @@ class Score:
         f[md.TRACKED_FRACTION.name] = float(self.tracking["tracked_fraction"])
         if "wrong_ok_steps" in self.tracking:
             f[md.WRONG_OK_STEPS.name] = float(self.tracking["wrong_ok_steps"])
+        if "wrong_ok_steps_footprint" in self.tracking:
+            f[md.WRONG_OK_STEPS_FOOTPRINT.name] = float(self.tracking["wrong_ok_steps_footprint"])
         for stage in md.TIMING_STAGES:
             if stage in self.timing:
                 f[md.time_mean(stage).name] = self.timing[stage]["mean"]
@@ -276,6 +279,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         # the run is scored: its lost frames, their reasons and no ok step that is wrong.
         score = _score_without_groundtruth(run_dir, seq_dir, NO_TRACK)
         score.tracking["ok_steps_scored"], score.tracking["wrong_ok_steps"] = 0, 0
+        score.tracking["wrong_ok_steps_footprint"] = 0
         log.info("%s: %s; scored tracking and timing only", run_dir, NO_TRACK)
         return score
     if len(run.timestamps_s) >= 2 and len(associate(t_ref, run.timestamps_s, max_diff_s)[0]) == 0:
@@ -308,6 +312,12 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     if steps is not None:
         score.tracking["ok_steps_scored"] = len(steps["trans_mm"])
         score.tracking["wrong_ok_steps"] = int(wrong_steps(steps).sum())
+        # The same against the footprint's planar step: issue 14's bound for a planar mono
+        # estimator on a tilted (or bouncing) run, the footprint shift taken out.
+        height = float(np.median(T_ref[:, 2, 3]))
+        planar = _ok_steps_of_run(run, seq_dir, t_ref, footprint_T(T_ref, height), max_diff_s, planar=True)
+        if planar is not None:
+            score.tracking["wrong_ok_steps_footprint"] = int(wrong_steps(planar).sum())
     if result:
         score.extra["result"] = {
             k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
@@ -362,9 +372,12 @@ def ok_step_errors(
 
 
 def _ok_steps_of_run(
-    run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float
+    run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float, *, planar: bool = False
 ) -> dict[str, np.ndarray] | None:
-    """:func:`ok_step_errors` of a run folder (None without ``timing.csv`` frames and statuses)."""
+    """:func:`ok_step_errors` of a run folder (None without ``timing.csv`` frames and statuses).
+
+    ``planar``: the run's poses are compared by their planar part only (x, y, yaw at the
+    reference's height), as ``T_ref`` is then (:func:`~floorvo.geometry.footprint_T`)."""
     statuses = run.statuses
     if not statuses or not run.timing or "frame" not in run.timing:
         return None
@@ -375,7 +388,10 @@ def _ok_steps_of_run(
     T_per_frame = np.full((len(frames), 4, 4), np.nan)
     i_ref, i_frame = associate(t_ref, t_frames, max_diff_s)
     T_per_frame[i_frame] = T_ref[i_ref]
-    return ok_step_errors(statuses, _reasons(run), T_per_frame, run.T_world_cam)
+    T_est = run.T_world_cam
+    if planar and len(T_est):
+        T_est = footprint_T(T_est, float(np.nanmedian(T_ref[:, 2, 3])))
+    return ok_step_errors(statuses, _reasons(run), T_per_frame, T_est)
 
 
 def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:

@@ -12,6 +12,7 @@ from floorvo.geometry import (
     T_world_cam_down,
     floor_mm_to_pixels,
     floor_rigid_to_T,
+    footprint_T,
     invert_T,
     make_T,
     pixel_rigid_to_floor,
@@ -232,6 +233,24 @@ def test_pixel_rigid_to_floor_agrees_with_converting_the_points(centred):
     R_est, t_est = pixel_rigid_to_floor(R_px, t_px, cam, 100.0, centred=centred)
     np.testing.assert_allclose(R_est, R2, atol=1e-9)
     np.testing.assert_allclose(t_est, t2, atol=1e-9)
+
+
+def test_footprint_of_a_tilted_camera_by_hand():
+    """Pitch p tilts the optical axis to (-sin p, 0, -cos p) (R = Rz Rx(roll) Ry(pitch) R_down):
+    from 100 mm it meets the floor 100 tan p behind the camera along x; roll r moves it
+    100 tan r along y (Rx(r) (0, 0, -1) = (0, sin r, -cos r)); a level camera is over it."""
+    T = np.stack(
+        [
+            T_world_cam_down(10.0, 5.0, 100.0, 0.0, 0.0, 0.03),
+            T_world_cam_down(10.0, 5.0, 100.0, 0.0, 0.02, 0.0),
+            T_world_cam_down(10.0, 5.0, 98.0, 0.7),
+        ]
+    )
+    F = footprint_T(T, 100.0)
+    np.testing.assert_allclose(F[0][:3, 3], [10.0 - 100.0 * np.tan(0.03), 5.0, 100.0], atol=1e-9)
+    np.testing.assert_allclose(F[1][:3, 3], [10.0, 5.0 + 100.0 * np.tan(0.02), 100.0], atol=1e-9)
+    np.testing.assert_allclose(F[2], T_world_cam_down(10.0, 5.0, 100.0, 0.7), atol=1e-12)
+    np.testing.assert_allclose(F[0][:3, :3], T_world_cam_down(0, 0, 1.0)[:3, :3], atol=1e-12)  # level, yaw 0
 
 
 def test_floor_rigid_to_T_is_the_camera_motion():

@@ -9,6 +9,7 @@ from test_metrics import line_traj
 from floorvo import metric_defs as md
 from floorvo import scoring as S
 from floorvo.estimators.base import RESTART_NOTE
+from floorvo.geometry import T_world_cam_down
 from floorvo.tum import write_tum
 
 
@@ -121,6 +122,17 @@ def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_pat
     seq, run = _fake_run(_dir(tmp_path / "d"), scale=1.05)
     # 23 ok steps: 4 mm ones 0.2 mm off (bound 0.13), 6 -> 9 0.6 mm off in 12 mm (bound 0.29).
     assert S.score_run(run, seq).tracking["wrong_ok_steps"] == 23
+    # A camera that tilts (pitch 0, 0.01, 0, 0.01, ... rad) seen by a planar estimator, which
+    # measures its footprint's motion: each step is 100 tan(0.01) = 1.0 mm off the camera's
+    # own step (bound 0.13 mm), and right against the footprint's.
+    seq, run = _fake_run(_dir(tmp_path / "g"), scale=1.0)
+    tilted = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.0, 0.0, 0.01 * (i % 2)) for i in range(26)])
+    write_tum(seq / "groundtruth.txt", np.arange(26) / 10.0, tilted)
+    level = np.stack([T_world_cam_down(4.0 * i - 100.0 * np.tan(0.01 * (i % 2)), 0, 100.0) for i in range(26)])
+    keep = [i for i in range(26) if i not in (7, 8)]
+    write_tum(run / "trajectory.txt", np.arange(26)[keep] / 10.0, level[keep])
+    s = S.score_run(run, seq)
+    assert s.tracking["wrong_ok_steps"] == 23 and s.tracking["wrong_ok_steps_footprint"] == 0
     # Every step lost (a featureless floor): scored all the same, without the pose metrics.
     seq, run = _fake_run(_dir(tmp_path / "f"), scale=1.0, lost=tuple(range(1, 26)))
     _with_reasons(run, {i: "weak correlation peak 0.003" for i in range(1, 26)})
@@ -128,6 +140,7 @@ def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_pat
     assert s.ground_truth == S.NO_TRACK and not s.ate and not s.drift
     assert s.tracking["lost_frames"] == 25 and s.tracking["wrong_ok_steps"] == 0
     assert s.tracking["lost_reasons"] == {"weak correlation peak #": 25} and s.flat()["wrong_ok_steps"] == 0
+    assert s.tracking["wrong_ok_steps_footprint"] == 0
     # A trajectory that does not fit its timing.csv (a program's run): not scored, no number.
     seq, run = _fake_run(_dir(tmp_path / "e"), scale=1.0)
     lines = (run / "trajectory.txt").read_text().splitlines()
@@ -147,7 +160,7 @@ def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(
         + ["end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"]
         + ["seg_10mm_t_err_pct", "seg_25mm_t_err_pct", "seg_50mm_t_err_pct", "seg_100mm_t_err_pct"]
         + ["seg_mean_t_err_pct", "seg_mean_r_err_deg_per_m", "lost_frames", "loss_events", "tracked_fraction"]
-        + ["wrong_ok_steps"]
+        + ["wrong_ok_steps", "wrong_ok_steps_footprint"]
         + ["time_total_ms_mean", "time_detect_ms_mean", "time_match_ms_mean", "time_estimate_ms_mean", "fps"]
     )
     assert list(flat) == by_hand
