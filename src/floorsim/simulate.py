@@ -38,6 +38,7 @@ from floorvo.config import build as build_config
 from floorvo.config import to_plain
 from floorvo.errors import ConfigError
 from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
+from floorvo.locking import locks_folder
 from floorvo.sequence import SequenceWriter
 
 __all__ = ["render_sequence", "prepare_scene", "plan_tiles", "package_versions", "LED_INTENSITY_UNIT"]
@@ -273,6 +274,7 @@ def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | N
     renderer.specular = mat.specular
 
 
+@locks_folder("out_dir", "sequence folder")
 def render_sequence(
     scene: Scene,
     out_dir: str | os.PathLike,
@@ -288,6 +290,8 @@ def render_sequence(
 
     Frames already on disk from an interrupted render of the same resolved scene are
     kept; only missing frames are rendered. ``on_frame(done, total)`` reports progress.
+    The folder is locked for the whole render (:func:`floorvo.locking.lock_folder`): a
+    second writer of it is refused in one line naming this process's pid.
     """
     checked_output_path(out_dir)  # before any work: "" and "/" are refused (the writer checks the rest)
     scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)

@@ -10,7 +10,16 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["FloorbenchError", "ConfigError", "ConfigFieldError", "SequenceError", "MAX_SHOWN_CHARS", "shown", "shorten"]
+__all__ = [
+    "FloorbenchError",
+    "ConfigError",
+    "ConfigFieldError",
+    "SequenceError",
+    "FolderLockedError",
+    "MAX_SHOWN_CHARS",
+    "shown",
+    "shorten",
+]
 
 #: The most characters of a value an error message quotes; a longer value is cut with an ellipsis.
 MAX_SHOWN_CHARS = 80
@@ -72,6 +81,21 @@ class ConfigFieldError(ConfigError):
 
 class SequenceError(FloorbenchError):
     """A sequence folder that is missing, corrupt or of another schema version."""
+
+
+class FolderLockedError(FloorbenchError):
+    """An output folder that another writer holds (:func:`floorvo.locking.lock_folder`).
+
+    ``folder``: the folder; ``pid``: the holder's process id (None when it could not be read);
+    the message names both in one line.
+    """
+
+    def __init__(self, message: str, folder: str = "", pid: int | None = None):
+        self.folder, self.pid = folder, pid
+        super().__init__(message)
+
+    def __reduce__(self):  # pickled across worker processes (sweeps)
+        return (FolderLockedError, (str(self), self.folder, self.pid))
 
 
 class EstimatorLoadError(FloorbenchError):

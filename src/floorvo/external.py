@@ -54,6 +54,7 @@ from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError, shown
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
+from floorvo.locking import locks_folder
 from floorvo.runfolder import RunFolder
 from floorvo.sequence import Sequence
 
@@ -247,6 +248,7 @@ def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | Non
     return np.eye(4) if T_world_start is None else np.asarray(T_world_start, dtype=float)
 
 
+@locks_folder("run_dir", "run folder")
 def run_external(
     seq: Sequence | str | os.PathLike,
     spec: ExternalEstimator,
@@ -258,7 +260,8 @@ def run_external(
 
     ``T_world_start`` (4, 4) mm: the start pose of a run on a sequence without ground truth.
     Raises :class:`ExternalEstimatorError` (reason and stderr tail) when the program fails, and
-    :class:`FloorbenchError` when the sequence lacks what it needs.
+    :class:`FloorbenchError` when the sequence lacks what it needs. ``run_dir`` is locked while
+    the run lasts (:func:`floorvo.locking.lock_folder`; the program's own ``program/`` is not).
     """
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)

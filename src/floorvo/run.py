@@ -23,6 +23,7 @@ from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators import estimator_source, get_estimator, make_config
 from floorvo.geometry import T_from_se2, T_from_xyz_quat
 from floorvo.io import ensure_writable_dir
+from floorvo.locking import locks_folder
 from floorvo.runner import RunResult, camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
@@ -52,6 +53,7 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
     return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
 
 
+@locks_folder("out_dir", "run folder")
 def run_estimator(
     seq: Sequence | str | os.PathLike,
     name: str,
@@ -67,7 +69,8 @@ def run_estimator(
     ``scale_calibration`` (:mod:`floorvo.calibration`): divide each step's camera-frame
     x, y translation by the rig's calibrated scales before chaining it. ``T_world_start``
     (4, 4) mm: where the run starts (default: the first frame's ground-truth pose, else the
-    identity; ``--initial-pose``, :class:`InitialPose`).
+    identity; ``--initial-pose``, :class:`InitialPose`). ``out_dir`` is locked while the run
+    lasts (:func:`floorvo.locking.lock_folder`): a second writer of it is refused in one line.
     """
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)

@@ -22,7 +22,8 @@ trajectory type and one ``file_interface``. The format is the contract with othe
     Optional samples of matched keypoints for the report (:func:`write_match_sample`).
 
 Every file is written atomically (:mod:`floorvo.io`); ``result.json`` last, so its
-presence marks a finished run. A missing, malformed or inconsistent file is refused with a
+presence marks a finished run. Writers lock the folder (:func:`floorvo.locking.lock_folder`);
+readers do not. A missing, malformed or inconsistent file is refused with a
 one-line :class:`~floorvo.errors.SequenceError` naming the file and the rule.
 """
 
@@ -50,6 +51,7 @@ from floorvo.io import (
     read_json,
     read_text,
 )
+from floorvo.locking import lock_folder
 from floorvo.sequence_meta import MAX_FRAME_COUNT
 from floorvo.tum import format_tum, read_tum
 
@@ -114,9 +116,14 @@ class RunFolder:
         All or nothing: the folder's old ``result.json`` goes first and the new one is
         written last, and when a write fails (a full disk) the files this call wrote are
         removed again before the error propagates, so a folder never holds the trajectory of
-        one run beside the summary of another, nor a trajectory without its summary.
+        one run beside the summary of another, nor a trajectory without its summary. The
+        folder is locked while it is written (:func:`floorvo.locking.lock_folder`; a writer
+        that holds it already, such as :func:`floorvo.run.run_estimator`, keeps it).
         """
-        out = ensure_writable_dir(run_dir)
+        with lock_folder(run_dir, "run folder"):
+            return self._write(ensure_writable_dir(run_dir))
+
+    def _write(self, out: Path) -> Path:
         ts = np.asarray(self.timestamps_s, dtype=float).reshape(-1)
         T = np.asarray(self.T_world_cam, dtype=float).reshape(-1, 4, 4)
         tum = format_tum(ts, T, self.header or None)
@@ -246,7 +253,8 @@ def write_match_sample(run_dir: str | os.PathLike, frame: int, matches_px: np.nd
     buf = io.BytesIO()
     np.savez(buf, xy_prev_px=m[:, :2], xy_cur_px=m[:, 2:])
     path = Path(run_dir) / MATCHES / f"{int(frame):06d}.npz"
-    atomic_write_bytes(path, buf.getvalue())
+    with lock_folder(run_dir, "run folder"):
+        atomic_write_bytes(path, buf.getvalue())
     return path
 
 

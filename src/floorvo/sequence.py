@@ -28,6 +28,7 @@ import json
 import logging
 import os
 import re
+import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.errors import ConfigError, SequenceError, shown
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -50,6 +51,7 @@ from floorvo.io import (
     remove_stale_temporaries,
     write_png,
 )
+from floorvo.locking import LOCK_FILE, lock_folder
 from floorvo.metrics import associate
 from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta
 from floorvo.tum import read_tum, write_tum
@@ -111,8 +113,12 @@ class SequenceWriter:
         (:func:`sequence_files`) are deleted; anything else in the folder (a user's notes,
         subfolders) stays.
 
-    Opening a folder removes the temporaries that a killed writer left behind
-    (``.NAME.XXXXXXXX.tmp``, see :func:`floorvo.io.remove_stale_temporaries`).
+    Opening a folder locks it (:func:`floorvo.locking.lock_folder`): a second writer of
+    the same folder, in another process, is refused in one line naming the holder's pid,
+    until :meth:`close` (or the end of a ``with`` block, or the writer's garbage collection).
+    Under that lock it removes the temporaries that a killed writer left behind
+    (``.NAME.XXXXXXXX.tmp``, see :func:`floorvo.io.remove_stale_temporaries`); the lock file
+    (:data:`floorvo.locking.LOCK_FILE`) is not a file of the format.
     """
 
     def __init__(self, root: str | os.PathLike, meta: dict, *, resume: bool = True, overwrite: bool = False):
@@ -122,6 +128,27 @@ class SequenceWriter:
         self.meta = meta
         if self.root.exists() and not self.root.is_dir():
             raise SequenceError(f"{self.root}: output path exists and is not a folder")
+        self._lock = lock_folder(self.root, "sequence folder")
+        self._release = weakref.finalize(self, self._lock.release)
+        try:
+            self._open(meta, resume, overwrite)
+        except BaseException as exc:
+            self._release.detach()
+            self._lock.release(refused=isinstance(exc, FloorbenchError))
+            raise
+
+    def close(self) -> None:
+        """Release the folder's lock (the writer writes nothing more); closing twice does nothing."""
+        self._release()
+
+    def __enter__(self) -> SequenceWriter:
+        return self
+
+    def __exit__(self, exc_type: object, exc: BaseException | None, tb: object) -> None:
+        self._release.detach()
+        self._lock.release(refused=isinstance(exc, FloorbenchError))
+
+    def _open(self, meta: dict, resume: bool, overwrite: bool) -> None:
         meta_path = self.root / "sequence.json"
         old = None
         if self.root.is_dir():
@@ -130,7 +157,7 @@ class SequenceWriter:
             if meta_path.exists():
                 old = _read_own_meta(meta_path)
             else:
-                others = sorted(p.name for p in self.root.iterdir())
+                others = sorted(p.name for p in self.root.iterdir() if p.name != LOCK_FILE)
                 if others:
                     more = f" and {len(others) - 1} more" if len(others) > 1 else ""
                     raise SequenceError(

@@ -187,24 +187,24 @@ def write_synthetic_sequence(
         meta["stereo"] = True
         meta["rig"]["T_cam0_cam1"] = T01.tolist()
         meta["cameras"] = {"cam1": camera.to_dict()}
-    w = SequenceWriter(out_dir, meta, overwrite=overwrite)
-    rng = np.random.default_rng(seed + 1)
-    scale = None
-    for i, T in enumerate(T_world_cam):
-        cams = [("cam0", T)] + ([("cam1", T @ T01)] if T01 is not None else [])
-        for cam, Tc in cams:
-            img = render_view(coeffs, origin, gsd, camera, Tc) * fall
-            if scale is None:
-                scale = 230.0 / float(np.percentile(img, 99.5))
-            img = img * scale + rng.normal(0.0, noise_dn, img.shape)
-            w.write_frame(i, np.clip(np.round(img), 0, 255).astype(np.uint8), cam)
-        if depth:
-            w.write_depth(i, np.full((camera.height_px, camera.width_px), np.float32(T[2, 3])))
-    flat = np.clip(fall / fall.max() * 60000.0, 0, 65535).astype(np.uint16)
-    w.write_calib("cam0_flatfield", flat)
-    if T01 is not None:
-        w.write_calib("cam1_flatfield", flat)
-    w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
+    with SequenceWriter(out_dir, meta, overwrite=overwrite) as w:  # locked until the sequence is written
+        rng = np.random.default_rng(seed + 1)
+        scale = None
+        for i, T in enumerate(T_world_cam):
+            cams = [("cam0", T)] + ([("cam1", T @ T01)] if T01 is not None else [])
+            for cam, Tc in cams:
+                img = render_view(coeffs, origin, gsd, camera, Tc) * fall
+                if scale is None:
+                    scale = 230.0 / float(np.percentile(img, 99.5))
+                img = img * scale + rng.normal(0.0, noise_dn, img.shape)
+                w.write_frame(i, np.clip(np.round(img), 0, 255).astype(np.uint8), cam)
+            if depth:
+                w.write_depth(i, np.full((camera.height_px, camera.width_px), np.float32(T[2, 3])))
+        flat = np.clip(fall / fall.max() * 60000.0, 0, 65535).astype(np.uint16)
+        w.write_calib("cam0_flatfield", flat)
+        if T01 is not None:
+            w.write_calib("cam1_flatfield", flat)
+        w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
     return Path(out_dir)
 
 

@@ -72,6 +72,7 @@ from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json, read_json
+from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
 from floorvo.runner import run_sequence
@@ -145,11 +146,30 @@ def render_cached(
     The folder gets a ``bench-cache.json`` marker (the key) once the render finished; a
     folder without it (an interrupted render) is resumed by the renderer. ``render``:
     the renderer (default :func:`floorsim.simulate.render_sequence`).
+
+    The cache may be shared (benches with one ``--cache-dir``, the jobs of a sweep): the
+    folder is locked while it is checked and rendered, and a second process that wants the
+    same sequence waits for the first's render and then reuses it.
     """
     render = render_sequence if render is None else render
     seed = scene_seed(scene) if seed is None else int(seed)
     key = scene_cache_key(scene.to_dict(), seed=seed, frames=frames, scale=scale, spp=spp)
     out = Path(cache_dir) / f"{scene.name}-{key[:12]}"
+    with lock_folder(out, "sequence folder", wait=True):
+        return _render_into_cache(scene, out, key, seed, frames, scale, spp, on_frame, render)
+
+
+def _render_into_cache(
+    scene: Any,
+    out: Path,
+    key: str,
+    seed: int,
+    frames: int | None,
+    scale: float | None,
+    spp: int | None,
+    on_frame: Callable[[int, int], None] | None,
+    render: RenderFn,
+) -> Path:
     marker = out / "bench-cache.json"
     if marker.is_file():
         try:
@@ -238,6 +258,7 @@ def source_columns(runner: EstimatorRunner, name: str) -> dict[str, str]:
         return {}
 
 
+@locks_folder("run_dir", "run folder")
 def run_one(
     seq_dir: Path,
     estimator: str,
@@ -252,7 +273,8 @@ def run_one(
 
     ``scale_calibration``: a :class:`floorvo.calibration.ScaleCalibration` divided out of
     every step (``floorvo run --scale-calibration``), or None. ``T_world_start`` (4, 4) mm:
-    where a run on a sequence without ground truth starts (``--initial-pose``).
+    where a run on a sequence without ground truth starts (``--initial-pose``). ``run_dir`` is
+    locked while it is run and scored (:func:`floorvo.locking.lock_folder`).
     """
     kwargs = {} if T_world_start is None else {"T_world_start": T_world_start}
     figures = (runner or DEFAULT_RUNNER).run(seq_dir, estimator, run_dir, overrides, scale_calibration, **kwargs)
@@ -267,6 +289,7 @@ def run_one(
     return row
 
 
+@locks_folder("run_dir", "run folder")
 def write_match_samples(
     seq_dir: Path,
     estimator: str,
@@ -335,6 +358,7 @@ def _scene_protocols(path: Path, scene: Any) -> list[BenchProtocol]:
         raise ConfigError(f"{path.name}: {exc}") from None
 
 
+@locks_folder("out_dir", "bench folder")
 def run_bench(
     scene_paths: SequenceT[str | os.PathLike],
     estimators: SequenceT[str] | None,
@@ -377,6 +401,10 @@ def run_bench(
     Collaborators (defaults: the real ones): ``render`` (same signature as
     :func:`floorsim.simulate.render_sequence`), ``load_scene`` (as
     :func:`floorsim.scene.load_scene`), ``runner`` (:class:`EstimatorRunner`).
+
+    ``out_dir`` is locked while the bench runs (:func:`floorvo.locking.lock_folder`: a second
+    bench into it is refused in one line naming this process's pid), and so is each
+    sequence and run folder while it is written.
     """
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if repetitions < 1:

@@ -72,6 +72,7 @@ from floorsim.scene import load_scene as load_scene_file
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shown
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_csv
+from floorvo.locking import locks_folder
 
 log = logging.getLogger(__name__)
 
@@ -540,6 +541,7 @@ def _write_breaking_points(path: Path, res: SearchResult) -> None:
 
 
 # ----------------------------------------------------------------------------- the study
+@locks_folder("out_dir", "sweep folder")
 def run_sweep(
     sweep_path: str | os.PathLike,
     out_dir: str | os.PathLike,
@@ -563,6 +565,12 @@ def run_sweep(
     process pool of ``jobs`` workers. Collaborators of every job (defaults: the real ones,
     as in :func:`floorsim.bench.bench.run_bench`): ``render``, ``load_scene``, ``runner``.
     ``externals``: programs run in every job (:class:`floorvo.external.ExternalEstimator`).
+
+    Locks: this process holds ``out_dir`` (:func:`floorvo.locking.lock_folder`) while the study
+    runs, so a second sweep into it is refused in one line naming this process's pid; each
+    job, in whatever worker, locks the sequence folder it renders (waiting for another job
+    that renders the same one) and each run folder it writes. A worker killed mid-job loses
+    its locks with its process, so the job run again elsewhere takes them at once.
     """
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if scheduler is not None and workers is not None:

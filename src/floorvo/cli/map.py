@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
+from floorvo.locking import lock_folder
 
 
 def add_parser(sub) -> None:
@@ -30,9 +31,10 @@ def run(args) -> int:
     from floorvo.mapping.map import MapConfig, build_map, save_map
 
     cfg = MapConfig.from_overrides(parse_set_args(args.set))
-    with progress_callback("map") as cb:
-        m = build_map(args.sequence, cfg, on_progress=cb)
-    out = save_map(m, args.output)
+    with lock_folder(args.output, "map folder"):  # a second `floorvo map` into it is refused before it builds
+        with progress_callback("map") as cb:
+            m = build_map(args.sequence, cfg, on_progress=cb)
+        out = save_map(m, args.output)
     print(
         f"map: {m.n_keyframes} keyframes of {m.n_mapping_frames} frames ({100 * m.keyframe_fraction:.1f} %), poses: {m.pose_source} -> {out}"
     )

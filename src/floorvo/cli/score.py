@@ -6,10 +6,12 @@ Prints a table and writes ``RUN/score.json`` (see :func:`floorvo.scoring.score_r
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 from pathlib import Path
 
 from floorvo.cli.common import add_output_argument
+from floorvo.locking import lock_folder
 from floorvo.scoring import Score, score_run, write_score
 
 __all__ = ["add_parser", "run", "format_score_table"]
@@ -92,9 +94,12 @@ def format_score_table(score: Score) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    score = score_run(args.run_dir, args.gt, max_diff_s=args.max_diff)
     out = args.output or (args.run_dir / "score.json")
-    write_score(score, out)
+    # score.json written into the run folder: its writer locks it (a run still being written there is refused)
+    locked = args.output is None and Path(args.run_dir).is_dir()
+    with lock_folder(args.run_dir, "run folder") if locked else contextlib.nullcontext():
+        score = score_run(args.run_dir, args.gt, max_diff_s=args.max_diff)
+        write_score(score, out)
     print(format_score_table(score))
     print(f"score written to {out}")
     return 0

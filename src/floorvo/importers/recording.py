@@ -290,38 +290,38 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             )
         meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flat.itemsize}
     check_timestamps(ts, n, f"timestamps ({time_source})")
-    writer = SequenceWriter(out, meta, overwrite=opts.overwrite)
-    writer.write_timestamps(ts)
-    count = 0
-    for i, fr in enumerate(rec.frames()):
-        if i >= n:
-            raise SequenceError(f"{what}: yields more frames than the {n} it announced")
-        if 8 * fr.image.itemsize != rec.bit_depth:
-            raise SequenceError(f"{what}: frame {i} is {8 * fr.image.itemsize}-bit, frame 0 is {rec.bit_depth}-bit")
-        for img, label in ((fr.image, "image"), (fr.image_right, "right image"), (fr.depth_mm, "depth")):
-            if img is not None and img.shape != (cal.cam0.height_px, cal.cam0.width_px):
-                raise SequenceError(
-                    f"{what}: {label} of frame {i} is {img.shape[1]}x{img.shape[0]} px, "
-                    f"frame 0 is {cal.cam0.width_px}x{cal.cam0.height_px} px"
-                )
-        count = i + 1
-        if writer.resumed and writer.has_frame(i):
-            continue
-        writer.write_frame(i, fr.image)
-        if stereo:
-            if fr.image_right is None:
-                raise SequenceError(f"{what}: frame {i} has no right image")
-            writer.write_frame(i, fr.image_right, "cam1")
-        if rec.has_depth:
-            if fr.depth_mm is None:
-                raise SequenceError(f"{what}: frame {i} has no depth image")
-            writer.write_depth(i, fr.depth_mm)
-    if count != n:
-        raise SequenceError(f"{what}: yielded {count} frame(s), announced {n}")
-    if flat is not None:
-        writer.write_calib("cam0_flatfield", flat)
-    if gt is not None:
-        writer.write_groundtruth(gt[0], gt[1])
+    with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
+        writer.write_timestamps(ts)
+        count = 0
+        for i, fr in enumerate(rec.frames()):
+            if i >= n:
+                raise SequenceError(f"{what}: yields more frames than the {n} it announced")
+            if 8 * fr.image.itemsize != rec.bit_depth:
+                raise SequenceError(f"{what}: frame {i} is {8 * fr.image.itemsize}-bit, frame 0 is {rec.bit_depth}-bit")
+            for img, label in ((fr.image, "image"), (fr.image_right, "right image"), (fr.depth_mm, "depth")):
+                if img is not None and img.shape != (cal.cam0.height_px, cal.cam0.width_px):
+                    raise SequenceError(
+                        f"{what}: {label} of frame {i} is {img.shape[1]}x{img.shape[0]} px, "
+                        f"frame 0 is {cal.cam0.width_px}x{cal.cam0.height_px} px"
+                    )
+            count = i + 1
+            if writer.resumed and writer.has_frame(i):
+                continue
+            writer.write_frame(i, fr.image)
+            if stereo:
+                if fr.image_right is None:
+                    raise SequenceError(f"{what}: frame {i} has no right image")
+                writer.write_frame(i, fr.image_right, "cam1")
+            if rec.has_depth:
+                if fr.depth_mm is None:
+                    raise SequenceError(f"{what}: frame {i} has no depth image")
+                writer.write_depth(i, fr.depth_mm)
+        if count != n:
+            raise SequenceError(f"{what}: yielded {count} frame(s), announced {n}")
+        if flat is not None:
+            writer.write_calib("cam0_flatfield", flat)
+        if gt is not None:
+            writer.write_groundtruth(gt[0], gt[1])
     log.info("imported %d frames of %s (%s) -> %s", n, what, rec.format, writer.root)
     return ImportResult(
         sequence=writer.root,

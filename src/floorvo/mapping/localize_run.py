@@ -23,6 +23,7 @@ import numpy as np
 from floorvo.config import from_overrides
 from floorvo.errors import ConfigError
 from floorvo.io import ensure_writable_dir
+from floorvo.locking import locks_folder
 from floorvo.mapping.fused import MapFused, MapFusedConfig
 from floorvo.runner import camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
@@ -46,6 +47,7 @@ def localize_config(
     return from_overrides(MapFusedConfig, {**(overrides or {}), "map": str(map_dir), "odometry": odometry}, "localize")
 
 
+@locks_folder("out_dir", "run folder")
 def localize_sequence(
     seq: Sequence | str | os.PathLike,
     map_dir: str | os.PathLike,
@@ -57,7 +59,8 @@ def localize_sequence(
 ) -> dict:
     """Localise every frame of ``seq`` against the map in ``map_dir``; returns result.json's dict.
 
-    ``overrides``: ``map-fused`` config fields (``fix_every``, ``min_corr``, ...).
+    ``overrides``: ``map-fused`` config fields (``fix_every``, ``min_corr``, ...). ``out_dir`` is
+    locked while the run lasts (:func:`floorvo.locking.lock_folder`).
     """
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)

@@ -38,6 +38,7 @@ from floorvo.config import Config, build, from_overrides, param, to_plain
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, json_sha256, read_json
+from floorvo.locking import locks_folder
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
 from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
@@ -290,8 +291,10 @@ def build_map(
 
 
 # --------------------------------------------------------------------------- disk
+@locks_folder("out_dir", "map folder")
 def save_map(m: GlobalMap, out_dir: str | os.PathLike) -> Path:
-    """Write ``out_dir/keyframes.npz`` then ``out_dir/map.json`` (both atomic)."""
+    """Write ``out_dir/keyframes.npz`` then ``out_dir/map.json`` (both atomic), the folder locked
+    (:func:`floorvo.locking.lock_folder`: a second writer of it is refused in one line)."""
     out = ensure_writable_dir(out_dir)
     offsets = np.concatenate([[0], np.cumsum([len(f) for f in m.features])]).astype(np.int64)
     buf = io.BytesIO()
