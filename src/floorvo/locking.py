@@ -9,19 +9,21 @@ the CLIs). Readers never lock.
 
 The lock is ``fcntl.flock`` on ``FOLDER/.floorbench.lock`` (:data:`LOCK_FILE`), a file that
 holds the holder's ``PID HOST``. The operating system drops a ``flock`` when its process
-ends in any way, SIGKILL included, so a killed writer never leaves a folder locked: its lock
-file may stay behind, and the next writer simply takes it over (the file is not part of any
-format: "is this folder ours" checks and ``--overwrite`` ignore it). A writer that releases
-its lock, or whose interpreter exits normally, removes the file.
+ends in any way, SIGKILL included, so a killed writer never leaves a folder locked. Its
+lock file may stay behind; the next writer takes it over, and removes the temporaries of
+atomic writes the killed one left directly in the folder
+(:func:`floorvo.io.remove_stale_temporaries`: only a holder of the lock writes there). The
+lock file is no file of any format: "is this folder ours" checks and ``--overwrite``
+ignore it. A writer that releases its lock, or whose interpreter exits normally, removes it.
 
 Granularity and nesting: a lock covers one folder, not its subfolders. A writer that writes
 inside another's folder takes its own lock (the bench holds its output folder, each
 sequence it renders and each run folder it writes; a sweep's main process holds the sweep
 folder, its workers each sequence and run folder of their jobs), so nested writers never
-wait for each other. Within one thread the lock is re-entrant: a writer that calls
-another writer of the same folder (``run_estimator`` then ``RunFolder.write``) takes it
-again without waiting, and the lock ends when the outermost holder releases it. Another thread of
-the same process is refused like another process (``flock`` locks are per open file).
+wait for each other. Within one thread the lock is re-entrant: a writer that calls another
+writer of the same folder (``run_estimator`` then ``RunFolder.write``) takes it again
+without waiting, and the lock ends when the outermost holder releases it. Another thread
+of the same process is refused like another process (``flock`` locks are per open file).
 
 A fork()ed child does not inherit the locks of its parent (they are closed in the child).
 Where ``fcntl`` does not exist (Windows) nothing is locked; a warning says so once.
@@ -45,7 +47,7 @@ from types import TracebackType
 from typing import Any, TypeVar, cast
 
 from floorvo.errors import FloorbenchError, FolderLockedError
-from floorvo.io import checked_output_path
+from floorvo.io import checked_output_path, remove_stale_temporaries
 
 try:
     import fcntl
@@ -147,6 +149,9 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
         held = _Held(fd, Path(os.path.abspath(path)), key, created)
         with _registry:
             _held[key] = held
+        # Only a holder of this lock writes here: a temporary in the folder is a killed writer's.
+        for stale in remove_stale_temporaries(path):
+            log.info("%s: removed the temporary of a writer that was killed", stale)
         return FolderLock(held, outer=True)
 
 

@@ -4,11 +4,8 @@ readers never lock. The holder is a real second process (``_holder``)."""
 
 from __future__ import annotations
 
-import contextlib
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -17,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-import floorvo
+from _procs import assert_refused, held_by_another_process
 from floorvo.camera import CameraModel
 from floorvo.cli import main as floorvo_main
 from floorvo.errors import FloorbenchError, FolderLockedError
@@ -27,37 +24,8 @@ from floorvo.scoring import score_run
 from floorvo.sequence import Sequence, SequenceWriter
 from floorvo.synthetic import line_poses, write_synthetic_sequence
 
-SRC = str(Path(floorvo.__file__).resolve().parents[1])
-#: A process that locks argv[1], says so, and holds it until its standard input closes.
-_HOLD = (
-    "import sys\nfrom floorvo.locking import lock_folder\n"
-    "lock = lock_folder(sys.argv[1], 'folder')\nprint('held', flush=True)\nsys.stdin.read()\n"
-)
-
-
-def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": os.pathsep.join([SRC, os.environ.get("PYTHONPATH", "")])}
-
-
-@contextlib.contextmanager
-def _holder(folder: Path):
-    """Another process holding ``folder``'s lock for the ``with`` block; yields its Popen."""
-    p = subprocess.Popen(
-        [sys.executable, "-c", _HOLD, str(folder)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=_env()
-    )
-    try:
-        assert p.stdout is not None and p.stdout.readline().strip() == "held"
-        yield p
-    finally:
-        if p.poll() is None:
-            assert p.stdin is not None
-            p.stdin.close()
-            p.wait(timeout=20)
-
-
-def _refusal(err: str, folder: Path, pid: int, what: str) -> None:
-    assert err.count("\n") <= 1 and "Traceback" not in err, err
-    assert f"{folder}: another writer (pid {pid}) is writing this {what}" in err, err
+_holder = held_by_another_process
+_refusal = assert_refused
 
 
 @pytest.fixture(scope="module")
@@ -258,3 +226,15 @@ def test_a_lock_file_left_by_a_killed_writer_is_no_file_of_the_sequence(tmp_path
     write_synthetic_sequence(out, cam, line_poses(8.0, 4.0), seed=1, overwrite=True)  # another sequence
     assert Sequence.open(out).meta["seeds"] == {"texture": 1}
     assert not (out / LOCK_FILE).exists()  # taken over, then removed by the writer that ended
+
+
+def test_the_next_writer_removes_what_a_killed_writer_left_in_the_folder(seq, tmp_path):
+    """A run killed while writing left its lock file and a temporary: the next run takes the
+    lock over and removes the temporary (only a holder of the lock writes there)."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / LOCK_FILE).write_text("999999 elsewhere\n")
+    stale = run / ".trajectory.txt.0123abcd.tmp"
+    stale.write_text("# half a traj")
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    assert sorted(p.name for p in run.iterdir()) == ["result.json", "timing.csv", "trajectory.txt"]
