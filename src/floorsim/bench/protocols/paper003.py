@@ -43,6 +43,7 @@ from floorsim.bench.protocols.base import (
 from floorsim.bench.report import Report, RunRecord, _plt
 from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_json
+from floorvo.locking import lock_folder
 from floorvo.mapping.localize_run import localize_sequence
 from floorvo.mapping.map import build_map, load_map, save_map
 from floorvo.metrics import associate
@@ -210,11 +211,12 @@ def run_paper003(
             "sequence": str(kidnap_seq),
             "run_dir": str(run_dir),
         }
-        localize_sequence(kidnap_seq, map_dir, run_dir, odometry=odometry)
-        score = score_run(run_dir, kidnap_seq)
-        write_score(score, run_dir / "score.json")
-        reloc = relocalisation_metrics(kidnap_seq, run_dir)
-        atomic_write_json(run_dir / "relocalisation.json", {**map_summary, **reloc})
+        with lock_folder(run_dir, "run folder"):  # the run, its score and its relocalisation figures
+            localize_sequence(kidnap_seq, map_dir, run_dir, odometry=odometry)
+            score = score_run(run_dir, kidnap_seq)
+            write_score(score, run_dir / "score.json")
+            reloc = relocalisation_metrics(kidnap_seq, run_dir)
+            atomic_write_json(run_dir / "relocalisation.json", {**map_summary, **reloc})
         recover = reloc.pop("frames_to_recover")
         row.update(
             status="ok",
