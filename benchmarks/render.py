@@ -18,18 +18,21 @@ Renders ``--frames`` full-size frames of the scene at its default quality (or at
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
 import resource
+import tempfile
 import time
 
 import numpy as np
 
 from floorsim.render import FloorRenderer, backend_info
 from floorsim.scene import load_scene
-from floorsim.sensor import exposure_gain
+from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.simulate import _frame_seed, _leds, _load_tile, _trajectory_of, plan_tiles
+from floorvo.io import write_png
 
 
 def main() -> None:
@@ -133,12 +136,6 @@ def profile(args) -> None:
     tracing: a full render of an 8 x 8 camera (the Python and JIT-tracing cost of a frame,
     which does not grow with the image).
     """
-    import dataclasses
-    import tempfile
-
-    from floorsim.sensor import SensorModel
-    from floorvo.io import write_png
-
     scene = load_scene(args.scene, dict(kv.split("=", 1) for kv in args.set))
     spp = int(args.spp.split(",")[0]) if args.spp else scene.render.spp
     traj = _trajectory_of(scene)

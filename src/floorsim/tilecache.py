@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from floorsim import materials, render
 from floorvo.errors import ConfigError, shown
 from floorvo.io import atomic_write_bytes, plain
 
@@ -83,8 +84,6 @@ def _max_bytes() -> int:
 def code_fingerprint(material_module: str) -> str:
     """SHA-256 of the source that makes a tile: :mod:`floorsim.materials`, the material's own
     module (a plugin's) and :func:`floorsim.render.heightfield_vertex_normals`."""
-    from floorsim import materials, render
-
     h = hashlib.sha256()
     for mod_name in dict.fromkeys(["floorsim.materials", material_module]):
         mod = sys.modules.get(mod_name) or materials
