@@ -233,6 +233,12 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     assert np.max(np.abs(T2[:, :3, 3] - T_est[:, :3, 3])) < 0.3  # the runner places the fixes at the map poses
     # the fixes are the map's poses: the generic runner writes what localize writes
     np.testing.assert_allclose(T2, T_est, atol=1e-6)
+    # A sequence of another floor: nothing is placed, and localize says so with exit code 1.
+    write_seq(tmp_path / "foreign", [_view(other_texture, 3 * i, 0, 0, 310 + i) for i in range(3)], live_T[:3])
+    assert (
+        main(["localize", str(tmp_path / "foreign"), "--map", str(tmp_path / "map"), "-o", str(tmp_path / "r4")]) == 1
+    )
+    assert json.loads((tmp_path / "r4" / "result.json").read_text())["ok"] == 0
     # Errors are one line: a missing map, an unknown key.
     assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "nomap"), "-o", str(tmp_path / "r3")]) == 1
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1

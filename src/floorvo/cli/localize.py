@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 from floorvo.cli.common import add_output_argument, parse_set_args, progress_callback
 
 
@@ -44,4 +46,7 @@ def run(args) -> int:
         f"localize: {placed} of {res['frames']} frames placed ({res['map_fixes']} map fixes), "
         f"{res['median_total_ms']:.1f} ms/frame median -> {res['run_dir']}"
     )
+    if placed == 0:  # as `floorvo run` when no frame is tracked: the run folder says why per frame
+        print(f"floorvo: error: localize placed no frame on the map (see {res['run_dir']}/timing.csv)", file=sys.stderr)
+        return 1
     return 0
