@@ -51,6 +51,7 @@ import math
 import os
 import re
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -129,7 +130,7 @@ def backend_info() -> dict:
     mi = _import_mitsuba()
     import drjit as dr
 
-    return {"mitsuba": mi.__version__, "drjit": dr.__version__, "variant": mi.variant()}
+    return {"mitsuba": mi.__version__, "drjit": dr.__version__, "variant": mi.variant()}  # type: ignore[attr-defined]
 
 
 @dataclass(frozen=True)
@@ -282,7 +283,7 @@ class FloorRenderer:
 
         self.dr = dr
         self.camera = camera
-        self.scene = None
+        self.scene: Any = None  # the loaded tile's mitsuba Scene (None until one is loaded)
         #: World position (mm) of the loaded tile's local origin: the mesh, the camera and the
         #: LEDs are traced in coordinates relative to it (see :meth:`_set_mesh`).
         self.origin_mm = np.zeros(3)

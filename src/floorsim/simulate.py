@@ -179,7 +179,7 @@ def _render_frame(
     exp_s = scene.sensor.exposure_ms / 1000.0
     n = scene.sensor.blur_samples if exp_s > 0 else 1
     times = [t_i] if n == 1 else list(t_i + exp_s * ((np.arange(n) + 0.5) / n - 0.5))
-    acc = None
+    acc: np.ndarray | None = None  # radiance summed over the exposure's times, float64
     for k, t in enumerate(times):
         T0 = traj.pose_at(t)[0]
         Tc = T0 if T_cam_rig is None else T0 @ T_cam_rig
@@ -204,6 +204,7 @@ def _render_frame(
             shadows=scene.render.shadows,
         )
         acc = rad.astype(np.float64) if acc is None else acc + rad
+    assert acc is not None  # times holds at least one time
     return (acc / len(times)).astype(np.float32)
 
 
