@@ -170,7 +170,7 @@ class _AkazeBase:
         self.camera = camera
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
-        self.detector = cv2.AKAZE_create(threshold=config.akaze_threshold)
+        self.detector = cv2.AKAZE.create(threshold=config.akaze_threshold)
         self.centre = np.array([camera.cx_px, camera.cy_px])
 
     def start(self) -> _State:

@@ -121,7 +121,7 @@ class OrbIcp:
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         n_max = config.grid_cols * config.grid_rows * config.per_cell
-        self.orb = cv2.ORB_create(
+        self.orb = cv2.ORB.create(
             nfeatures=4 * n_max,
             nlevels=config.n_levels,
             fastThreshold=config.fast_threshold,
@@ -136,16 +136,18 @@ class OrbIcp:
     def start(self) -> _State:
         return _State()
 
-    def _features(self, frame: Frame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _features(
+        self, image: np.ndarray, depth_mm: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         cfg = self.config
-        img8 = to_uint8_contrast(illumination_corrected(frame.image, self.flatfield))
+        img8 = to_uint8_contrast(illumination_corrected(image, self.flatfield))
         kps = self.orb.detect(img8, None)
         kps = homogenise_keypoints(list(kps), img8.shape, cfg.grid_cols, cfg.grid_rows, cfg.per_cell)
         kps, desc = self.orb.compute(img8, kps)
         if desc is None or not kps:
             return np.zeros((0, 2)), np.zeros((0, 32), np.uint8), np.zeros((0, 3)), img8
         uv = np.array([k.pt for k in kps], dtype=np.float64)
-        xyz = self._depth_xyz(frame.depth_mm, uv)
+        xyz = self._depth_xyz(depth_mm, uv)
         return uv, desc, xyz, img8
 
     def _depth_xyz(self, depth_mm: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -183,7 +185,7 @@ class OrbIcp:
             return StepResult(
                 "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
             )
-        uv, desc, xyz, img8 = self._features(frame)
+        uv, desc, xyz, img8 = self._features(frame.image, frame.depth_mm)
         t1 = time.perf_counter()
         first = state.kps is None
         prev = (state.kps, state.desc, state.xyz, state.img8)
@@ -210,6 +212,7 @@ class OrbIcp:
                 timing_ms=_timing(t0, t1, t1, time.perf_counter()),
             )
         kp0, d0, xyz0, img0 = prev
+        assert kp0 is not None and d0 is not None and xyz0 is not None and img0 is not None  # set by frame 0
         qi, ti, gam = self._match(d0, desc)
         t2 = time.perf_counter()
         n_matches = len(qi)

@@ -126,7 +126,7 @@ def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarr
 @dataclass
 class _State:
     prev: np.ndarray | None = None  # corrected previous frame, float32
-    prev_blocks: list | None = None  # spectra of the previous frame's blocks
+    prev_blocks: list[np.ndarray] | None = None  # spectra of the previous frame's blocks
     prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
     n_lost: int = 0  # frames lost in a row since the reference
@@ -138,7 +138,7 @@ class PhaseCorr:
     name = "phase-corr"
     description = "dense: flat-field corrected, windowed phase correlation, sub-pixel phase fit, block-wise yaw (ours)"
     Config = PhaseCorrConfig
-    requires = frozenset()
+    requires: frozenset[str] = frozenset()
 
     def __init__(
         self,
@@ -310,6 +310,7 @@ class PhaseCorr:
 
         Returns ``(M, lowest block peak, largest block residual px)``.
         """
+        assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
         M = M.copy()
         if np.array_equal(M, np.eye(3)):
@@ -329,12 +330,9 @@ class PhaseCorr:
                 # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
             w = self._warp_into_prev(cur, M)
-            shifts, peaks = [], []
-            for Fa, Fb in zip(state.prev_blocks, self._blocks(w)):
-                d, pk = block_shift(Fa, Fb, self.sp)
-                shifts.append(d)
-                peaks.append(pk)
-            shifts = np.array(shifts)
+            measured = [block_shift(Fa, Fb, self.sp) for Fa, Fb in zip(state.prev_blocks, self._blocks(w))]
+            shifts = np.array([d for d, _ in measured])
+            peaks = [pk for _, pk in measured]
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
             R2, t2 = rigid_fit(self.block_centres, self.block_centres + shifts)
             E = np.eye(3)

@@ -125,7 +125,7 @@ class StereoSift:
         R, t = T10[:3, :3], T10[:3, 3]
         tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
         self.F = np.linalg.inv(camera_right.K).T @ tx @ R @ np.linalg.inv(camera.K)
-        self.sift = cv2.SIFT_create(nfeatures=config.n_features, contrastThreshold=config.contrast_threshold)
+        self.sift = cv2.SIFT.create(nfeatures=config.n_features, contrastThreshold=config.contrast_threshold)
 
     def start(self) -> _State:
         return _State()
@@ -142,10 +142,10 @@ class StereoSift:
         m = match_ratio(da, db, self.config.ratio, unique="none")
         return m.i0, m.i1
 
-    def _stereo(self, frame: Frame) -> _Side:
+    def _stereo(self, image: np.ndarray, image_right: np.ndarray) -> _Side:
         """Left keypoints matched in the right frame (M_2), triangulated in the left camera."""
-        uvL, dL = self._detect(frame.image, self.flatfield)
-        uvR, dR = self._detect(frame.image_right, self.flatfield_right)
+        uvL, dL = self._detect(image, self.flatfield)
+        uvR, dR = self._detect(image_right, self.flatfield_right)
         qi, ti = self._ratio_match(dL, dR)
         if len(qi) == 0:
             return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)))
@@ -176,7 +176,7 @@ class StereoSift:
                 return StepResult(
                     "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
                 )
-        cur = self._stereo(frame)
+        cur = self._stereo(frame.image, frame.image_right)
         t1 = time.perf_counter()
         prev = state.prev
         if prev is None:
