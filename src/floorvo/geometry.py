@@ -44,6 +44,7 @@ __all__ = [
     "rigid_fit",
     "rigid_fit_robust",
     "rival_homography_support",
+    "consensus_problem",
     "pixels_to_floor_mm",
     "floor_mm_to_pixels",
     "pixel_rigid_to_floor",
@@ -320,3 +321,37 @@ def rival_homography_support(
     b = np.asarray(dst_px, dtype=np.float32)[out]
     H, mask = cv2.findHomography(a, b, cv2.RANSAC, float(threshold_px), maxIters=1000, confidence=0.995)
     return 0 if H is None or mask is None else int(mask.sum())
+
+
+def consensus_problem(
+    src_px: np.ndarray,
+    dst_px: np.ndarray,
+    inliers: np.ndarray,
+    threshold_px: float,
+    *,
+    min_fraction: float,
+    min_count: int,
+    max_rival_fraction: float,
+    seed: int = 0,
+    what: str = "matches",
+) -> str:
+    """Why the consensus of a robust fit of ``src_px -> dst_px`` cannot be trusted ('' when it can).
+
+    The self-checks every feature estimator applies to its step (issue 14: a step that
+    cannot be measured is reported lost, not returned wrong): (1) the consensus
+    ``inliers`` ((N,) bool) holds at least ``min_fraction`` of the N ``what``; (2) the matches
+    left out do not show a second motion: :func:`rival_homography_support` finds no
+    homography among them backed by more than ``max(min_count, max_rival_fraction x
+    inliers)`` matches and by at least half of them. ``src_px``, ``dst_px``: (N, 2) pixels.
+    """
+    inl = np.asarray(inliers, dtype=bool)
+    n_in, n_out = int(inl.sum()), int((~inl).sum())
+    frac = float(inl.mean()) if len(inl) else 0.0
+    if frac < min_fraction:
+        return (
+            f"only {100 * frac:.0f} % of {len(inl)} {what} agree with the homography (needs {100 * min_fraction:.0f} %)"
+        )
+    rival = rival_homography_support(src_px, dst_px, inl, threshold_px, seed=seed)
+    if rival > max(min_count, max_rival_fraction * n_in) and rival >= 0.5 * n_out:
+        return f"two motions: {rival} of the {n_out} other {what} agree on a second homography ({n_in} inliers)"
+    return ""

@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from floorvo.camera import CameraModel
 from floorvo.geometry import (
     T_world_cam_down,
+    consensus_problem,
     floor_mm_to_pixels,
     floor_rigid_to_T,
     footprint_T,
@@ -265,3 +266,20 @@ def test_floor_rigid_to_T_is_the_camera_motion():
     step = invert_T(T0) @ T1
     back = invert_T(step)
     np.testing.assert_allclose(floor_rigid_to_T(back[:2, :2], back[:2, 3]), step, atol=1e-12)
+
+
+def test_consensus_problem_names_a_thin_consensus_and_a_second_motion():
+    rng = np.random.default_rng(0)
+    src = rng.uniform(0, 600, (100, 2))
+    dst = src + [5.0, 0.0]
+    dst[60:] = src[60:] + [-20.0, 7.0]  # the 40 matches left out agree on another translation
+    inl = np.arange(100) < 60
+    kw = dict(min_fraction=0.2, min_count=6, max_rival_fraction=0.1)
+    assert consensus_problem(src, dst, inl, 1.0, **kw) == (
+        "two motions: 40 of the 40 other matches agree on a second homography (60 inliers)"
+    )
+    dst[60:] = rng.uniform(0, 600, (40, 2))  # left out at random: no second motion
+    assert consensus_problem(src, dst, inl, 1.0, **kw) == ""
+    assert consensus_problem(src, dst, np.arange(100) < 15, 1.0, **kw) == (
+        "only 15 % of 100 matches agree with the homography (needs 20 %)"
+    )

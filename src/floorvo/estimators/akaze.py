@@ -53,7 +53,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
-from floorvo.geometry import floor_rigid_to_T, pixels_to_floor_mm, rigid_fit, rival_homography_support
+from floorvo.geometry import consensus_problem, floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
 
@@ -264,9 +264,16 @@ class _AkazeBase:
         else:
             # Two motions in one frame (a static glare or dirt, an object moving on the floor):
             # the matches that disagree with the fit must not agree on another motion.
-            rival = rival_homography_support(src, dst, inl, cfg.inlier_tol_px)
-            if rival > max(cfg.min_inliers, cfg.max_rival_fraction * inl.sum()) and rival >= 0.5 * (~inl).sum():
-                problem = f"two motions: {rival} of the {int((~inl).sum())} other matches agree on a second homography ({int(inl.sum())} agree)"
+            # (The consensus share was checked above, against the fit itself: min_fraction 0 here.)
+            problem = consensus_problem(
+                src,
+                dst,
+                inl,
+                cfg.inlier_tol_px,
+                min_fraction=0.0,
+                min_count=cfg.min_inliers,
+                max_rival_fraction=cfg.max_rival_fraction,
+            )
         return _Fit(M, s, d, n, rms, consensus, problem)
 
     def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:

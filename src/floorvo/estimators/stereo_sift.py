@@ -36,7 +36,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import invert_T, rigid_fit_robust, rival_homography_support
+from floorvo.geometry import consensus_problem, invert_T, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_ratio
 
@@ -220,22 +220,19 @@ class StereoSift:
         inl = mask.ravel().astype(bool)
         # Self-checks (issue 14): the consensus is a large enough share of the matches, and no
         # second motion is nearly as well supported by the matches RANSAC left out.
-        frac = float(inl.mean())
-        if frac < self.config.min_inlier_fraction:
-            return lost(
-                f"only {100 * frac:.0f} % of {n_m} temporal matches agree with the homography "
-                f"(needs {100 * self.config.min_inlier_fraction:.0f} %)",
-                int(inl.sum()),
-            )
-        rival = rival_homography_support(src, dst, inl, self.config.ransac_threshold_px, seed=self.config.seed)
-        if (
-            rival > max(self.config.min_matches, self.config.max_rival_fraction * inl.sum())
-            and rival >= 0.5 * (~inl).sum()
-        ):
-            return lost(
-                f"two motions: {rival} of the {int((~inl).sum())} other matches agree on a second homography ({int(inl.sum())} inliers)",
-                int(inl.sum()),
-            )
+        why = consensus_problem(
+            src,
+            dst,
+            inl,
+            self.config.ransac_threshold_px,
+            min_fraction=self.config.min_inlier_fraction,
+            min_count=self.config.min_matches,
+            max_rival_fraction=self.config.max_rival_fraction,
+            seed=self.config.seed,
+            what="temporal matches",
+        )
+        if why:
+            return lost(why, int(inl.sum()))
         P1, P2 = prev.xyz[qi[inl]], cur.xyz[ti[inl]]
         if len(P1) < self.config.min_matches:
             return lost(f"too few RANSAC inliers ({len(P1)})", len(P1))
