@@ -59,12 +59,14 @@ import os
 import platform
 import sys
 from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 from floorsim.bench.bench import is_sequence_folder
 from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
+from floorsim.simulate import package_versions as render_versions
 from floorvo import metric_defs as md
 from floorvo.config import Config, build, describe_fields, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
@@ -351,10 +353,6 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
 # ----------------------------------------------------------------------------- the record
 def package_versions() -> dict[str, str]:
     """Versions of what a study's numbers depend on (the renderer's, the estimators', Dask)."""
-    from importlib import metadata
-
-    from floorsim.simulate import package_versions as render_versions
-
     v = dict(render_versions())
     for dist in ("scipy", "opencv-python-headless", "scikit-image", "dask", "distributed"):
         try:
