@@ -4,6 +4,8 @@
     .venv/bin/python benchmarks/estimators.py --sequence paper000_uniform=PATH --sequence line=PATH
     .venv/bin/python benchmarks/estimators.py --synthetic   # no renderer: floorvo.synthetic sequences
     .venv/bin/python benchmarks/estimators.py --line-scale 1 --calibrate-on paper000_uniform   # + scale calibration
+    taskset -c 1 .venv/bin/python benchmarks/estimators.py --sequence straight=S1 --sequence s_curve=S2 \
+        --estimators akaze-guided akaze-guided-fast ...   # real-time presets on one core (BENCHMARKS.md)
 
 Renders (or reuses) ``paper000_uniform`` and the paper-001 3 m line with depth
 (``paper001_line3m_rgbd``), or uses the sequence folders given with ``--sequence``, or with
@@ -16,7 +18,9 @@ barely change), the whole run loop per frame (``floorvo.runner``: frame reading,
 chaining; wall clock from ``result.json``'s ``fps``, and thread CPU time of the whole
 ``run_estimator`` call, files included), frames per second (from the wall clock), end-point drift and distance error in % of the distance
 travelled. The guided/brute-force matching-time ratio (paper 000's claim) is measured
-in the same run on the same frames.
+in the same run on the same frames, and so is each real-time preset ``NAME-fast`` against
+``NAME`` (issue 14 item 5): frames/s from the wall clock and from the thread CPU time, their
+fast/default ratios, and the end drift of both.
 """
 
 from __future__ import annotations
@@ -193,11 +197,48 @@ def main() -> None:
     for r in rows:
         print("| " + " | ".join(str(r[c]) for c in cols) + " |")
     print(f"\nmatching-time ratio brute-force / guided (same run): {ratios}")
+    presets = _preset_rows(rows)
+    if presets:
+        print("\nreal-time presets against their defaults (same run, same frames):")
+        pcols = list(presets[0])
+        print("| " + " | ".join(pcols) + " |")
+        print("|" + "---|" * len(pcols))
+        for r in presets:
+            print("| " + " | ".join(str(r[c]) for c in pcols) + " |")
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     calibrated = _calibrated_rows(seqs, rows, args.calibrate_on, out) if args.calibrate_on else []
     (out / "estimators.json").write_text(
-        json.dumps({"rows": rows, "match_ratio": ratios, "calibrated": calibrated}, indent=2)
+        json.dumps({"rows": rows, "match_ratio": ratios, "presets": presets, "calibrated": calibrated}, indent=2)
     )
+
+
+def _preset_rows(rows: list[dict]) -> list[dict]:
+    """Each real-time preset ``NAME-fast`` beside ``NAME`` on the same sequence: frames/s from the
+    median wall clock of a step and from its thread CPU time, their fast/default ratios, end drift."""
+    out = []
+    by = {(r["sequence"], r["estimator"]): r for r in rows}
+    for (sname, name), f in by.items():
+        d = by.get((sname, name.removesuffix("-fast"))) if name.endswith("-fast") else None
+        if d is None:
+            continue
+        cpu_fps = {k: 1000.0 / r["cpu_ms_per_frame"] for k, r in (("d", d), ("f", f))}
+        out.append(
+            {
+                "sequence": sname,
+                "estimator": name.removesuffix("-fast"),
+                "fps_default": d["frames_per_s"],
+                "fps_fast": f["frames_per_s"],
+                "ratio_wall": round(f["frames_per_s"] / d["frames_per_s"], 2),
+                "cpu_fps_default": round(cpu_fps["d"], 1),
+                "cpu_fps_fast": round(cpu_fps["f"], 1),
+                "ratio_cpu": round(cpu_fps["f"] / cpu_fps["d"], 2),
+                "drift_pct_default": d["end_drift_pct"],
+                "drift_pct_fast": f["end_drift_pct"],
+                "lost_default": d["lost"],
+                "lost_fast": f["lost"],
+            }
+        )
+    return out
 
 
 def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> list[dict]:

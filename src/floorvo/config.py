@@ -55,9 +55,11 @@ __all__ = [
     "describe_fields",
     "format_fields",
     "to_plain",
+    "with_defaults",
 ]
 
 _MISSING: Any = dataclasses.MISSING
+_C = typing.TypeVar("_C")
 _META = "floorbench.rule"
 
 
@@ -333,6 +335,29 @@ def check(obj: Any) -> None:
     validate = getattr(obj, "validate", None)
     if callable(validate):
         validate()
+
+
+def with_defaults(cls: type[_C], name: str, **defaults: Any) -> type[_C]:
+    """A subclass of the Config dataclass ``cls`` named ``name`` whose listed fields have other defaults.
+
+    Every field keeps its type, unit, rule and doc; only the defaults differ, and each new
+    default is checked against its field's rule here (an unknown field name is a
+    ``TypeError``, a default breaking the rule a :class:`ConfigFieldError`). This is how a
+    named preset of an estimator is declared: one class, its ``Config`` with other defaults
+    (``akaze-guided-fast``), so ``--set`` and ``floorvo list --config`` work on it unchanged.
+    """
+    fields = {f.name: f for f in dataclasses.fields(typing.cast(Any, cls))}
+    hints = typing.get_type_hints(cls)
+    annotations: dict[str, Any] = {}
+    namespace: dict[str, Any] = {"__module__": cls.__module__, "__qualname__": name, "__annotations__": annotations}
+    for key, value in defaults.items():
+        if key not in fields:
+            raise TypeError(f"{cls.__name__} has no field {key!r} (known: {', '.join(sorted(fields))})")
+        annotations[key] = hints[key]
+        namespace[key] = dataclasses.field(default=value, metadata=fields[key].metadata)
+    sub: Any = dataclass(frozen=True)(type(name, (cls,), namespace))
+    check(sub())
+    return sub
 
 
 def _join(prefix: str, key: str) -> str:

@@ -51,13 +51,21 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param
+from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
 from floorvo.geometry import consensus_problem, floor_rigid_to_T, pixels_to_floor_mm, rigid_fit
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
 
-__all__ = ["AkazeGuided", "AkazeBruteforce", "AkazeConfig", "mean_std_filter"]
+__all__ = [
+    "AkazeGuided",
+    "AkazeBruteforce",
+    "AkazeGuidedFast",
+    "AkazeBruteforceFast",
+    "AkazeConfig",
+    "AkazeFastConfig",
+    "mean_std_filter",
+]
 
 
 def mean_std_filter(movement: np.ndarray, passes: int = 2) -> np.ndarray:
@@ -103,6 +111,9 @@ class AkazeConfig(Config):
     """
 
     akaze_threshold: float = param(0.0005, gt=0.0, doc="AKAZE detector response threshold")
+    n_octaves: int = param(4, min=1, max=8, doc="AKAZE scale-space octaves (OpenCV's default 4)")
+    n_octave_layers: int = param(4, min=1, max=8, doc="AKAZE sublevels per octave (OpenCV's default 4)")
+    upright: bool = param(False, doc="MLDB descriptors without orientation (MLDB_UPRIGHT): for small yaw per frame")
     max_keypoints: int = param(1500, min=10, doc="strongest keypoints kept per frame")
     hamming_threshold: int = param(120, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
     search_radius_px: float = param(
@@ -170,7 +181,12 @@ class _AkazeBase:
         self.camera = camera
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
-        self.detector = cv2.AKAZE.create(threshold=config.akaze_threshold)
+        self.detector = cv2.AKAZE.create(
+            descriptor_type=cv2.AKAZE_DESCRIPTOR_MLDB_UPRIGHT if config.upright else cv2.AKAZE_DESCRIPTOR_MLDB,
+            threshold=config.akaze_threshold,
+            nOctaves=config.n_octaves,
+            nOctaveLayers=config.n_octave_layers,
+        )
         self.centre = np.array([camera.cx_px, camera.cy_px])
 
     def start(self) -> _State:
@@ -377,6 +393,36 @@ class AkazeBruteforce(_AkazeBase):
     name = "akaze-bruteforce"
     description = "paper 000's baseline: AKAZE with brute-force Hamming matching (cross-checked), same filter and fit"
     guided = False
+
+
+#: The real-time presets (issue 14 item 5). At a fixed camera height the floor's picture keeps
+#: its scale, so one octave of one sublevel replaces AKAZE's 4 x 4 nonlinear scale space; the
+#: yaw between two frames is a few degrees, so the descriptors are upright (no orientation:
+#: half the descriptor time); a threshold of 0.001 and the 600 strongest keypoints bound the
+#: descriptor and matching time. The matching, the section II-C filter, the fit and the
+#: self-checks are the paper's. Frames/s and drift against the defaults: BENCHMARKS.md,
+#: "Real time on one core".
+AkazeFastConfig = with_defaults(
+    AkazeConfig,
+    "AkazeFastConfig",
+    n_octaves=1,
+    n_octave_layers=1,
+    upright=True,
+    akaze_threshold=0.001,
+    max_keypoints=600,
+)
+
+
+class AkazeGuidedFast(AkazeGuided):
+    name = "akaze-guided-fast"
+    description = "akaze-guided's real-time preset: one AKAZE octave of one sublevel, upright, 600 keypoints"
+    Config = AkazeFastConfig
+
+
+class AkazeBruteforceFast(AkazeBruteforce):
+    name = "akaze-bruteforce-fast"
+    description = "akaze-bruteforce's real-time preset: one AKAZE octave of one sublevel, upright, 600 keypoints"
+    Config = AkazeFastConfig
 
 
 def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:

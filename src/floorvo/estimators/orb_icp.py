@@ -30,13 +30,13 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param
+from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import consensus_problem, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
-__all__ = ["OrbIcp", "OrbIcpConfig", "homogenise_keypoints"]
+__all__ = ["OrbIcp", "OrbIcpConfig", "OrbIcpFast", "OrbIcpFastConfig", "homogenise_keypoints"]
 
 
 @dataclass(frozen=True)
@@ -298,3 +298,15 @@ class OrbIcp:
 
 def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
     return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}
+
+
+#: The real-time preset (issue 14 item 5): one ORB level instead of the pyramid (at a fixed
+#: camera height the floor keeps its scale). Frames/s and drift against the default:
+#: BENCHMARKS.md, "Real time on one core".
+OrbIcpFastConfig = with_defaults(OrbIcpConfig, "OrbIcpFastConfig", n_levels=1)
+
+
+class OrbIcpFast(OrbIcp):
+    name = "orb-icp-fast"
+    description = "orb-icp's real-time preset: ORB on one pyramid level"
+    Config = OrbIcpFastConfig

@@ -61,6 +61,11 @@ BUILTIN_ESTIMATORS: dict[str, str] = {
     "orb-icp": "floorvo.estimators.orb_icp:OrbIcp",
     "stereo-sift": "floorvo.estimators.stereo_sift:StereoSift",
     "map-fused": "floorvo.mapping.fused:MapFused",
+    # Real-time presets (issue 14 item 5): the same classes with other Config defaults.
+    "akaze-guided-fast": "floorvo.estimators.akaze:AkazeGuidedFast",
+    "akaze-bruteforce-fast": "floorvo.estimators.akaze:AkazeBruteforceFast",
+    "orb-icp-fast": "floorvo.estimators.orb_icp:OrbIcpFast",
+    "stereo-sift-fast": "floorvo.estimators.stereo_sift:StereoSiftFast",
 }
 
 #: The entry-point group a plugin package declares its estimators in.
