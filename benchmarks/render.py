@@ -32,6 +32,7 @@ from floorsim.render import FloorRenderer, backend_info
 from floorsim.scene import load_scene
 from floorsim.sensor import SensorModel, exposure_gain
 from floorsim.simulate import _frame_seed, _leds, _load_tile, _trajectory_of, plan_tiles
+from floorvo.config import parse_set_args
 from floorvo.io import write_png
 
 
@@ -53,15 +54,8 @@ def main() -> None:
         profile(args)
         return
 
-    scene = load_scene(args.scene, dict(kv.split("=", 1) for kv in args.set))
+    scene, cam, T, n, renderer, spacing, tiles = _prepare(args)
     spps = [int(s) for s in args.spp.split(",")] if args.spp else [scene.render.spp]
-    traj = _trajectory_of(scene)
-    cam = scene.camera_model()
-    T = traj.T_world_cam
-    n = min(args.frames, traj.frame_count)
-    renderer = FloorRenderer(cam)
-    spacing = scene.floor_spacing_mm()
-    tiles = plan_tiles(T[:n], cam, scene.floor.tile_length_mm, 2.0 + 2 * spacing)
     t0 = time.perf_counter()
     _load_tile(renderer, scene, tiles[0][1], spacing)
     t_tile = time.perf_counter() - t0
@@ -127,6 +121,19 @@ def main() -> None:
             json.dump(out, fh, indent=2)
 
 
+def _prepare(args):
+    """The scene (``--set`` overrides through the one parser), its camera, the poses ``T``
+    (F, 4, 4) mm, the frame count ``n`` used, a renderer, the floor spacing and the plan's tiles."""
+    scene = load_scene(args.scene, parse_set_args(args.set))
+    traj = _trajectory_of(scene)
+    cam = scene.camera_model()
+    T = traj.T_world_cam
+    n = min(args.frames, traj.frame_count)
+    spacing = scene.floor_spacing_mm()
+    tiles = plan_tiles(T[:n], cam, scene.floor.tile_length_mm, 2.0 + 2 * spacing)
+    return scene, cam, T, n, FloorRenderer(cam), spacing, tiles
+
+
 def profile(args) -> None:
     """Median wall and CPU seconds per frame of each stage of a frame, at the scene's spp.
 
@@ -136,15 +143,9 @@ def profile(args) -> None:
     tracing: a full render of an 8 x 8 camera (the Python and JIT-tracing cost of a frame,
     which does not grow with the image).
     """
-    scene = load_scene(args.scene, dict(kv.split("=", 1) for kv in args.set))
+    scene, cam, T, n, renderer, spacing, tiles = _prepare(args)
     spp = int(args.spp.split(",")[0]) if args.spp else scene.render.spp
-    traj = _trajectory_of(scene)
-    cam = scene.camera_model()
-    T = traj.T_world_cam
-    n = min(args.frames, traj.frame_count)
-    renderer = FloorRenderer(cam)
-    spacing = scene.floor_spacing_mm()
-    _load_tile(renderer, scene, plan_tiles(T[:n], cam, scene.floor.tile_length_mm, 2.0 + 2 * spacing)[0][1], spacing)
+    _load_tile(renderer, scene, tiles[0][1], spacing)
 
     def timed(fn) -> tuple[float, float]:
         fn(0)  # warm-up: JIT compilation
