@@ -17,6 +17,15 @@ Conventions
   frames, ``q_b = R2 q_a + t2_mm``, is the planar part of ``T_b_a`` (:func:`planar_T`).
 * Rigid fits (:func:`umeyama`, :func:`rigid_fit`, :func:`rigid_fit_robust`) take source and
   destination points ``(N, d)`` and return ``(R, t)`` with ``dst_i ~ R src_i + t``.
+* The floor plane seen by a camera (:func:`fit_plane`): ``n . p = d`` for camera-frame
+  points ``p`` (mm), ``n`` the unit normal pointing from the camera to the floor (about
+  +z for a camera looking down) and ``d > 0`` the camera's height above the plane (mm).
+  Its levelled frame (:func:`level_rotation`) has the camera's origin, z along ``n`` and
+  the camera's x-y axes turned by the least rotation; there the floor is ``z = d`` and a
+  floor point's levelled (x, y) are its floor coordinates, as for a level camera. The
+  6-DoF step between two frames is the planar step of the levelled frames (a rotation
+  about z, an x-y shift, the height change) composed with the two tilts
+  (:func:`plane_step_T`, :func:`floor_plane_step`, :func:`plane_homography_motion`).
 """
 
 from __future__ import annotations
@@ -50,6 +59,12 @@ __all__ = [
     "pixel_rigid_to_floor",
     "planar_T",
     "floor_rigid_to_T",
+    "fit_plane",
+    "level_rotation",
+    "rays_to_plane",
+    "plane_step_T",
+    "floor_plane_step",
+    "plane_homography_motion",
 ]
 
 #: Rotation of a camera looking straight down with yaw 0: columns are the camera axes
@@ -355,3 +370,147 @@ def consensus_problem(
     if rival > max(min_count, max_rival_fraction * n_in) and rival >= 0.5 * n_out:
         return f"two motions: {rival} of the {n_out} other {what} agree on a second homography ({n_in} inliers)"
     return ""
+
+
+# ----------------------------------------------------------------------------- the floor plane
+def fit_plane(
+    points_mm: np.ndarray, *, iterations: int = 3, k_mad: float = 4.0, min_points: int = 3
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """Least-squares plane ``n . p = d`` of (N, 3) camera-frame points (mm), with residual rejection.
+
+    Total least squares: ``n`` is the right singular vector of the smallest singular value
+    of the centred points and ``d = n . centroid``, signed so that ``d > 0`` (``n`` points
+    from the camera at the origin to the plane). Then up to ``iterations`` times the points
+    whose distance ``|n . p - d|`` exceeds ``median + k_mad * 1.4826 MAD`` of those kept are
+    dropped and the plane refitted (the rule of :func:`rigid_fit_robust`), stopping when the
+    kept set no longer changes or would fall under ``min_points``. Non-finite rows are left
+    out. Returns ``(n (3,), d_mm, inliers (N,) bool)``; refused (ValueError) with fewer than
+    3 finite points.
+    """
+    P = np.asarray(points_mm, dtype=float).reshape(-1, 3)
+    finite = np.isfinite(P).all(axis=1)
+    if int(finite.sum()) < 3:
+        raise ValueError(f"fit_plane: need at least 3 finite (N, 3) points, got {int(finite.sum())}")
+
+    def fit(Q: np.ndarray) -> tuple[np.ndarray, float]:
+        c = Q.mean(axis=0)
+        _, _, Vt = np.linalg.svd(Q - c, full_matrices=False)
+        n = Vt[-1]
+        d = float(n @ c)
+        return (n, d) if d >= 0 else (-n, -d)
+
+    keep = finite.copy()
+    n, d = fit(P[keep])
+    for _ in range(iterations):
+        r = np.where(finite, np.abs(np.nan_to_num(P) @ n - d), np.inf)
+        med = float(np.median(r[keep]))
+        mad = float(np.median(np.abs(r[keep] - med))) * 1.4826
+        new = r <= med + k_mad * max(mad, 1e-9)
+        if new.sum() < max(3, min_points) or np.array_equal(new, keep):
+            break
+        keep = new
+        n, d = fit(P[keep])
+    return n, d, keep
+
+
+def level_rotation(n: np.ndarray) -> np.ndarray:
+    """The least rotation ``Q`` (3, 3) with ``Q n = +z``: camera axes -> the levelled frame's.
+
+    Rodrigues' formula about the axis ``n x z`` (the identity for ``n = +z``). ``n``: (3,)
+    unit normal with a positive z component (a floor in front of the camera).
+    """
+    n = np.asarray(n, dtype=float).reshape(3)
+    n = n / np.linalg.norm(n)
+    v = np.cross(n, [0.0, 0.0, 1.0])
+    c = float(n[2])
+    s2 = float(v @ v)
+    if s2 < 1e-30:
+        return np.eye(3)
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + vx @ vx * ((1.0 - c) / s2)
+
+
+def rays_to_plane(uv_px: np.ndarray, camera: CameraModel, n: np.ndarray, d_mm: float) -> np.ndarray:
+    """(N, 3) camera-frame points (mm) where the rays of pixels ``uv_px`` (N, 2) meet the plane ``n . p = d``.
+
+    The generalisation of :func:`pixels_to_floor_mm` to a tilted floor: the ray ``r`` of a
+    pixel (distortion included, ``r_z = 1``) meets the plane at ``r d / (n . r)``.
+    """
+    r = camera.unproject(np.asarray(uv_px, dtype=float).reshape(-1, 2), 1.0)
+    return r * (float(d_mm) / (r @ np.asarray(n, dtype=float)))[:, None]
+
+
+def plane_step_T(
+    n_prev: np.ndarray, d_prev_mm: float, n_cur: np.ndarray, d_cur_mm: float, R2: np.ndarray, t2_mm: np.ndarray
+) -> np.ndarray:
+    """The 6-DoF camera step ``T_prev_cur`` (4, 4) mm from the floor planes of both frames and a
+    rigid map of levelled floor coordinates ``q_cur = R2 q_prev + t2_mm`` between them.
+
+    With ``Q_a = level_rotation(n_a)``, a floor point is at ``(q_a, d_a)`` in frame a's
+    levelled frame, so ``T_Lcur_Lprev`` is the rotation ``R2`` about z with the translation
+    ``(t2_mm, d_cur - d_prev)``, and ``T_prev_cur = Q_prev^T T_Lcur_Lprev^-1 Q_cur``: the
+    planar step (:func:`floor_rigid_to_T`) with the height change, between the two tilts.
+    """
+    T_Lc_Lp = planar_T(R2, t2_mm)
+    T_Lc_Lp[2, 3] = float(d_cur_mm) - float(d_prev_mm)
+    Qp = make_T(level_rotation(n_prev), np.zeros(3))
+    Qc = make_T(level_rotation(n_cur), np.zeros(3))
+    return invert_T(Qp) @ invert_T(T_Lc_Lp) @ Qc
+
+
+def floor_plane_step(
+    uv_prev_px: np.ndarray,
+    uv_cur_px: np.ndarray,
+    camera: CameraModel,
+    plane_prev: tuple[np.ndarray, float],
+    plane_cur: tuple[np.ndarray, float],
+    *,
+    iterations: int = 3,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The 6-DoF step ``T_prev_cur`` from matched pixels (N, 2) and each frame's floor plane ``(n, d_mm)``.
+
+    Each matched pixel's ray meets its frame's plane (:func:`rays_to_plane`); the points in
+    the levelled frames (:func:`level_rotation`) give floor coordinates free of the tilt and
+    the height, whose rigid map (:func:`rigid_fit_robust`, ``iterations`` rejections) is the
+    yaw and the in-plane shift; :func:`plane_step_T` adds the height change and the tilts.
+    The planes carry what the matches measure poorly (height and tilt, from every depth or
+    stereo point of the frame), the pixels what they measure well (the in-plane motion).
+    Returns ``(T_prev_cur (4, 4), inliers (N,) bool, rms_mm)`` (RMS residual of the
+    inliers' floor coordinates).
+    """
+    (n_p, d_p), (n_c, d_c) = plane_prev, plane_cur
+    q_prev = (rays_to_plane(uv_prev_px, camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
+    q_cur = (rays_to_plane(uv_cur_px, camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
+    R2, t2, keep = rigid_fit_robust(q_prev, q_cur, iterations=iterations)
+    rms = float(np.sqrt(np.mean(np.sum((q_prev[keep] @ R2.T + t2 - q_cur[keep]) ** 2, axis=1))))
+    return plane_step_T(n_p, d_p, n_c, d_c, R2, t2), keep, rms
+
+
+def plane_homography_motion(
+    H_norm: np.ndarray, n_prev: np.ndarray, d_prev_mm: float
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The camera step of a floor-plane homography, given the floor plane of the previous frame.
+
+    ``H_norm`` (3, 3) maps normalised image points of the previous frame to the current one
+    (``x_cur ~ H_norm x_prev``; for pixels, ``H_norm = K^-1 H K``). A plane ``n . p = d`` of
+    the previous camera induces ``H_norm ~ R + t n^T / d`` with ``p_cur = R p_prev + t``
+    (Hartley & Zisserman, Multiple View Geometry, 2nd ed., Result 13.1; Ma, Soatto, Kosecka,
+    Sastry, An Invitation to 3-D Vision, eq. (5.20)). With the normal known the decomposition
+    is unique: on the vectors ``u`` of the plane (``n . u = 0``) ``H_norm u = s R u``, so the
+    scale ``s`` and ``R`` are the similarity fit (:func:`umeyama`) of ``{u1, u2}`` to their
+    images, and ``t = d (H_norm n / s - R n)``. The current frame's plane is ``n' = R n``,
+    ``d' = d + n' . t``. Returns ``(T_prev_cur (4, 4) mm, n_cur (3,), d_cur_mm)``.
+    """
+    Hn = np.asarray(H_norm, dtype=float).reshape(3, 3)
+    if np.linalg.det(Hn) < 0:  # a homography is defined up to a (possibly negative) factor
+        Hn = -Hn
+    n = np.asarray(n_prev, dtype=float).reshape(3)
+    n = n / np.linalg.norm(n)
+    Q = level_rotation(n)
+    u1, u2 = Q[0], Q[1]  # rows of Q: the levelled frame's x and y axes in the camera frame, normal to n
+    src = np.stack([u1, u2, -u1, -u2])
+    R, _, s = umeyama(src, src @ Hn.T, with_scale=True)
+    t = float(d_prev_mm) * (Hn @ n / s - R @ n)
+    n_cur = R @ n
+    d_cur = float(d_prev_mm) + float(n_cur @ t)
+    return invert_T(make_T(R, t)), n_cur, d_cur

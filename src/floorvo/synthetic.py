@@ -7,7 +7,9 @@ the texture (a flat floor seen straight down); a rig-fixed LED falloff (bright a
 and right edges, dark in the middle), sensor noise and 8-bit quantisation are applied,
 and the flat-field frame (the falloff alone) is written to ``calib/cam0_flatfield.png``.
 Optionally a depth image per frame (flat floor: the camera height) and a right camera
-``baseline_mm`` along cam0's +x axis.
+``baseline_mm`` along cam0's +x axis. A tilted pose (roll, pitch) is viewed exactly too:
+each pixel's ray is intersected with the floor, and the depth image is that of the tilted
+view (:func:`floor_depth`), so tests of 6-DoF estimators have exact truth.
 
     from floorvo.synthetic import line_poses, write_synthetic_sequence
     T = line_poses(length_mm=100.0, step_mm=4.0, height_mm=100.0)
@@ -39,6 +41,7 @@ from floorvo.sequence import SequenceWriter
 
 __all__ = [
     "floor_texture",
+    "floor_depth",
     "led_falloff",
     "line_poses",
     "render_view",
@@ -102,17 +105,25 @@ def render_view(
     (x, y) the pixel's normalised image coordinates: ((u - cx) / fx, (v - cy) / fy) for
     an ideal pinhole, undistorted exactly (:func:`_undistorted_xy`) when the camera has
     distortion, so the whole camera model (fx != fy, principal point, distortion) is
-    honoured.
+    honoured. A tilted camera (roll or pitch: the optical axis not along world -z) sees
+    the floor point where each pixel's ray meets z = 0 (:func:`floor_depth` gives the
+    depth of those points).
     """
     from scipy.ndimage import map_coordinates
 
+    T_world_cam = np.asarray(T_world_cam, dtype=float)
+    Tt = np.diag([1.0, -1.0])  # texture px from world: U = X / gsd + U0, V = -Y / gsd + V0
+    v, u = np.mgrid[0 : camera.height_px, 0 : camera.width_px].astype(np.float64)
+    if not _is_level(T_world_cam):
+        # A tilted camera: each pixel's ray meets the floor z = 0 (exact in position too).
+        X, Y, _ = _floor_hits(camera, T_world_cam, u, v)
+        U, V = X / gsd_mm + origin_px[0], -Y / gsd_mm + origin_px[1]
+        return map_coordinates(coeffs, [V, U], order=3, prefilter=False, mode="mirror", output=np.float32)
     X, Y, yaw = se2_from_T(T_world_cam)
     height = float(T_world_cam[2, 3])
     c, sn = np.cos(yaw), np.sin(yaw)
     Rw = np.array([[c, -sn], [sn, c]]) @ np.diag([1.0, -1.0])  # world mm per normalised image unit (x height)
-    Tt = np.diag([1.0, -1.0])  # texture px from world: U = X / gsd + U0, V = -Y / gsd + V0
     b = Tt @ np.array([X, Y]) / gsd_mm + np.array(origin_px)
-    v, u = np.mgrid[0 : camera.height_px, 0 : camera.width_px].astype(np.float64)
     du, dv = u - camera.cx_px, v - camera.cy_px
     if camera.fx_px == camera.fy_px and not camera.has_distortion:
         A = Tt @ Rw * (camera.gsd_mm_per_px(height) / gsd_mm)  # texture px per camera px
@@ -122,6 +133,38 @@ def render_view(
     U = A[0, 0] * du + A[0, 1] * dv + b[0]
     V = A[1, 0] * du + A[1, 1] * dv + b[1]
     return map_coordinates(coeffs, [V, U], order=3, prefilter=False, mode="mirror", output=np.float32)
+
+
+def _is_level(T_world_cam: np.ndarray) -> bool:
+    """Whether a camera pose looks straight down (optical axis along world -z, to 1e-12)."""
+    return bool(np.abs(np.asarray(T_world_cam, dtype=float)[:3, 2] - [0.0, 0.0, -1.0]).max() < 1e-12)
+
+
+def _floor_hits(
+    camera: CameraModel, T_world_cam: np.ndarray, u: np.ndarray, v: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World (X, Y) mm where the rays of pixels ``(u, v)`` (arrays) meet the floor z = 0, and
+    their depth along the optical axis (mm): the ray ``R (x, y, 1)`` from the camera centre
+    ``c`` reaches z = 0 at ``lam = -c_z / (R (x, y, 1))_z``, which is the depth."""
+    T = np.asarray(T_world_cam, dtype=float)
+    x, y = _undistorted_xy(camera, u, v)
+    R, c = T[:3, :3], T[:3, 3]
+    dz = R[2, 0] * x + R[2, 1] * y + R[2, 2]
+    lam = -c[2] / dz
+    return c[0] + lam * (R[0, 0] * x + R[0, 1] * y + R[0, 2]), c[1] + lam * (R[1, 0] * x + R[1, 1] * y + R[1, 2]), lam
+
+
+def floor_depth(camera: CameraModel, T_world_cam: np.ndarray) -> np.ndarray:
+    """(H, W) float32 depth (mm, along the optical axis) of the flat floor z = 0 seen from ``T_world_cam``.
+
+    Constant (the camera height) for a camera looking straight down; a tilted camera sees
+    the floor nearer on one side.
+    """
+    T = np.asarray(T_world_cam, dtype=float)
+    if _is_level(T):
+        return np.full((camera.height_px, camera.width_px), np.float32(T[2, 3]))
+    v, u = np.mgrid[0 : camera.height_px, 0 : camera.width_px].astype(np.float64)
+    return _floor_hits(camera, T, u, v)[2].astype(np.float32)
 
 
 def _undistorted_xy(camera: CameraModel, u: np.ndarray, v: np.ndarray, iterations: int = 20) -> tuple:
@@ -148,6 +191,7 @@ def write_synthetic_sequence(
     seed: int = 0,
     noise_dn: float = 1.0,
     depth: bool = False,
+    depth_noise_mm: float = 0.0,
     stereo_baseline_mm: float | None = None,
     name: str = "synthetic",
     overwrite: bool = True,
@@ -156,7 +200,8 @@ def write_synthetic_sequence(
 
     Frames are 8-bit, with the LED falloff of :func:`led_falloff`, Gaussian noise of
     ``noise_dn`` and the flat-field frame in ``calib/``. ``depth``: a float32 mm depth map
-    per frame (flat floor). ``stereo_baseline_mm``: also a right camera ``cam1``.
+    per frame (the flat floor, :func:`floor_depth`; poses may be tilted), with Gaussian noise
+    of ``depth_noise_mm`` per pixel (seeded from ``seed``). ``stereo_baseline_mm``: also a right camera ``cam1``.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
     gsd = camera.gsd_mm_per_px(height_mm)
@@ -177,7 +222,11 @@ def write_synthetic_sequence(
         "frame_count": int(len(T_world_cam)),
         "rig": {"height_mm": float(height_mm)},
         "seeds": {"texture": int(seed)},
-        "synthetic": {"generator": "floorvo.synthetic", "noise_dn": float(noise_dn)},
+        "synthetic": {
+            "generator": "floorvo.synthetic",
+            "noise_dn": float(noise_dn),
+            "depth_noise_mm": float(depth_noise_mm),
+        },
     }
     if depth:
         meta["depth"] = {"format": "npy_float32_mm"}
@@ -189,6 +238,7 @@ def write_synthetic_sequence(
         meta["cameras"] = {"cam1": camera.to_dict()}
     with SequenceWriter(out_dir, meta, overwrite=overwrite) as w:  # locked until the sequence is written
         rng = np.random.default_rng(seed + 1)
+        rng_depth = np.random.default_rng(seed + 2)
         scale = None
         for i, T in enumerate(T_world_cam):
             cams = [("cam0", T)] + ([("cam1", T @ T01)] if T01 is not None else [])
@@ -199,7 +249,10 @@ def write_synthetic_sequence(
                 img = img * scale + rng.normal(0.0, noise_dn, img.shape)
                 w.write_frame(i, np.clip(np.round(img), 0, 255).astype(np.uint8), cam)
             if depth:
-                w.write_depth(i, np.full((camera.height_px, camera.width_px), np.float32(T[2, 3])))
+                z = floor_depth(camera, T)
+                if depth_noise_mm > 0:
+                    z = (z + rng_depth.normal(0.0, depth_noise_mm, z.shape)).astype(np.float32)
+                w.write_depth(i, z)
         flat = np.clip(fall / fall.max() * 60000.0, 0, 65535).astype(np.uint16)
         w.write_calib("cam0_flatfield", flat)
         if T01 is not None:

@@ -16,7 +16,17 @@ Per frame (section numbers and equations of paper 001):
    pixel FAST positions quantise the motion.
 5. 3D points from the depth image (back-projection through the camera model).
 6. **ICP solved by SVD** (section 5, eqs. (8)-(21), with the reflection check), iterated
-   with residual rejection: ``p_prev = R p_cur + t`` is directly ``T_prev_cur``.
+   with residual rejection: ``p_prev = R p_cur + t`` is directly ``T_prev_cur``
+   (``update = "icp"``, the paper's step: a full 6-DoF fit of the matched 3D points).
+   The default ``update = "plane"`` (added here, issue 14) measures the same 6-DoF step
+   more robustly: the floor plane of each frame is fitted to its whole depth image
+   (:func:`floorvo.geometry.fit_plane`, a grid of ``plane_step_px`` pixels, thousands of
+   points, so height and tilt are precise), each matched pixel's ray is met with its
+   frame's plane, and the yaw and in-plane shift are the rigid fit of those floor points in
+   the levelled frames; the height change and the roll/pitch change come from the two
+   planes (:func:`floorvo.geometry.floor_plane_step`). The ICP on the matched points
+   alone lets the depth noise of a few hundred points tilt the fit, and a tilt error
+   times the 100 mm depth becomes a shift.
 
 The estimator needs depth (``requires = {"depth"}``); a run refuses a sequence without it.
 """
@@ -32,7 +42,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import consensus_problem, rigid_fit_robust
+from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
@@ -45,7 +55,9 @@ class OrbIcpConfig(Config):
     the strongest); ``grid_cols x grid_rows`` cells keeping ``per_cell`` corners each
     (homogenisation); ``ratio``: FLANN-LSH ratio-test threshold gamma; ``prosac_threshold_px``:
     PROSAC reprojection threshold; ``icp_iterations``: SVD re-solves with residual rejection;
-    ``refine_win_px``: window of the sub-pixel refinement of each inlier's position in the
+    ``update``: ``plane`` (6-DoF from each frame's floor plane and the in-plane fit of the
+    matches) or ``icp`` (paper 001's ICP-SVD of the matched 3D points); ``plane_step_px``:
+    the grid of depth pixels the plane is fitted to; ``refine_win_px``: window of the sub-pixel refinement of each inlier's position in the
     current frame (Lucas-Kanade from the match; 0 = off: FAST corners lie on whole pixels,
     which quantises a pure translation to whole pixels, 1.3 % of a 32.4 px step); ``seed``:
     OpenCV's RNG is seeded with it before each FLANN-LSH match (the LSH tables draw their bits
@@ -74,6 +86,14 @@ class OrbIcpConfig(Config):
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each FLANN-LSH match")
+    update: str = param(
+        "plane",
+        choices=("plane", "icp"),
+        doc="plane: floor plane of each depth image + in-plane fit of the matches (6-DoF); icp: paper 001's ICP-SVD",
+    )
+    plane_step_px: int = param(
+        4, unit="px", min=1, max=64, doc="grid spacing of the depth pixels the floor plane is fitted to"
+    )
 
 
 def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int, per_cell: int) -> list:
@@ -103,6 +123,7 @@ class _State:
     desc: np.ndarray | None = None  # (N, 32) uint8
     xyz: np.ndarray | None = None  # (N, 3) mm, camera frame; NaN where no depth
     img8: np.ndarray | None = None  # normalised previous frame
+    plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the previous frame, camera frame
 
 
 class OrbIcp:
@@ -132,6 +153,22 @@ class OrbIcp:
         self.flann = cv2.FlannBasedMatcher(
             dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1), dict(checks=50)
         )
+        # The rays (z = 1) of the grid of pixels the floor plane is fitted to, once per camera.
+        g = config.plane_step_px
+        v, u = np.mgrid[g // 2 : camera.height_px : g, g // 2 : camera.width_px : g]
+        self._plane_uv = np.column_stack([u.ravel(), v.ravel()]).astype(np.float64)
+        self._plane_rays = camera.unproject(self._plane_uv, 1.0)
+
+    def floor_plane(self, depth_mm: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """The floor plane ``(n, d_mm)`` (camera frame, :func:`floorvo.geometry.fit_plane`) of a
+        depth image, from the pixels of a ``plane_step_px`` grid; None with fewer than 100 of
+        them carrying depth."""
+        z = np.asarray(depth_mm, dtype=np.float64)[self._plane_uv[:, 1].astype(int), self._plane_uv[:, 0].astype(int)]
+        ok = np.isfinite(z) & (z > 0)
+        if int(ok.sum()) < 100:
+            return None
+        n, d, _ = fit_plane(self._plane_rays[ok] * z[ok, None])
+        return n, d
 
     def start(self) -> _State:
         return _State()
@@ -186,13 +223,15 @@ class OrbIcp:
                 "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
             )
         uv, desc, xyz, img8 = self._features(frame.image, frame.depth_mm)
+        plane = self.floor_plane(frame.depth_mm) if self.config.update == "plane" else None
         t1 = time.perf_counter()
         first = state.kps is None
         prev = (state.kps, state.desc, state.xyz, state.img8)
+        plane_prev = state.plane
         n_depth = int(np.isfinite(xyz).all(axis=1).sum())
-        if n_depth >= self.config.min_matches or first:
+        if (n_depth >= self.config.min_matches and (plane is not None or self.config.update != "plane")) or first:
             # A frame is kept as the next reference only if it is usable (else: the last good one).
-            state.kps, state.desc, state.xyz, state.img8 = uv, desc, xyz, img8
+            state.kps, state.desc, state.xyz, state.img8, state.plane = uv, desc, xyz, img8, plane
         if first:
             return StepResult(
                 "init", reason="first frame", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter())
@@ -270,6 +309,29 @@ class OrbIcp:
             good = (st.ravel() == 1) & (np.linalg.norm(p1 - uv_cur, axis=1) < 1.5)
             uv_prev, uv_cur, P_prev = uv_prev[good], p1[good], P_prev[good]
             P_cur = self._depth_xyz(frame.depth_mm, uv_cur)
+        if self.config.update == "plane":
+            if plane is None or plane_prev is None:
+                return lost("too few depth pixels to fit the floor plane")
+            # 6-DoF from the two floor planes and the in-plane rigid fit of the matched rays.
+            T, keep, rms_mm = floor_plane_step(
+                uv_prev, uv_cur, self.camera, plane_prev, plane, iterations=self.config.icp_iterations
+            )
+            if keep.sum() < self.config.min_matches:
+                return lost(f"too few matches behind the in-plane fit ({int(keep.sum())})", int(keep.sum()))
+            if rms_mm > self.config.max_residual_mm:
+                return lost(
+                    f"in-plane fit residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum())
+                )
+            t3 = time.perf_counter()
+            return StepResult(
+                "ok",
+                T,
+                n_keypoints=len(uv),
+                n_matches=n_matches,
+                n_inliers=int(keep.sum()),
+                timing_ms=_timing(t0, t1, t2, t3),
+                matches_px=np.hstack([uv_prev[keep], uv_cur[keep]]),
+            )
         has_depth = np.isfinite(P_prev).all(axis=1) & np.isfinite(P_cur).all(axis=1)
         P_prev, P_cur = P_prev[has_depth], P_cur[has_depth]
         if len(P_prev) < self.config.min_matches:

@@ -17,9 +17,16 @@ state, so each frame's SIFT runs once):
    two 3D point sets. The full 3D fit (``update = "rigid"``) is ill-conditioned on a floor:
    the points span +/-20 mm across but only the depth noise along z, so a small tilt error
    times the 100 mm depth becomes a translation error (0.8 mm/frame on a rendered stereo
-   sequence). The default ``update = "planar"`` fits the rotation about the optical axis and
+   sequence). ``update = "planar"`` fits the rotation about the optical axis and
    the x-y translation by SVD (the rigid fit of the x-y coordinates) and the height change
-   as the mean z difference.
+   as the mean z difference: it cannot see a tilt. ``update = "plane"`` (issue 14) measures
+   the full 6-DoF step robustly: the floor plane of each frame is fitted to all of its
+   triangulated points (:func:`floorvo.geometry.fit_plane`: hundreds of points, so height
+   and tilt are precise), the matched left pixels' rays are met with their frame's plane
+   and the yaw and in-plane shift are the rigid fit of those floor points in the levelled
+   frames; the height and roll/pitch change come from the two planes
+   (:func:`floorvo.geometry.floor_plane_step`). ``plane`` is the default (see
+   BENCHMARKS.md, "6-DoF with depth and stereo").
 
 Requires a stereo sequence (``requires = {"stereo"}``).
 """
@@ -36,7 +43,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import consensus_problem, invert_T, rigid_fit_robust
+from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, invert_T, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_ratio
 
@@ -48,8 +55,10 @@ class StereoSiftConfig(Config):
     """``n_features``: SIFT keypoint budget per image; ``contrast_threshold``: SIFT's DoG
     threshold; ``ratio``: Lowe ratio test; ``epipolar_px``: largest distance of a right
     keypoint from its epipolar line; ``ransac_threshold_px``: RANSAC homography threshold;
-    ``update``: ``planar`` (SVD fit of the 3D sets restricted to a rotation about the optical
-    axis, plus the mean height change), ``rigid`` (full 3D SVD fit) or ``mean`` (paper 002's DP_L)."""
+    ``update``: ``plane`` (6-DoF: each frame's floor plane from all its triangulated points and
+    the in-plane fit of the matched rays), ``planar`` (SVD fit of the 3D sets restricted to a
+    rotation about the optical axis, plus the mean height change), ``rigid`` (full 3D SVD
+    fit) or ``mean`` (paper 002's DP_L)."""
 
     n_features: int = param(1000, min=10, doc="SIFT keypoint budget per image")
     contrast_threshold: float = param(0.02, gt=0.0, doc="SIFT's DoG contrast threshold")
@@ -76,9 +85,10 @@ class StereoSiftConfig(Config):
     )
     seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each RANSAC")
     update: str = param(
-        "planar",
-        choices=("planar", "rigid", "mean"),
-        doc="planar: rotation about the optical axis; rigid: full 3D; mean: paper 002's DP_L",
+        "plane",
+        choices=("planar", "rigid", "mean", "plane"),
+        doc="plane: 6-DoF from each frame's floor plane; planar: rotation about the optical axis; "
+        "rigid: full 3D; mean: paper 002's DP_L",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
 
@@ -88,6 +98,7 @@ class _Side:
     uv: np.ndarray  # (N, 2) left keypoints with a right match
     desc: np.ndarray  # (N, 128) float32 their descriptors
     xyz: np.ndarray  # (N, 3) mm in the left camera, triangulated
+    plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of all the xyz, left camera
 
 
 @dataclass
@@ -99,7 +110,9 @@ class StereoSift:
     """SIFT left/right at i and i+1, LR + temporal matching, RANSAC, triangulation, 3D update (paper 002)."""
 
     name = "stereo-sift"
-    description = "paper 002 Algorithm 1: stereo SIFT, LR + temporal matching, RANSAC, triangulation, rigid 3D update"
+    description = (
+        "paper 002 Algorithm 1: stereo SIFT, LR + temporal matching, RANSAC, triangulation, 6-DoF floor-plane update"
+    )
     Config = StereoSiftConfig
     requires = frozenset({"stereo"})
 
@@ -180,7 +193,11 @@ class StereoSift:
         X = cv2.triangulatePoints(self.P_left, self.P_right, uvL[qi].T.astype(np.float64), uvR[ti].T.astype(np.float64))
         xyz = (X[:3] / X[3]).T
         front = xyz[:, 2] > 0
-        return _Side(uvL[qi][front], dL[qi][front], xyz[front])
+        plane = None
+        if self.config.update == "plane" and int(front.sum()) >= self.config.min_matches:
+            n, d, _ = fit_plane(xyz[front])
+            plane = (n, d)
+        return _Side(uvL[qi][front], dL[qi][front], xyz[front], plane)
 
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
@@ -261,6 +278,12 @@ class StereoSift:
             # Algorithm 1: DP_L = P_3dL1 - P_3dL2 (the camera moved opposite to the points).
             T[:3, 3] = np.mean(P1 - P2, axis=0)
             n_in = len(P1)
+        elif self.config.update == "plane":
+            if prev.plane is None or cur.plane is None:
+                return lost("too few stereo points to fit the floor plane")
+            # 6-DoF from the two floor planes and the in-plane rigid fit of the matched left rays.
+            T, keep, _ = floor_plane_step(prev.uv[qi[inl]], cur.uv[ti[inl]], self.camera, prev.plane, cur.plane)
+            n_in = int(keep.sum())
         elif self.config.update == "rigid":
             # Improvement: rigid SVD fit, P_3dL1 = R P_3dL2 + t, i.e. T_prev_cur.
             R, t, keep = rigid_fit_robust(P2, P1)
