@@ -380,7 +380,9 @@ def fit_plane(
 
     Total least squares: ``n`` is the right singular vector of the smallest singular value
     of the centred points and ``d = n . centroid``, signed so that ``d > 0`` (``n`` points
-    from the camera at the origin to the plane). Then up to ``iterations`` times the points
+    from the camera at the origin to the plane). The first fit takes the points whose depth
+    (z) is within ``k_mad`` scaled MADs of the median depth (a floor seen from above: gross
+    outliers, such as a wrong stereo match, cannot tilt it). Then up to ``iterations`` times the points
     whose distance ``|n . p - d|`` exceeds ``median + k_mad * 1.4826 MAD`` of those kept are
     dropped and the plane refitted (the rule of :func:`rigid_fit_robust`), stopping when the
     kept set no longer changes or would fall under ``min_points``. Non-finite rows are left
@@ -399,7 +401,12 @@ def fit_plane(
         d = float(n @ c)
         return (n, d) if d >= 0 else (-n, -d)
 
-    keep = finite.copy()
+    z = np.where(finite, P[:, 2], np.nan)
+    z_med = float(np.nanmedian(z))
+    z_mad = float(np.nanmedian(np.abs(z - z_med))) * 1.4826
+    keep = finite & (np.abs(np.nan_to_num(z - z_med, nan=np.inf)) <= k_mad * max(z_mad, 1e-9))
+    if int(keep.sum()) < max(3, min_points):
+        keep = finite.copy()
     n, d = fit(P[keep])
     for _ in range(iterations):
         r = np.where(finite, np.abs(np.nan_to_num(P) @ n - d), np.inf)
