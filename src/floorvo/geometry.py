@@ -52,6 +52,7 @@ __all__ = [
     "umeyama",
     "rigid_fit",
     "rigid_fit_robust",
+    "rigid_fit_precision",
     "rival_homography_support",
     "consensus_problem",
     "pixels_to_floor_mm",
@@ -247,6 +248,44 @@ def rigid_fit_robust(
         keep = new
         R, t = rigid_fit(src[keep], dst[keep])
     return R, t, keep
+
+
+def rigid_fit_precision(
+    src: np.ndarray, dst: np.ndarray, R: np.ndarray, t: np.ndarray, *, scale: float = 1.0
+) -> tuple[float, float]:
+    """Standard errors of a 2-D least-squares fit ``dst_i ~ scale R src_i + t`` from its residuals.
+
+    The self-check "residual against the expected precision" of a step (issue 14): the
+    residuals say how well the pairs locate the motion. With independent errors of equal
+    variance per axis, estimated from the residuals ``r_i = dst_i - (scale R src_i + t)``
+    as ``sigma^2 = sum |r_i|^2 / (2 N - p)`` (``p`` = 3 parameters, 4 with a scale other
+    than 1), the fitted rotation angle has variance ``sigma^2 / S`` with ``S = sum |src_i -
+    mean(src)|^2``, and the point the fit maps the origin of ``src`` to (``t``: the camera's
+    own position when the points are centred on the optical axis) has a total variance over
+    both axes of ``2 sigma^2 / N + |mean(src)|^2 sigma^2 / S`` (the centroid's error plus the
+    rotation's error carried over the lever arm from the centroid to the origin; twice the
+    second term with a scale, whose relative error has the angle's variance).
+
+    ``src``, ``dst``: (N, 2) matched points, N >= 3 (not all at one point); ``R`` (2, 2),
+    ``t`` (2,): the fit. Returns ``(sigma_origin, sigma_angle_rad)``: the first in the unit of
+    the points. Real matching errors are not independent (a keypoint's error is shared by
+    its neighbours under the same light), so the true error is often 2-4 times these.
+    """
+    a = np.asarray(src, dtype=float).reshape(-1, 2)
+    b = np.asarray(dst, dtype=float).reshape(-1, 2)
+    n = len(a)
+    p = 3 if scale == 1.0 else 4
+    if n < 3 or len(b) != n:
+        raise ValueError(f"rigid_fit_precision: need two (N, 2) arrays with N >= 3, got {a.shape} and {b.shape}")
+    r = b - (float(scale) * a @ np.asarray(R, dtype=float).T + np.asarray(t, dtype=float).reshape(2))
+    var = float(np.sum(r**2)) / max(2 * n - p, 1)
+    mu = a.mean(axis=0)
+    spread = float(np.sum((a - mu) ** 2))
+    if spread <= 0.0:
+        return float("inf"), float("inf")
+    var_angle = var / spread  # the relative scale, when fitted, has the same variance
+    lever = float(mu @ mu) * var_angle * (p - 2)
+    return float(np.sqrt(2.0 * var / n + lever)), float(np.sqrt(var_angle))
 
 
 # ----------------------------------------------------------------------------- pixels <-> floor

@@ -194,3 +194,61 @@ def test_every_mono_estimator_honours_the_whole_camera_model(distorted_sequences
     for r, T in zip(results[1:], truth):
         e_t, e_yaw = _step_error(r.T_prev_cur, T)
         assert e_t < 0.005 and e_yaw < 0.01, (e_t, e_yaw)
+
+
+@pytest.mark.parametrize("name", ["akaze-guided", "akaze-bruteforce"])
+def test_imprecise_fit_is_lost_a_precise_one_kept(name):
+    """The precision check of an AKAZE step: 60 matched pairs of a 4 mm step with 0.5 px of
+    seeded noise. Spread over the frame they locate the yaw to 0.03 degrees: the step is
+    ok. Crowded into a 40 px patch 250 px from the centre they pass every other check (RMS
+    0.7 px, all agree, one motion) but leave the yaw and the camera's displacement (over the
+    lever arm) uncertain beyond the bound: the step is lost, with the reason."""
+    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0)
+    rng = np.random.default_rng(3)
+    centre = np.array([CAM.cx_px, CAM.cy_px])
+    M_true = np.array([[1.0, 0.0, -32.4], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # 4 mm along x
+    for spread_px, offset_px, ok in [(400.0, 0.0, True), (40.0, 250.0, False)]:
+        src = centre + np.array([offset_px, 0.0]) + rng.uniform(-spread_px / 2, spread_px / 2, (60, 2))
+        dst = est._predict(M_true, src) + rng.normal(0.0, 0.5, src.shape)
+        fit = est._fit(src, dst, M_true)
+        if ok:
+            assert fit.problem == "", fit.problem
+        else:
+            assert fit.problem.startswith("imprecise fit"), fit.problem
+    # Without the check (precision_sigmas = 0) the crowded pairs were reported ok.
+    est0 = get_estimator(name)(make_config(name, {"precision_sigmas": "0"}), CAM, height_mm=100.0)
+    assert est0._fit(src, dst, M_true).problem == ""
+
+
+def test_phase_corr_blocks_that_disagree_on_the_yaw_are_lost(tmp_path):
+    """The four blocks of phase-corr's crop see the 4 mm step each shifted by 1.3 px more in
+    x, in a pattern no rotation, scale or shift explains (+, -, -, + from the top left): the
+    largest block residual (1.3 px) passes ``max_residual_px`` (1.5), so the step was
+    reported ok with a yaw the blocks do not agree on. The yaw's standard error from the
+    blocks' residual is 0.28 degrees: the step is lost with the reason."""
+    from tests.floorvo._synth import floor_texture, pixel_motion, view
+
+    tex = floor_texture(int(2.2 * CAM.width_px), 0)
+    T_prev_cur = invert_T(T_world_cam_down(0.0, 0.0, 100.0)) @ T_world_cam_down(4.0, 0.0, 100.0)
+    M = pixel_motion(T_prev_cur, CAM, 100.0)
+    prev = view(tex, CAM, np.eye(3))
+    parts = {}
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            extra = np.eye(3)
+            extra[0, 2] = 1.3 * sx * sy  # + top left and bottom right, - the others
+            parts[sx, sy] = view(tex, CAM, extra @ M)
+    u, v = np.meshgrid(np.arange(CAM.width_px), np.arange(CAM.height_px))
+    cur = np.where(
+        v < CAM.cy_px,
+        np.where(u < CAM.cx_px, parts[-1, -1], parts[1, -1]),
+        np.where(u < CAM.cx_px, parts[-1, 1], parts[1, 1]),
+    )
+    frames = [np.clip(np.round(f / np.percentile(prev, 99.5) * 200.0), 0, 255).astype(np.uint8) for f in (prev, cur)]
+    for name, overrides, status in [("phase-corr", {}, "lost"), ("phase-corr", {"max_yaw_sigma_deg": "10"}, "ok")]:
+        est = get_estimator(name)(make_config(name, overrides), CAM, height_mm=100.0)
+        state = est.start()
+        res = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+        assert res[1].status == status, res[1].reason
+        if status == "lost":
+            assert res[1].reason.startswith("imprecise yaw"), res[1].reason

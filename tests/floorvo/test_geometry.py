@@ -20,6 +20,7 @@ from floorvo.geometry import (
     pixels_to_floor_mm,
     planar_T,
     rigid_fit,
+    rigid_fit_precision,
     rigid_fit_robust,
     rot_z,
     umeyama,
@@ -283,3 +284,41 @@ def test_consensus_problem_names_a_thin_consensus_and_a_second_motion():
     assert consensus_problem(src, dst, np.arange(100) < 15, 1.0, **kw) == (
         "only 15 % of 100 matches agree with the homography (needs 20 %)"
     )
+
+
+@pytest.mark.parametrize("with_scale", [False, True])
+def test_rigid_fit_precision_matches_the_spread_of_fits_over_noise_draws(with_scale):
+    """The standard errors of a 2-D fit, from one draw's residuals, against the spread of the
+    fitted angle and of the origin's image over 2000 seeded noise draws (independent truth).
+
+    Twelve points off-centre (the origin is outside their hull: the rotation's error moves
+    the origin's image by the lever arm), 0.7 px of Gaussian noise on each axis."""
+    rng = np.random.default_rng(5)
+    src = rng.uniform(-60.0, 60.0, (12, 2)) + np.array([90.0, -40.0])
+    R, t, s = rot_z(0.1)[:2, :2], np.array([30.0, -4.0]), (1.01 if with_scale else 1.0)
+    angles, origins, sig_t, sig_a = [], [], [], []
+    for _ in range(2000):
+        dst = s * src @ R.T + t + rng.normal(0.0, 0.7, src.shape)
+        Rf, tf, sf = umeyama(src, dst, with_scale=with_scale)
+        angles.append(np.arctan2(Rf[1, 0], Rf[0, 0]))
+        origins.append(tf)
+        st, sa = rigid_fit_precision(src, dst, Rf, tf, scale=sf)
+        sig_t.append(st)
+        sig_a.append(sa)
+    spread_angle = float(np.std(angles))
+    spread_origin = float(np.sqrt(np.sum(np.var(np.array(origins), axis=0))))
+    assert np.sqrt(np.mean(np.square(sig_a))) == pytest.approx(spread_angle, rel=0.1)
+    assert np.sqrt(np.mean(np.square(sig_t))) == pytest.approx(spread_origin, rel=0.1)
+    # The lever arm matters: the origin's error is well above the centroid's alone.
+    assert spread_origin > 1.5 * np.sqrt(2 * 0.7**2 / 12)
+
+
+def test_rigid_fit_precision_exact_pairs_and_bad_input():
+    src = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0], [10.0, 10.0]])
+    R, t = rot_z(0.2)[:2, :2], np.array([1.0, 2.0])
+    assert rigid_fit_precision(src, src @ R.T + t, R, t) == pytest.approx((0.0, 0.0), abs=1e-12)
+    with pytest.raises(ValueError, match="N >= 3"):
+        rigid_fit_precision(src[:2], src[:2], R, t)
+    # All points at one place: the angle is not observed.
+    same = np.zeros((4, 2))
+    assert rigid_fit_precision(same, same, np.eye(2), np.zeros(2)) == (float("inf"), float("inf"))

@@ -34,7 +34,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
-from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit
+from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
 from floorvo.imaging import illumination_corrected
 
 __all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
@@ -49,7 +49,11 @@ class PhaseCorrConfig(Config):
     phase-correlation peak (0..1) accepted; ``max_residual_px``: largest block disagreement
     with the rigid fit; ``low_freq_fraction``: frequencies used for the sub-pixel phase fit;
     ``exact_yaw_max_deg``: up to this yaw per frame the last round is measured without an
-    interpolating warp (exact), above it through a rotating warp."""
+    interpolating warp (exact), above it through a rotating warp; ``max_yaw_sigma_deg``: the
+    standard error of the yaw the blocks' shifts leave (their residual from a similarity fit,
+    :func:`floorvo.geometry.rigid_fit_precision`; the scale absorbs a height change) must be
+    at most this: four blocks that disagree by a fraction of a pixel each passed
+    ``max_residual_px`` with a yaw 0.3-0.4 degrees off (BENCHMARKS.md, "Wrong steps reported ok")."""
 
     crop_px: int = param(384, unit="px", min=32, max=4096, doc="side of the central square crop that is correlated")
     margin_px: int = param(
@@ -64,6 +68,12 @@ class PhaseCorrConfig(Config):
     )
     exact_yaw_max_deg: float = param(
         1.0, unit="deg", min=0.0, max=45.0, doc="up to this yaw per frame the last round has no interpolating warp"
+    )
+    max_yaw_sigma_deg: float = param(
+        0.2,
+        unit="deg",
+        gt=0.0,
+        doc="largest standard error of the yaw, from the block shifts' residual (a similarity fit): larger is lost",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     predict: bool = param(True, doc="start each frame from the last motion")
@@ -268,25 +278,22 @@ class PhaseCorr:
             state.prev_crop = crop
             return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
-        M, min_peak, resid = self._measure(state, cur, M0)
-        if self._failed(min_peak, resid) and not np.array_equal(M0, np.eye(3)):
-            M, min_peak, resid = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
+        M, min_peak, resid, yaw_sigma = self._measure(state, cur, M0)
+        if self._failed(min_peak, resid, yaw_sigma) and not np.array_equal(M0, np.eye(3)):
+            M, min_peak, resid, yaw_sigma = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
-        if self._failed(min_peak, resid):
+        problem = self._problem(min_peak, resid, yaw_sigma)
+        if problem:
             # Lost: the next frame is measured against the last good one, from no prediction;
             # after restart_after_lost such frames the current one becomes the reference (the
             # motion over the gap is unknown, and the gap shows in the run).
             state.M_pred = np.eye(3)
             state.n_lost += 1
-            why = (
-                f"weak correlation peak {min_peak:.3f}"
-                if min_peak < self.config.min_peak
-                else f"blocks disagree by {resid:.2f} px"
-            )
+            why = problem
             if state.n_lost >= self.config.restart_after_lost:
                 state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
                 why += f"; {RESTART_NOTE}"
@@ -302,13 +309,24 @@ class PhaseCorr:
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
 
-    def _failed(self, min_peak: float, resid: float) -> bool:
-        return min_peak < self.config.min_peak or resid > self.config.max_residual_px
+    def _failed(self, min_peak: float, resid: float, yaw_sigma_deg: float) -> bool:
+        return bool(self._problem(min_peak, resid, yaw_sigma_deg))
 
-    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, float, float]:
+    def _problem(self, min_peak: float, resid: float, yaw_sigma_deg: float) -> str:
+        """Why a measured step cannot be trusted ('' when it can)."""
+        cfg = self.config
+        if min_peak < cfg.min_peak:
+            return f"weak correlation peak {min_peak:.3f}"
+        if resid > cfg.max_residual_px:
+            return f"blocks disagree by {resid:.2f} px"
+        if yaw_sigma_deg > cfg.max_yaw_sigma_deg:
+            return f"imprecise yaw: standard error {yaw_sigma_deg:.2f} deg > {cfg.max_yaw_sigma_deg:g}"
+        return ""
+
+    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, float, float, float]:
         """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px) from a start value.
 
-        Returns ``(M, lowest block peak, largest block residual px)``.
+        Returns ``(M, lowest block peak, largest block residual px, standard error of the yaw deg)``.
         """
         assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
@@ -318,7 +336,7 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M)
             d, _ = block_shift(self.sp_crop.spectrum(state.prev_crop), self.sp_crop.spectrum(w), self.sp_crop)
             M = M @ _translation(d)
-        min_peak, resid = 0.0, np.inf
+        min_peak, resid, yaw_sigma_deg = 0.0, np.inf, np.inf
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         for _ in range(cfg.iterations):
             # Warp by whole pixels only: OpenCV quantises interpolated sample positions to
@@ -339,6 +357,12 @@ class PhaseCorr:
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(self.block_centres @ R2.T + t2 - self.block_centres - shifts).max())
             min_peak = float(min(peaks))
+            # The yaw's precision from the blocks' agreement; a similarity fit, so that the
+            # scale change of a height bounce is not counted as disagreement.
+            Rs, ts, sc = umeyama(self.block_centres, self.block_centres + shifts, with_scale=True)
+            yaw_sigma_deg = float(
+                np.degrees(rigid_fit_precision(self.block_centres, self.block_centres + shifts, Rs, ts, scale=sc)[1])
+            )
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
@@ -349,7 +373,7 @@ class PhaseCorr:
             M = M_new
             if same_warp:
                 break
-        return M, min_peak, resid
+        return M, min_peak, resid, yaw_sigma_deg
 
 
 def _square_pinhole(camera: CameraModel) -> CameraModel:
