@@ -28,15 +28,29 @@ CAM_FULL = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm
 PRESETS = {
     "akaze-guided-fast": (
         "akaze-guided",
-        {"n_octaves": 1, "n_octave_layers": 1, "upright": True, "akaze_threshold": 0.001, "max_keypoints": 600},
+        {
+            "n_octaves": 1,
+            "n_octave_layers": 1,
+            "upright": True,
+            "akaze_threshold": 0.001,
+            "max_keypoints": 600,
+            "describe_kept_only": True,
+        },
         (0.03, 0.05),
     ),
     "akaze-bruteforce-fast": (
         "akaze-bruteforce",
-        {"n_octaves": 1, "n_octave_layers": 1, "upright": True, "akaze_threshold": 0.001, "max_keypoints": 600},
+        {
+            "n_octaves": 1,
+            "n_octave_layers": 1,
+            "upright": True,
+            "akaze_threshold": 0.001,
+            "max_keypoints": 600,
+            "describe_kept_only": True,
+        },
         (0.03, 0.05),
     ),
-    "orb-icp-fast": ("orb-icp", {"n_levels": 1}, (0.03, 0.05)),
+    "orb-icp-fast": ("orb-icp", {"n_levels": 1, "per_cell": 15}, (0.03, 0.05)),
     "stereo-sift-fast": ("stereo-sift", {"detect_scale": 0.5}, (0.05, 0.05)),
 }
 
@@ -133,3 +147,20 @@ def test_with_defaults_changes_defaults_only():
         with_defaults(_Probe, "Bad", count=-1)  # a default breaking the rule is refused
     with pytest.raises(TypeError, match="no field 'colour'"):
         with_defaults(_Probe, "Bad", colour=1)
+
+
+def test_describing_the_kept_keypoints_only_gives_the_same_features():
+    """``describe_kept_only`` (the AKAZE presets) describes only the ``max_keypoints`` strongest
+    keypoints: the same keypoints and bit-identical descriptors as describing all of them and
+    keeping the strongest, on a synthetic floor frame with more keypoints than kept."""
+    prev, _, flat = frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))
+    both = {}
+    for kept_only in (False, True):
+        cfg = make_config("akaze-guided-fast", {"describe_kept_only": str(kept_only).lower()})
+        est = get_estimator("akaze-guided-fast")(cfg, CAM_FULL, height_mm=100.0, flatfield=flat)
+        both[kept_only] = est._detect(prev)
+    (pts_all, desc_all), (pts_kept, desc_kept) = both[False], both[True]
+    assert len(pts_all) == 600
+    order_all, order_kept = np.lexsort(pts_all.T), np.lexsort(pts_kept.T)
+    assert np.array_equal(pts_all[order_all], pts_kept[order_kept])
+    assert np.array_equal(desc_all[order_all], desc_kept[order_kept])
