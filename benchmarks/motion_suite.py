@@ -13,6 +13,17 @@ lost frames, end drift in % of the path, frames per second (from the mean total
 time per frame of the run, one core) and the lost frames per kind of reason. With
 ``--from-cache DIR`` the suite's scenes are not rendered: the newest ``DIR/SCENE-*`` sequence
 of each (a bench's render cache) is benched as it is.
+
+``--calibrate`` (issue 14 item 1: the suite's drift after a per-material scale calibration):
+for each floor material of the suite, the shipped straight run over it
+(``scenes/material_MATERIAL.toml``: the paper-000 rig, 100 mm along x at 4 mm/frame; from
+``--from-cache`` when it holds one, else rendered at ``--scale``) is run by every estimator
+and :func:`floorvo.calibration.calibrate_run` fits that estimator's scale on it
+(``OUT/calibration/ESTIMATOR--MATERIAL.json``); the suite's scenes over that material are
+then run again with it (:func:`floorsim.bench.run_bench`'s ``scale_calibrations``), and the
+table gains the calibrated end drift, the scale fitted and the calibrated wrong-ok count. A
+straight run along x observes the x scale only (the y scale stays 1); an estimator that
+loses its calibration run (the featureless floor) runs uncalibrated, and the table says so.
 """
 
 from __future__ import annotations
@@ -29,7 +40,9 @@ import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
 from floorsim.bench.suites import suite_scenes  # noqa: E402
-from floorsim.scene import load_scene  # noqa: E402
+from floorsim.scene import load_scene, resolve_scene_path  # noqa: E402
+from floorvo.calibration import SCALE_RANGE, calibrate_run, save_scale_calibration  # noqa: E402
+from floorvo.errors import FloorbenchError  # noqa: E402
 
 
 def _fmt(v, digits: int = 3) -> str:
@@ -49,37 +62,36 @@ def main() -> None:
     ap.add_argument("--estimators", default="akaze-guided,akaze-bruteforce,phase-corr")
     ap.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/sequences)")
     ap.add_argument("--from-cache", type=Path, default=None, help="bench the newest DIR/SCENE-* sequence of each scene")
+    ap.add_argument(
+        "--calibrate", action="store_true", help="also run each scene with a per-material scale calibration"
+    )
     ap.add_argument("-o", "--output", type=Path, required=True)
     args = ap.parse_args()
     cv2.setNumThreads(1)
+    estimators = [e.strip() for e in args.estimators.split(",") if e.strip()]
     scenes: list[Path] = suite_scenes(args.suite)
-    names = [load_scene(p).name for p in scenes]
+    loaded = [load_scene(p) for p in scenes]
+    names = [sc.name for sc in loaded]
+    material_of = {n: sc.floor.material for n, sc in zip(names, loaded)}
     if args.from_cache is not None:
-        found = []
-        for n in names:
-            cands = sorted(args.from_cache.glob(f"{n}-*"), key=lambda p: p.stat().st_mtime)
-            cands = [c for c in cands if (c / "bench-cache.json").is_file()]
-            if not cands:
-                raise SystemExit(f"--from-cache {args.from_cache}: no finished sequence of scene {n}")
-            found.append(cands[-1])
-        scenes = found
-    res = run_bench(
-        scenes,
-        [e.strip() for e in args.estimators.split(",") if e.strip()],
-        args.output,
-        scale=args.scale,
-        cache_dir=args.cache,
-        report=True,
-    )
+        scenes = [_cached(args.from_cache, n) or _no_cache(args.from_cache, n) for n in names]
+    res = run_bench(scenes, estimators, args.output, scale=args.scale, cache_dir=args.cache, report=True)
+    calibrated: dict[tuple[str, str], dict] = {}
+    scales: dict[tuple[str, str], str] = {}
+    if args.calibrate:
+        calibrated, scales = _calibrated_rows(args, scenes, names, material_of, estimators)
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %", "frames/s"]
+    if args.calibrate:
+        cols += ["scale x (material)", "calibrated end drift %", "calibrated wrong ok, footprint"]
     cols.append("lost frames by reason")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in res.rows:
         lost = int(float(r.get("lost_frames", 0) or 0))
         steps = _steps(r)
+        scene = _scene_name(r)
         cells = [
-            re.sub(r"-[0-9a-f]{12}$", "", str(r["scene"])),  # a cached sequence's folder: NAME-HASH
+            scene,
             r["estimator"],
             str(steps),
             str(steps - lost) if steps else "-",
@@ -88,11 +100,82 @@ def main() -> None:
             str(lost),
             _fmt(r.get("end_drift_pct")),
             _fmt(r.get("fps"), 1),
-            str(r.get("lost_reasons") or "") if str(r.get("status")) == "ok" else str(r.get("status")),
         ]
+        if args.calibrate:
+            c = calibrated.get((scene, r["estimator"]), {})
+            cells += [
+                scales.get((material_of[scene], r["estimator"]), "-"),
+                _fmt(c.get("end_drift_pct")),
+                _fmt(c.get("wrong_ok_steps_footprint"), 0),
+            ]
+        cells.append(str(r.get("lost_reasons") or "") if str(r.get("status")) == "ok" else str(r.get("status")))
         print("| " + " | ".join(cells) + " |")
     print(f"\nmachine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     print(f"results: {res.results_csv}; report: {res.report_html}")
+
+
+def _cached(cache: Path, name: str) -> Path | None:
+    """The newest finished ``CACHE/NAME-*`` sequence of a bench's render cache, or None."""
+    cands = sorted(cache.glob(f"{name}-*"), key=lambda p: p.stat().st_mtime)
+    cands = [c for c in cands if (c / "bench-cache.json").is_file()]
+    return cands[-1] if cands else None
+
+
+def _no_cache(cache: Path, name: str) -> Path:
+    raise SystemExit(f"--from-cache {cache}: no finished sequence of scene {name}")
+
+
+def _scene_name(row) -> str:
+    return re.sub(r"-[0-9a-f]{12}$", "", str(row["scene"]))  # a cached sequence's folder: NAME-HASH
+
+
+def _calibrated_rows(args, scenes, names, material_of, estimators):
+    """Fit each estimator's scale per material on the material's straight run, then run the
+    suite's scenes again with it. Returns ``({(scene, estimator): row}, {(material, estimator): 'scale (material)'})``."""
+    out = args.output / "calibration"
+    materials = sorted(set(material_of.values()))
+    cal_scenes = []
+    for m in materials:
+        shipped = resolve_scene_path(f"material_{m}")
+        cached = _cached(args.from_cache, f"material_{m}") if args.from_cache is not None else None
+        cal_scenes.append(cached or shipped)
+    cal = run_bench(cal_scenes, estimators, out / "runs", scale=args.scale, cache_dir=args.cache, report=False)
+    files: dict[tuple[str, str], Path] = {}
+    scales: dict[tuple[str, str], str] = {}
+    for r in cal.rows:
+        m = _scene_name(r).removeprefix("material_")
+        key = (m, r["estimator"])
+        try:
+            c = calibrate_run(r["run_dir"], r["sequence"])
+        except FloorbenchError as exc:  # the run tracked too little (a featureless floor)
+            scales[key] = f"none ({str(exc)[:40]})"
+            continue
+        if not all(SCALE_RANGE[0] <= v <= SCALE_RANGE[1] for v in (c.scale_x, c.scale_y)):
+            # floorvo refuses such a file: a scale that far from 1 is a broken run, not a rig's scale
+            scales[key] = f"none (fitted {c.scale_x:.3f}: a broken run)"
+            continue
+        f = out / f"{r['estimator']}--{m}.json"
+        save_scale_calibration(c, f)
+        files[key] = f
+        scales[key] = f"{c.scale_x:.4f}"
+    rows: dict[tuple[str, str], dict] = {}
+    for m in materials:
+        group = [p for p, n in zip(scenes, names) if material_of[n] == m]
+        with_cal = [e for e in estimators if (m, e) in files]
+        if not group or not with_cal:
+            continue
+        res = run_bench(
+            group,
+            with_cal,
+            out / f"suite-{m}",
+            scale=args.scale,
+            cache_dir=args.cache,
+            report=False,
+            scale_calibrations={e: files[(m, e)] for e in with_cal},
+        )
+        for r in res.rows:
+            rows[(_scene_name(r), r["estimator"])] = r
+    return rows, scales
 
 
 def _steps(row) -> int:
