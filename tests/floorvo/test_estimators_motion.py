@@ -224,8 +224,9 @@ def test_phase_corr_blocks_that_disagree_on_the_yaw_are_lost(tmp_path):
     """The four blocks of phase-corr's crop see the 4 mm step each shifted by 1.3 px more in
     x, in a pattern no rotation, scale or shift explains (+, -, -, + from the top left): the
     largest block residual (1.3 px) passes ``max_residual_px`` (1.5), so the step was
-    reported ok with a yaw the blocks do not agree on. The yaw's standard error from the
-    blocks' residual is 0.28 degrees: the step is lost with the reason."""
+    reported ok with a yaw the blocks do not agree on. They disagree by 1.3 px RMS, beyond
+    their own precision (``block_precision_px`` 0.5), and leave the yaw a standard error of
+    0.28 degrees: the step is lost with the reason."""
     from tests.floorvo._synth import floor_texture, pixel_motion, view
 
     tex = floor_texture(int(2.2 * CAM.width_px), 0)

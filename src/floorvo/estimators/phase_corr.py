@@ -49,11 +49,14 @@ class PhaseCorrConfig(Config):
     phase-correlation peak (0..1) accepted; ``max_residual_px``: largest block disagreement
     with the rigid fit; ``low_freq_fraction``: frequencies used for the sub-pixel phase fit;
     ``exact_yaw_max_deg``: up to this yaw per frame the last round is measured without an
-    interpolating warp (exact), above it through a rotating warp; ``max_yaw_sigma_deg``: the
-    standard error of the yaw the blocks' shifts leave (their residual from a similarity fit,
-    :func:`floorvo.geometry.rigid_fit_precision`; the scale absorbs a height change) must be
-    at most this: four blocks that disagree by a fraction of a pixel each passed
-    ``max_residual_px`` with a yaw 0.3-0.4 degrees off (BENCHMARKS.md, "Wrong steps reported ok")."""
+    interpolating warp (exact), above it through a rotating warp; ``max_yaw_sigma_deg``: when
+    the blocks' shifts disagree beyond ``block_precision_px`` RMS (their residual from a
+    similarity fit: the scale absorbs a height change), the standard error of the yaw they
+    leave (:func:`floorvo.geometry.rigid_fit_precision`) must be at most this: four blocks
+    disagreeing by 0.7-0.9 px RMS passed ``max_residual_px`` with a yaw 0.3-0.4 degrees off
+    (BENCHMARKS.md, "Wrong steps reported ok"). Below ``block_precision_px`` the blocks agree
+    as well as their shifts are measured, and small frames (blocks close together) keep
+    their steps."""
 
     crop_px: int = param(384, unit="px", min=32, max=4096, doc="side of the central square crop that is correlated")
     margin_px: int = param(
@@ -74,6 +77,12 @@ class PhaseCorrConfig(Config):
         unit="deg",
         gt=0.0,
         doc="largest standard error of the yaw, from the block shifts' residual (a similarity fit): larger is lost",
+    )
+    block_precision_px: float = param(
+        0.5,
+        unit="px",
+        min=0.0,
+        doc="blocks agreeing within this RMS (a similarity fit) are within their own precision: yaw not checked",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     predict: bool = param(True, doc="start each frame from the last motion")
@@ -278,15 +287,15 @@ class PhaseCorr:
             state.prev_crop = crop
             return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
-        M, min_peak, resid, yaw_sigma = self._measure(state, cur, M0)
-        if self._failed(min_peak, resid, yaw_sigma) and not np.array_equal(M0, np.eye(3)):
-            M, min_peak, resid, yaw_sigma = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
+        M, min_peak, resid, yaw = self._measure(state, cur, M0)
+        if self._failed(min_peak, resid, yaw) and not np.array_equal(M0, np.eye(3)):
+            M, min_peak, resid, yaw = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
-        problem = self._problem(min_peak, resid, yaw_sigma)
+        problem = self._problem(min_peak, resid, yaw)
         if problem:
             # Lost: the next frame is measured against the last good one, from no prediction;
             # after restart_after_lost such frames the current one becomes the reference (the
@@ -309,24 +318,32 @@ class PhaseCorr:
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
 
-    def _failed(self, min_peak: float, resid: float, yaw_sigma_deg: float) -> bool:
-        return bool(self._problem(min_peak, resid, yaw_sigma_deg))
+    def _failed(self, min_peak: float, resid: float, yaw: tuple[float, float]) -> bool:
+        return bool(self._problem(min_peak, resid, yaw))
 
-    def _problem(self, min_peak: float, resid: float, yaw_sigma_deg: float) -> str:
-        """Why a measured step cannot be trusted ('' when it can)."""
+    def _problem(self, min_peak: float, resid: float, yaw: tuple[float, float]) -> str:
+        """Why a measured step cannot be trusted ('' when it can). ``yaw``: the blocks' RMS
+        residual from a similarity fit (px) and the standard error of the yaw it leaves (deg)."""
         cfg = self.config
         if min_peak < cfg.min_peak:
             return f"weak correlation peak {min_peak:.3f}"
         if resid > cfg.max_residual_px:
             return f"blocks disagree by {resid:.2f} px"
-        if yaw_sigma_deg > cfg.max_yaw_sigma_deg:
-            return f"imprecise yaw: standard error {yaw_sigma_deg:.2f} deg > {cfg.max_yaw_sigma_deg:g}"
+        block_rms_px, yaw_sigma_deg = yaw
+        if block_rms_px > cfg.block_precision_px and yaw_sigma_deg > cfg.max_yaw_sigma_deg:
+            return (
+                f"imprecise yaw: blocks disagree by {block_rms_px:.2f} px RMS, "
+                f"standard error {yaw_sigma_deg:.2f} deg > {cfg.max_yaw_sigma_deg:g}"
+            )
         return ""
 
-    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, float, float, float]:
+    def _measure(
+        self, state: _State, cur: np.ndarray, M: np.ndarray
+    ) -> tuple[np.ndarray, float, float, tuple[float, float]]:
         """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px) from a start value.
 
-        Returns ``(M, lowest block peak, largest block residual px, standard error of the yaw deg)``.
+        Returns ``(M, lowest block peak, largest block residual px, (blocks' RMS residual px from a
+        similarity fit, standard error of the yaw deg))``.
         """
         assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
@@ -336,7 +353,7 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M)
             d, _ = block_shift(self.sp_crop.spectrum(state.prev_crop), self.sp_crop.spectrum(w), self.sp_crop)
             M = M @ _translation(d)
-        min_peak, resid, yaw_sigma_deg = 0.0, np.inf, np.inf
+        min_peak, resid, yaw = 0.0, np.inf, (np.inf, np.inf)
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         for _ in range(cfg.iterations):
             # Warp by whole pixels only: OpenCV quantises interpolated sample positions to
@@ -360,9 +377,9 @@ class PhaseCorr:
             # The yaw's precision from the blocks' agreement; a similarity fit, so that the
             # scale change of a height bounce is not counted as disagreement.
             Rs, ts, sc = umeyama(self.block_centres, self.block_centres + shifts, with_scale=True)
-            yaw_sigma_deg = float(
-                np.degrees(rigid_fit_precision(self.block_centres, self.block_centres + shifts, Rs, ts, scale=sc)[1])
-            )
+            moved = self.block_centres + shifts
+            rms = float(np.sqrt(np.mean(np.sum((moved - sc * self.block_centres @ Rs.T - ts) ** 2, axis=1))))
+            yaw = (rms, float(np.degrees(rigid_fit_precision(self.block_centres, moved, Rs, ts, scale=sc)[1])))
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
@@ -373,7 +390,7 @@ class PhaseCorr:
             M = M_new
             if same_warp:
                 break
-        return M, min_peak, resid, yaw_sigma_deg
+        return M, min_peak, resid, yaw
 
 
 def _square_pinhole(camera: CameraModel) -> CameraModel:
