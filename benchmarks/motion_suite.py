@@ -147,8 +147,8 @@ def _calibrated_rows(args, scenes, names, material_of, estimators):
         key = (m, r["estimator"])
         try:
             c = calibrate_run(r["run_dir"], r["sequence"])
-        except FloorbenchError as exc:  # the run tracked too little (a featureless floor)
-            scales[key] = f"none ({str(exc)[:40]})"
+        except FloorbenchError:  # the run tracked too little (a featureless floor)
+            scales[key] = "none (calibration run lost)"
             continue
         if not all(SCALE_RANGE[0] <= v <= SCALE_RANGE[1] for v in (c.scale_x, c.scale_y)):
             # floorvo refuses such a file: a scale that far from 1 is a broken run, not a rig's scale
