@@ -1,0 +1,122 @@
+"""Every step an estimator reports ok that is wrong, dumped: the step, the pairs behind it, their errors.
+
+    .venv/bin/python benchmarks/wrong_steps.py SEQ --estimator akaze-guided                  # the wrong ok steps
+    .venv/bin/python benchmarks/wrong_steps.py SEQ --estimator akaze-guided --all --set precision_sigmas=0
+
+Issue 14: a step reported ok must not be off by more than 0.05 mm + 2 % of the true step
+or 0.3 degrees (:func:`floorvo.metrics.wrong_steps`). This runs the estimator frame by
+frame over the sequence folder SEQ (OpenCV on one thread) and compares each ok step with
+the true planar step of the camera's footprint (:func:`floorvo.geometry.footprint_T`: what a
+planar mono estimator can see; the 6-DoF step on a run without tilt or bounce), measured
+from the frame the estimator measured it from (the last tracked one, or the frame it
+restarted on). For each wrong step (each step with ``--all``) one line gives the true and
+measured step, the error, the estimator's counts and reason, and, for an estimator that
+reports the pairs behind its fit (``StepResult.matches_px``): their number, the standard
+errors the fit's residual leaves the step
+(:func:`floorvo.geometry.rigid_fit_precision`, in mm and degrees, and as a fraction of the
+bound) and each pair's distance from where the true motion puts it (the floor plane at the
+camera height carried by the true step; exact without tilt) - the median, the 90th
+percentile and how many are over 2 px. Which self-check should have caught the step reads
+from these: wrong matches (pairs far from the truth), too few or imprecise pairs (large
+standard errors), or a precise but biased fit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from floorvo.config import parse_set_args  # noqa: E402
+from floorvo.estimators.base import RESTART_NOTE  # noqa: E402
+from floorvo.geometry import (  # noqa: E402
+    footprint_T,
+    invert_T,
+    pixels_to_floor_mm,
+    rigid_fit,
+    rigid_fit_precision,
+    yaw_of_R,
+)
+from floorvo.metrics import WRONG_STEP_DEG, WRONG_STEP_FRACTION, WRONG_STEP_MM, step_errors, wrong_steps  # noqa: E402
+from floorvo.run import build_estimator  # noqa: E402
+from floorvo.runner import sequence_frames  # noqa: E402
+from floorvo.sequence import Sequence  # noqa: E402
+
+
+def pair_report(matches_px: np.ndarray, est, T_true: np.ndarray, step_mm: float) -> str:
+    """The pairs ``matches_px`` (K, 4: u, v previous; u, v current) against the true step ``T_true`` (4, 4) mm."""
+    src, dst = matches_px[:, :2], matches_px[:, 2:]
+    h = est.height_mm
+    q_prev = pixels_to_floor_mm(src, est.camera, h)
+    q_cur = pixels_to_floor_mm(dst, est.camera, h)
+    R, t = rigid_fit(q_prev, q_cur)
+    sig_mm, sig_rad = rigid_fit_precision(q_prev, q_cur, R, t)
+    bound = WRONG_STEP_MM + WRONG_STEP_FRACTION * step_mm
+    P = np.column_stack([q_prev, np.full(len(q_prev), h), np.ones(len(q_prev))])
+    true_px = est.camera.project((invert_T(T_true) @ P.T).T[:, :3])
+    err = np.linalg.norm(dst - true_px, axis=1)
+    return (
+        f"{len(src)} pairs; standard errors {sig_mm:.3f} mm ({sig_mm / bound:.2f} of the bound), "
+        f"{np.degrees(sig_rad):.3f} deg; pair error vs truth px: median {np.median(err):.2f}, "
+        f"p90 {np.percentile(err, 90):.2f}, > 2 px {int(np.sum(err > 2))}"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("sequence", type=Path)
+    ap.add_argument("--estimator", required=True)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an estimator config key")
+    ap.add_argument("--all", action="store_true", help="every ok step, not only the wrong ones")
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    seq = Sequence.open(args.sequence)
+    est, _ = build_estimator(seq, args.estimator, parse_set_args(args.set))
+    gt = seq.groundtruth()
+    if gt is None:
+        raise SystemExit(f"{args.sequence}: no groundtruth.txt to compare with")
+    T_gt = footprint_T(gt[1], float(np.median(gt[1][:, 2, 3])))
+    state = est.start()
+    ref: int | None = None
+    n_ok = n_wrong = n_lost = 0
+    for frame in sequence_frames(seq, range(seq.frame_count), getattr(est, "requires", ())):
+        res = est.step(state, frame)
+        i = frame.index
+        if res.status == "init":
+            ref = i
+            continue
+        if res.status != "ok" or ref is None or res.T_prev_cur is None:
+            n_lost += res.status == "lost"
+            if RESTART_NOTE in res.reason:
+                ref = i
+            continue
+        n_ok += 1
+        T_true = invert_T(T_gt[ref]) @ T_gt[i]
+        e = step_errors(np.stack([np.eye(4), T_true]), np.stack([np.eye(4), res.T_prev_cur]))
+        wrong = bool(wrong_steps(e)[0])
+        n_wrong += wrong
+        if wrong or args.all:
+            step = float(e["step_mm"][0])
+            line = (
+                f"{'WRONG' if wrong else 'ok   '} frame {ref} -> {i}: true {step:.3f} mm, "
+                f"{np.degrees(yaw_of_R(T_true[:3, :3])):.2f} deg; measured "
+                f"{float(np.linalg.norm(res.T_prev_cur[:3, 3])):.3f} mm, "
+                f"{np.degrees(yaw_of_R(res.T_prev_cur[:3, :3])):.2f} deg; error {float(e['trans_mm'][0]):.3f} mm, "
+                f"{float(e['rot_deg'][0]):.3f} deg (bound {WRONG_STEP_MM + WRONG_STEP_FRACTION * step:.3f} mm, "
+                f"{WRONG_STEP_DEG} deg) | keypoints {res.n_keypoints}, matches {res.n_matches}, "
+                f"inliers {res.n_inliers} | {res.reason or '-'}"
+            )
+            if res.matches_px is not None and len(res.matches_px) >= 3:
+                line += " | " + pair_report(np.asarray(res.matches_px, dtype=float), est, T_true, step)
+            print(line)
+        ref = i
+    print(f"{args.estimator} on {args.sequence}: {n_ok} ok, {n_wrong} of them wrong, {n_lost} lost")
+
+
+if __name__ == "__main__":
+    main()
