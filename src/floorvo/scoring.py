@@ -55,6 +55,8 @@ __all__ = [
     "read_run_and_groundtruth",
     "score_run",
     "ok_step_errors",
+    "ok_step_poses",
+    "ok_step_poses_of_run",
     "write_score",
 ]
 
@@ -334,23 +336,24 @@ def _reasons(run: RunFolder) -> list[str] | None:
     return [str(r) for r in run.timing["reason"]]
 
 
-def ok_step_errors(
+def ok_step_poses(
     statuses: SequenceT[str],
     reasons: SequenceT[str] | None,
     T_ref_per_frame: np.ndarray,
     T_est_placed: np.ndarray,
-) -> dict[str, np.ndarray] | None:
-    """:func:`floorvo.metrics.step_errors` of every step a run reported ``ok``, each against
-    the true motion from the frame it was measured from.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The poses behind every step a run reported ``ok``: ``(A (P, 4, 4), A_from (P-1, 4, 4), B (P, 4, 4))``.
 
-    ``statuses``, ``reasons`` (F,): a run's frames (``timing.csv``); ``T_ref_per_frame``
-    (F, 4, 4): the true pose at each of those frames (NaN where there is none);
-    ``T_est_placed`` (P, 4, 4): the run's poses, one per ``init``/``ok`` frame. A step is
-    measured from the last placed frame, or from a lost frame on which the estimator
-    restarted its track (its reason holds :data:`~floorvo.estimators.base.RESTART_NOTE`:
-    the motion over that gap is unknown, and the lost frames show it). Steps with no true
-    pose at either end are left out. None when the run does not fit its trajectory (P is
-    not the number of placed frames, or fewer than 2 are placed).
+    ``A``: the true pose of each placed (``init``/``ok``) frame; ``A_from``: the true pose of
+    the frame each step was measured from: the last placed frame, or a lost frame on which
+    the estimator restarted its track (its reason holds
+    :data:`~floorvo.estimators.base.RESTART_NOTE`: the motion over that gap is unknown, and
+    the lost frames show it); ``B``: the run's poses. Step k measured ``B_k^-1 B_k+1``; its
+    truth is ``A_from_k^-1 A_k+1``. ``statuses``, ``reasons`` (F,): a run's frames
+    (``timing.csv``); ``T_ref_per_frame`` (F, 4, 4): the true pose at each of those frames
+    (NaN where there is none); ``T_est_placed`` (P, 4, 4): the run's poses, one per
+    ``init``/``ok`` frame. None when the run does not fit its trajectory (P is not the number
+    of placed frames, or fewer than 2 are placed).
     """
     placed = [i for i, st in enumerate(statuses) if st in ("init", "ok")]
     if len(placed) < 2 or len(placed) != len(T_est_placed):
@@ -364,7 +367,25 @@ def ok_step_errors(
         elif reasons is not None and RESTART_NOTE in str(reasons[i]):
             ref = i
     A = np.asarray(T_ref_per_frame, dtype=float)
-    errors = step_errors(A[placed], np.asarray(T_est_placed, dtype=float), T_ref_from=A[measured_from])
+    return A[placed], A[measured_from], np.asarray(T_est_placed, dtype=float)
+
+
+def ok_step_errors(
+    statuses: SequenceT[str],
+    reasons: SequenceT[str] | None,
+    T_ref_per_frame: np.ndarray,
+    T_est_placed: np.ndarray,
+) -> dict[str, np.ndarray] | None:
+    """:func:`floorvo.metrics.step_errors` of every step a run reported ``ok``, each against
+    the true motion from the frame it was measured from (:func:`ok_step_poses`, whose
+    arguments these are). Steps with no true pose at either end are left out. None when the
+    run does not fit its trajectory.
+    """
+    poses = ok_step_poses(statuses, reasons, T_ref_per_frame, T_est_placed)
+    if poses is None:
+        return None
+    A, A_from, B = poses
+    errors = step_errors(A, B, T_ref_from=A_from)
     known = np.isfinite(errors["trans_mm"]) & np.isfinite(errors["rot_deg"])
     if not known.any():
         return None
@@ -378,6 +399,26 @@ def _ok_steps_of_run(
 
     ``planar``: the run's poses are compared by their planar part only (x, y, yaw at the
     reference's height), as ``T_ref`` is then (:func:`~floorvo.geometry.footprint_T`)."""
+    args = _ok_step_args(run, seq_dir, t_ref, T_ref, max_diff_s)
+    if args is None:
+        return None
+    statuses, reasons, T_per_frame, T_est = args
+    if planar and len(T_est):
+        T_est = footprint_T(T_est, float(np.nanmedian(T_ref[:, 2, 3])))
+    return ok_step_errors(statuses, reasons, T_per_frame, T_est)
+
+
+def ok_step_poses_of_run(
+    run: RunFolder, seq_dir: str | os.PathLike, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float = 0.01
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """:func:`ok_step_poses` of a run folder against the reference ``(t_ref (N,), T_ref (N, 4, 4))``;
+    None without ``timing.csv`` frames and statuses."""
+    args = _ok_step_args(run, Path(seq_dir), t_ref, T_ref, max_diff_s)
+    return None if args is None else ok_step_poses(*args)
+
+
+def _ok_step_args(run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float):
+    """``(statuses, reasons, T_ref_per_frame, T_est_placed)`` of a run folder, or None."""
     statuses = run.statuses
     if not statuses or not run.timing or "frame" not in run.timing:
         return None
@@ -388,10 +429,7 @@ def _ok_steps_of_run(
     T_per_frame = np.full((len(frames), 4, 4), np.nan)
     i_ref, i_frame = associate(t_ref, t_frames, max_diff_s)
     T_per_frame[i_frame] = T_ref[i_ref]
-    T_est = run.T_world_cam
-    if planar and len(T_est):
-        T_est = footprint_T(T_est, float(np.nanmedian(T_ref[:, 2, 3])))
-    return ok_step_errors(statuses, _reasons(run), T_per_frame, T_est)
+    return statuses, _reasons(run), T_per_frame, run.T_world_cam
 
 
 def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:

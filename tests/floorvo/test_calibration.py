@@ -137,3 +137,38 @@ def test_calibration_round_trips_through_its_file(tmp_path):
     cal = ScaleCalibration(1.0025, 0.9993, True, True, 100.0, 20.0, 25, "akaze-guided", "r", "s")
     save_scale_calibration(cal, tmp_path / "c.json")
     assert load_scale_calibration(tmp_path / "c.json") == cal
+
+
+def test_calibration_leaves_out_the_motion_a_restart_dropped(tmp_path):
+    """A run 1 % long on every 4 mm step that lost frames 7 and 8 and restarted its track on
+    frame 8: its step to frame 9 was measured from frame 8 (4.04 mm) and chained onto frame
+    6's pose, so consecutive poses 6 -> 9 hold 4.04 mm where the truth moved 12 mm. Paired
+    with frame 8 (the frame it was measured from, ``timing.csv``'s reason), every step gives
+    1.01; paired with frame 6 (consecutive poses, as the fit did), the scale came out 0.81."""
+    from floorvo.calibration import calibrate_run
+    from floorvo.estimators.base import RESTART_NOTE
+    from floorvo.tum import write_tum
+
+    n, ts = 26, np.arange(26) / 10.0
+    truth = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(n)])
+    placed = [i for i in range(n) if i not in (7, 8)]
+    est = [truth[0]]
+    for a, b in zip(placed[:-1], placed[1:]):
+        frm = 8 if b == 9 else a  # the restart on frame 8
+        d = invert_T(truth[frm]) @ truth[b]
+        d[:2, 3] *= 1.01
+        est.append(est[-1] @ d)
+    seq, run = tmp_path / "seq", tmp_path / "run"
+    seq.mkdir()
+    run.mkdir()
+    write_tum(seq / "groundtruth.txt", ts, truth)
+    write_tum(run / "trajectory.txt", ts[placed], np.stack(est))
+    rows = ["frame,detect_ms,match_ms,estimate_ms,total_ms,status,reason"]
+    for i in range(n):
+        st, why = ("init", "first frame") if i == 0 else (("lost", "weak peak") if i in (7, 8) else ("ok", ""))
+        rows.append(f"{i},1.0,2.0,0.5,3.5,{st},{why + ('; ' + RESTART_NOTE if i == 8 else '')}")
+    (run / "timing.csv").write_text("\n".join(rows) + "\n")
+    (run / "result.json").write_text(json.dumps({"estimator": "fake"}))
+    assert calibrate_run(run, seq).scale_x == pytest.approx(1.01, abs=1e-9)
+    # What the fit of consecutive poses gives (the old calibrate_run): (22 x 16 x 1.01 + 12 x 4.04) / (22 x 16 + 144)
+    assert fit_scale_calibration(truth[placed], np.stack(est)).scale_x == pytest.approx(404.0 / 496.0, abs=1e-9)
