@@ -312,6 +312,18 @@ class StereoSpec(Config):
 
 
 @dataclass(frozen=True)
+class RangeSensorSpec(Config):
+    """A simulated range sensor on the rig (issue 14 item 4): the camera's height above the
+    floor per frame, written to the sequence's ``height.csv`` (the mono estimators convert
+    pixels to mm at it). The ground truth's height plus seeded Gaussian noise of ``noise_mm``
+    (from the scene seed); a fraction ``dropout`` of the frames has no reading."""
+
+    enabled: bool = param(False, doc="write height.csv: a range sensor's camera height per frame")
+    noise_mm: float = param(0.02, unit="mm", min=0.0, max=10.0, doc="standard deviation of its Gaussian noise")
+    dropout: float = param(0.0, min=0.0, max=1.0, doc="fraction of frames without a reading")
+
+
+@dataclass(frozen=True)
 class BenchSpec(Config):
     """What ``floorsim bench`` does with the scene besides running the estimators.
 
@@ -342,6 +354,7 @@ class Scene(Config):
     render: RenderSpec = param(default_factory=RenderSpec)
     stereo: StereoSpec = param(default_factory=StereoSpec)
     depth_noise: DepthNoise = param(default_factory=DepthNoise)
+    range_sensor: RangeSensorSpec = param(default_factory=RangeSensorSpec)
     trajectory: dict = param(
         default_factory=lambda: {"type": "uniform"}, doc="type = a trajectory type, plus its parameters (see below)"
     )

@@ -28,7 +28,7 @@ import floorvo
 from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import get_material, sample_material
 from floorsim.render import FloorRenderer, LedArray, backend_info, stratified_spp
-from floorsim.scene import Scene, scene_T_world_leds
+from floorsim.scene import RangeSensorSpec, Scene, scene_T_world_leds
 from floorsim.sensor import AutoExposure, SensorModel, exposure_gain, image_level, rolling_row_offsets_s
 from floorsim.spectral import mono_response
 from floorsim.tilecache import TileCache, default_cache
@@ -41,7 +41,14 @@ from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path,
 from floorvo.locking import locks_folder
 from floorvo.sequence import SequenceWriter
 
-__all__ = ["render_sequence", "prepare_scene", "plan_tiles", "package_versions", "LED_INTENSITY_UNIT"]
+__all__ = [
+    "render_sequence",
+    "prepare_scene",
+    "plan_tiles",
+    "package_versions",
+    "range_sensor_heights",
+    "LED_INTENSITY_UNIT",
+]
 
 log = logging.getLogger(__name__)
 
@@ -347,6 +354,8 @@ def render_sequence(
     writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
     root = writer.root
     writer.write_groundtruth(ts, T_all)
+    if scene.range_sensor.enabled:
+        writer.write_heights(range_sensor_heights(T_all, scene.range_sensor, scene.seed), "simulated range sensor")
     missing = writer.missing_frames()
     need_flat = scene.render.flatfield and not all(
         writer.has_calib(name) for name in ("cam0_flatfield", "cam1_flatfield")[: 2 if T_01 is not None else 1]
@@ -550,3 +559,14 @@ def render_flatfield(
     flat16 = SensorModel(sensor.gain_e_per_unit, sensor.full_well_e, 0.0, False, 16).capture(rad, 0, 0, noise=False)
     writer.write_calib(name, flat16)
     return flat16
+
+
+def range_sensor_heights(T_world_cam: np.ndarray, spec: RangeSensorSpec, seed: int) -> np.ndarray:
+    """(N,) heights (mm) a simulated range sensor reads: the camera's height above the floor
+    (z of ``T_world_cam`` (N, 4, 4)) plus Gaussian noise of ``spec.noise_mm``, NaN for a
+    fraction ``spec.dropout`` of the frames; seeded by ``seed``, the same in every process."""
+    rng = np.random.default_rng([int(seed), 0x52414E47])  # "RANG"
+    z = np.asarray(T_world_cam, dtype=float)[:, 2, 3]
+    h = z + rng.normal(0.0, spec.noise_mm, z.shape)
+    h[rng.random(z.shape) < spec.dropout] = np.nan
+    return h

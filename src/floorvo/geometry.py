@@ -61,6 +61,7 @@ __all__ = [
     "planar_T",
     "floor_rigid_to_T",
     "fit_plane",
+    "depth_floor_plane",
     "level_rotation",
     "rays_to_plane",
     "plane_step_T",
@@ -472,6 +473,27 @@ def fit_plane(
         keep = new
         n, d = fit(P[keep])
     return n, d, keep
+
+
+def depth_floor_plane(
+    depth_mm: np.ndarray, camera: CameraModel, step_px: int = 4, *, min_points: int = 100
+) -> tuple[np.ndarray, float] | None:
+    """The floor plane ``(n, d_mm)`` (camera frame) of a depth image (H, W) in mm along the optical axis.
+
+    The pixels of a ``step_px`` grid that carry depth (finite, > 0) are back-projected through
+    the camera model and :func:`fit_plane` fits them; ``d`` is the camera's height above
+    the floor. None with fewer than ``min_points`` such pixels.
+    """
+    depth = np.asarray(depth_mm)
+    g = int(step_px)
+    v, u = np.mgrid[g // 2 : depth.shape[0] : g, g // 2 : depth.shape[1] : g]
+    z = depth[v, u].astype(np.float64).ravel()
+    ok = np.isfinite(z) & (z > 0)
+    if int(ok.sum()) < min_points:
+        return None
+    uv = np.column_stack([u.ravel()[ok], v.ravel()[ok]]).astype(np.float64)
+    n, d, _ = fit_plane(camera.unproject(uv, z[ok]))
+    return n, d
 
 
 def level_rotation(n: np.ndarray) -> np.ndarray:

@@ -31,6 +31,7 @@ import numpy as np
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
 from floorvo.estimators.base import Frame, StepResult
+from floorvo.geometry import depth_floor_plane
 from floorvo.metrics import lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
@@ -238,18 +239,36 @@ def camera_height_mm(seq: Sequence) -> float:
     return height
 
 
-def sequence_frames(seq: Sequence, indices: Iterable[int], requires: Iterable[str] = ()) -> Iterator[Frame]:
+def sequence_frames(
+    seq: Sequence, indices: Iterable[int], requires: Iterable[str] = (), *, depth_height: bool = False
+) -> Iterator[Frame]:
     """Frames ``indices`` of ``seq`` at the sequence's frame times, read one at a time, with the
-    right camera and depth when ``requires`` says."""
+    right camera and depth when ``requires`` says.
+
+    Each frame carries the camera's measured height (``Frame.height_mm``, issue 14 item 4):
+    the sequence's ``height.csv`` (a range sensor) when it has one, else, with
+    ``depth_height`` in a sequence with depth, the floor plane of the frame's depth image
+    (:func:`floorvo.geometry.depth_floor_plane`); None otherwise.
+    """
     req = set(requires)
     ts_all = seq.timestamps_s
+    heights = seq.height_signal_mm
+    camera = seq.camera
     for i in indices:
+        depth = seq.depth_mm(i) if "depth" in req or (depth_height and heights is None and seq.has_depth) else None
+        height: float | None = None
+        if heights is not None:
+            height = None if np.isnan(heights[i]) else float(heights[i])
+        elif depth is not None:
+            plane = depth_floor_plane(depth, camera, 8)
+            height = None if plane is None else plane[1]
         yield Frame(
             index=i,
             timestamp_s=float(ts_all[i]),
             image=seq.image(i),
             image_right=seq.image(i, "cam1") if "stereo" in req else None,
-            depth_mm=seq.depth_mm(i) if "depth" in req else None,
+            depth_mm=depth if "depth" in req else None,
+            height_mm=height,
         )
 
 
@@ -288,7 +307,13 @@ def run_sequence(
             )
     return run_frames(
         estimator,
-        sequence_frames(seq, indices, getattr(estimator, "requires", ())),
+        sequence_frames(
+            seq,
+            indices,
+            getattr(estimator, "requires", ()),
+            # A mono estimator asked to take its height from the depth image (height_from_depth).
+            depth_height=bool(getattr(getattr(estimator, "config", None), "height_from_depth", False)),
+        ),
         T_world_start=T_world_start,
         scale_calibration=scale_calibration,
         on_step=on_step,

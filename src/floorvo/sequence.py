@@ -11,11 +11,16 @@
       calib/cam0_flatfield.png   flat-field frame (same rig, flat uniform floor), optional
       calib/sensor.json          exposure of a rendered sequence (floorsim), optional
       timestamps.txt    per-frame times (s), one line per frame in frame order; optional
+      height.csv        per-frame camera height above the floor (mm) from a range sensor:
+                        ``frame,height_mm`` rows, an empty height = no reading; optional
       groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
 
 Frame ``i`` was taken at line ``i`` of ``timestamps.txt`` when the folder has one (a
 recording: camera clock times, any spacing), at ``i / fps`` otherwise (a render). Schema
 version 2 added ``timestamps.txt``; version 1 folders (no such file) still load.
+``height.csv`` (issue 14 item 4) is optional in every version: a folder without it loads
+as before, and a reader that does not know it ignores it (the estimators then use the
+rig's constant height, as before); :attr:`Sequence.height_signal_mm` reads it.
 
 Every file is written atomically, so a frame file that exists is complete; a render that
 is interrupted and restarted skips the frames already on disk and readable
@@ -60,6 +65,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "READABLE_SCHEMA_VERSIONS",
     "TIMESTAMPS_FILE",
+    "HEIGHT_FILE",
     "GROUNDTRUTH_MAX_DIFF_S",
     "Sequence",
     "SequenceWriter",
@@ -67,6 +73,8 @@ __all__ = [
     "sequence_files",
     "SEQUENCE_FORMAT",
     "check_timestamps",
+    "check_heights",
+    "read_height_csv",
     "DEPTH_PNG_SCALE_PER_MM",
 ]
 
@@ -76,6 +84,10 @@ log = logging.getLogger(__name__)
 SEQUENCE_FORMAT = "floorbench-sequence"
 #: Per-frame timestamps (s), one line per frame; absent: frame i at i / fps.
 TIMESTAMPS_FILE = "timestamps.txt"
+#: Per-frame measured camera height (mm), ``frame,height_mm`` rows; absent: no height signal.
+HEIGHT_FILE = "height.csv"
+#: The header line of :data:`HEIGHT_FILE`.
+HEIGHT_HEADER = "frame,height_mm"
 #: Largest gap (s) between a frame's time and the ground-truth pose taken for it; the
 #: same as the default association tolerance of ``floorvo score``.
 GROUNDTRUTH_MAX_DIFF_S = 0.01
@@ -257,6 +269,14 @@ class SequenceWriter:
         lines += [f"{t:.9f}" for t in ts]
         atomic_write_text(self.root / TIMESTAMPS_FILE, "\n".join(lines) + "\n")
 
+    def write_heights(self, height_mm: np.ndarray, source: str = "range sensor") -> None:
+        """Write ``height.csv``: the measured camera height above the floor (mm) of each of the
+        ``frame_count`` frames, NaN where there is no reading (an empty cell)."""
+        h = check_heights(np.asarray(height_mm, dtype=float), int(self.meta["frame_count"]), "height_mm")
+        lines = [f"# camera height above the floor (mm) per frame, from a {source}; empty = no reading", HEIGHT_HEADER]
+        lines += [f"{i},{'' if np.isnan(v) else f'{v:.6f}'}" for i, v in enumerate(h)]
+        atomic_write_text(self.root / HEIGHT_FILE, "\n".join(lines) + "\n")
+
 
 def _check_meta(meta: dict, meta_path: Path) -> None:
     """Every key of ``sequence.json`` checked (:mod:`floorvo.sequence_meta`); one-line SequenceError otherwise."""
@@ -275,12 +295,12 @@ _CALIB_FILE = re.compile(r"cam\d+_flatfield\.png|sensor\.json|exposure\.csv")
 def sequence_files(root: str | os.PathLike) -> list[Path]:
     """The files of the sequence format present in ``root`` (except ``sequence.json``).
 
-    ``groundtruth.txt``, ``timestamps.txt``, ``cam0/``, ``cam1/`` and ``depth/`` frames (``NNNNNN.png``/``.npy``),
-    ``calib/CAM_flatfield.png``, ``calib/sensor.json`` and ``calib/exposure.csv``. Nothing else: other files and
+    ``groundtruth.txt``, ``timestamps.txt``, ``height.csv``, ``cam0/``, ``cam1/`` and ``depth/`` frames
+    (``NNNNNN.png``/``.npy``), ``calib/CAM_flatfield.png``, ``calib/sensor.json`` and ``calib/exposure.csv``. Nothing else: other files and
     folders in the sequence folder are not the format's (``--overwrite`` leaves them).
     """
     root = Path(root)
-    files = [root / "groundtruth.txt", root / TIMESTAMPS_FILE]
+    files = [root / "groundtruth.txt", root / TIMESTAMPS_FILE, root / HEIGHT_FILE]
     for sub, pattern in [*((s, _FRAME_FILE) for s in _FRAME_FOLDERS), ("calib", _CALIB_FILE)]:
         d = root / sub
         if d.is_dir():
@@ -355,6 +375,18 @@ def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
     return ts
 
 
+def check_heights(h: np.ndarray, frame_count: int, what: str) -> np.ndarray:
+    """``h`` if it holds ``frame_count`` heights (mm), each finite and > 0 or NaN (no reading);
+    else a one-line SequenceError."""
+    if h.ndim != 1 or len(h) != frame_count:
+        raise SequenceError(f"{what}: {len(h)} height(s) for {frame_count} frame(s); need one per frame")
+    bad = np.nonzero(~np.isnan(h) & ~((h > 0) & np.isfinite(h)))[0]
+    if len(bad):
+        k = int(bad[0])
+        raise SequenceError(f"{what}: height of frame {k} = {h[k]} mm: must be a finite number > 0 (or empty)")
+    return h
+
+
 @dataclass
 class Sequence:
     """A sequence folder, opened for reading.
@@ -366,6 +398,7 @@ class Sequence:
     root: Path
     meta: dict
     _timestamps_s: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _heights: tuple[np.ndarray | None] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def open(cls, root: str | os.PathLike) -> Sequence:
@@ -388,6 +421,7 @@ class Sequence:
         _check_meta(meta, meta_path)
         seq = cls(root, meta)
         _ = seq.timestamps_s  # validate timestamps.txt now
+        _ = seq.height_signal_mm  # and height.csv
         return seq
 
     # ----------------------------------------------------------------- metadata
@@ -430,6 +464,17 @@ class Sequence:
             else:
                 self._timestamps_s = np.arange(self.frame_count) / self.fps
         return self._timestamps_s.copy()
+
+    @property
+    def height_signal_mm(self) -> np.ndarray | None:
+        """(frame_count,) measured camera height above the floor per frame (mm, NaN where no
+        reading) from ``height.csv``; None when the sequence has no such file."""
+        if self._heights is None:
+            path = self.root / HEIGHT_FILE
+            h = check_heights(read_height_csv(path), self.frame_count, str(path)) if path.is_file() else None
+            self._heights = (h,)
+        h = self._heights[0]
+        return None if h is None else h.copy()
 
     @property
     def has_stereo(self) -> bool:
@@ -553,4 +598,38 @@ def _read_timestamps(path: Path) -> np.ndarray:
             out.append(float(line))
         except ValueError:
             raise SequenceError(f"{path}:{lineno}: not a timestamp in seconds: {shown(line)}") from None
+    return np.array(out, dtype=float)
+
+
+def read_height_csv(path: str | os.PathLike) -> np.ndarray:
+    """The heights (mm) of a ``height.csv`` (header ``frame,height_mm``, then ``i,value`` for
+    frames 0, 1, ... in order; an empty value is NaN; ``#`` comments and blank lines skipped);
+    a malformed line is a one-line SequenceError naming the file and the line."""
+    path = Path(path)
+    out: list[float] = []
+    header = False
+    for lineno, line in enumerate(read_text(path, SequenceError, what="a text file").splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        if not header:
+            if line.replace(" ", "") != HEIGHT_HEADER:
+                raise SequenceError(f"{path}:{lineno}: header {shown(line)}: must be {HEIGHT_HEADER!r}")
+            header = True
+            continue
+        cells = [c.strip() for c in line.split(",")]
+        if len(cells) != 2:
+            raise SequenceError(f"{path}:{lineno}: {shown(line)}: need two cells, frame,height_mm")
+        if cells[0] != str(len(out)):
+            raise SequenceError(
+                f"{path}:{lineno}: frame {shown(cells[0])}: rows must be frames 0, 1, ... in order, expected {len(out)}"
+            )
+        try:
+            out.append(float(cells[1]) if cells[1] else float("nan"))
+        except ValueError:
+            raise SequenceError(
+                f"{path}:{lineno}: height_mm {shown(cells[1])} of frame {cells[0]}: not a number"
+            ) from None
+    if not header:
+        raise SequenceError(f"{path}: no header line {HEIGHT_HEADER!r}")
     return np.array(out, dtype=float)

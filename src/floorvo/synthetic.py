@@ -192,6 +192,7 @@ def write_synthetic_sequence(
     noise_dn: float = 1.0,
     depth: bool = False,
     depth_noise_mm: float = 0.0,
+    height_noise_mm: float | None = None,
     stereo_baseline_mm: float | None = None,
     name: str = "synthetic",
     overwrite: bool = True,
@@ -201,7 +202,9 @@ def write_synthetic_sequence(
     Frames are 8-bit, with the LED falloff of :func:`led_falloff`, Gaussian noise of
     ``noise_dn`` and the flat-field frame in ``calib/``. ``depth``: a float32 mm depth map
     per frame (the flat floor, :func:`floor_depth`; poses may be tilted), with Gaussian noise
-    of ``depth_noise_mm`` per pixel (seeded from ``seed``). ``stereo_baseline_mm``: also a right camera ``cam1``.
+    of ``depth_noise_mm`` per pixel (seeded from ``seed``). ``height_noise_mm``: also a range
+    sensor's camera height per frame (``height.csv``: the pose's height plus Gaussian noise of
+    that size, seeded from ``seed``); None: no such file. ``stereo_baseline_mm``: also a right camera ``cam1``.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
     gsd = camera.gsd_mm_per_px(height_mm)
@@ -258,6 +261,9 @@ def write_synthetic_sequence(
         if T01 is not None:
             w.write_calib("cam1_flatfield", flat)
         w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
+        if height_noise_mm is not None:
+            h = T_world_cam[:, 2, 3] + np.random.default_rng(seed + 3).normal(0.0, height_noise_mm, len(T_world_cam))
+            w.write_heights(h, "synthetic range sensor")
     return Path(out_dir)
 
 

@@ -456,3 +456,25 @@ def test_readme_minimal_sequence_json_loads(tmp_path):
     est, _ = build_estimator(seq, "phase-corr")  # refuses a sequence without rig.height_mm
     res = est.step(est.start(), Frame(index=0, timestamp_s=0.0, image=seq.image(0)))
     assert res.status == "init"
+
+
+def test_import_writes_a_range_sensors_height_column(tmp_path, synth, capsys):
+    """--height-file (CSV frame,height_mm, issue 14 item 4) becomes the sequence's height.csv;
+    a file with another number of frames is refused in one line before anything is written."""
+    seq, frames, T = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"f{i:02d}.png"), img)
+    heights = [100.0, 100.2, "", 99.8, 100.1, 100.0, 99.9]
+    (tmp_path / "h.csv").write_text("frame,height_mm\n" + "".join(f"{i},{h}\n" for i, h in enumerate(heights)))
+    out = tmp_path / "imp"
+    argv = ["import", str(src), "-o", str(out), *FLAGS, "--height-mm", "100", "--fps", "30"]
+    assert main([*argv, "--height-file", str(tmp_path / "h.csv")]) == 0
+    np.testing.assert_array_equal(Sequence.open(out).height_signal_mm, [100.0, 100.2, np.nan, 99.8, 100.1, 100.0, 99.9])
+    (tmp_path / "short.csv").write_text("frame,height_mm\n0,100\n1,100\n")
+    err = _one_line_error(
+        capsys, [*argv[:3], str(tmp_path / "imp2"), *argv[4:], "--height-file", str(tmp_path / "short.csv")]
+    )
+    assert "--height-file: 2 height(s) for 7 frame(s)" in err
+    assert not (tmp_path / "imp2" / "height.csv").exists()

@@ -47,6 +47,12 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--flatfield", metavar="FILE", default=None, help="flat-field image of cam0, copied to calib/")
     p.add_argument(
+        "--height-file",
+        metavar="FILE",
+        default=None,
+        help="per-frame camera height (mm) from a range sensor: CSV frame,height_mm (written to height.csv)",
+    )
+    p.add_argument(
         "--topic",
         action="append",
         metavar="ROLE=NAME",
@@ -78,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     from floorvo.importers import ImportOptions, import_sequence
     from floorvo.importers.camera_files import read_camera_file
     from floorvo.importers.times import read_groundtruth_file, read_timestamps_file
+    from floorvo.sequence import read_height_csv
 
     flags = (args.fx, args.fy, args.cx, args.cy)
     options = ImportOptions(
@@ -89,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
         groundtruth=None if args.groundtruth is None else read_groundtruth_file(args.groundtruth),
         fps=args.fps,
         flatfield=None if args.flatfield is None else Path(args.flatfield),
+        height_signal_mm=None if args.height_file is None else read_height_csv(args.height_file),
         topics=parse_topics(args.topic),
         overwrite=args.overwrite,
     )

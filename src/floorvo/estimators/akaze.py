@@ -52,7 +52,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_problem
 from floorvo.geometry import (
     consensus_problem,
     floor_rigid_to_T,
@@ -165,6 +165,12 @@ class AkazeConfig(Config):
         0.75, gt=0.0, max=1.0, doc="a guided fit correcting the prediction by this much of the radius: brute force"
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
+    use_height_signal: bool = param(
+        True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
+    )
+    height_from_depth: bool = param(
+        False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
+    )
 
 
 @dataclass
@@ -174,6 +180,8 @@ class _State:
     packed: np.ndarray | None = None  # (N, W) uint64, the same descriptors packed
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
     n_lost: int = 0  # frames lost in a row since the reference
+    height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
+    plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
 
 
 @dataclass(frozen=True)
@@ -358,6 +366,30 @@ class _AkazeBase:
         M[:2, :2], M[:2, 2] = R, t
         return M
 
+    def _frame_height(self, frame: Frame) -> float | None:
+        """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
+        return frame_height_mm(frame, self.config.use_height_signal)
+
+    def _start_reference(self, state: _State, frame: Frame) -> None:
+        """Hook: a frame becomes the reference without a measured step (the first, a restart)."""
+
+    def _motion(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray | None, str]:
+        """The step ``T_prev_cur`` (4, 4) mm of the fit's pairs (px), or None and why not.
+
+        Eq. (1) via the camera model, then the SE(2) least-squares rigid fit in floor mm.
+        Each frame's pixels go to the floor at its own height: the frame's measured height
+        (``Frame.height_mm``: a range sensor, or the depth image's floor plane) when it has
+        one, else the rig's; the step then carries the height change along the optical axis.
+        """
+        h_prev = state.height_mm or self.height_mm
+        h_cur = self._frame_height(frame) or self.height_mm
+        q_prev = pixels_to_floor_mm(fit.src, self.camera, h_prev)
+        q_cur = pixels_to_floor_mm(fit.dst, self.camera, h_cur)
+        R2, t2_mm = rigid_fit(q_prev, q_cur)
+        T = floor_rigid_to_T(R2, t2_mm)
+        T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
+        return T, ""
+
     def _prediction_doubt(self, fit: _Fit, pred_M: np.ndarray) -> str:
         """Why the eq. (2) prediction behind a guided fit is doubtful ('' if it is not)."""
         if fit.problem or fit.M is None:
@@ -387,6 +419,8 @@ class _AkazeBase:
                     timing_ms=_timing(t0, t1, t1, time.perf_counter()),
                 )
             state.kps, state.desc, state.packed = kps, desc, packed
+            state.height_mm = self._frame_height(frame)
+            self._start_reference(state, frame)
             return StepResult(
                 "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
             )
@@ -412,6 +446,8 @@ class _AkazeBase:
             why = f"{note}; {fit.problem}" if note else fit.problem
             if state.n_lost >= self.config.restart_after_lost and len(kps) >= self.config.min_matches:
                 state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
+                state.height_mm = self._frame_height(frame)
+                self._start_reference(state, frame)
                 why += f"; {RESTART_NOTE}"
             return StepResult(
                 "lost",
@@ -421,12 +457,20 @@ class _AkazeBase:
                 n_inliers=len(fit.src),
                 timing_ms=_timing(t0, t1, t2, time.perf_counter()),
             )
-        # Eq. (1) via the camera model, then the SE(2) least-squares rigid fit in floor mm.
-        q_prev = pixels_to_floor_mm(fit.src, self.camera, self.height_mm)
-        q_cur = pixels_to_floor_mm(fit.dst, self.camera, self.height_mm)
-        R2, t2_mm = rigid_fit(q_prev, q_cur)
-        T = floor_rigid_to_T(R2, t2_mm)
+        T, problem = self._motion(state, fit, frame)
+        if T is None:
+            state.M_last = None
+            state.n_lost += 1
+            return StepResult(
+                "lost",
+                reason=f"{note}; {problem}" if note else problem,
+                n_keypoints=len(kps),
+                n_matches=fit.n_matches,
+                n_inliers=len(fit.src),
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+            )
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
+        state.height_mm = self._frame_height(frame)
         t3 = time.perf_counter()
         return StepResult(
             "ok",

@@ -31,6 +31,7 @@ __all__ = [
     "StepResult",
     "Estimator",
     "frame_problem",
+    "frame_height_mm",
     "RESTART_NOTE",
 ]
 
@@ -43,13 +44,19 @@ RESTART_NOTE = "tracking restarts from this frame"
 @dataclass(frozen=True)
 class Frame:
     """One frame of a sequence. ``image``: (H, W) uint8/uint16 left (or only) camera;
-    ``image_right``: the right camera of a stereo rig; ``depth_mm``: (H, W) float32, 0 = none."""
+    ``image_right``: the right camera of a stereo rig; ``depth_mm``: (H, W) float32, 0 = none;
+    ``height_mm``: the camera's measured height above the floor at this frame (mm), from a
+    range sensor (the sequence's ``height.csv``) or, when the estimator asks for it
+    (``height_from_depth``), the floor plane of the depth image
+    (:func:`floorvo.runner.sequence_frames`); None when the frame carries none (the
+    estimators then take the rig's constant height)."""
 
     index: int
     timestamp_s: float
     image: np.ndarray
     image_right: np.ndarray | None = None
     depth_mm: np.ndarray | None = None
+    height_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -118,3 +125,13 @@ def frame_problem(image: np.ndarray | None, camera: CameraModel, what: str = "fr
     if a.dtype.kind not in "uif":
         return f"{what} has pixels of type {a.dtype}: numbers are expected"
     return ""
+
+
+def frame_height_mm(frame: Frame, enabled: bool = True) -> float | None:
+    """The camera height (mm) measured at ``frame`` (``Frame.height_mm``) when it has a usable
+    one (finite, > 0) and ``enabled``; None otherwise, and the estimator takes the rig's
+    constant height. The one rule by which the mono estimators use a height signal."""
+    h = frame.height_mm
+    if not enabled or h is None or not np.isfinite(h) or h <= 0:
+        return None
+    return float(h)

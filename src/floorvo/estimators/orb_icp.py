@@ -20,7 +20,7 @@ Per frame (section numbers and equations of paper 001):
    (``update = "icp"``, the paper's step: a full 6-DoF fit of the matched 3D points).
    The default ``update = "plane"`` (added here, issue 14) measures the same 6-DoF step
    more robustly: the floor plane of each frame is fitted to its whole depth image
-   (:func:`floorvo.geometry.fit_plane`, a grid of ``plane_step_px`` pixels, thousands of
+   (:func:`floorvo.geometry.depth_floor_plane`, a grid of ``plane_step_px`` pixels, thousands of
    points, so height and tilt are precise), each matched pixel's ray is met with its
    frame's plane, and the yaw and in-plane shift are the rigid fit of those floor points in
    the levelled frames; the height change and the roll/pitch change come from the two
@@ -42,7 +42,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, rigid_fit_robust
+from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
@@ -153,22 +153,12 @@ class OrbIcp:
         self.flann = cv2.FlannBasedMatcher(
             dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1), dict(checks=50)
         )
-        # The rays (z = 1) of the grid of pixels the floor plane is fitted to, once per camera.
-        g = config.plane_step_px
-        v, u = np.mgrid[g // 2 : camera.height_px : g, g // 2 : camera.width_px : g]
-        self._plane_uv = np.column_stack([u.ravel(), v.ravel()]).astype(np.float64)
-        self._plane_rays = camera.unproject(self._plane_uv, 1.0)
 
     def floor_plane(self, depth_mm: np.ndarray) -> tuple[np.ndarray, float] | None:
-        """The floor plane ``(n, d_mm)`` (camera frame, :func:`floorvo.geometry.fit_plane`) of a
-        depth image, from the pixels of a ``plane_step_px`` grid; None with fewer than 100 of
-        them carrying depth."""
-        z = np.asarray(depth_mm, dtype=np.float64)[self._plane_uv[:, 1].astype(int), self._plane_uv[:, 0].astype(int)]
-        ok = np.isfinite(z) & (z > 0)
-        if int(ok.sum()) < 100:
-            return None
-        n, d, _ = fit_plane(self._plane_rays[ok] * z[ok, None])
-        return n, d
+        """The floor plane ``(n, d_mm)`` (camera frame) of a depth image, from the pixels of a
+        ``plane_step_px`` grid (:func:`floorvo.geometry.depth_floor_plane`); None with fewer
+        than 100 of them carrying depth."""
+        return depth_floor_plane(depth_mm, self.camera, self.config.plane_step_px)
 
     def start(self) -> _State:
         return _State()

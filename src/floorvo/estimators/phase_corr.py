@@ -34,7 +34,7 @@ from scipy import fft as sfft
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
 from floorvo.imaging import illumination_corrected
 
@@ -87,6 +87,12 @@ class PhaseCorrConfig(Config):
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     predict: bool = param(True, doc="start each frame from the last motion")
+    use_height_signal: bool = param(
+        True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
+    )
+    height_from_depth: bool = param(
+        False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
+    )
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
     )
@@ -153,6 +159,7 @@ class _State:
     prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
     n_lost: int = 0  # frames lost in a row since the reference
+    height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
 
 
 class PhaseCorr:
@@ -289,6 +296,7 @@ class PhaseCorr:
             ]
             state.prev_blocks = self._blocks(crop)
             state.prev_crop = crop
+            state.height_mm = self._frame_height(frame)
             return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
         M, min_peak, resid, yaw = self._measure(state, cur, M0)
@@ -309,18 +317,29 @@ class PhaseCorr:
             why = problem
             if state.n_lost >= self.config.restart_after_lost:
                 state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
+                state.height_mm = self._frame_height(frame)
                 why += f"; {RESTART_NOTE}"
             return StepResult(
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
             )
         new_blocks = self._blocks(crop)
-        # M maps prev-centred px to cur-centred px: the floor's motion in the image.
-        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.pinhole, self.height_mm, centred=True)
+        # M maps prev-centred px to cur-centred px: the floor's motion in the image. A floor
+        # point at the previous image centre is at t px in the current image, i.e. at
+        # t h_cur / f mm: the current frame's height converts the shift (the measured height
+        # when the frame has one, else the rig's); the step carries the height change.
+        h_prev = state.height_mm or self.height_mm
+        h_cur = self._frame_height(frame) or self.height_mm
+        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.pinhole, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
-        state.M_pred, state.n_lost = M, 0
+        T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
+        state.M_pred, state.n_lost, state.height_mm = M, 0, self._frame_height(frame)
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
+
+    def _frame_height(self, frame: Frame) -> float | None:
+        """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
+        return frame_height_mm(frame, self.config.use_height_signal)
 
     def _failed(self, min_peak: float, resid: float, yaw: tuple[float, float]) -> bool:
         return bool(self._problem(min_peak, resid, yaw))

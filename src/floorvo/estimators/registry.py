@@ -61,6 +61,7 @@ BUILTIN_ESTIMATORS: dict[str, str] = {
     "orb-icp": "floorvo.estimators.orb_icp:OrbIcp",
     "stereo-sift": "floorvo.estimators.stereo_sift:StereoSift",
     "map-fused": "floorvo.mapping.fused:MapFused",
+    "homography-6dof": "floorvo.estimators.homography:HomographySixDof",
     # Real-time presets (issue 14 item 5): the same classes with other Config defaults.
     "akaze-guided-fast": "floorvo.estimators.akaze:AkazeGuidedFast",
     "akaze-bruteforce-fast": "floorvo.estimators.akaze:AkazeBruteforceFast",

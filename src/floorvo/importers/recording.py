@@ -25,7 +25,7 @@ from floorvo import __version__
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import read_image
-from floorvo.sequence import SequenceWriter, check_timestamps
+from floorvo.sequence import SequenceWriter, check_heights, check_timestamps
 
 __all__ = [
     "FrameImages",
@@ -119,6 +119,9 @@ class ImportOptions:
         Frame rate (Hz) for sources without times (an image folder); nominal otherwise.
     flatfield:
         A flat-field image of cam0 (same rig over a flat uniform floor), copied to ``calib/``.
+    height_signal_mm:
+        Per-frame camera height above the floor (mm, NaN where none) from a range sensor,
+        written to ``height.csv`` (one per frame).
     topics:
         ROS 2 bag topics by role (``image``, ``right``, ``depth``, ``camera_info``,
         ``right_camera_info``, ``groundtruth``); roles not given are found by type and name.
@@ -134,6 +137,7 @@ class ImportOptions:
     groundtruth: tuple[np.ndarray, np.ndarray] | None = None
     fps: float | None = None
     flatfield: Path | None = None
+    height_signal_mm: np.ndarray | None = None
     topics: dict[str, str] = field(default_factory=dict)
     overwrite: bool = False
 
@@ -290,6 +294,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             )
         meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flat.itemsize}
     check_timestamps(ts, n, f"timestamps ({time_source})")
+    if opts.height_signal_mm is not None:
+        check_heights(np.asarray(opts.height_signal_mm, dtype=float), n, "--height-file")
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
         writer.write_timestamps(ts)
         count = 0
@@ -322,6 +328,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             writer.write_calib("cam0_flatfield", flat)
         if gt is not None:
             writer.write_groundtruth(gt[0], gt[1])
+        if opts.height_signal_mm is not None:
+            writer.write_heights(opts.height_signal_mm)
     log.info("imported %d frames of %s (%s) -> %s", n, what, rec.format, writer.root)
     return ImportResult(
         sequence=writer.root,

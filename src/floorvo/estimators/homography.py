@@ -1,0 +1,123 @@
+"""``homography-6dof``: 6-DoF motion of a mono camera from the floor plane's homography (issue 14 item 4).
+
+A downward camera sees a flat floor, so two frames are related by the floor plane's
+homography, ``x_cur ~ H x_prev`` in normalised image coordinates with
+``H ~ R + t n^T / d`` (``p_cur = R p_prev + t``; ``n . p = d`` the floor in the previous
+camera; Hartley & Zisserman, Multiple View Geometry, 2nd ed., Result 13.1). A planar
+estimator reads only its affine part (a rotation and a shift); its perspective terms carry
+the change of tilt (a change of 0.004 rad changes the image scale by about 0.5 px from one
+edge of a 648-px frame to the other) and its scale the change of height. Given the floor
+plane of the previous frame the decomposition is unique
+(:func:`floorvo.geometry.plane_homography_motion`), and it gives the current frame's plane,
+so the plane is carried from frame to frame, starting level at the rig's height (or the
+frame's measured height, ``Frame.height_mm``).
+
+Per frame: akaze-guided's keypoints, matching (paper 000's guided matching with its
+brute-force fallback), section II-C filter and self-checks (:mod:`floorvo.estimators.akaze`),
+with the image motion a homography instead of a rigid motion (prediction, filter, fit
+residual and the check for a second motion all use it); then the homography of the matched pairs in normalised coordinates (the camera model's
+distortion undone): RANSAC at ``homography_threshold_px`` and a least-squares refit on its
+inliers, and its decomposition with the carried plane. Self-checks added (issue 14, lost
+with the reason): too few homography inliers, their RMS reprojection error over
+``max_homography_rms_px``, a plane tilted more than ``max_tilt_rad`` from the optical axis,
+a height change over ``max_height_step_mm`` in one frame.
+
+Mono tilt is a relative measurement: the tilt and height errors of the steps add up over a
+run (a random walk), unlike orb-icp's and stereo-sift's, which fit the plane in every
+frame. BENCHMARKS.md, "6-DoF with depth and stereo", gives its precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from floorvo.config import param
+from floorvo.estimators.akaze import AkazeConfig, _AkazeBase, _Fit, _State
+from floorvo.estimators.base import Frame
+from floorvo.geometry import plane_homography_motion
+
+__all__ = ["HomographySixDof", "HomographySixDofConfig"]
+
+
+@dataclass(frozen=True)
+class HomographySixDofConfig(AkazeConfig):
+    """akaze-guided's settings, and those of the homography: ``homography_threshold_px``
+    (RANSAC), ``min_homography_inliers``, ``max_homography_rms_px``, ``max_tilt_rad`` and
+    ``max_height_step_mm`` (the self-checks), ``seed`` (OpenCV's RNG before RANSAC)."""
+
+    homography_threshold_px: float = param(1.0, unit="px", gt=0.0, doc="RANSAC threshold of the floor homography")
+    min_homography_inliers: int = param(12, min=8, doc="fewer pairs behind the homography: the frame is lost")
+    max_homography_rms_px: float = param(
+        0.8, unit="px", gt=0.0, doc="larger RMS reprojection error of the homography's inliers: lost"
+    )
+    max_tilt_rad: float = param(0.2, unit="rad", gt=0.0, doc="a floor plane tilted more than this: lost")
+    max_height_step_mm: float = param(5.0, unit="mm", gt=0.0, doc="a larger height change in one frame: lost")
+    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each RANSAC")
+
+
+class HomographySixDof(_AkazeBase):
+    name = "homography-6dof"
+    description = "mono 6-DoF: akaze-guided's matching, the floor homography decomposed with the carried floor plane"
+    Config = HomographySixDofConfig
+    guided = True
+    config: HomographySixDofConfig
+
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """The image motion model of this estimator: the least-squares homography (3, 3) of
+        the pairs ``src -> dst`` (N, 2) px, prev-centred px -> cur-centred px (the rigid model
+        of akaze-guided leaves a tilt's perspective terms as residual, 1.3 px RMS for 0.009 rad
+        at 648x494, and the matches they move as a "second motion")."""
+        if len(src) < 4:
+            return super()._rigid_px(src, dst)
+        H, _ = cv2.findHomography((src - self.centre).astype(np.float64), (dst - self.centre).astype(np.float64), 0)
+        return super()._rigid_px(src, dst) if H is None else H / H[2, 2]
+
+    def _predict(self, M: np.ndarray, pts_px: np.ndarray) -> np.ndarray:
+        """(N, 2) previous-frame px -> current-frame px through the image motion ``M`` (a homography here)."""
+        p = (pts_px - self.centre) @ M[:2, :2].T + M[:2, 2]
+        w = (pts_px - self.centre) @ M[2, :2] + M[2, 2]
+        return p / w[:, None] + self.centre
+
+    def _start_reference(self, state: _State, frame: Frame) -> None:
+        """The first frame (or a restart) is level at the rig's or the measured height; a
+        restart keeps the last plane's normal."""
+        h = self._frame_height(frame) or self.height_mm
+        n = np.array([0.0, 0.0, 1.0]) if state.plane is None else state.plane[0]
+        state.plane = (n, h)
+
+    def _motion(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray | None, str]:
+        cfg = self.config
+        assert state.plane is not None  # set on the first frame
+        x_prev = self.camera.unproject(fit.src, 1.0)[:, :2]
+        x_cur = self.camera.unproject(fit.dst, 1.0)[:, :2]
+        f = float(np.sqrt(self.camera.fx_px * self.camera.fy_px))
+        if len(x_prev) < cfg.min_homography_inliers:
+            return None, f"too few pairs for the floor homography ({len(x_prev)} < {cfg.min_homography_inliers})"
+        cv2.setRNGSeed(cfg.seed)
+        H, mask = cv2.findHomography(
+            x_prev, x_cur, cv2.RANSAC, cfg.homography_threshold_px / f, maxIters=2000, confidence=0.999
+        )
+        if H is None or mask is None:
+            return None, "RANSAC found no floor homography"
+        inl = mask.ravel().astype(bool)
+        if inl.sum() < cfg.min_homography_inliers:
+            return None, f"too few pairs behind the floor homography ({int(inl.sum())} < {cfg.min_homography_inliers})"
+        H, _ = cv2.findHomography(x_prev[inl], x_cur[inl], 0)  # least squares on the inliers (LM-refined)
+        if H is None:
+            return None, "no least-squares floor homography"
+        p = np.column_stack([x_prev[inl], np.ones(int(inl.sum()))]) @ H.T
+        rms_px = f * float(np.sqrt(np.mean(np.sum((p[:, :2] / p[:, 2:3] - x_cur[inl]) ** 2, axis=1))))
+        if rms_px > cfg.max_homography_rms_px:
+            return None, f"floor homography residual {rms_px:.2f} px RMS > {cfg.max_homography_rms_px:g}"
+        n_prev, d_prev = state.plane
+        T, n_cur, d_cur = plane_homography_motion(H, n_prev, d_prev)
+        tilt = float(np.arccos(min(1.0, abs(n_cur[2]))))
+        if tilt > cfg.max_tilt_rad:
+            return None, f"floor plane tilted {tilt:.2f} rad from the optical axis > {cfg.max_tilt_rad:g}"
+        if abs(d_cur - d_prev) > cfg.max_height_step_mm:
+            return None, f"height change {d_cur - d_prev:+.2f} mm in one frame > {cfg.max_height_step_mm:g}"
+        state.plane = (n_cur, d_cur)
+        return T, ""
