@@ -1,13 +1,18 @@
 """6-DoF on the disturbed scenes (issue 14 item 4): each estimator variant's per-step error against ground truth.
 
-    .venv/bin/python benchmarks/sixdof.py --scale 0.5 -o out/bench-sixdof            # renders the scenes below
+    .venv/bin/python benchmarks/sixdof.py -o out/bench-sixdof                          # renders the scenes below
+    .venv/bin/python benchmarks/sixdof.py --scale 0.5 -o out/bench-sixdof-half
     .venv/bin/python benchmarks/sixdof.py --sequence bounce=out/seq-b --sequence tilt=out/seq-t -o out/again
 
-Each scene (default: the motion suite's disturbed scenes with depth and stereo,
-``motion_bounce_depth_stereo_vinyl`` and ``motion_tilt_depth_stereo_concrete``, plus the
-mono ``motion_bounce_vinyl`` and ``motion_tilt_wood``) is rendered with ``floorsim render``
-into ``OUT/seq/NAME`` (reused when it is there) unless ``--sequence NAME=PATH`` gives a
-folder. Every variant (``VARIANTS``: an estimator and its ``--set`` values) the sequence
+Each scene (``SCENES``: the motion suite's disturbed scenes with depth and stereo,
+``motion_bounce_depth_stereo_vinyl`` and ``motion_tilt_depth_stereo_concrete``, and the
+mono ``motion_bounce_vinyl`` with a simulated range sensor, ``range_sensor.enabled``) is
+rendered with ``floorsim render`` (full size unless ``--scale``) into ``OUT/seq/NAME``
+(reused when it is there) unless ``--sequence NAME=PATH`` gives a folder. The mono
+estimators take the camera height from ``height.csv`` when the sequence has one
+(``use_height_signal``, default true; the rows ``use_height_signal=false`` keep the rig's
+constant height) and from each depth image's floor plane when asked
+(``height_from_depth=true``). Every variant (``VARIANTS``: an estimator and its ``--set`` values) the sequence
 supports runs over it (OpenCV on one thread), into ``OUT/runs/SCENE/VARIANT``, and is scored
 by :func:`floorvo.scoring.score_run`. One Markdown row per scene x variant: steps, ok
 steps, **wrong ok steps** against the camera's true 6-DoF step (issue 14's bound: 0.05 mm +
@@ -43,9 +48,11 @@ from floorvo.scoring import score_run  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-SCENES = {
-    "bounce_depth_stereo_vinyl": HERE.parent / "scenes/motion/motion_bounce_depth_stereo_vinyl.toml",
-    "tilt_depth_stereo_concrete": HERE.parent / "scenes/motion/motion_tilt_depth_stereo_concrete.toml",
+#: name -> (scene file, --set values of the render).
+SCENES: dict[str, tuple[Path, list[str]]] = {
+    "bounce_depth_stereo_vinyl": (HERE.parent / "scenes/motion/motion_bounce_depth_stereo_vinyl.toml", []),
+    "tilt_depth_stereo_concrete": (HERE.parent / "scenes/motion/motion_tilt_depth_stereo_concrete.toml", []),
+    "bounce_range_vinyl": (HERE.parent / "scenes/motion/motion_bounce_vinyl.toml", ["range_sensor.enabled=true"]),
 }
 
 #: variant label -> (estimator, --set values). The defaults are the 6-DoF ones (update = plane);
@@ -57,8 +64,13 @@ VARIANTS: dict[str, tuple[str, dict[str, str]]] = {
     "stereo-sift update=planar": ("stereo-sift", {"update": "planar"}),
     "stereo-sift update=rigid": ("stereo-sift", {"update": "rigid"}),
     "stereo-sift update=mean": ("stereo-sift", {"update": "mean"}),
+    "homography-6dof": ("homography-6dof", {}),
     "phase-corr": ("phase-corr", {}),
+    "phase-corr height_from_depth=true": ("phase-corr", {"height_from_depth": "true"}),
+    "phase-corr use_height_signal=false": ("phase-corr", {"use_height_signal": "false"}),
     "akaze-guided": ("akaze-guided", {}),
+    "akaze-guided height_from_depth=true": ("akaze-guided", {"height_from_depth": "true"}),
+    "akaze-guided use_height_signal=false": ("akaze-guided", {"use_height_signal": "false"}),
 }
 
 
@@ -106,7 +118,7 @@ def _fmt(v, digits: int = 3) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scale", type=float, default=0.5, help="render at this fraction of 648x494 (default 0.5)")
+    ap.add_argument("--scale", type=float, default=1.0, help="render at this fraction of 648x494 (default 1)")
     ap.add_argument("--sequence", action="append", default=[], help="NAME=PATH of a sequence folder (repeatable)")
     ap.add_argument("--variants", default=None, help="comma-separated labels of VARIANTS (default all)")
     ap.add_argument("-o", "--output", type=Path, required=True)
@@ -117,13 +129,12 @@ def main() -> None:
         name, _, path = item.partition("=")
         seqs[name] = Path(path)
     if not seqs:
-        for name, scene in SCENES.items():
+        for name, (scene, sets) in SCENES.items():
             out = args.output / "seq" / name
             if not (out / "groundtruth.txt").is_file():
                 floorsim = Path(sys.executable).with_name("floorsim")
-                subprocess.run(
-                    [str(floorsim), "render", str(scene), "-o", str(out), "--scale", str(args.scale)], check=True
-                )
+                cmd = [str(floorsim), "render", str(scene), "-o", str(out), "--scale", str(args.scale)]
+                subprocess.run(cmd + [a for kv in sets for a in ("--set", kv)], check=True)
             seqs[name] = out
     labels = list(VARIANTS) if args.variants is None else [v.strip() for v in args.variants.split(",")]
     rows = []
@@ -135,13 +146,7 @@ def main() -> None:
             est, sets = VARIANTS[label]
             if not set(get_estimator(est).requires) <= have:
                 continue
-            run_dir = (
-                args.output
-                / "runs"
-                / scene
-                / label.split(" ")[0].replace("/", "_")
-                / "_".join(f"{k}-{v}" for k, v in sets.items())
-            )
+            run_dir = args.output / "runs" / scene / label.replace(" ", "_").replace("=", "-")
             run = run_estimator(seq, est, run_dir, sets)
             sc = score_run(run_dir, path)
             fl = sc.flat()
