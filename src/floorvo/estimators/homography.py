@@ -81,6 +81,14 @@ class HomographySixDof(_AkazeBase):
         w = (pts_px - self.centre) @ M[2, :2] + M[2, 2]
         return p / w[:, None] + self.centre
 
+    def _precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
+        """akaze-guided's precision check, on the residuals of the homography ``M`` (not of
+        its affine part, which leaves a tilt's perspective terms as residual): the pairs are
+        given to it as a pure shift by ``M``'s translation plus those residuals."""
+        M_shift = np.eye(3)
+        M_shift[:2, 2] = M[:2, 2]
+        return super()._precision_problem(M_shift, s, s + M[:2, 2] + (d - self._predict(M, s)))
+
     def _start_reference(self, state: _State, frame: Frame) -> None:
         """The first frame (or a restart) is level at the rig's or the measured height; a
         restart keeps the last plane's normal."""
