@@ -130,7 +130,10 @@ class OrbIcp:
     """ORB + FLANN-LSH ratio test + PROSAC + ICP-SVD on depth (paper 001)."""
 
     name = "orb-icp"
-    description = "paper 001: homogenised ORB, FLANN-LSH ratio test, PROSAC, 3D points from depth, ICP by SVD"
+    description = (
+        "paper 001: homogenised ORB, FLANN-LSH ratio test, PROSAC, depth; 6-DoF from each depth image's "
+        "floor plane (update=icp: ICP by SVD)"
+    )
     Config = OrbIcpConfig
     requires = frozenset({"depth"})
 
