@@ -270,6 +270,49 @@ def heightfield_vertex_normals(
     return np.ascontiguousarray(np.moveaxis(acc, 0, -1), dtype=np.float32)
 
 
+@dataclass(frozen=True)
+class _HeightGrid:
+    """A floor tile as a regular grid for :func:`_intersect_grid`: vertex (i, j) at tile-local
+    (x0 + j sx, y0 + i sy, z[i, j]) mm; ``z``, ``albedo`` (ny nx,) and ``normals`` (3, ny nx) as flat
+    JIT arrays, ``z_min``/``z_max`` the heights' range (mm)."""
+
+    nx: int
+    ny: int
+    x0: float
+    y0: float
+    sx: float
+    sy: float
+    z_min: float
+    z_max: float
+    z: Any
+    albedo: Any
+    normals: Any
+
+    @staticmethod
+    def of(mi, xs, ys, height_mm, albedo, normals) -> _HeightGrid | None:
+        """The grid of a tile whose vertex columns ``xs`` and rows ``ys`` are evenly spaced (to 0.1 % of
+        a cell: float32 coordinates round them by up to 1e-4 of a cell); None otherwise."""
+        dxs, dys = np.diff(np.asarray(xs, np.float64)), np.diff(np.asarray(ys, np.float64))
+        sx, sy = (float(xs[-1]) - float(xs[0])) / len(dxs), (float(ys[-1]) - float(ys[0])) / len(dys)
+        if np.abs(dxs - sx).max() > 1e-3 * sx or np.abs(dys - sy).max() > 1e-3 * sy:
+            return None
+        z = np.asarray(height_mm, np.float32)
+        nrm = np.asarray(normals, np.float32).reshape(-1, 3)
+        return _HeightGrid(
+            int(z.shape[1]),
+            int(z.shape[0]),
+            float(xs[0]),
+            float(ys[0]),
+            sx,
+            sy,
+            float(z.min()),
+            float(z.max()),
+            mi.Float(z.ravel()),
+            mi.Float(np.asarray(albedo, np.float32).ravel()),
+            [mi.Float(np.ascontiguousarray(nrm[:, k])) for k in range(3)],
+        )
+
+
 class FloorRenderer:
     """Renders radiance images of a floor tile for a camera model.
 
@@ -292,6 +335,9 @@ class FloorRenderer:
         self.specular: tuple[float, float] | None = None
         self._samplers: dict = {}
         self.smooth_normals = True
+        #: The loaded tile as a regular height grid (primary rays traced against it without Embree), or None.
+        self._grid: _HeightGrid | None = None
+        self.heightfield_primary = True
 
     # --------------------------------------------------------------------- geometry
     def load_heightfield(
@@ -363,6 +409,7 @@ class FloorRenderer:
         F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
         F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
         self._set_mesh(V.reshape(-1), F.reshape(-1), N.reshape(-1), albedo.reshape(-1), nx * ny, len(F), origin_xy_mm)
+        self._grid = _HeightGrid.of(self.mi, xs, ys, height_mm, albedo, N)
         return N
 
     def _set_mesh(self, V, F, N, albedo, n_vertices, n_faces, origin_xy_mm) -> None:
@@ -470,17 +517,21 @@ class FloorRenderer:
         pos = sampler.next_2d()
         u = mi.Float(pix % w) - 0.5 + pos.x
         v = mi.Float(pix // w) - 0.5 + pos.y
-        if cam.has_distortion:
-            uv = np.stack([u.numpy(), v.numpy()], axis=1).astype(np.float64)
-            d_np = cam.unproject(uv, 1.0)
-            x, y = mi.Float(d_np[:, 0].astype(np.float32)), mi.Float(d_np[:, 1].astype(np.float32))
-        else:
-            x = (u - float(cam.cx_px)) * (1.0 / float(cam.fx_px))
-            y = (v - float(cam.cy_px)) * (1.0 / float(cam.fy_px))
         T = np.asarray(T_world_cam, dtype=np.float64)
         per_row = T.ndim == 3
         if per_row and T.shape != (h, 4, 4):
             raise ValueError(f"render: T_world_cam must be (4, 4) or ({h}, 4, 4) (one pose per row), got {T.shape}")
+        if cam.has_distortion:
+            uv = np.stack([u.numpy(), v.numpy()], axis=1).astype(np.float64)
+            d_np = cam.unproject(uv, 1.0)
+            x, y = mi.Float(d_np[:, 0].astype(np.float32)), mi.Float(d_np[:, 1].astype(np.float32))
+            x_bound, y_bound = d_np[:, 0], d_np[:, 1]
+        else:
+            x = (u - float(cam.cx_px)) * (1.0 / float(cam.fx_px))
+            y = (v - float(cam.cy_px)) * (1.0 / float(cam.fy_px))
+            x_bound = (np.array([-0.5, w - 0.5, -0.5, w - 0.5]) - cam.cx_px) / cam.fx_px
+            y_bound = (np.array([-0.5, -0.5, h - 0.5, h - 0.5]) - cam.cy_px) / cam.fy_px
+        cells = self._grid_cells(T[..., :3, :3], x_bound, y_bound)
         row = pix // w
         if per_row:
             R = self._per_row(T[:, :3, :3].reshape(h, 9), row)
@@ -491,11 +542,15 @@ class FloorRenderer:
             o = mi.Point3f(*self._opaque(T[:3, 3] - self.origin_mm))
         d = mi.Vector3f(R[0] * x + R[1] * y + R[2], R[3] * x + R[4] * y + R[5], R[6] * x + R[7] * y + R[8])
         ray = mi.Ray3f(o, dr.normalize(d))
-        si = self.scene.ray_intersect(ray)
-        valid = si.is_valid()
-        albedo = si.shape.eval_attribute_1("vertex_albedo", si, valid)
+        if cells is None:
+            si = self.scene.ray_intersect(ray)
+            valid, p_hit, n_geo = si.is_valid(), si.p, si.n
+            albedo = si.shape.eval_attribute_1("vertex_albedo", si, valid)
+            n_smooth = si.sh_frame.n
+        else:
+            valid, _, p_hit, n_geo, n_smooth, albedo = self._intersect_grid(ray.o, ray.d, cells)
         # Face normals may point down if the winding flips: orient them towards the camera.
-        n_shade = si.sh_frame.n if self.smooth_normals else si.n
+        n_shade = n_smooth if self.smooth_normals else n_geo
         nrm = dr.select(dr.dot(n_shade, -ray.d) < 0, -n_shade, n_shade)
         m = float(leds.lobe_exponent)
         wo = -ray.d
@@ -556,7 +611,7 @@ class FloorRenderer:
                 else:
                     s_b, s_u = (sq.x - 0.5) * size_w, (sq.y - 0.5) * size_h
                 lp = mi.Point3f(px + s_b * bx + s_u * ux, py + s_b * by + s_u * uy, pz + s_b * bz + s_u * uz)
-            dl = lp - si.p
+            dl = lp - p_hit
             r2 = dr.squared_norm(dl)
             wl = dl * dr.rsqrt(r2)
             cos_surf = dr.maximum(dr.dot(nrm, wl), 0.0)
@@ -576,7 +631,7 @@ class FloorRenderer:
                 L += f
         elif every_led:
             for _, lp, f in led_terms:
-                occluded = self.scene.ray_test(self._shadow_ray(si, lp), f > 0)
+                occluded = self.scene.ray_test(self._shadow_ray(p_hit, n_geo, lp), f > 0)
                 L += dr.select(occluded, 0.0, f)
         else:
             for bar in sorted({b for b, _, _ in led_terms}):
@@ -593,7 +648,7 @@ class FloorRenderer:
                     pick = ~found & (acc > target)
                     chosen = dr.select(pick, lp, chosen)
                     found |= pick
-                occluded = self.scene.ray_test(self._shadow_ray(si, chosen), F > 0)
+                occluded = self.scene.ray_test(self._shadow_ray(p_hit, n_geo, chosen), F > 0)
                 L += dr.select(occluded, 0.0, F)
         if ambient > 0:
             L += dr.select(valid, float(ambient) * diffuse, 0.0)
@@ -601,6 +656,112 @@ class FloorRenderer:
         # scatter-adds (order varies from run to run) when L would take over 1 GiB (about 1000 spp at full size).
         img = dr.block_sum(L, spp, mode="evaluated") * (1.0 / spp)
         return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
+
+    def _grid_cells(self, R_world_cam: np.ndarray, x_cam, y_cam) -> int | None:
+        """How many grid cells along x and along y (one count for both) a primary ray can cross
+        between the tile's highest and lowest points, or None when :meth:`_intersect_grid` should
+        not be used (no regular grid, rays near the horizontal, or more than 4 cells).
+
+        ``R_world_cam`` (3, 3) or (H, 3, 3); ``x_cam``, ``y_cam``: numpy arrays of normalised image
+        coordinates that bound the rays (the image's corners, or every ray). The ray's
+        horizontal run per unit of height, d_x / d_z, is a ratio of linear functions of
+        (x_cam, y_cam) and takes its extremes at the corners of the image.
+        """
+        g = self._grid
+        if g is None or not self.heightfield_primary:
+            return None
+        R = np.asarray(R_world_cam, np.float64).reshape(-1, 3, 3)
+        d_cam = np.stack([np.asarray(x_cam, np.float64), np.asarray(y_cam, np.float64), np.ones(np.size(x_cam))])
+        d = R @ d_cam  # (H or 1, 3, n)
+        if np.max(d[:, 2] / np.linalg.norm(d, axis=1)) > -0.2:  # rays more than 78 deg off the vertical
+            return None
+        run = (g.z_max - g.z_min) * np.max(np.abs(d[:, :2] / d[:, 2:3]), axis=(0, 2))  # (2,) mm
+        cells = int(np.floor(1.01 * max(run[0] / g.sx, run[1] / g.sy))) + 2
+        return cells if cells <= 4 else None
+
+    def _intersect_grid(self, o, d, cells: int):
+        """First hit of the rays ``o + t d`` (tile-local mm, ``d`` unit, pointing down) with the
+        height-grid floor, traced without Embree: the same triangles as the mesh (cell (i, j)
+        split along its diagonal into the lower triangle (i,j)-(i,j+1)-(i+1,j+1) and the
+        upper one (i,j)-(i+1,j+1)-(i+1,j)).
+
+        A ray crosses the slab z_min <= z <= z_max of the tile's heights over a horizontal
+        run of at most ``cells`` - 1 cells (:meth:`_grid_cells`), so its first hit lies in the
+        ``cells`` x ``cells`` block of cells starting at the cell under its entry point; every
+        triangle of the block is tested (a plane z = z00 + A u + B w in the cell's (u, w) in
+        [0, 1]^2) and the nearest hit kept. Returns (valid, t, p, n_geo, n_shade, albedo):
+        n_geo the triangle's normal, n_shade the normalised barycentric mix of the vertex
+        normals and albedo the barycentric mix of the vertex albedos, as Mitsuba's
+        ``SurfaceInteraction`` (``n``, ``sh_frame.n``, ``eval_attribute_1``) gives them.
+        """
+        mi, dr = self.mi, self.dr
+        g = self._grid
+        assert g is not None
+        x0, y0, inv_sx, inv_sy, z_min, z_max = self._opaque([g.x0, g.y0, 1.0 / g.sx, 1.0 / g.sy, g.z_min, g.z_max])
+        nx = dr.opaque(mi.Int32, g.nx)
+        ny = dr.opaque(mi.Int32, g.ny)
+        # Cell coordinates (u along x, w along y) of the origin and their rates along the ray.
+        u0, w0 = (o.x - x0) * inv_sx, (o.y - y0) * inv_sy
+        du, dw = d.x * inv_sx, d.y * inv_sy
+        inv_dz = dr.rcp(d.z)
+        t_top = dr.maximum((z_max - o.z) * inv_dz, 0.0)
+        t_bottom = (z_min - o.z) * inv_dz
+        j_first = mi.Int32(dr.floor(dr.minimum(u0 + t_top * du, u0 + t_bottom * du)))
+        i_first = mi.Int32(dr.floor(dr.minimum(w0 + t_top * dw, w0 + t_bottom * dw)))
+        eps = 1e-5
+        t_best = mi.Float(dr.inf)
+        cell_best = mi.Int32(0)
+        upper_best = mi.Bool(False)
+        for di in range(cells):
+            for dj in range(cells):
+                i, j = i_first + di, j_first + dj
+                inside = (i >= 0) & (j >= 0) & (i < ny - 1) & (j < nx - 1)
+                a = dr.select(inside, i * nx + j, 0)
+                z00 = dr.gather(mi.Float, g.z, a, inside)
+                z01 = dr.gather(mi.Float, g.z, a + 1, inside)
+                z10 = dr.gather(mi.Float, g.z, a + nx, inside)
+                z11 = dr.gather(mi.Float, g.z, a + nx + 1, inside)
+                uc, wc = u0 - mi.Float(j), w0 - mi.Float(i)  # the origin in this cell's (u, w)
+                for upper in (False, True):
+                    # z = z00 + A u + B w on the triangle's plane.
+                    A, B = (z11 - z10, z10 - z00) if upper else (z01 - z00, z11 - z01)
+                    t = (z00 + A * uc + B * wc - o.z) / (d.z - A * du - B * dw)
+                    u, w = uc + t * du, wc + t * dw
+                    if upper:
+                        on = (u >= -eps) & (w <= 1.0 + eps) & (w >= u - eps)
+                    else:
+                        on = (w >= -eps) & (u <= 1.0 + eps) & (w <= u + eps)
+                    hit = inside & on & (t > 0) & (t < t_best)
+                    t_best = dr.select(hit, t, t_best)
+                    cell_best = dr.select(hit, a, cell_best)
+                    upper_best = dr.select(hit, mi.Bool(upper), upper_best)
+        valid = dr.isfinite(t_best)
+        t = dr.select(valid, t_best, 0.0)
+        p = o + t * d
+        a = cell_best
+        u = dr.clip((o.x + t * d.x - x0) * inv_sx - mi.Float(a % nx), 0.0, 1.0)
+        w = dr.clip((o.y + t * d.y - y0) * inv_sy - mi.Float(a // nx), 0.0, 1.0)
+        # Vertices of the hit triangle: (0,0), (1,0) or (1,1) [lower], (1,1) or (0,1) [upper].
+        v1 = dr.select(upper_best, a + nx + 1, a + 1)
+        v2 = dr.select(upper_best, a + nx, a + nx + 1)
+        b0 = dr.select(upper_best, 1.0 - w, 1.0 - u)
+        b1 = dr.select(upper_best, u, u - w)
+        b2 = dr.select(upper_best, w - u, w)
+
+        def mix(values):
+            return (
+                b0 * dr.gather(mi.Float, values, a, valid)
+                + b1 * dr.gather(mi.Float, values, v1, valid)
+                + b2 * dr.gather(mi.Float, values, v2, valid)
+            )
+
+        z_a, z_1, z_2 = (dr.gather(mi.Float, g.z, k, valid) for k in (a, v1, v2))
+        # The plane's slopes per cell: lower A = z(1,0) - z(0,0), B = z(1,1) - z(1,0); upper A = z(1,1) - z(0,1), B = z(0,1) - z(0,0).
+        A = dr.select(upper_best, z_1 - z_2, z_1 - z_a)
+        B = dr.select(upper_best, z_2 - z_a, z_2 - z_1)
+        n_geo = dr.normalize(mi.Vector3f(-A * inv_sx, -B * inv_sy, 1.0))
+        n_shade = dr.normalize(mi.Vector3f(mix(g.normals[0]), mix(g.normals[1]), mix(g.normals[2])))
+        return valid, t, p, n_geo, n_shade, mix(g.albedo)
 
     def _per_row(self, values: np.ndarray, row) -> list:
         """Columns of ``values`` (H, K) as K per-lane arrays: lane l gets row ``row[l]``'s value.
@@ -614,8 +775,8 @@ class FloorRenderer:
             for k in range(v.shape[1])
         ]
 
-    def _shadow_ray(self, si, target):
-        """Shadow ray from the hit ``si`` to the point ``target`` (tile-local mm).
+    def _shadow_ray(self, p, n_geo, target):
+        """Shadow ray from the hit point ``p`` with geometric normal ``n_geo`` to the point ``target`` (tile-local mm).
 
         As ``Interaction.spawn_ray_to`` but with the fixed lift :attr:`shadow_offset_mm`
         along the geometric normal, on the side of the target (see :meth:`_set_mesh`).
@@ -623,11 +784,13 @@ class FloorRenderer:
         mi, dr = self.mi, self.dr
         # Opaque: the offset follows the tile's extent, and a literal would compile a new kernel per value.
         (offset,) = self._opaque([self.shadow_offset_mm])
-        lift = dr.mulsign(offset, dr.dot(si.n, target - si.p))
-        o = si.p + lift * si.n
+        lift = dr.mulsign(offset, dr.dot(n_geo, target - p))
+        o = p + lift * n_geo
         d = target - o
         dist = dr.norm(d)
-        return mi.Ray3f(o, d / dist, dist * (1.0 - float(mi.math.ShadowEpsilon)), si.time, si.wavelengths)
+        ray = mi.Ray3f(o, d / dist)
+        ray.maxt = dist * (1.0 - float(mi.math.ShadowEpsilon))
+        return ray
 
     @staticmethod
     def _bars(T_world_cam: np.ndarray, leds: LedArray) -> np.ndarray:
