@@ -2,6 +2,15 @@
 
     .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--spp 4,8,12] [--ref-spp 1024]
     .venv/bin/python benchmarks/render.py --profile [--frames 6] [--set lights.led_size_mm=3]
+    .venv/bin/python benchmarks/render.py --against /tmp/old/src [--frames 6] [--repeats 3] [--ref-spp 1024]
+
+``--against SRC`` compares this tree with another source tree (its ``src/`` folder, e.g. a
+``git archive`` of an older commit) in one run: one worker process per tree, each with
+its floor tile loaded, rendering the same frames in turn (alternating, so both see the
+same machine load), at each tree's default quality (``--this-set`` overrides apply to this
+tree only); it prints the median CPU and wall seconds per frame of each and their ratio,
+and the PSNR of each tree's frame 0 against a ``--ref-spp`` reference rendered by the
+other tree (the old code's reference).
 
 Renders ``--frames`` full-size frames of the scene at its default quality (or at each
 ``--spp`` given) and reports:
@@ -49,7 +58,19 @@ def main() -> None:
         help="instead: where a frame's time goes (primary rays, shading, shadow rays, sensor, PNG, tracing)",
     )
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="scene override (repeatable)")
+    ap.add_argument("--against", metavar="SRC", help="compare with another source tree, alternating (see above)")
+    ap.add_argument(
+        "--this-set", action="append", default=[], metavar="KEY=VALUE", help="with --against: this tree only"
+    )
+    ap.add_argument("--repeats", type=int, default=3, help="with --against: rounds of alternation")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.worker:
+        worker(args)
+        return
+    if args.against:
+        against(args)
+        return
     if args.profile:
         profile(args)
         return
@@ -60,13 +81,8 @@ def main() -> None:
     _load_tile(renderer, scene, tiles[0][1], spacing)
     t_tile = time.perf_counter() - t0
     frames = tiles[0][0][:n]
-    # Reference: accumulate ref_spp samples in batches of 16 with independent jitter.
-    batch = 16
-    acc = np.zeros((cam.height_px, cam.width_px), dtype=np.float64)
     t = time.perf_counter()
-    for b in range(args.ref_spp // batch):
-        acc += renderer.render(T[0], _leds(scene, T[0]), batch, seed=10_000 + b)
-    ref = acc / (args.ref_spp // batch)
+    ref = _reference(renderer, scene, T[0], args.ref_spp)
     t_ref = time.perf_counter() - t
     # PSNR in the 8-bit DN scale of the sequence's automatic exposure (peak 255).
     gain = exposure_gain(ref, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
@@ -115,6 +131,121 @@ def main() -> None:
         "load_average_1min_at_end": round(os.getloadavg()[0], 2),
         "backend": backend_info(),
     }
+    print(json.dumps(out, indent=2))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+
+
+def _reference(renderer, scene, T_world_cam: np.ndarray, ref_spp: int) -> np.ndarray:
+    """Radiance (H, W) of pose ``T_world_cam`` averaged over ``ref_spp`` samples: batches of 16 spp
+    with independent sample patterns (seeds 10000, 10001, ...)."""
+    batch = 16
+    acc = None
+    for b in range(max(1, ref_spp // batch)):
+        img = renderer.render(T_world_cam, _leds(scene, T_world_cam), batch, seed=10_000 + b).astype(np.float64)
+        acc = img if acc is None else acc + img
+    return acc / max(1, ref_spp // batch)
+
+
+def worker(args) -> None:
+    """One tree's side of ``--against``: load the scene's first tile, then answer JSON commands on stdin
+    (``{"frames": [...]}``: render them, reply CPU and wall seconds; ``{"save": PATH}``: frame 0 to
+    PATH.npy; ``{"ref": PATH, "spp": N}``: an N-spp reference of frame 0 to PATH.npy)."""
+    import sys
+
+    scene, cam, T, n, renderer, spacing, tiles = _prepare(args)
+    t = time.perf_counter()
+    _load_tile(renderer, scene, tiles[0][1], spacing)
+    spp = scene.render.spp
+    renderer.render(T[0], _leds(scene, T[0]), spp, seed=0)  # JIT compilation
+    print(json.dumps({"tile_s": time.perf_counter() - t, "spp": renderer.effective_spp(spp)}), flush=True)
+    for line in sys.stdin:
+        cmd = json.loads(line)
+        if "frames" in cmd:
+            wall, cpu = [], []
+            for i in cmd["frames"]:
+                t, c = time.perf_counter(), time.process_time()
+                renderer.render(T[i], _leds(scene, T[i]), spp, seed=_frame_seed(scene.seed, i))
+                wall.append(time.perf_counter() - t)
+                cpu.append(time.process_time() - c)
+            reply: dict = {"wall": wall, "cpu": cpu}
+        elif "save" in cmd:
+            np.save(cmd["save"], renderer.render(T[0], _leds(scene, T[0]), spp, seed=_frame_seed(scene.seed, 0)))
+            reply = {}
+        else:
+            t = time.perf_counter()
+            np.save(cmd["ref"], _reference(renderer, scene, T[0], int(cmd["spp"])))
+            reply = {"ref_s": time.perf_counter() - t}
+        print(json.dumps(reply), flush=True)
+
+
+def against(args) -> None:
+    """This tree against ``args.against``, alternating over the same frames in one run (see the module doc)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    common = [sys.executable, __file__, "--worker", "--scene", args.scene, "--frames", str(args.frames)]
+    common += [f"--set={s}" for s in args.set]
+    procs = {}
+    for name, src, extra in (("against", args.against, []), ("this", here, [f"--set={s}" for s in args.this_set])):
+        env = {"FLOORSIM_SCENES": str(Path(here).parent / "scenes"), **os.environ, "PYTHONPATH": src}
+        procs[name] = subprocess.Popen(
+            common + extra, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        )
+    info = {name: json.loads(p.stdout.readline()) for name, p in procs.items()}  # type: ignore[union-attr]
+
+    def ask(name: str, cmd: dict) -> dict:
+        p = procs[name]
+        p.stdin.write(json.dumps(cmd) + "\n")  # type: ignore[union-attr]
+        p.stdin.flush()  # type: ignore[union-attr]
+        return json.loads(p.stdout.readline())  # type: ignore[union-attr]
+
+    frames = list(range(1, max(2, args.frames)))
+    times: dict[str, dict[str, list[float]]] = {name: {"cpu": [], "wall": []} for name in procs}
+    for r in range(args.repeats):
+        for name in procs:
+            got = ask(name, {"frames": frames})
+            times[name]["cpu"] += got["cpu"]
+            times[name]["wall"] += got["wall"]
+        print(
+            f"round {r}: " + ", ".join(f"{k} {np.median(v['cpu'][-len(frames) :]):.3f} CPU s" for k, v in times.items())
+        )
+    with tempfile.TemporaryDirectory(prefix="render-bench-") as tmp:
+        for name in procs:
+            ask(name, {"save": f"{tmp}/{name}.npy"})
+        ref_s = ask("against", {"ref": f"{tmp}/ref.npy", "spp": args.ref_spp})["ref_s"]
+        ref = np.load(f"{tmp}/ref.npy")
+        images = {name: np.load(f"{tmp}/{name}.npy") for name in procs}
+    for p in procs.values():
+        p.stdin.close()  # type: ignore[union-attr]
+        p.wait()
+    scene = load_scene(args.scene, parse_set_args(args.set))
+    gain = exposure_gain(ref, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
+    to_dn = gain / scene.sensor.full_well_e * 255.0
+    h, w = ref.shape
+    sl = (slice(int(0.1 * h), int(0.9 * h)), slice(int(0.1 * w), int(0.9 * w)))
+    out: dict = {"scene": scene.name, "size": f"{w}x{h}", "frames_per_round": len(frames), "rounds": args.repeats}
+    for name in procs:
+        mse = float(np.mean(((images[name][sl] - ref[sl]) * to_dn) ** 2))
+        out[name] = {
+            "src": args.against if name == "against" else here,
+            "set": args.set + (args.this_set if name == "this" else []),
+            "spp": info[name]["spp"],
+            "cpu_s_per_frame_median": round(float(np.median(times[name]["cpu"])), 3),
+            "wall_s_per_frame_median": round(float(np.median(times[name]["wall"])), 3),
+            "psnr_db_central80": round(10 * float(np.log10(255.0**2 / mse)), 2),
+        }
+    out["ratio_cpu"] = round(out["against"]["cpu_s_per_frame_median"] / out["this"]["cpu_s_per_frame_median"], 2)
+    out["ratio_wall"] = round(out["against"]["wall_s_per_frame_median"] / out["this"]["wall_s_per_frame_median"], 2)
+    out.update(
+        ref_spp=args.ref_spp,
+        ref_render_s=round(ref_s, 1),
+        machine=f"{platform.machine()}, {os.cpu_count()} cores",
+        load_average_1min_at_end=round(os.getloadavg()[0], 2),
+    )
     print(json.dumps(out, indent=2))
     if args.json:
         with open(args.json, "w") as fh:
@@ -176,6 +307,7 @@ def profile(args) -> None:
         stages["png"] = timed(lambda i: write_png(f"{tmp}/{i:06d}.png", dn))
     small = FloorRenderer(type(cam).from_sensor(8, 8, 7.4 * cam.width_px / 8, scene.camera.focal_length_mm))
     small.scene, small.origin_mm, small.shadow_offset_mm = renderer.scene, renderer.origin_mm, renderer.shadow_offset_mm
+    small._grid = renderer._grid
     stages["tracing"] = timed(lambda i: small.render(T[i], _leds(scene, T[i]), spp, seed=i))
     rows = {
         "primary rays + albedo": stages["primary"],
