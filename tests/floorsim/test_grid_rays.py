@@ -1,0 +1,102 @@
+"""Rays traced against the floor's height grid (no Embree) against Embree on the same mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _tiny import tiny_scene
+
+from floorsim.materials import sample_material
+from floorsim.render import FloorRenderer
+from floorsim.simulate import _leds
+from floorvo.camera import CameraModel
+
+pytestmark = pytest.mark.render
+
+SPACING_MM = 0.0617
+
+
+def _vinyl_renderer(width_px: int = 96, height_px: int = 72) -> tuple[FloorRenderer, np.ndarray]:
+    """A 18 x 15 mm vinyl tile centred on the world origin, and a camera 100 mm above it looking down."""
+    full = CameraModel.from_sensor()
+    cam = CameraModel(width_px, height_px, full.fx_px, full.fy_px, (width_px - 1) / 2, (height_px - 1) / 2)
+    xs = (np.arange(300) - 150) * SPACING_MM
+    ys = (np.arange(240) - 120) * SPACING_MM
+    height, albedo = sample_material("vinyl", xs, ys, 5)
+    r = FloorRenderer(cam)
+    r.load_heightfield(xs[0], ys[0], SPACING_MM, height, albedo)
+    T = np.diag([1.0, -1.0, -1.0, 1.0])
+    T[2, 3] = 100.0
+    return r, T
+
+
+def _rays_from_above(r: FloorRenderer, n: int, max_tilt_rad: float, seed: int):
+    """``n`` unit rays from points 100 mm above the tile's inner part, tilted up to ``max_tilt_rad`` off the vertical."""
+    mi = r.mi
+    rng = np.random.default_rng(seed)
+    target = np.stack([rng.uniform(-6, 6, n), rng.uniform(-5, 5, n), np.zeros(n)], 1)
+    tilt, azimuth = rng.uniform(0, max_tilt_rad, n), rng.uniform(0, 2 * np.pi, n)
+    d = np.stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), -np.cos(tilt)], 1)
+    o = target - 100.0 * d / np.cos(tilt)[:, None]
+    return mi.Ray3f(mi.Point3f(*o.T.astype(np.float32)), mi.Vector3f(*d.T.astype(np.float32)))
+
+
+def test_primary_hits_on_the_grid_are_embrees_hits():
+    """Distance, position, geometric and shading normal and albedo of the first hit, for rays up to 25 deg off
+    the vertical (the camera's corners are 22 deg off), agree with Mitsuba's SurfaceInteraction."""
+    r, _ = _vinyl_renderer()
+    dr = r.dr
+    ray = _rays_from_above(r, 20_000, np.radians(25.0), seed=1)
+    z_range = r._grid.z_max - r._grid.z_min
+    cells = int(np.floor(np.tan(np.radians(25.0)) * z_range / SPACING_MM)) + 2
+    valid, t, p, n_geo, n_shade, albedo = r._intersect_grid(ray.o, ray.d, cells)
+    si = r.scene.ray_intersect(ray)
+    albedo_embree = si.shape.eval_attribute_1("vertex_albedo", si, si.is_valid())
+    assert np.all(valid.numpy()) and np.all(si.is_valid().numpy())
+    assert np.abs(t.numpy() - si.t.numpy()).max() < 1e-4  # mm, along rays 100 mm long
+    assert np.abs((p - si.p).numpy()).max() < 1e-4
+    # A ray through the edge between two triangles meets both at the same point: either normal is right.
+    assert np.mean(dr.dot(n_geo, si.n).numpy() < 0.99999) < 1e-3
+    assert np.min(dr.dot(n_shade, si.sh_frame.n).numpy()) > 0.99999
+    assert np.abs(albedo.numpy() - albedo_embree.numpy()).max() < 1e-4
+
+
+def test_shadow_rays_on_the_grid_are_occluded_where_embree_says():
+    """Shadow rays from floor points to LEDs 3 mm up and 20-60 mm away (grazing, through the relief):
+    the grid walk answers as Embree's ray_test on the same mesh, and the relief does shadow a good part."""
+    r, _ = _vinyl_renderer()
+    mi = r.mi
+    ray = _rays_from_above(r, 20_000, np.radians(20.0), seed=2)
+    _, _, p, n_geo, _, _ = r._intersect_grid(ray.o, ray.d, 3)
+    rng = np.random.default_rng(3)
+    n = 20_000
+    azimuth, distance = rng.uniform(0, 2 * np.pi, n), rng.uniform(20.0, 60.0, n)
+    p_np = p.numpy().T  # (n, 3)
+    led = p_np + np.stack([distance * np.cos(azimuth), distance * np.sin(azimuth), np.full(n, 3.0)], 1)
+    shadow = r._shadow_ray(p, n_geo, mi.Point3f(*led.T.astype(np.float32)))
+    occluded_grid = r._occluded_grid(shadow, mi.Bool(True)).numpy()
+    occluded_embree = r.scene.ray_test(shadow).numpy()
+    assert 0.1 < occluded_embree.mean() < 0.9
+    assert np.mean(occluded_grid != occluded_embree) <= 1e-3  # float rounding where a ray grazes a triangle's edge
+
+
+def test_render_on_the_grid_matches_the_embree_render():
+    """The whole picture (primary rays, shading, shadow rays) with and without the grid tracing."""
+    r, T = _vinyl_renderer()
+    leds = _leds(tiny_scene(), T)
+    grid = r.render(T, leds, spp=4, seed=1).astype(np.float64)
+    r.grid_rays = False
+    embree = r.render(T, leds, spp=4, seed=1).astype(np.float64)
+    assert np.mean(np.abs(grid - embree)) < 1e-3 * embree.mean()
+    # Float rounding: every pixel to about 1e-5; a few more where it flips a shadow ray.
+    assert np.mean(np.abs(grid - embree) > 1e-3 * embree.mean()) < 0.01
+
+
+def test_rays_far_off_the_vertical_are_traced_by_embree():
+    """A camera tilted 80 degrees sees the floor at grazing angles: the grid's few-cell bound does not hold."""
+    r, _ = _vinyl_renderer()
+    c, s = np.cos(np.radians(80.0)), np.sin(np.radians(80.0))
+    R_world_cam = np.array([[1.0, 0.0, 0.0], [0.0, -c, s], [0.0, -s, -c]])
+    corners = np.array([-0.2, 0.2, -0.2, 0.2]), np.array([-0.15, -0.15, 0.15, 0.15])
+    assert r._grid_cells(np.diag([1.0, -1.0, -1.0]), *corners) == 2
+    assert r._grid_cells(R_world_cam, *corners) is None
