@@ -3,6 +3,12 @@
     .venv/bin/python benchmarks/render.py [--scene paper000_uniform] [--frames 10] [--spp 4,8,12] [--ref-spp 1024]
     .venv/bin/python benchmarks/render.py --profile [--frames 6] [--set lights.led_size_mm=3]
     .venv/bin/python benchmarks/render.py --against /tmp/old/src [--frames 6] [--repeats 3] [--ref-spp 1024]
+    .venv/bin/python benchmarks/render.py --versus lights.led_size_mm=3.0 [--frames 6] [--repeats 3]
+
+``--versus KEY=VALUE`` (repeatable) times the scene against the scene with these overrides
+(lights, render settings: the floor must stay the same) in one process, alternating over
+the same frames on the same floor tile; it prints the median CPU seconds per frame of each
+and their ratio.
 
 ``--against SRC`` compares this tree with another source tree (its ``src/`` folder, e.g. a
 ``git archive`` of an older commit) in one run: one worker process per tree, each with
@@ -63,6 +69,7 @@ def main() -> None:
         "--this-set", action="append", default=[], metavar="KEY=VALUE", help="with --against: this tree only"
     )
     ap.add_argument("--repeats", type=int, default=3, help="with --against: rounds of alternation")
+    ap.add_argument("--versus", action="append", default=[], metavar="KEY=VALUE", help="see above (repeatable)")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -73,6 +80,9 @@ def main() -> None:
         return
     if args.profile:
         profile(args)
+        return
+    if args.versus:
+        versus(args)
         return
 
     scene, cam, T, n, renderer, spacing, tiles = _prepare(args)
@@ -135,6 +145,32 @@ def main() -> None:
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=2)
+
+
+def versus(args) -> None:
+    """The scene against the scene with ``--versus`` overrides, alternating in one process (see the module doc)."""
+    scene, cam, T, n, renderer, spacing, tiles = _prepare(args)
+    other = load_scene(args.scene, parse_set_args(args.set + args.versus))
+    if other.floor != scene.floor:
+        raise SystemExit(f"--versus {' '.join(args.versus)}: changes the floor; only lights and render settings")
+    _load_tile(renderer, scene, tiles[0][1], spacing)
+    frames = tiles[0][0][1:n]
+    cpu: dict[str, list[float]] = {"base": [], "versus": []}
+    for r in range(args.repeats):
+        for name, sc in (("base", scene), ("versus", other)):
+            renderer.render(T[0], _leds(sc, T[0]), sc.render.spp, seed=0)  # JIT compilation (a kernel per scene)
+            for i in frames:
+                c = time.process_time()
+                renderer.render(T[i], _leds(sc, T[i]), sc.render.spp, seed=_frame_seed(sc.seed, i))
+                cpu[name].append(time.process_time() - c)
+        print(f"round {r}: " + ", ".join(f"{k} {np.median(v[-len(frames) :]):.3f} CPU s" for k, v in cpu.items()))
+    base, vs = float(np.median(cpu["base"])), float(np.median(cpu["versus"]))
+    print(
+        f"{scene.name} {cam.width_px}x{cam.height_px}, {renderer.effective_spp(scene.render.spp)} spp: "
+        f"{base:.3f} CPU s per frame; with {' '.join(args.versus)}: {vs:.3f} ({vs / base - 1:+.1%}); "
+        f"{len(frames)} frames x {args.repeats} rounds each, load {os.getloadavg()[0]:.1f}, "
+        f"{platform.machine()}, {os.cpu_count()} cores"
+    )
 
 
 def _reference(renderer, scene, T_world_cam: np.ndarray, ref_spp: int) -> np.ndarray:
