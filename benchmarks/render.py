@@ -111,6 +111,7 @@ def main() -> None:
             cpu.append(time.process_time() - c)
             if rad0 is None:
                 rad0 = rad
+        assert rad0 is not None  # frames holds at least frame 0
         mse = float(np.mean(((rad0[sl] - ref[sl]) * to_dn) ** 2))
         psnr = 10 * np.log10(255.0**2 / mse)
         rows.append(
@@ -176,12 +177,11 @@ def versus(args) -> None:
 def _reference(renderer, scene, T_world_cam: np.ndarray, ref_spp: int) -> np.ndarray:
     """Radiance (H, W) of pose ``T_world_cam`` averaged over ``ref_spp`` samples: batches of 16 spp
     with independent sample patterns (seeds 10000, 10001, ...)."""
-    batch = 16
-    acc = None
-    for b in range(max(1, ref_spp // batch)):
-        img = renderer.render(T_world_cam, _leds(scene, T_world_cam), batch, seed=10_000 + b).astype(np.float64)
-        acc = img if acc is None else acc + img
-    return acc / max(1, ref_spp // batch)
+    batch, n_batches = 16, max(1, ref_spp // 16)
+    acc = np.zeros((renderer.camera.height_px, renderer.camera.width_px), dtype=np.float64)
+    for b in range(n_batches):
+        acc += renderer.render(T_world_cam, _leds(scene, T_world_cam), batch, seed=10_000 + b)
+    return acc / n_batches
 
 
 def worker(args) -> None:

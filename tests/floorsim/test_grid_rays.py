@@ -47,6 +47,7 @@ def test_primary_hits_on_the_grid_are_embrees_hits():
     r, _ = _vinyl_renderer()
     dr = r.dr
     ray = _rays_from_above(r, 20_000, np.radians(25.0), seed=1)
+    assert r._grid is not None
     z_range = r._grid.z_max - r._grid.z_min
     cells = int(np.floor(np.tan(np.radians(25.0)) * z_range / SPACING_MM)) + 2
     valid, t, p, n_geo, n_shade, albedo = r._intersect_grid(ray.o, ray.d, cells)
