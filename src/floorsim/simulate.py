@@ -48,6 +48,8 @@ __all__ = [
     "package_versions",
     "range_sensor_heights",
     "LED_INTENSITY_UNIT",
+    "EXPOSURE_FILE",
+    "read_exposure_log",
 ]
 
 log = logging.getLogger(__name__)
@@ -409,7 +411,7 @@ def render_sequence(
         ae = AutoExposure(
             gain, ss.target_level, ss.target_percentile, ss.ae_loop_gain, ss.ae_delay_frames, ss.bit_depth
         )
-        ae_gains, ae_levels = _read_exposure_log(root / EXPOSURE_FILE, gain)
+        ae_gains, ae_levels = read_exposure_log(root / EXPOSURE_FILE, gain)
         # Each frame's exposure depends on the frames before it: render on from the first frame
         # that is missing or has no recorded exposure.
         first = min([len(ae_gains), *missing])
@@ -491,9 +493,10 @@ def _sensor_meta(scene: Scene) -> dict | None:
     }
 
 
-def _read_exposure_log(path: Path, initial_gain: float) -> tuple[list[float], list[float]]:
+def read_exposure_log(path: Path, initial_gain: float | None = None) -> tuple[list[float], list[float]]:
     """Gains and metered levels of frames 0, 1, ... from an auto-exposure log; empty lists when
-    the file is absent, unreadable or from another exposure (its frame 0 has not ``initial_gain``)."""
+    the file is absent, unreadable or from another exposure (its frame 0 has not ``initial_gain``,
+    when given)."""
     if not path.is_file():
         return [], []
     gains: list[float] = []
@@ -509,7 +512,7 @@ def _read_exposure_log(path: Path, initial_gain: float) -> tuple[list[float], li
     except (ConfigError, ValueError) as exc:
         log.warning("%s: unusable (%s); rendering the auto-exposure frames again", path, exc)
         return [], []
-    if gains and gains[0] != initial_gain:
+    if gains and initial_gain is not None and gains[0] != initial_gain:
         return [], []
     return gains, levels
 

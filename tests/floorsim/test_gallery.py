@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from floorsim.gallery import LIGHTING_VARIANTS, render_gallery
+from floorsim.gallery import AE_FRAMES, LIGHTING_VARIANTS, render_gallery
 from floorsim.materials import MATERIALS
 from floorsim.scene import load_scene
 from floorvo.io import read_png
@@ -15,11 +15,18 @@ def test_every_material_has_a_scene_and_is_distinct():
         assert load_scene(f"material_{name}").floor.material == name
 
 
+@pytest.fixture(scope="module")
+def gallery(tmp_path_factory):
+    """The demo gallery at quarter scale, rendered once for the tests of this module: (folder, sheet path)."""
+    out = tmp_path_factory.mktemp("gallery")
+    return out, render_gallery(out, "demo", scale=0.25, columns=4)
+
+
 @pytest.mark.render
-def test_gallery_sheet_has_a_tile_per_material_and_variant(tmp_path):
-    path = render_gallery(tmp_path, "demo", scale=0.25, columns=4)
+def test_gallery_sheet_has_a_tile_per_material_and_variant(gallery):
+    _, path = gallery
     sheet = read_png(path)
-    n = len(MATERIALS) + len(LIGHTING_VARIANTS)
+    n = len(MATERIALS) + len(LIGHTING_VARIANTS) + 1  # + the auto-exposure strip
     tile_h, tile_w = 62 + 22, 81  # demo at quarter scale plus the label band
     rows = -(-n // 4)
     assert sheet.shape == (rows * (tile_h + 6) + 6, 4 * (tile_w + 6) + 6)
@@ -40,3 +47,24 @@ def test_gallery_sheet_has_a_tile_per_material_and_variant(tmp_path):
             if {i, j} == {names.index("vinyl"), len(names)}:
                 continue
             assert np.abs(tiles[i] - tiles[j]).mean() > 1.0, (i, j)
+
+
+@pytest.mark.render
+def test_gallery_auto_exposure_tile_spans_frames_of_changing_exposure(gallery):
+    """The auto-exposure tile comes from a run of AE_FRAMES frames whose gain the loop changed frame to frame,
+    and each slice of the strip is its own frame's picture."""
+    from floorsim.simulate import read_exposure_log
+    from floorvo.sequence import Sequence
+
+    out, path = gallery
+    (seq_dir,) = [p for p in (out / "frames").iterdir() if "auto_exposure" in p.name]
+    seq = Sequence.open(seq_dir)
+    gains, levels = read_exposure_log(seq_dir / "calib" / "exposure.csv")
+    assert len(gains) == AE_FRAMES and len(levels) == AE_FRAMES
+    assert max(gains) / min(gains) > 1.02  # the loop reacted to the flicker
+    n = len(MATERIALS) + len(LIGHTING_VARIANTS)  # the AE tile is the last
+    r, c = divmod(n, 4)
+    tile = read_png(path)[6 + r * (62 + 22 + 6) :][:62, 6 + c * (81 + 6) :][:, :81]
+    edges = np.linspace(0, 81, AE_FRAMES + 1).astype(int)
+    k = AE_FRAMES - 1  # the last slice, below the exposure line (drawn in the top third)
+    np.testing.assert_array_equal(tile[40:, edges[k] : edges[k + 1]], seq.image(k)[40:, edges[k] : edges[k + 1]])
