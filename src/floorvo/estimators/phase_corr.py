@@ -258,11 +258,11 @@ class PhaseCorr:
         bs, g = self.block, self.config.grid
         return [self.sp.spectrum(img[j * bs : (j + 1) * bs, i * bs : (i + 1) * bs]) for j in range(g) for i in range(g)]
 
-    def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray) -> np.ndarray:
-        """cur sampled at M(p) for p on the previous frame's crop grid."""
+    def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
+        """cur sampled at M(p) for p on the previous frame's crop grid (moved by ``offset`` px)."""
         c = np.array([[1, 0, self.camera.cx_px], [0, 1, self.camera.cy_px], [0, 0, 1.0]])
         c_inv = np.array([[1, 0, -self.camera.cx_px], [0, 1, -self.camera.cy_px], [0, 0, 1.0]])
-        o = np.array([[1, 0, self.x0], [0, 1, self.y0], [0, 0, 1.0]])
+        o = np.array([[1, 0, self.x0 + offset[0]], [0, 1, self.y0 + offset[1]], [0, 0, 1.0]])
         r = np.array([[1, 0, -self.rx0], [0, 1, -self.ry0], [0, 0, 1.0]])  # frame -> region coordinates
         A = (r @ c @ M @ c_inv @ o)[:2]
         if np.array_equal(A[:, :2], np.eye(2)) and np.array_equal(A[:, 2], np.round(A[:, 2])):
@@ -302,6 +302,12 @@ class PhaseCorr:
         M, min_peak, resid, yaw = self._measure(state, cur, M0)
         if self._failed(min_peak, resid, yaw) and not np.array_equal(M0, np.eye(3)):
             M, min_peak, resid, yaw = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
+        if self._failed(min_peak, resid, yaw):
+            # A step too large for the crop (its correlation wraps beyond half the crop): a
+            # first guess from the whole normalised region, then the blocks where both frames see them.
+            M_big = self._coarse(state, cur)
+            if M_big is not None:
+                M, min_peak, resid, yaw = self._measure(state, cur, M_big)
         t2_ = time.perf_counter()
         n_blocks = self.config.grid**2
         crop = cur[
@@ -376,6 +382,15 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M)
             d, _ = block_shift(self.sp_crop.spectrum(state.prev_crop), self.sp_crop.spectrum(w), self.sp_crop)
             M = M @ _translation(d)
+        # A step that carries the crop out of the current frame's region: the previous frame's
+        # crop moves back by half the step (within its region), so both frames see the blocks.
+        off = self._crop_offset(M)
+        prev_blocks, centres = state.prev_blocks, self.block_centres
+        if off != (0, 0):
+            assert state.prev is not None
+            ox, oy = self.x0 - self.rx0 + off[0], self.y0 - self.ry0 + off[1]
+            prev_blocks = self._blocks(state.prev[oy : oy + self.crop, ox : ox + self.crop])
+            centres = self.block_centres + np.array(off, dtype=float)
         min_peak, resid, yaw = 0.0, np.inf, (np.inf, np.inf)
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         for _ in range(cfg.iterations):
@@ -387,22 +402,22 @@ class PhaseCorr:
                 # The same quantisation in a rotating warp biases yaw (+17 % at 0.2 deg/frame):
                 # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
-            w = self._warp_into_prev(cur, M)
-            measured = [block_shift(Fa, Fb, self.sp) for Fa, Fb in zip(state.prev_blocks, self._blocks(w))]
+            w = self._warp_into_prev(cur, M, off)
+            measured = [block_shift(Fa, Fb, self.sp) for Fa, Fb in zip(prev_blocks, self._blocks(w))]
             shifts = np.array([d for d, _ in measured])
             peaks = [pk for _, pk in measured]
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
-            R2, t2 = rigid_fit(self.block_centres, self.block_centres + shifts)
+            R2, t2 = rigid_fit(centres, centres + shifts)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
-            resid = float(np.abs(self.block_centres @ R2.T + t2 - self.block_centres - shifts).max())
+            resid = float(np.abs(centres @ R2.T + t2 - centres - shifts).max())
             min_peak = float(min(peaks))
             # The yaw's precision from the blocks' agreement; a similarity fit, so that the
             # scale change of a height bounce is not counted as disagreement.
-            Rs, ts, sc = umeyama(self.block_centres, self.block_centres + shifts, with_scale=True)
-            moved = self.block_centres + shifts
-            rms = float(np.sqrt(np.mean(np.sum((moved - sc * self.block_centres @ Rs.T - ts) ** 2, axis=1))))
-            yaw = (rms, float(np.degrees(rigid_fit_precision(self.block_centres, moved, Rs, ts, scale=sc)[1])))
+            Rs, ts, sc = umeyama(centres, centres + shifts, with_scale=True)
+            moved = centres + shifts
+            rms = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1))))
+            yaw = (rms, float(np.degrees(rigid_fit_precision(centres, moved, Rs, ts, scale=sc)[1])))
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
@@ -414,6 +429,38 @@ class PhaseCorr:
             if same_warp:
                 break
         return M, min_peak, resid, yaw
+
+    def _crop_offset(self, M: np.ndarray) -> tuple[int, int]:
+        """Where the previous frame's crop is measured (px from the centred one): (0, 0) when the
+        motion ``M`` keeps the crop inside the current frame's region, else half the motion back,
+        kept inside the previous frame's region."""
+        corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + [self.x0, self.y0]
+        centred = corners - [self.camera.cx_px, self.camera.cy_px]
+        moved = centred @ M[:2, :2].T + M[:2, 2] + [self.camera.cx_px, self.camera.cy_px]
+        if (
+            moved[:, 0].min() >= self.rx0
+            and moved[:, 1].min() >= self.ry0
+            and moved[:, 0].max() <= self.rx1
+            and moved[:, 1].max() <= self.ry1
+        ):
+            return (0, 0)
+        ox = int(np.clip(-round(float(M[0, 2]) / 2), self.rx0 - self.x0, self.rx1 - self.crop - self.x0))
+        oy = int(np.clip(-round(float(M[1, 2]) / 2), self.ry0 - self.y0, self.ry1 - self.crop - self.y0))
+        return (ox, oy)
+
+    def _coarse(self, state: _State, cur: np.ndarray) -> np.ndarray | None:
+        """A first guess of a large step: the translation of the whole normalised region (3x3, or None).
+
+        The crop's own correlation wraps beyond half its side (192 px at full size; a 30 mm
+        step is 243 px); the region (crop and margin, 640 px wide at full size) sees up to half
+        of its width. ``cv2.phaseCorrelate`` is only a first guess (0.3-0.5 px off): the blocks
+        measure the step."""
+        assert state.prev is not None
+        win = cv2.createHanningWindow((cur.shape[1], cur.shape[0]), cv2.CV_32F)
+        (dx, dy), response = cv2.phaseCorrelate(state.prev.astype(np.float32), cur.astype(np.float32), win)
+        if not np.isfinite(dx) or not np.isfinite(dy) or response <= 0.0:
+            return None
+        return _translation(np.array([dx, dy]))
 
 
 def _square_pinhole(camera: CameraModel) -> CameraModel:
