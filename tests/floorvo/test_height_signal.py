@@ -121,14 +121,48 @@ def test_a_mono_estimator_corrects_its_scale_with_the_height_signal(bounce_seqs,
     assert with_h["rpe_frame_trans_rmse_mm"] < 0.3 * without["rpe_frame_trans_rmse_mm"]
 
 
-def test_an_estimator_step_uses_each_frames_height():
-    """Two frames 2 mm apart in height, no motion in x/y: the step is the height change."""
-    from _synth import frame_pair
+def test_an_estimator_step_uses_each_frames_height(tmp_path):
+    """Two frames 2 mm apart in height, no motion in x/y: the step is the height change.
 
-    prev, cur, flat = frame_pair(CAM, np.eye(4))
-    est = get_estimator("akaze-guided")(make_config("akaze-guided"), CAM, height_mm=100.0, flatfield=flat)
+    (The frames are rendered at those heights: the pixel fit takes the image scale from the
+    heights, so a picture that does not scale with them does not fit.)"""
+    poses = np.stack([T_world_cam_down(0.0, 0.0, h) for h in (99.0, 101.0)])
+    seq = Sequence.open(write_synthetic_sequence(tmp_path / "seq", CAM, poses))
+    prev, cur = (f.image for f in sequence_frames(seq, range(2)))
+    est = get_estimator("akaze-guided")(make_config("akaze-guided"), CAM, height_mm=100.0)
     st = est.start()
     est.step(st, Frame(0, 0.0, prev, height_mm=99.0))
     r = est.step(st, Frame(1, 0.1, cur, height_mm=101.0))
     assert r.ok
     assert r.T_prev_cur[2, 3] == pytest.approx(-2.0)  # the camera rose 2 mm: -2 mm along its down-pointing z
+
+
+FULL = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)
+
+
+@pytest.fixture(scope="module")
+def full_size_bounce(tmp_path_factory):
+    """The rig's full-size camera rising and falling 0.8 mm a frame (0.8 % image scale, up to
+    2.6 px at the corners) at 4 mm a frame, with an exact height signal."""
+    heights_mm = [100.0, 100.8, 101.6, 100.8, 100.0, 99.2]
+    poses = np.stack([T_world_cam_down(4.0 * i, 0.0, h) for i, h in enumerate(heights_mm)])
+    return write_synthetic_sequence(tmp_path_factory.mktemp("full") / "seq", FULL, poses, height_noise_mm=0.0)
+
+
+@pytest.mark.parametrize("name", ["akaze-guided", "akaze-bruteforce"])
+def test_the_akaze_pixel_fit_takes_the_image_scale_from_the_height_signal(full_size_bounce, tmp_path, name):
+    """With the frames' heights known the pixel fit scales the previous points by h_prev / h_cur
+    before the rigid fit, so the residual check sees the true misfit: every step is ok and
+    within the issue's bound of ground truth. A rigid fit (the old code) left 1.35-1.40 px RMS
+    (limit 1.25) and lost every step; without the height signal the steps are still refused,
+    never reported wrong."""
+    seq = full_size_bounce
+    with_h = score_run(run_estimator(seq, name, tmp_path / "with").run_dir, seq).flat()
+    assert with_h["lost_frames"] == 0
+    assert with_h["wrong_ok_steps"] == 0
+    assert with_h["end_drift_pct"] < 0.1
+    without = score_run(
+        run_estimator(seq, name, tmp_path / "without", {"use_height_signal": "false"}).run_dir, seq
+    ).flat()
+    assert without["lost_frames"] == 5
+    assert without["wrong_ok_steps"] == 0

@@ -276,8 +276,13 @@ class _AkazeBase:
         )
         return prev_kps[m.i0], kps[m.i1]
 
-    def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray) -> _Fit:
-        """Section II-C filter and the SE(2) fit of the matches ``src -> dst`` (px), then the self-checks."""
+    def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray, scale: float = 1.0) -> _Fit:
+        """Section II-C filter and the SE(2) fit of the matches ``src -> dst`` (px), then the self-checks.
+
+        ``scale``: the known image scale ratio of the current frame to the previous one
+        (:meth:`_scale_ratio`, from the frames' measured heights); the fit is the rigid
+        motion of the previous points scaled by it about the principal point.
+        """
         cfg = self.config
         n = len(src)
         if n < cfg.min_matches:
@@ -287,7 +292,7 @@ class _AkazeBase:
         s, d = src[keep], dst[keep]
         if len(s) < cfg.min_inliers:
             return _Fit(None, s, d, n, problem=f"too few pairs left by the filter ({len(s)} < {cfg.min_inliers})")
-        M = self._rigid_px(s, d)
+        M = self._rigid_px(s, d, scale)
         # Refinement: the fit again on every match within inlier_tol_px of it. The filter
         # keeps a band of +/- one standard deviation and drops most true matches with
         # them; under yaw that band is a strip of the image, which conditions the
@@ -296,7 +301,7 @@ class _AkazeBase:
         for _ in range(cfg.refine_passes):
             if inl.sum() < 3:
                 break
-            M = self._rigid_px(src[inl], dst[inl])
+            M = self._rigid_px(src[inl], dst[inl], scale)
             inl = np.linalg.norm(self._predict(M, src) - dst, axis=1) <= cfg.inlier_tol_px
         if cfg.refine_passes:
             s, d = src[inl], dst[inl]
@@ -359,12 +364,28 @@ class _AkazeBase:
             )
         return ""
 
-    def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-        """3x3 least-squares rigid motion (prev-centred px -> cur-centred px) of the pairs ``src -> dst`` (N, 2) px."""
-        R, t = rigid_fit(src - self.centre, dst - self.centre)
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """3x3 least-squares motion (prev-centred px -> cur-centred px) of the pairs ``src -> dst`` (N, 2) px:
+        ``p_cur = scale R p_prev + t`` with the rotation ``R`` and ``t`` fitted and the image scale
+        ratio ``scale`` known (1: the rigid fit; :meth:`_scale_ratio`). ``M[:2, :2]`` is ``scale R``."""
+        R, t = rigid_fit(scale * (src - self.centre), dst - self.centre)
         M = np.eye(3)
-        M[:2, :2], M[:2, 2] = R, t
+        M[:2, :2], M[:2, 2] = scale * R, t
         return M
+
+    def _scale_ratio(self, state: _State, frame: Frame) -> float:
+        """The image scale of ``frame`` relative to the reference's, from their camera heights (1 without a height signal).
+
+        A downward camera over a flat floor sees a floor point at ``f r / h`` px from the
+        principal point (eq. (1) of paper 000 read backwards), so between heights ``h_prev``
+        and ``h_cur`` the picture scales by ``h_prev / h_cur`` about the principal point: 0.8 %
+        per frame on a 2 mm bounce at 2 Hz, 2.6 px at the corners of a 648x494 frame, which a
+        rigid pixel fit leaves as residual (BENCHMARKS.md, "akaze on a bounce with a height
+        signal"). The heights are those :meth:`_motion` converts the pixels with (the rig's
+        where a frame has no measured height)."""
+        h_prev = state.height_mm or self.height_mm
+        h_cur = self._frame_height(frame) or self.height_mm
+        return h_prev / h_cur
 
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
@@ -428,14 +449,15 @@ class _AkazeBase:
         if len(kps) < self.config.min_matches:
             fit = _Fit(None, kps, kps, 0, problem=f"too few keypoints ({len(kps)})")
         elif self.guided and state.M_last is not None:
-            fit = self._fit(*self._guided(state, kps, packed), state.M_last)
+            scale = self._scale_ratio(state, frame)
+            fit = self._fit(*self._guided(state, kps, packed), state.M_last, scale)
             doubt = self._prediction_doubt(fit, state.M_last)
             if doubt:
                 # The prediction is doubtful: match again without it (brute force, as at the start).
                 note = f"guided prediction doubtful ({doubt}): matched by brute force"
-                fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3))
+                fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), scale)
         else:
-            fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3))
+            fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), self._scale_ratio(state, frame))
         t2 = time.perf_counter()
         if fit.problem:
             # Lost: the next frame is matched against the last good one, without a prediction;

@@ -65,15 +65,16 @@ class HomographySixDof(_AkazeBase):
     guided = True
     config: HomographySixDofConfig
 
-    def _rigid_px(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float = 1.0) -> np.ndarray:
         """The image motion model of this estimator: the least-squares homography (3, 3) of
         the pairs ``src -> dst`` (N, 2) px, prev-centred px -> cur-centred px (the rigid model
         of akaze-guided leaves a tilt's perspective terms as residual, 1.3 px RMS for 0.009 rad
-        at 648x494, and the matches they move as a "second motion")."""
+        at 648x494, and the matches they move as a "second motion"). The homography fits the
+        image scale itself; ``scale`` (the height signal's) is used only by the rigid fallback."""
         if len(src) < 4:
-            return super()._rigid_px(src, dst)
+            return super()._rigid_px(src, dst, scale)
         H, _ = cv2.findHomography((src - self.centre).astype(np.float64), (dst - self.centre).astype(np.float64), 0)
-        return super()._rigid_px(src, dst) if H is None else H / H[2, 2]
+        return super()._rigid_px(src, dst, scale) if H is None else H / H[2, 2]
 
     def _predict(self, M: np.ndarray, pts_px: np.ndarray) -> np.ndarray:
         """(N, 2) previous-frame px -> current-frame px through the image motion ``M`` (a homography here)."""
