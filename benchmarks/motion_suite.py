@@ -1,5 +1,10 @@
 """The motion suite (issue 14): every estimator on every scene of ``scenes/motion/suite.toml``, one table.
 
+By default every registered estimator runs on every scene whose sequence it supports
+(:func:`floorsim.bench.bench.supported_estimators`: orb-icp and stereo-sift only where the
+sequence has depth or stereo, the mono estimators everywhere; one that needs a prebuilt map
+is left out); ``--estimators a,b`` names some.
+
     .venv/bin/python benchmarks/motion_suite.py --scale 0.5 -o out/bench-motion-suite            # renders, runs
     .venv/bin/python benchmarks/motion_suite.py --from-cache out/bench-motion-suite/sequences -o out/again
 
@@ -59,7 +64,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--suite", default="motion", help="suite name or file (default motion)")
     ap.add_argument("--scale", type=float, default=None, help="render at this fraction of 648x494")
-    ap.add_argument("--estimators", default="akaze-guided,akaze-bruteforce,phase-corr")
+    ap.add_argument(
+        "--estimators", default="", help="comma-separated names (default: every registered one each sequence supports)"
+    )
     ap.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/sequences)")
     ap.add_argument("--from-cache", type=Path, default=None, help="bench the newest DIR/SCENE-* sequence of each scene")
     ap.add_argument(
@@ -68,7 +75,7 @@ def main() -> None:
     ap.add_argument("-o", "--output", type=Path, required=True)
     args = ap.parse_args()
     cv2.setNumThreads(1)
-    estimators = [e.strip() for e in args.estimators.split(",") if e.strip()]
+    estimators: list[str] | None = [e.strip() for e in args.estimators.split(",") if e.strip()] or None
     scenes: list[Path] = suite_scenes(args.suite)
     loaded = [load_scene(p) for p in scenes]
     names = [sc.name for sc in loaded]
@@ -161,7 +168,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators):
     rows: dict[tuple[str, str], dict] = {}
     for m in materials:
         group = [p for p, n in zip(scenes, names) if material_of[n] == m]
-        with_cal = [e for e in estimators if (m, e) in files]
+        with_cal = sorted(e for (mat, e) in files if mat == m)
         if not group or not with_cal:
             continue
         res = run_bench(

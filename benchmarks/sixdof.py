@@ -71,6 +71,9 @@ VARIANTS: dict[str, tuple[str, dict[str, str]]] = {
     "akaze-guided": ("akaze-guided", {}),
     "akaze-guided height_from_depth=true": ("akaze-guided", {"height_from_depth": "true"}),
     "akaze-guided use_height_signal=false": ("akaze-guided", {"use_height_signal": "false"}),
+    "akaze-bruteforce": ("akaze-bruteforce", {}),
+    "akaze-bruteforce height_from_depth=true": ("akaze-bruteforce", {"height_from_depth": "true"}),
+    "akaze-bruteforce use_height_signal=false": ("akaze-bruteforce", {"use_height_signal": "false"}),
 }
 
 
