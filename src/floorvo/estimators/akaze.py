@@ -380,8 +380,8 @@ class _AkazeBase:
         principal point (eq. (1) of paper 000 read backwards), so between heights ``h_prev``
         and ``h_cur`` the picture scales by ``h_prev / h_cur`` about the principal point: 0.8 %
         per frame on a 2 mm bounce at 2 Hz, 2.6 px at the corners of a 648x494 frame, which a
-        rigid pixel fit leaves as residual (BENCHMARKS.md, "akaze on a bounce with a height
-        signal"). The heights are those :meth:`_motion` converts the pixels with (the rig's
+        rigid pixel fit leaves as residual (BENCHMARKS.md, "akaze-guided and akaze-bruteforce on
+        a bounce with a height signal"). The heights are those :meth:`_motion` converts the pixels with (the rig's
         where a frame has no measured height)."""
         h_prev = state.height_mm or self.height_mm
         h_cur = self._frame_height(frame) or self.height_mm
