@@ -108,6 +108,36 @@ def _kill_after(cmd: list[str], delay_s: float) -> bool:
         return True
 
 
+def _kill_mid_render(cmd: list[str], out: Path, n_frames: int, frame_fraction: float) -> bool:
+    """Run the render ``cmd`` into ``out``; once ``n_frames`` frames are on disk, wait ``frame_fraction``
+    of the time the last frame took (when this process rendered two or more), then SIGKILL its process
+    group. True if it was killed (not done).
+
+    Killing on the render's own progress, not at a fraction of a reference run's wall time, keeps the
+    kill inside the render whatever the machine's load or the tile cache's state (a warm cache makes
+    a render seconds shorter than the reference that filled it)."""
+
+    def on_disk() -> int:
+        return len(list((out / "cam0").glob("*.png"))) if (out / "cam0").is_dir() else 0
+
+    seen, stamps = on_disk(), list[float]()
+    p = _start(cmd)
+    try:
+        while seen < n_frames:
+            if p.poll() is not None:
+                return False
+            if (count := on_disk()) > seen:
+                seen = count
+                stamps.append(time.monotonic())
+            time.sleep(0.002)
+        p.wait(frame_fraction * (stamps[-1] - stamps[-2]) if len(stamps) > 1 else 0.0)
+        return False
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+        return True
+
+
 def _files(root: Path) -> dict[str, bytes]:
     """Every file under ``root`` (a lock file or a temporary left behind too) by relative path."""
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
@@ -313,11 +343,17 @@ FAULT_SEED = 16
 def test_a_render_killed_at_random_moments_resumes_to_the_bytes_of_an_uninterrupted_one(
     kills, tiny, reference, tmp_path
 ):
-    files, wall_s = reference
+    files, _ = reference
+    n_frames = sum(1 for name in files if name.startswith("cam0/") and name.endswith(".png"))
     out = tmp_path / "seq"
     cmd = _cli("floorsim", "render", tiny, "--seed", 1, "-o", out)
-    for frac in np.random.default_rng(FAULT_SEED).uniform(0.3, 0.9, size=kills):
-        assert _kill_after(cmd, frac * wall_s), "the render ended before it was killed"
+    rng = np.random.default_rng(FAULT_SEED)
+    # Random moments of the render: after seeded numbers of frames on disk (increasing: a resumed render
+    # skips the frames it finds, and at least two are left to render), a seeded part of a frame's time later.
+    for at in sorted(rng.choice(np.arange(1, n_frames - 1), size=kills, replace=False)):
+        assert _kill_mid_render(cmd, out, int(at), float(rng.uniform(0.0, 0.9))), (
+            "the render ended before it was killed"
+        )
         if out.exists():
             _all_readable(out, killed=True)
     r = _run(cmd)
