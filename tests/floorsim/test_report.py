@@ -8,8 +8,8 @@ import subprocess
 import pytest
 from _bench_data import write_run, write_sequence
 
-from floorsim.bench.report import RunRecord, build_bench_report, format_table
-from floorvo.scoring import score_run
+from floorsim.bench.report import GROUND_TRUTH_COLUMNS, RunRecord, build_bench_report, display_rows, format_table
+from floorvo.scoring import NO_GROUND_TRUTH, NO_TRACK, score_run
 
 CHROMIUM_FLAGS = [
     "--headless",
@@ -115,3 +115,18 @@ def test_format_table_lists_every_row():
     ]
     t = format_table(rows).splitlines()
     assert len(t) == 4 and "0.1235" in t[2] and t[3].split()[0] == "b" and " - " in t[3]
+
+
+def test_table_cells_of_a_run_scored_without_pose_metrics_say_why():
+    """A run that tracked fewer than two frames of a sequence with ground truth says so in the
+    pose-metric cells (it said "no ground truth" whatever the reason); a run of a recording
+    without ground truth still says that."""
+    rows = [
+        {"estimator": "a", "status": "ok", "ground_truth": NO_TRACK, **{c: "" for c in GROUND_TRUTH_COLUMNS}},
+        {"estimator": "b", "status": "ok", "ground_truth": NO_GROUND_TRUTH, **{c: "" for c in GROUND_TRUTH_COLUMNS}},
+        {"estimator": "c", "status": "ok", "ground_truth": "ok", **{c: 0.1 for c in GROUND_TRUTH_COLUMNS}},
+    ]
+    a, b, c = display_rows(rows)
+    assert all(a[k] == "fewer than two frames tracked" for k in GROUND_TRUTH_COLUMNS)
+    assert all(b[k] == "no ground truth" for k in GROUND_TRUTH_COLUMNS)
+    assert all(c[k] == 0.1 for k in GROUND_TRUTH_COLUMNS)

@@ -78,14 +78,15 @@ COMPARE_COLUMNS: list[tuple[str, str]] = [
 
 
 def display_rows(rows: SequenceT[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """``rows`` as tables show them: a run scored without ground truth (``ground_truth`` is not
-    ``ok``) says so in the cells of :data:`GROUND_TRUTH_COLUMNS`."""
+    """``rows`` as tables show them: a run scored without the pose metrics (``ground_truth`` is
+    not ``ok``) says why in the cells of :data:`GROUND_TRUTH_COLUMNS` (the sequence has no
+    ground truth, or the run tracked fewer than two frames: :data:`floorvo.scoring.NO_TRACK`)."""
     out = []
     for r in rows:
         d = dict(r)
         gt = d.get("ground_truth")
         if gt not in (None, "", "ok") and str(d.get("status", "")) == "ok":
-            d.update({c: "no ground truth" for c in GROUND_TRUTH_COLUMNS})
+            d.update({c: str(gt) for c in GROUND_TRUTH_COLUMNS})
         out.append(d)
     return out
 
