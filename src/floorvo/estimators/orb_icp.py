@@ -42,7 +42,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_problem
-from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, rigid_fit_robust
+from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
@@ -259,6 +259,18 @@ class OrbIcp:
                 timing_ms=_timing(t0, t1, t2, time.perf_counter()),
             )
 
+        def ok(T_prev_cur: np.ndarray, uv_prev_kept: np.ndarray, uv_cur_kept: np.ndarray) -> StepResult:
+            """The step ``T_prev_cur`` (4, 4) mm from the kept matches (K, 2) px of both frames."""
+            return StepResult(
+                "ok",
+                T_prev_cur,
+                n_keypoints=len(uv),
+                n_matches=n_matches,
+                n_inliers=len(uv_prev_kept),
+                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                matches_px=np.hstack([uv_prev_kept, uv_cur_kept]),
+            )
+
         if n_matches < self.config.min_matches:
             return lost(f"too few matches ({n_matches})")
         # PROSAC: matches sorted by quality (ascending gamma), homography model (eq. (6)).
@@ -315,16 +327,7 @@ class OrbIcp:
                 return lost(
                     f"in-plane fit residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum())
                 )
-            t3 = time.perf_counter()
-            return StepResult(
-                "ok",
-                T,
-                n_keypoints=len(uv),
-                n_matches=n_matches,
-                n_inliers=int(keep.sum()),
-                timing_ms=_timing(t0, t1, t2, t3),
-                matches_px=np.hstack([uv_prev[keep], uv_cur[keep]]),
-            )
+            return ok(T, uv_prev[keep], uv_cur[keep])
         has_depth = np.isfinite(P_prev).all(axis=1) & np.isfinite(P_cur).all(axis=1)
         P_prev, P_cur = P_prev[has_depth], P_cur[has_depth]
         if len(P_prev) < self.config.min_matches:
@@ -336,19 +339,7 @@ class OrbIcp:
         rms_mm = float(np.sqrt(np.mean(np.sum((P_cur[keep] @ R.T + t - P_prev[keep]) ** 2, axis=1))))
         if rms_mm > self.config.max_residual_mm:
             return lost(f"ICP residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum()))
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = R, t
-        t3 = time.perf_counter()
-        m_px = np.hstack([uv_prev[has_depth][keep], uv_cur[has_depth][keep]])
-        return StepResult(
-            "ok",
-            T,
-            n_keypoints=len(uv),
-            n_matches=n_matches,
-            n_inliers=int(keep.sum()),
-            timing_ms=_timing(t0, t1, t2, t3),
-            matches_px=m_px,
-        )
+        return ok(make_T(R, t), uv_prev[has_depth][keep], uv_cur[has_depth][keep])
 
 
 def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
