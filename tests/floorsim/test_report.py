@@ -8,7 +8,14 @@ import subprocess
 import pytest
 from _bench_data import write_run, write_sequence
 
-from floorsim.bench.report import GROUND_TRUTH_COLUMNS, RunRecord, build_bench_report, display_rows, format_table
+from floorsim.bench.report import (
+    GROUND_TRUTH_COLUMNS,
+    GROUND_TRUTH_REASON_COLUMN,
+    RunRecord,
+    build_bench_report,
+    display_rows,
+    format_table,
+)
 from floorvo.scoring import NO_GROUND_TRUTH, NO_TRACK, score_run
 
 CHROMIUM_FLAGS = [
@@ -119,14 +126,17 @@ def test_format_table_lists_every_row():
 
 def test_table_cells_of_a_run_scored_without_pose_metrics_say_why():
     """A run that tracked fewer than two frames of a sequence with ground truth says so in the
-    pose-metric cells (it said "no ground truth" whatever the reason); a run of a recording
-    without ground truth still says that."""
+    first pose-metric cell (it said "no ground truth" whatever the reason), once (the other
+    pose cells show "-"); a run of a recording without ground truth still says that."""
     rows = [
         {"estimator": "a", "status": "ok", "ground_truth": NO_TRACK, **{c: "" for c in GROUND_TRUTH_COLUMNS}},
         {"estimator": "b", "status": "ok", "ground_truth": NO_GROUND_TRUTH, **{c: "" for c in GROUND_TRUTH_COLUMNS}},
         {"estimator": "c", "status": "ok", "ground_truth": "ok", **{c: 0.1 for c in GROUND_TRUTH_COLUMNS}},
     ]
     a, b, c = display_rows(rows)
-    assert all(a[k] == "fewer than two frames tracked" for k in GROUND_TRUTH_COLUMNS)
-    assert all(b[k] == "no ground truth" for k in GROUND_TRUTH_COLUMNS)
+    others = GROUND_TRUTH_COLUMNS - {GROUND_TRUTH_REASON_COLUMN}
+    assert a[GROUND_TRUTH_REASON_COLUMN] == "fewer than two frames tracked" and all(a[k] == "-" for k in others)
+    assert b[GROUND_TRUTH_REASON_COLUMN] == "no ground truth" and all(b[k] == "-" for k in others)
     assert all(c[k] == 0.1 for k in GROUND_TRUTH_COLUMNS)
+    table = format_table(rows).splitlines()
+    assert table[2].count("fewer than two frames tracked") == 1 and table[3].count("no ground truth") == 1

@@ -58,10 +58,13 @@ SUMMARY_COLUMNS: list[tuple[str, str]] = [
     ("peak_rss_mb", "peak MiB"),
 ]
 
-#: Columns that need ground truth: a row scored without it shows why in their cells.
+#: Columns that need ground truth: a row scored without it shows why in the first
+#: (:data:`GROUND_TRUTH_REASON_COLUMN`) and ``-`` in the others.
 GROUND_TRUTH_COLUMNS = frozenset(
     m.name for m in (md.ate_rmse("none"), md.ate_rmse("se2"), md.RPE_FRAME_TRANS_RMSE, md.END_DRIFT, md.SEG_MEAN_T_ERR)
 )
+#: The pose-metric cell that says why a row has no pose metrics (the leftmost of the tables).
+GROUND_TRUTH_REASON_COLUMN = md.ate_rmse("none").name
 
 #: (column, header) of the comparison of estimators across their sources.
 COMPARE_COLUMNS: list[tuple[str, str]] = [
@@ -79,14 +82,17 @@ COMPARE_COLUMNS: list[tuple[str, str]] = [
 
 def display_rows(rows: SequenceT[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """``rows`` as tables show them: a run scored without the pose metrics (``ground_truth`` is
-    not ``ok``) says why in the cells of :data:`GROUND_TRUTH_COLUMNS` (the sequence has no
-    ground truth, or the run tracked fewer than two frames: :data:`floorvo.scoring.NO_TRACK`)."""
+    not ``ok``) says why once, in :data:`GROUND_TRUTH_REASON_COLUMN` (the sequence has no
+    ground truth, or the run tracked fewer than two frames: :data:`floorvo.scoring.NO_TRACK`),
+    and shows ``-`` in the other cells of :data:`GROUND_TRUTH_COLUMNS` (the reason in all five
+    made the console table five reasons wide)."""
     out = []
     for r in rows:
         d = dict(r)
         gt = d.get("ground_truth")
         if gt not in (None, "", "ok") and str(d.get("status", "")) == "ok":
-            d.update({c: str(gt) for c in GROUND_TRUTH_COLUMNS})
+            d.update({c: "-" for c in GROUND_TRUTH_COLUMNS})
+            d[GROUND_TRUTH_REASON_COLUMN] = str(gt)
         out.append(d)
     return out
 
