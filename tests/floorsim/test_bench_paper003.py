@@ -86,8 +86,11 @@ def test_kidnap_scene_is_relocalised_on_the_map_of_the_lawnmower_scene(tmp_path,
     assert reloc["loc_rmse_mm"] < 0.1 and reloc["ate_none_rmse_mm"] == pytest.approx(reloc["loc_rmse_mm"], rel=1e-6)
     assert str(reloc["frames_to_recover"]) == "0 0" and reloc["recovered_first_frame"] == 2
     assert reloc["query_ms_median"] > 0
-    # odometry alone does not survive a kidnap; the map fixes do
-    assert rows[("paper003_kidnap", "phase-corr")]["ate_none_rmse_mm"] > 10 * reloc["ate_none_rmse_mm"]
+    # Odometry across a teleport: in this shrunk area every view overlaps every other, and
+    # phase-corr measures the jumps it can (a whole-region translation and a log-polar rotation
+    # guess, then its blocks); whatever it cannot measure it must report lost, never a wrong step.
+    odo = rows[("paper003_kidnap", "phase-corr")]
+    assert int(odo["wrong_ok_steps"]) == 0
     assert (out / "paper003" / "paper003_map" / "map" / "map.json").is_file()
     html = res.report_html.read_text()
     assert "Paper 003 reproduction" in html and "frames to recover" in html
