@@ -59,6 +59,7 @@ from floorvo.geometry import (
     pixels_to_floor_mm,
     rigid_fit,
     rigid_fit_precision,
+    umeyama,
 )
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
@@ -171,6 +172,11 @@ class AkazeConfig(Config):
     height_from_depth: bool = param(
         False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
     )
+    fit_image_scale: bool = param(
+        False,
+        doc="a frame without a measured height: fit the image scale too (a similarity) and follow the camera "
+        "height from it, h_cur = h_prev / scale, from the rig's (paper 000: a rigid fit at the rig's height)",
+    )
 
 
 @dataclass
@@ -180,7 +186,7 @@ class _State:
     packed: np.ndarray | None = None  # (N, W) uint64, the same descriptors packed
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
     n_lost: int = 0  # frames lost in a row since the reference
-    height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
+    height_mm: float | None = None  # camera height of the reference frame, measured or fitted (None: the rig's)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
 
 
@@ -189,7 +195,8 @@ class _Fit:
     """A rigid image motion fitted to matches, and what its self-checks found.
 
     ``M``: 3x3 prev-centred px -> cur-centred px; ``src``, ``dst``: (K, 2) px, the pairs
-    the section II-C filter kept; ``problem``: '' when every check passed, else why not.
+    the section II-C filter kept; ``problem``: '' when every check passed, else why not;
+    ``scale_fitted``: ``M``'s image scale was fitted (``fit_image_scale``), not known.
     """
 
     M: np.ndarray | None
@@ -199,12 +206,15 @@ class _Fit:
     rms_px: float = float("nan")
     consensus: float = 0.0
     problem: str = ""
+    scale_fitted: bool = False
 
 
 class _AkazeBase:
     Config = AkazeConfig
     requires: frozenset[str] = frozenset()
     guided: bool = False
+    #: The image motion model fits the scale itself (a homography): ``fit_image_scale`` is not used.
+    fits_own_scale: bool = False
 
     def __init__(
         self, config: AkazeConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
@@ -276,12 +286,13 @@ class _AkazeBase:
         )
         return prev_kps[m.i0], kps[m.i1]
 
-    def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray, scale: float = 1.0) -> _Fit:
+    def _fit(self, src: np.ndarray, dst: np.ndarray, pred_M: np.ndarray, scale: float | None = 1.0) -> _Fit:
         """Section II-C filter and the SE(2) fit of the matches ``src -> dst`` (px), then the self-checks.
 
         ``scale``: the known image scale ratio of the current frame to the previous one
         (:meth:`_scale_ratio`, from the frames' measured heights); the fit is the rigid
-        motion of the previous points scaled by it about the principal point.
+        motion of the previous points scaled by it about the principal point. None: the
+        scale is fitted too (``fit_image_scale``, a frame without a measured height).
         """
         cfg = self.config
         n = len(src)
@@ -336,8 +347,8 @@ class _AkazeBase:
                 min_fraction=0.0,
                 min_count=cfg.min_inliers,
                 max_rival_fraction=cfg.max_rival_fraction,
-            ) or self._precision_problem(M, s, d)
-        return _Fit(M, s, d, n, rms, consensus, problem)
+            ) or (self._similarity_precision_problem(M, s, d) if scale is None else self._precision_problem(M, s, d))
+        return _Fit(M, s, d, n, rms, consensus, problem, scale_fitted=scale is None)
 
     def _precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
         """Why the fit ``M`` of the pairs ``s -> d`` (K, 2) px is too imprecise to report ('' if it is not).
@@ -354,6 +365,25 @@ class _AkazeBase:
         if cfg.precision_sigmas <= 0.0 or len(s) < 3:
             return ""
         sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2], M[:2, 2])
+        return self._bound_problem(M, sig_px, sig_rad)
+
+    def _similarity_precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
+        """:meth:`_precision_problem` of a fit whose image scale was fitted too (``M[:2, :2]`` =
+        scale R). The scale is a fourth parameter of the fit: its relative error (the rotation's
+        standard error, :func:`floorvo.geometry.rigid_fit_precision`) carries over the lever arm
+        to the principal point, and it is the relative error of the height change the step
+        reports (``h sigma_scale`` along the optical axis), which adds to the displacement's."""
+        if self.config.precision_sigmas <= 0.0 or len(s) < 4:
+            return ""
+        k = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
+        sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
+        sig_height_px = self.height_mm * sig_rad / self.camera.gsd_mm_per_px(self.height_mm)
+        return self._bound_problem(M, float(np.hypot(sig_px, sig_height_px)), sig_rad)
+
+    def _bound_problem(self, M: np.ndarray, sig_px: float, sig_rad: float) -> str:
+        """Why a step with the standard errors ``sig_px`` (its displacement, px) and ``sig_rad``
+        (its yaw) is too imprecise for issue 14's bound ('' if it is not)."""
+        cfg = self.config
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
         bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * float(np.linalg.norm(M[:2, 2])) * mm_per_px
         k = cfg.precision_sigmas
@@ -364,17 +394,35 @@ class _AkazeBase:
             )
         return ""
 
-    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float | None = 1.0) -> np.ndarray:
         """3x3 least-squares motion (prev-centred px -> cur-centred px) of the pairs ``src -> dst`` (N, 2) px:
         ``p_cur = scale R p_prev + t`` with the rotation ``R`` and ``t`` fitted and the image scale
-        ratio ``scale`` known (1: the rigid fit; :meth:`_scale_ratio`). ``M[:2, :2]`` is ``scale R``."""
-        R, t = rigid_fit(scale * (src - self.centre), dst - self.centre)
+        ratio ``scale`` known (1: the rigid fit; :meth:`_scale_ratio`), or fitted too when
+        ``scale`` is None (the least-squares similarity, Umeyama's closed form).
+        ``M[:2, :2]`` is ``scale R``."""
         M = np.eye(3)
+        if scale is None:
+            R, t, k = umeyama(src - self.centre, dst - self.centre, with_scale=True)
+            M[:2, :2], M[:2, 2] = k * R, t
+            return M
+        R, t = rigid_fit(scale * (src - self.centre), dst - self.centre)
         M[:2, :2], M[:2, 2] = scale * R, t
         return M
 
-    def _scale_ratio(self, state: _State, frame: Frame) -> float:
-        """The image scale of ``frame`` relative to the reference's, from their camera heights (1 without a height signal).
+    def _height_after(self, state: _State, fit: _Fit, frame: Frame) -> float | None:
+        """The camera height (mm) of ``frame`` as the next step's reference: the measured one
+        when it has one; with ``fit_image_scale``, the reference's divided by the fitted image
+        scale (the picture scales by ``h_prev / h_cur`` about the principal point: eq. (1) of
+        paper 000 read backwards); else None (the rig's)."""
+        h = self._frame_height(frame)
+        if h is None and fit.M is not None and fit.scale_fitted:
+            h_prev = state.height_mm or self.height_mm
+            h = h_prev / float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
+        return h
+
+    def _scale_ratio(self, state: _State, frame: Frame) -> float | None:
+        """The image scale of ``frame`` relative to the reference's, from their camera heights (1 without a height signal;
+        None when it is to be fitted: ``fit_image_scale`` and no measured height).
 
         A downward camera over a flat floor sees a floor point at ``f r / h`` px from the
         principal point (eq. (1) of paper 000 read backwards), so between heights ``h_prev``
@@ -383,8 +431,11 @@ class _AkazeBase:
         rigid pixel fit leaves as residual (BENCHMARKS.md, "akaze-guided and akaze-bruteforce on
         a bounce with a height signal"). The heights are those :meth:`_motion` converts the pixels with (the rig's
         where a frame has no measured height)."""
+        h_measured = self._frame_height(frame)
+        if h_measured is None and self.config.fit_image_scale and not self.fits_own_scale:
+            return None
         h_prev = state.height_mm or self.height_mm
-        h_cur = self._frame_height(frame) or self.height_mm
+        h_cur = h_measured or self.height_mm
         return h_prev / h_cur
 
     def _frame_height(self, frame: Frame) -> float | None:
@@ -403,7 +454,7 @@ class _AkazeBase:
         one, else the rig's; the step then carries the height change along the optical axis.
         """
         h_prev = state.height_mm or self.height_mm
-        h_cur = self._frame_height(frame) or self.height_mm
+        h_cur = self._height_after(state, fit, frame) or self.height_mm
         q_prev = pixels_to_floor_mm(fit.src, self.camera, h_prev)
         q_cur = pixels_to_floor_mm(fit.dst, self.camera, h_cur)
         R2, t2_mm = rigid_fit(q_prev, q_cur)
@@ -492,7 +543,7 @@ class _AkazeBase:
                 timing_ms=_timing(t0, t1, t2, time.perf_counter()),
             )
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
-        state.height_mm = self._frame_height(frame)
+        state.height_mm = self._height_after(state, fit, frame)
         t3 = time.perf_counter()
         return StepResult(
             "ok",

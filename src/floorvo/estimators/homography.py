@@ -65,9 +65,10 @@ class HomographySixDof(_AkazeBase):
     description = "mono 6-DoF: akaze-guided's matching, the floor homography decomposed with the carried floor plane"
     Config = HomographySixDofConfig
     guided = True
+    fits_own_scale = True
     config: HomographySixDofConfig
 
-    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    def _rigid_px(self, src: np.ndarray, dst: np.ndarray, scale: float | None = 1.0) -> np.ndarray:
         """The image motion model of this estimator: the least-squares homography (3, 3) of
         the pairs ``src -> dst`` (N, 2) px, prev-centred px -> cur-centred px (the rigid model
         of akaze-guided leaves a tilt's perspective terms as residual, 1.3 px RMS for 0.009 rad
