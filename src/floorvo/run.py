@@ -42,13 +42,15 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
     if "stereo" in req and not seq.has_stereo:
         raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
     height = camera_height_mm(seq)
-    rig = {}
+    rig: dict = {}
     if seq.has_stereo:
         rig = {
             "camera_right": seq.camera_model("cam1"),
             "T_cam0_cam1": seq.T_cam0_cam1,
             "flatfield_right": seq.flatfield("cam1"),
         }
+    if seq.led_positions_cam_mm is not None:  # the rig's own lights (homography-6dof's tilt check)
+        rig["led_positions_cam_mm"] = seq.led_positions_cam_mm
     flat = seq.flatfield()
     return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
 

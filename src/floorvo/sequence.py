@@ -447,6 +447,15 @@ class Sequence:
         return None if T is None else np.asarray(T, dtype=float)
 
     @property
+    def led_positions_cam_mm(self) -> np.ndarray | None:
+        """(N, 3) positions of the rig's own lights (LEDs that ride with the camera) in the camera
+        frame, mm, as a render records them (``rig.led_positions_cam_mm``); None when the
+        sequence does not say (a synthetic warp, an imported recording)."""
+        rig = self.meta.get("rig") or {}
+        P = rig.get("led_positions_cam_mm")
+        return None if not P else np.asarray(P, dtype=float).reshape(-1, 3)
+
+    @property
     def frame_count(self) -> int:
         return int(self.meta["frame_count"])
 

@@ -246,3 +246,35 @@ def test_homography_6dof_reports_a_tilt_it_cannot_resolve_lost_not_wrong(tmp_pat
         assert all(r for s, r in zip(run.status[1:], run.reason[1:]) if s == "lost")
     assert list(runs[0.5].status[1:]) == ["ok"] * (len(poses) - 1), runs[0.5].reason
     assert any(r.startswith("imprecise homography: 4 blocks of its pairs disagree") for r in runs[0.25].reason)
+
+
+def test_homography_6dof_refuses_a_tilt_under_the_rigs_own_lights(tmp_path):
+    """A rig whose grazing LEDs ride with the camera (the sequence records them, as every render
+    does) tilts them with it: the shading then moves as much as the homography's perspective
+    terms, and on the full-size tilt render the tilt read from them was 0.1-0.3 of the tilt
+    change off (6 steps reported ok and wrong before this check). Level steps stay ok; each step
+    that tilts the camera by more than ``max_tilt_change_rad`` (4 mrad) is lost with the reason.
+    Without the LEDs in the sequence (a texture warp: nothing moves the shading) the same steps
+    are measured, every one ok."""
+    import json
+
+    n_level, n = 6, 12
+    pitch = [0.0] * n_level + [0.008 * (i - n_level + 1) for i in range(n_level, n)]  # 8 mrad a frame after frame 5
+    poses = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.0, pitch[i], 0.0) for i in range(n)])
+    seq = write_synthetic_sequence(tmp_path / "seq", CAM, poses)
+    plain = run_estimator(seq, "homography-6dof", tmp_path / "plain")
+    assert list(plain.status[1:]) == ["ok"] * (n - 1), plain.reason
+    meta = json.loads((seq / "sequence.json").read_text())
+    meta["rig"]["led_positions_cam_mm"] = [[x, y, 97.0] for x in (-70.0, 70.0) for y in (-20.0, 0.0, 20.0)]
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    lit = run_estimator(seq, "homography-6dof", tmp_path / "lit")
+    true_tilt = np.abs(np.diff(pitch))
+    for k in range(1, n):
+        if true_tilt[k - 1] == 0.0:
+            assert lit.status[k] == "ok", (k, lit.reason[k])
+        else:
+            assert lit.status[k] == "lost" and lit.reason[k].startswith("tilt not observable: the step tilts"), k
+    e = step_errors(poses[:n_level], lit.T_world_cam[:n_level])
+    assert not wrong_steps(e).any(), e
+    off = run_estimator(seq, "homography-6dof", tmp_path / "off", {"rig_lights": "no"})
+    assert list(off.status[1:]) == ["ok"] * (n - 1), off.reason
