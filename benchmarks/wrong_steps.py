@@ -2,21 +2,27 @@
 
     .venv/bin/python benchmarks/wrong_steps.py SEQ --estimator akaze-guided                  # the wrong ok steps
     .venv/bin/python benchmarks/wrong_steps.py SEQ --estimator akaze-guided --all --set precision_sigmas=0
+    .venv/bin/python benchmarks/wrong_steps.py SEQ --estimator homography-6dof --truth 6dof     # a tilted run
 
 Issue 14: a step reported ok must not be off by more than 0.05 mm + 2 % of the true step
 or 0.3 degrees (:func:`floorvo.metrics.wrong_steps`). This runs the estimator frame by
 frame over the sequence folder SEQ (OpenCV on one thread) and compares each ok step with
 the true planar step of the camera's footprint (:func:`floorvo.geometry.footprint_T`: what a
-planar mono estimator can see; the 6-DoF step on a run without tilt or bounce), measured
-from the frame the estimator measured it from (the last tracked one, or the frame it
-restarted on). For each wrong step (each step with ``--all``) one line gives the true and
-measured step, the error, the estimator's counts and reason, and, for an estimator that
-reports the pairs behind its fit (``StepResult.matches_px``): their number, the standard
-errors the fit's residual leaves the step
-(:func:`floorvo.geometry.rigid_fit_precision`, in mm and degrees, and as a fraction of the
-bound) and each pair's distance from where the true motion puts it (the floor plane at the
-camera height carried by the true step; exact without tilt) - the median, the 90th
-percentile and how many are over 2 px. Which self-check should have caught the step reads
+planar mono estimator can see; the 6-DoF step on a run without tilt or bounce), or with
+``--truth 6dof`` the camera's true 6-DoF step (the bound for an estimator that models tilt,
+homography-6dof), measured from the frame the estimator measured it from (the last tracked
+one, or the frame it restarted on). For each wrong step (each step with ``--all``) one line
+gives the true and measured step, the error, the estimator's counts and reason (with
+``--truth 6dof`` also the true and measured tilt change, the angle between the two frames'
+optical axes, and height change), and, for an estimator that reports the pairs behind its
+fit (``StepResult.matches_px``): their number, the standard errors the fit's residual leaves
+the step (:func:`floorvo.geometry.rigid_fit_precision`, in mm and degrees, and as a fraction
+of the bound) and each pair's distance from where the true motion puts it (the floor plane
+at the camera height carried by the true step, exact without tilt; with ``--truth 6dof`` the
+true floor plane of the frame it was measured from) - the median, the 90th percentile, how
+many are over 2 px, and the mean error along the image's x and y axes (x is across the
+rig's LED bars: the direction the grazing light falls in, along which a change of the light
+moves the shading). Which self-check should have caught the step reads
 from these: wrong matches (pairs far from the truth), too few or imprecise pairs (large
 standard errors), or a precise but biased fit.
 """
@@ -38,6 +44,7 @@ from floorvo.geometry import (  # noqa: E402
     footprint_T,
     invert_T,
     pixels_to_floor_mm,
+    rays_to_plane,
     rigid_fit,
     rigid_fit_precision,
     yaw_of_R,
@@ -48,8 +55,17 @@ from floorvo.runner import sequence_frames  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 
-def pair_report(matches_px: np.ndarray, est, T_true: np.ndarray, step_mm: float) -> str:
-    """The pairs ``matches_px`` (K, 4: u, v previous; u, v current) against the true step ``T_true`` (4, 4) mm."""
+def pair_report(
+    matches_px: np.ndarray,
+    est,
+    T_true: np.ndarray,
+    step_mm: float,
+    plane: tuple[np.ndarray, float] | None = None,
+) -> str:
+    """The pairs ``matches_px`` (K, 4: u, v previous; u, v current) against the true step ``T_true`` (4, 4) mm.
+
+    ``plane``: the true floor plane ``(n, d_mm)`` in the previous camera's frame (``n . p = d``);
+    None: level at the estimator's camera height."""
     src, dst = matches_px[:, :2], matches_px[:, 2:]
     h = est.height_mm
     q_prev = pixels_to_floor_mm(src, est.camera, h)
@@ -57,14 +73,23 @@ def pair_report(matches_px: np.ndarray, est, T_true: np.ndarray, step_mm: float)
     R, t = rigid_fit(q_prev, q_cur)
     sig_mm, sig_rad = rigid_fit_precision(q_prev, q_cur, R, t)
     bound = WRONG_STEP_MM + WRONG_STEP_FRACTION * step_mm
-    P = np.column_stack([q_prev, np.full(len(q_prev), h), np.ones(len(q_prev))])
-    true_px = est.camera.project((invert_T(T_true) @ P.T).T[:, :3])
-    err = np.linalg.norm(dst - true_px, axis=1)
+    if plane is None:
+        plane = (np.array([0.0, 0.0, 1.0]), h)
+    P = rays_to_plane(src, est.camera, *plane)
+    true_px = est.camera.project((invert_T(T_true) @ np.column_stack([P, np.ones(len(P))]).T).T[:, :3])
+    d_px = dst - true_px
+    err = np.linalg.norm(d_px, axis=1)
     return (
         f"{len(src)} pairs; standard errors {sig_mm:.3f} mm ({sig_mm / bound:.2f} of the bound), "
         f"{np.degrees(sig_rad):.3f} deg; pair error vs truth px: median {np.median(err):.2f}, "
-        f"p90 {np.percentile(err, 90):.2f}, > 2 px {int(np.sum(err > 2))}"
+        f"p90 {np.percentile(err, 90):.2f}, > 2 px {int(np.sum(err > 2))}, mean x {d_px[:, 0].mean():+.2f} "
+        f"y {d_px[:, 1].mean():+.2f}"
     )
+
+
+def tilt_mrad(T: np.ndarray) -> float:
+    """The tilt change of a step ``T`` (4, 4): the angle between the two frames' optical axes, mrad."""
+    return 1e3 * float(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))
 
 
 def main() -> None:
@@ -73,6 +98,12 @@ def main() -> None:
     ap.add_argument("--estimator", required=True)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an estimator config key")
     ap.add_argument("--all", action="store_true", help="every ok step, not only the wrong ones")
+    ap.add_argument(
+        "--truth",
+        choices=("footprint", "6dof"),
+        default="footprint",
+        help="compare with the footprint's planar step (default) or the camera's 6-DoF step",
+    )
     args = ap.parse_args()
     cv2.setNumThreads(1)
     seq = Sequence.open(args.sequence)
@@ -80,7 +111,7 @@ def main() -> None:
     gt = seq.groundtruth()
     if gt is None:
         raise SystemExit(f"{args.sequence}: no groundtruth.txt to compare with")
-    T_gt = footprint_T(gt[1], float(np.median(gt[1][:, 2, 3])))
+    T_gt = gt[1] if args.truth == "6dof" else footprint_T(gt[1], float(np.median(gt[1][:, 2, 3])))
     state = est.start()
     ref: int | None = None
     n_ok = n_wrong = n_lost = 0
@@ -111,8 +142,15 @@ def main() -> None:
                 f"{WRONG_STEP_DEG} deg) | keypoints {res.n_keypoints}, matches {res.n_matches}, "
                 f"inliers {res.n_inliers} | {res.reason or '-'}"
             )
+            plane = None
+            if args.truth == "6dof":  # the floor z = 0 in the previous camera: n = -R^T e_z, d = the height
+                plane = (-T_gt[ref][2, :3], float(T_gt[ref][2, 3]))
+                line += (
+                    f" | tilt change true {tilt_mrad(T_true):.1f} mrad, measured {tilt_mrad(res.T_prev_cur):.1f}; "
+                    f"height change true {-T_true[2, 3]:+.3f} mm, measured {-res.T_prev_cur[2, 3]:+.3f}"
+                )
             if res.matches_px is not None and len(res.matches_px) >= 3:
-                line += " | " + pair_report(np.asarray(res.matches_px, dtype=float), est, T_true, step)
+                line += " | " + pair_report(np.asarray(res.matches_px, dtype=float), est, T_true, step, plane)
             print(line)
         ref = i
     print(f"{args.estimator} on {args.sequence}: {n_ok} ok, {n_wrong} of them wrong, {n_lost} lost")
