@@ -570,7 +570,7 @@ def floor_plane_step(
 
 
 def plane_homography_motion(
-    H_norm: np.ndarray, n_prev: np.ndarray, d_prev_mm: float
+    H_norm: np.ndarray, n_prev: np.ndarray, d_prev_mm: float, *, tilt: bool = True
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The camera step of a floor-plane homography, given the floor plane of the previous frame.
 
@@ -583,6 +583,12 @@ def plane_homography_motion(
     scale ``s`` and ``R`` are the similarity fit (:func:`umeyama`) of ``{u1, u2}`` to their
     images, and ``t = d (H_norm n / s - R n)``. The current frame's plane is ``n' = R n``,
     ``d' = d + n' . t``. Returns ``(T_prev_cur (4, 4) mm, n_cur (3,), d_cur_mm)``.
+
+    ``tilt=False``: the step keeps the plane's tilt (``R`` a rotation about ``n``: the yaw; the
+    height change and the shift are still measured): the images of ``u1, u2`` are taken in the
+    plane (their components along ``n``, the homography's perspective terms, are left out) and
+    ``s``, ``R`` are their 2-D similarity fit there. For a camera whose tilt change the
+    homography cannot measure (homography-6dof under the rig's own grazing light).
     """
     Hn = np.asarray(H_norm, dtype=float).reshape(3, 3)
     if np.linalg.det(Hn) < 0:  # a homography is defined up to a (possibly negative) factor
@@ -592,7 +598,12 @@ def plane_homography_motion(
     Q = level_rotation(n)
     u1, u2 = Q[0], Q[1]  # rows of Q: the levelled frame's x and y axes in the camera frame, normal to n
     src = np.stack([u1, u2, -u1, -u2])
-    R, _, s = umeyama(src, src @ Hn.T, with_scale=True)
+    if tilt:
+        R, _, s = umeyama(src, src @ Hn.T, with_scale=True)
+    else:
+        in_plane = src @ Hn.T @ Q[:2].T  # (4, 2): the images in the plane's coordinates (u1, u2)
+        R2, _, s = umeyama(src @ Q[:2].T, in_plane, with_scale=True)
+        R = Q.T @ make_T(np.pad(R2, ((0, 1), (0, 1))) + np.diag([0.0, 0.0, 1.0]), np.zeros(3))[:3, :3] @ Q
     t = float(d_prev_mm) * (Hn @ n / s - R @ n)
     n_cur = R @ n
     d_cur = float(d_prev_mm) + float(n_cur @ t)

@@ -107,6 +107,29 @@ def test_plane_homography_motion_decomposes_with_the_known_normal():
         assert d_cur == pytest.approx(d_b, abs=1e-10)
 
 
+def test_plane_homography_motion_without_tilt_keeps_the_plane_and_measures_yaw_shift_height():
+    """``tilt=False``: a step that keeps the plane's tilt (yaw about the normal, a shift, a height
+    change) comes back exactly; a homography with a tilt change gives the step without it: the
+    same plane normal, the rotation about it, the same height change."""
+    n, d = _plane_of(T_A)
+    R_yaw = Rotation.from_rotvec(0.07 * n).as_matrix()
+    t = np.array([3.0, -1.0, 0.4])
+    T, n_cur, d_cur = plane_homography_motion(2.5 * (R_yaw + np.outer(t, n) / d), n, d, tilt=False)
+    T_want = invert_T(np.block([[R_yaw, t[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]]))
+    np.testing.assert_allclose(T, T_want, atol=1e-12)
+    np.testing.assert_allclose(n_cur, n, atol=1e-14)
+    R_tilted = Rotation.from_rotvec(0.07 * n + np.cross(n, [1.0, 0.0, 0.0]) * 0.004).as_matrix()
+    H = R_tilted + np.outer(t, n) / d
+    T_full, n_full, d_full = plane_homography_motion(H, n, d)
+    T_level, n_level, d_level = plane_homography_motion(H, n, d, tilt=False)
+    assert np.arccos(min(1.0, float(n_full @ n))) > 3e-3  # the full decomposition sees the tilt
+    np.testing.assert_allclose(n_level, n, atol=1e-14)
+    R = T_level[:3, :3]
+    np.testing.assert_allclose(R @ n, n, atol=1e-14)  # a rotation about the normal: the yaw
+    assert np.linalg.norm(Rotation.from_matrix(R).as_rotvec()) == pytest.approx(0.07, abs=2e-4)
+    assert d_level == pytest.approx(d_full, abs=0.05)
+
+
 def test_tilted_synthetic_view_and_depth_are_those_of_the_ray_cast_floor():
     from scipy.ndimage import spline_filter
 
@@ -253,7 +276,8 @@ def test_homography_6dof_refuses_a_tilt_under_the_rigs_own_lights(tmp_path):
     does) tilts them with it: the shading then moves as much as the homography's perspective
     terms, and on the full-size tilt render the tilt read from them was 0.1-0.3 of the tilt
     change off (6 steps reported ok and wrong before this check). Level steps stay ok; each step
-    that tilts the camera by more than ``max_tilt_change_rad`` (4 mrad) is lost with the reason.
+    whose tilt moves the footprint by more than issue 14's bound (1.3 mrad at 100 mm for a 4 mm
+    step) is lost with the reason.
     Without the LEDs in the sequence (a texture warp: nothing moves the shading) the same steps
     are measured, every one ok."""
     import json
