@@ -19,13 +19,15 @@ sub-pixel shading noise), and lit by the LEDs only. For LED k at distance r_k::
 (w_k: unit vector from the hit to LED k, a_k: LED aim, m: emission lobe exponent, V_k:
 visibility, a shadow ray against the real relief). An LED with an extent (a rectangle or a
 disc facing its aim, or a piece of a continuous bar window) spreads I_k evenly over its
-area A_k, so its light is the area average (1/A_k) int f_k(y) V_k(y) dA(y); each sample
-draws one point y_k uniformly on every emitter (one 2-D sampler dimension shared by the
-LEDs, each rotated by its own constant: uniform per LED and stratified across the
-pixel's samples), evaluates f_k(y_k) there and aims the shadow ray
-at y_k: unbiased, and a penumbra as wide as the emitter's extent predicts. Size 0 draws
-nothing and is the point-LED renderer bit for bit. The unshadowed ``f_k`` of every LED
-is evaluated exactly at every sample; visibility is estimated with one shadow ray per
+area A_k, so its light is the area average (1/A_k) int f_k(y) V_k(y) dA(y). Per bar and
+sample one LED is chosen in proportion to a proxy of its light from its centre, one point
+y is drawn on it (a rectangle: in proportion to the receiver's cosine factor n . (y - p),
+linear over the emitter; a disc: uniformly) and one shadow ray aims at y; the sample adds
+f_k(y) V(y) over the probability of that choice (:meth:`FloorRenderer._emitter_light`):
+unbiased, nearly exact where a bar is wholly visible, and a penumbra as wide as the
+emitter's extent predicts (``every_led=True``: a point on every
+emitter, uniformly, and a shadow ray to each). Size 0 is the point-LED renderer bit for
+bit: the unshadowed ``f_k`` of every point LED is evaluated exactly at every sample; visibility is estimated with one shadow ray per
 LED bar, to an LED picked with probability f_k / F_bar (F_bar = sum of the bar's f_k),
 the sample adding F_bar V. This is unbiased, exact wherever a bar is wholly visible or
 hidden, and noisy only in penumbrae; ``every_led=True`` traces a shadow ray to every LED
@@ -512,7 +514,8 @@ class FloorRenderer:
         ``T_world_cam`` (4, 4), or (H, 4, 4) for a rolling shutter: one pose per image row,
         row r traced from pose r and lit by the LEDs of row r (``leds`` then (H, N, 3)
         positions and aims, or (N, 3) LEDs that are the same for every row). Row r of such a
-        render equals row r of a render from pose r alone.
+        render equals row r of a render from pose r alone (LEDs with an extent: up to float
+        rounding, as a global render sums a row of LEDs incrementally).
 
         ``spp`` stratified primary samples per pixel (``ldsampler`` when spp is a power of
         4, ``multijitter`` otherwise). Direct light of the LEDs, per primary sample:
@@ -521,8 +524,11 @@ class FloorRenderer:
           evaluated exactly; one shadow ray per bar goes to an LED chosen with probability
           ``f_k / F_bar`` (stratified across the pixel's samples) and the sample adds
           ``F_bar * V``. Unbiased (E[F_bar V_k*] = sum_k f_k V_k) and exact wherever the
-          whole bar is visible or hidden; noise remains only in penumbrae.
-        - ``every_led=True``: a shadow ray to every LED (the reference estimator).
+          whole bar is visible or hidden; noise remains only in penumbrae. LEDs with an
+          extent (``leds.size_mm``): one LED per bar chosen from a proxy of its light, one
+          point on it and one shadow ray (:meth:`_emitter_light`).
+        - ``every_led=True``: a shadow ray to every LED (the reference estimator; LEDs with an
+          extent: to a point drawn uniformly on each).
 
         ``shadows=False`` drops the shadow rays (V = 1: shading of the relief only; for
         studies and tests). Deterministic for the same inputs (all samples derive from ``seed``).
@@ -605,86 +611,284 @@ class FloorRenderer:
         if extended:
             if leds.shape not in ("rectangle", "disc"):
                 raise ValueError(f"render: LED shape {leds.shape!r} is not 'rectangle' or 'disc'")
-            axis_b, axis_u = leds.emitter_axes()
-            if leds.shape == "disc":
-                size_h = size_w
-            # One stratified 2-D sample per sample for all emitters, rotated per LED (Cranley-Patterson, by
-            # multiples of the plastic-number constants): each LED's point stays uniform on it and stratified
-            # across the pixel's samples, for one sampler draw instead of one per LED (16 draws cost 20 %).
-            emitter_sample = sampler.next_2d()
-        for k, inten in enumerate(leds.intensity):
-            if inten <= 0:
-                continue
-            if rows_of_leds:
-                px, py, pz, ax, ay, az = self._per_row(
-                    np.concatenate([led_pos[:, k] - self.origin_mm, led_aim[:, k]], axis=1), row
-                )
-                (ik,) = self._opaque([inten])
-            else:
-                px, py, pz, ax, ay, az, ik = self._opaque([*(led_pos[k] - self.origin_mm), *led_aim[k], inten])
-            lp = mi.Point3f(px, py, pz)
-            if extended:
-                # A point drawn uniformly on the emitter (stratified over the pixel's samples): f at that point
-                # is an unbiased estimate of the emitter's light (intensity spread evenly over its area), and
-                # the shadow ray below goes to the same point.
-                if rows_of_leds:
-                    bx, by, bz, ux, uy, uz = self._per_row(np.concatenate([axis_b[:, k], axis_u[:, k]], axis=1), row)
-                else:
-                    bx, by, bz, ux, uy, uz = self._opaque([*axis_b[k], *axis_u[k]])
-                shift = ((k * 0.7548776662466927) % 1.0, (k * 0.5698402909980532) % 1.0)
-                sq = emitter_sample + mi.Point2f(*shift)
-                sq = sq - dr.floor(sq)
-                if leds.shape == "disc":
-                    disk = mi.warp.square_to_uniform_disk_concentric(sq)
-                    s_b, s_u = disk.x * (0.5 * size_w), disk.y * (0.5 * size_w)
-                else:
-                    s_b, s_u = (sq.x - 0.5) * size_w, (sq.y - 0.5) * size_h
-                lp = mi.Point3f(px + s_b * bx + s_u * ux, py + s_b * by + s_u * uy, pz + s_b * bz + s_u * uz)
-            dl = lp - p_hit
-            r2 = dr.squared_norm(dl)
-            wl = dl * dr.rsqrt(r2)
-            cos_surf = dr.maximum(dr.dot(nrm, wl), 0.0)
-            cos_led = dr.maximum(-(wl.x * ax + wl.y * ay + wl.z * az), 0.0)  # emission profile cos^m
-            lobe = cos_led if m == 1.0 else dr.power(cos_led, m)
-            brdf = diffuse
-            if spec is not None:
-                ks, e = float(spec[0]), float(spec[1])
-                hv = dr.normalize(wl + wo)
-                brdf = brdf + ks * (e + 8.0) / (8.0 * np.pi) * dr.power(dr.maximum(dr.dot(nrm, hv), 0.0), e)
-            f = dr.select(valid, ik * lobe * cos_surf / r2 * brdf, 0.0)
-            led_terms.append((int(bars[k]), lp, f))
-
-        L = mi.Float(0.0)
-        if not shadows:
-            for _, _, f in led_terms:
-                L += f
-        elif every_led:
-            for _, lp, f in led_terms:
-                occluded = self._occluded(self._shadow_ray(p_hit, n_geo, lp), f > 0)
-                L += dr.select(occluded, 0.0, f)
+        if extended and not every_led:
+            # One emitter per bar and sample, importance-sampled (see _emitter_light).
+            L = self._emitter_light(sampler, leds, bars, p_hit, n_geo, nrm, wo, diffuse, valid, row, shadows)
         else:
-            for bar in sorted({b for b, _, _ in led_terms}):
-                terms = [(lp, f) for b, lp, f in led_terms if b == bar]
-                F = mi.Float(0.0)
-                for _, f in terms:
-                    F += f
-                target = sampler.next_1d() * F
-                acc = mi.Float(0.0)
-                chosen = mi.Point3f(terms[-1][0])
-                found = mi.Bool(False)
-                for lp, f in terms:
-                    acc += f
-                    pick = ~found & (acc > target)
-                    chosen = dr.select(pick, lp, chosen)
-                    found |= pick
-                occluded = self._occluded(self._shadow_ray(p_hit, n_geo, chosen), F > 0)
-                L += dr.select(occluded, 0.0, F)
+            if extended:
+                axis_b, axis_u = leds.emitter_axes()
+                if leds.shape == "disc":
+                    size_h = size_w
+                # One stratified 2-D sample per sample for all emitters, rotated per LED (Cranley-Patterson, by
+                # multiples of the plastic-number constants): each LED's point stays uniform on it and stratified
+                # across the pixel's samples, for one sampler draw instead of one per LED (16 draws cost 20 %).
+                emitter_sample = sampler.next_2d()
+            for k, inten in enumerate(leds.intensity):
+                if inten <= 0:
+                    continue
+                if rows_of_leds:
+                    px, py, pz, ax, ay, az = self._per_row(
+                        np.concatenate([led_pos[:, k] - self.origin_mm, led_aim[:, k]], axis=1), row
+                    )
+                    (ik,) = self._opaque([inten])
+                else:
+                    px, py, pz, ax, ay, az, ik = self._opaque([*(led_pos[k] - self.origin_mm), *led_aim[k], inten])
+                lp = mi.Point3f(px, py, pz)
+                if extended:
+                    # A point drawn uniformly on the emitter (stratified over the pixel's samples): f at that point
+                    # is an unbiased estimate of the emitter's light (intensity spread evenly over its area), and
+                    # the shadow ray below goes to the same point.
+                    if rows_of_leds:
+                        bx, by, bz, ux, uy, uz = self._per_row(
+                            np.concatenate([axis_b[:, k], axis_u[:, k]], axis=1), row
+                        )
+                    else:
+                        bx, by, bz, ux, uy, uz = self._opaque([*axis_b[k], *axis_u[k]])
+                    shift = ((k * 0.7548776662466927) % 1.0, (k * 0.5698402909980532) % 1.0)
+                    sq = emitter_sample + mi.Point2f(*shift)
+                    sq = sq - dr.floor(sq)
+                    if leds.shape == "disc":
+                        disk = mi.warp.square_to_uniform_disk_concentric(sq)
+                        s_b, s_u = disk.x * (0.5 * size_w), disk.y * (0.5 * size_w)
+                    else:
+                        s_b, s_u = (sq.x - 0.5) * size_w, (sq.y - 0.5) * size_h
+                    lp = mi.Point3f(px + s_b * bx + s_u * ux, py + s_b * by + s_u * uy, pz + s_b * bz + s_u * uz)
+                dl = lp - p_hit
+                r2 = dr.squared_norm(dl)
+                wl = dl * dr.rsqrt(r2)
+                cos_surf = dr.maximum(dr.dot(nrm, wl), 0.0)
+                cos_led = dr.maximum(-(wl.x * ax + wl.y * ay + wl.z * az), 0.0)  # emission profile cos^m
+                lobe = cos_led if m == 1.0 else dr.power(cos_led, m)
+                brdf = diffuse
+                if spec is not None:
+                    ks, e = float(spec[0]), float(spec[1])
+                    hv = dr.normalize(wl + wo)
+                    brdf = brdf + ks * (e + 8.0) / (8.0 * np.pi) * dr.power(dr.maximum(dr.dot(nrm, hv), 0.0), e)
+                f = dr.select(valid, ik * lobe * cos_surf / r2 * brdf, 0.0)
+                led_terms.append((int(bars[k]), lp, f))
+
+            L = mi.Float(0.0)
+            if not shadows:
+                for _, _, f in led_terms:
+                    L += f
+            elif every_led:
+                for _, lp, f in led_terms:
+                    occluded = self._occluded(self._shadow_ray(p_hit, n_geo, lp), f > 0)
+                    L += dr.select(occluded, 0.0, f)
+            else:
+                for bar in sorted({b for b, _, _ in led_terms}):
+                    terms = [(lp, f) for b, lp, f in led_terms if b == bar]
+                    F = mi.Float(0.0)
+                    for _, f in terms:
+                        F += f
+                    target = sampler.next_1d() * F
+                    acc = mi.Float(0.0)
+                    chosen = mi.Point3f(terms[-1][0])
+                    found = mi.Bool(False)
+                    for lp, f in terms:
+                        acc += f
+                        pick = ~found & (acc > target)
+                        chosen = dr.select(pick, lp, chosen)
+                        found |= pick
+                    occluded = self._occluded(self._shadow_ray(p_hit, n_geo, chosen), F > 0)
+                    L += dr.select(occluded, 0.0, F)
         if ambient > 0:
             L += dr.select(valid, float(ambient) * diffuse, 0.0)
         # Evaluated mode: a reduction kernel with a fixed order. Dr.Jit's default switches to atomic
         # scatter-adds (order varies from run to run) when L would take over 1 GiB (about 1000 spp at full size).
         img = dr.block_sum(L, spp, mode="evaluated") * (1.0 / spp)
         return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
+
+    @staticmethod
+    def _linear_warp(dr, c, xi):
+        """Sample t in [-1/2, 1/2] with density 1 + c t (|c| <= 2) from a uniform ``xi`` in [0, 1): the
+        root of CDF(t) = t + 1/2 + c (t^2 - 1/4) / 2 = xi, written t = -2 q / (1 + sqrt(1 - 2 c q)) with
+        q = 1/2 - c/8 - xi (stable as c -> 0, where it is xi - 1/2). Monotone in ``xi``, so stratified
+        inputs stay stratified."""
+        q = 0.5 - 0.125 * c - xi
+        disc = dr.maximum(dr.square(1.0 - 0.5 * c) + 2.0 * c * xi, 0.0)
+        return dr.clip(-2.0 * q / (1.0 + dr.sqrt(disc)), -0.5, 0.5)
+
+    def _emitter_light(self, sampler, leds: LedArray, bars, p_hit, n_geo, nrm, wo, diffuse, valid, row, shadows: bool):
+        """Light of LEDs with an extent at each sample: one point on one emitter per bar, one shadow ray.
+
+        For LED k with centre c_k, aim a_k, in-plane unit axes b_k, u_k (:meth:`LedArray.emitter_axes`),
+        size w x h and area A_k, the light at the hit p with shading normal n is the area average
+        (1/A_k) int f_k(y) V(y) dA(y) of the point-LED formula at y, which reads, since (y - c_k) . a_k = 0::
+
+            f_k(y) = I_k (a_k . (p - c_k))^m  max(0, n . (y - p)) brdf / |y - p|^(m + 3)
+
+        Per bar and sample, a one-sample estimator: E[f_k(y) V(y) / (P_k pdf_k(y))] = sum_k (1/A_k)
+        int f_k V dA, unbiased as long as P_k pdf_k(y) > 0 wherever f_k(y) > 0 (pdf_k per unit of the
+        uniform density on the emitter):
+
+        1. A proxy of each LED's light from its centre, g_k = I_k max(0, a_k . (p - c_k))^m h(x_k) /
+           |c_k - p|^(m + 3), x_k = n . (c_k - p), with h(x) = x for x >= R, (x + R)^2 / (4 R) for
+           |x| < R and 0 below -R (the mean of max(0, x + R s) over s uniform in [-1, 1]), R the
+           emitter's half diagonal (a disc's radius) >= |y - c_k|. g_k > 0 wherever a point of the
+           emitter can lie above the receiver's horizon (x_k + n . (y - c_k) > 0 needs x_k > -R) and
+           in front of the emitter (a plane: all of it is in front of p or none is): wherever f_k can
+           be > 0 (the brdf is left out: > 0 anyway). Where x_k >= R, g_k is f_k(c_k) / brdf.
+           Collinear, evenly spaced centres (a row of LEDs, the pieces of a bar window) get x_k,
+           |c_k - p|^2 and a_k . (p - c_k) from the first LED's by a multiply-add or two each.
+        2. LED k of the bar chosen with P_k = g_k / G, G = sum of the bar's g_k (one 1-D sample per
+           bar, stratified over the pixel's samples, as for point LEDs).
+        3. A point y on LED k. A rectangle: the linear density pdf_k(y) = 1 + n . (y - c_k) / x' with
+           x' = max(x_k, rho_k), rho_k = w/2 |n . b_k| + h/2 |n . u_k| the largest n . (y - c_k) on
+           it: >= 0 on the emitter, mean 1 over it, and proportional to f_k's factor n . (y - p)
+           wherever the whole emitter is above the horizon, so that f_k / pdf_k hardly varies over
+           the emitter; drawn as the marginal along u_k, then b_k given u_k (:meth:`_linear_warp`),
+           from one 2-D sample per sample rotated per bar. A disc: uniform (pdf 1; a linear density
+           on a disc has no closed-form inverse).
+        4. The sample adds f_k(y) V(y) / (P_k pdf_k(y)) = G f_k(y) V(y) / (g_k pdf_k(y)), V from one
+           shadow ray to y (``shadows=False``: V = 1).
+
+        Where a bar is wholly visible the sample is G f_k(y) / (g_k pdf_k(y)), which varies over a
+        rectangle only through |y - p|^-(m + 3) (about 1 % RMS per pixel at 4 spp for one 3 mm LED
+        50 mm away; uniform points: 7 %): the unshadowed term needs no estimate of its own. Per
+        sample: the proxies (as cheap as the point-LED formula), then per bar one point, one f and
+        one shadow ray, instead of a point and an f on every emitter.
+        """
+        mi, dr = self.mi, self.dr
+        m = float(leds.lobe_exponent)
+        size_w, size_h = (float(v) for v in leds.size_mm)
+        disc = leds.shape == "disc"
+        if disc:
+            size_h = size_w
+        half_w, half_h = 0.5 * size_w, 0.5 * size_h
+        reach_max = math.hypot(half_w, half_h) if not disc else half_w  # R >= |y - c| on the emitter
+        led_pos = np.asarray(leds.positions_mm, dtype=np.float64)
+        led_aim = np.asarray(leds.aim, dtype=np.float64)
+        rows_of_leds = led_pos.ndim == 3
+        axis_b, axis_u = leds.emitter_axes()
+        spec = self.specular
+        emitter_sample = sampler.next_2d()  # one 2-D sample per sample for the bars' points
+
+        def inv_r_pow(r2):  # |d|^-(m + 3) from |d|^2
+            return dr.rcp(dr.square(r2)) if m == 1.0 else dr.power(r2, -0.5 * (m + 3.0))
+
+        lit = [k for k, inten in enumerate(leds.intensity) if inten > 0]
+        intensity = np.asarray(leds.intensity, dtype=np.float64)
+
+        def proxy(x, lob_raw, r2, ik):  # (q_k, g_k) from x_k, a_k . (p - c_k), |c_k - p|^2, I_k
+            lob = dr.maximum(lob_raw, 0.0)
+            q = ik * (lob if m == 1.0 else dr.power(lob, m))
+            hx = dr.select(
+                x >= reach_max, x, dr.select(x > -reach_max, dr.square(x + reach_max) * (0.25 / reach_max), 0.0)
+            )
+            return q, q * hx * inv_r_pow(r2)
+
+        picks = []
+        for bar in sorted({int(bars[k]) for k in lit}):
+            ks = [k for k in lit if int(bars[k]) == bar]
+
+            def shared(values: np.ndarray, ks=ks) -> bool:  # the bar's LEDs share these values (in every row)
+                return all(np.array_equal(values[..., ks[0], :], values[..., j, :]) for j in ks)
+
+            same_axes = shared(axis_b) and shared(axis_u)  # one flat window: b, u need no choosing
+
+            def axes_of(k: int) -> tuple:  # (b, u) of LED k as JIT values
+                if rows_of_leds:
+                    ax = self._per_row(np.concatenate([axis_b[:, k], axis_u[:, k]], axis=1), row)
+                else:
+                    ax = self._opaque(np.concatenate([axis_b[k], axis_u[k]]))
+                return mi.Vector3f(*ax[0:3]), mi.Vector3f(*ax[3:6])
+
+            # Collinear, evenly spaced centres c_j = c_0 + j delta (a row of LEDs, the pieces of a bar window):
+            # then x_j, |c_j - p|^2 and a_j . (p - c_j) follow from c_0's by a multiply-add or two per LED.
+            row_of = not rows_of_leds and len(ks) > 1
+            if row_of:
+                delta = led_pos[ks[1]] - led_pos[ks[0]]
+                spread = led_pos[ks] - led_pos[ks[0]] - np.arange(len(ks))[:, None] * delta
+                row_of = float(np.abs(spread).max()) <= 1e-6
+            values = []  # per LED: (chosen-values tuple, g)
+            if row_of:
+                c0 = mi.Point3f(*self._opaque(led_pos[ks[0]] - self.origin_mm))
+                dvec = mi.Vector3f(*self._opaque(delta))
+                (dd,) = self._opaque([delta @ delta])
+                dc0 = c0 - p_hit
+                x0, nd = dr.dot(nrm, dc0), dr.dot(nrm, dvec)
+                r0, two_dd = dr.squared_norm(dc0), 2.0 * dr.dot(dc0, dvec)
+                same_aim = shared(led_aim)
+                if same_aim:
+                    a0 = mi.Vector3f(*self._opaque(led_aim[ks[0]]))
+                    lob0 = -dr.dot(a0, dc0)
+                for j, k in enumerate(ks):
+                    ik, a_delta = self._opaque([intensity[k], led_aim[k] @ delta])
+                    if same_aim:
+                        lob_raw = lob0 - j * a_delta
+                    else:
+                        a = mi.Vector3f(*self._opaque(led_aim[k]))
+                        lob_raw = -dr.dot(a, dc0) - j * a_delta
+                    q, g = proxy(x0 + j * nd, lob_raw, r0 + (j * two_dd + (j * j) * dd), ik)
+                    values.append(((mi.Float(j), q) + (() if same_axes else axes_of(k)), g))
+            else:
+                for k in ks:
+                    per_led = [led_pos[..., k, :] - self.origin_mm, led_aim[..., k, :]]
+                    if rows_of_leds:
+                        v = self._per_row(np.concatenate(per_led, axis=1), row)
+                    else:
+                        v = self._opaque(np.concatenate(per_led))
+                    (ik,) = self._opaque([intensity[k]])
+                    dc = mi.Point3f(v[0], v[1], v[2]) - p_hit
+                    q, g = proxy(dr.dot(nrm, dc), -(dc.x * v[3] + dc.y * v[4] + dc.z * v[5]), dr.squared_norm(dc), ik)
+                    values.append(((dc, q) + (() if same_axes else axes_of(k)), g))
+            G = mi.Float(0.0)
+            for _, g in values:
+                G += g
+            target = sampler.next_1d() * G
+            acc = mi.Float(0.0)
+            found = mi.Bool(False)
+            chosen, g = values[-1]
+            for vals, gk in values:
+                acc += gk
+                pick = ~found & (acc > target)
+                chosen = tuple(dr.select(pick, new, old) for new, old in zip(vals, chosen))
+                g = dr.select(pick, gk, g)
+                found |= pick
+            dc = dc0 + chosen[0] * dvec if row_of else chosen[0]
+            b, u = axes_of(ks[0]) if same_axes else chosen[2:4]
+            picks.append((G, dc, b, u, chosen[1], g))
+
+        L = mi.Float(0.0)
+        for n_bar, (G, dc, b, u, q, g) in enumerate(picks):
+            shift = ((n_bar * 0.7548776662466927) % 1.0, (n_bar * 0.5698402909980532) % 1.0)
+            sq = emitter_sample + mi.Point2f(*shift)
+            sq = sq - dr.floor(sq)
+            if disc:
+                dsk = mi.warp.square_to_uniform_disk_concentric(sq)
+                s_b, s_u, pdf = dsk.x * half_w, dsk.y * half_w, mi.Float(1.0)
+            else:
+                nb, nu = dr.dot(nrm, b), dr.dot(nrm, u)
+                reach = half_w * dr.abs(nb) + half_h * dr.abs(nu)
+                inv_x = dr.rcp(dr.maximum(dr.maximum(dr.dot(nrm, dc), reach), 1e-9))
+                # Slopes of f_k across the emitter, per unit of t = s / size: the cosine factor's (exact
+                # where the emitter is above the horizon) and, to first order, |y - p|^-(m + 3)'s.
+                fall = (m + 3.0) * dr.rcp(dr.squared_norm(dc))
+                c_b = size_w * (nb * inv_x - fall * dr.dot(b, dc))
+                c_u = size_h * (nu * inv_x - fall * dr.dot(u, dc))
+                # Keep the density 1 + c_b t_b + c_u t_u >= 0 on the emitter: |c_b| + |c_u| <= 2.
+                shrink = dr.minimum(2.0 * dr.rcp(dr.maximum(dr.abs(c_b) + dr.abs(c_u), 1e-9)), 1.0)
+                c_b, c_u = c_b * shrink, c_u * shrink
+                t_u = self._linear_warp(dr, c_u, sq.y)
+                marginal = 1.0 + c_u * t_u
+                c_cond = dr.clip(c_b / dr.maximum(marginal, 1e-9), -2.0, 2.0)  # b given u: 1 + c_cond t_b
+                t_b = self._linear_warp(dr, c_cond, sq.x)
+                s_b, s_u, pdf = t_b * size_w, t_u * size_h, marginal * (1.0 + c_cond * t_b)
+            dy = dc + s_b * b + s_u * u
+            r2 = dr.squared_norm(dy)
+            brdf = diffuse
+            if spec is not None:
+                ks_, e = float(spec[0]), float(spec[1])
+                hv = dr.normalize(dy * dr.rsqrt(r2) + wo)
+                brdf = brdf + ks_ * (e + 8.0) / (8.0 * np.pi) * dr.power(dr.maximum(dr.dot(nrm, hv), 0.0), e)
+            f = q * dr.maximum(dr.dot(nrm, dy), 0.0) * brdf * inv_r_pow(r2)
+            weight = dr.select(valid & (g > 0) & (pdf > 0), f * G / (g * pdf), 0.0)
+            if shadows:
+                occluded = self._occluded(self._shadow_ray(p_hit, n_geo, p_hit + dy), weight > 0)
+                weight = dr.select(occluded, 0.0, weight)
+            L += weight
+        return L
 
     def _grid_cells(self, R_world_cam: np.ndarray, x_cam, y_cam) -> int | None:
         """How many grid cells along x and along y (one count for both) a primary ray can cross
