@@ -107,11 +107,18 @@ def _has_cuda() -> bool:
 
 
 def _import_mitsuba(variant: str | None = None):
-    """Import mitsuba with a working variant; raise a one-line FloorbenchError if impossible."""
+    """Import mitsuba with a working variant; raise a one-line FloorbenchError if impossible.
+
+    ``variant`` (or ``FLOORSIM_VARIANT``) asks for one: one that cannot be set up is refused in
+    one line, a CUDA variant too (a render asked to run on the GPU must not run on the CPU
+    unnoticed). Without one, ``cuda_ad_mono`` is chosen when an NVIDIA device node exists,
+    falling back to ``llvm_ad_mono`` with a warning if CUDA cannot start; ``llvm_ad_mono``
+    otherwise."""
     global _MI
     if _MI is not None:
         return _MI
-    want = variant or os.environ.get("FLOORSIM_VARIANT") or ("cuda_ad_mono" if _has_cuda() else "llvm_ad_mono")
+    asked = variant or os.environ.get("FLOORSIM_VARIANT") or None
+    want = asked or ("cuda_ad_mono" if _has_cuda() else "llvm_ad_mono")
     if want.startswith("llvm") and "DRJIT_LIBLLVM_PATH" not in os.environ:
         path = find_libllvm()
         if path is None:
@@ -129,12 +136,13 @@ def _import_mitsuba(variant: str | None = None):
     try:
         mi.set_variant(want)
     except (ImportError, AttributeError, RuntimeError) as exc:
-        if want.startswith("cuda"):
+        if want.startswith("cuda") and asked is None:
             log.warning("variant %s unavailable (%s); falling back to llvm_ad_mono", want, exc)
             os.environ.setdefault("DRJIT_LIBLLVM_PATH", find_libllvm() or "")
             mi.set_variant("llvm_ad_mono")
         else:
-            raise FloorbenchError(f"mitsuba variant {want!r} is not available ({exc})") from None
+            reason = " ".join(str(exc).split())  # one line
+            raise FloorbenchError(f"mitsuba variant {want!r} is not available ({reason})") from None
     _MI = mi
     return mi
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -245,6 +246,24 @@ def test_cli_render_unwritable_and_summary(tmp_path):
     assert "2 frames 162x124" in r.stdout
     seq = Sequence.open(tmp_path / "d")
     assert seq.camera.fx_px == pytest.approx(810.81 / 4, rel=1e-3)  # demo is half size; --scale 0.5 halves again
+
+
+@pytest.mark.skipif(
+    any(os.path.exists(p) for p in ("/dev/nvidia0", "/dev/nvidiactl")), reason="a CUDA device may start here"
+)
+def test_asking_for_the_cuda_variant_without_a_device_is_refused_in_one_line(tmp_path):
+    """FLOORSIM_VARIANT=cuda_ad_mono on a machine without CUDA: exit code 1 and one line naming the variant
+    (it fell back to LLVM with a warning, so a run meant for the GPU went to the CPU unnoticed)."""
+    env = {**os.environ, "FLOORSIM_VARIANT": "cuda_ad_mono"}
+    r = subprocess.run(
+        [sys.executable, "-m", "floorsim.cli", "render", "demo", "-o", str(tmp_path / "d"), "--frames", "1"],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    err = r.stderr.strip().splitlines()
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    assert len(err) == 1 and "mitsuba variant 'cuda_ad_mono' is not available" in err[0], err
 
 
 def _down_camera_at(x_mm: float) -> np.ndarray:
