@@ -20,12 +20,12 @@ sys.path.insert(0, {tests!r})
 from _tiny import tiny_scene
 from floorsim.render import backend_info
 from floorsim.simulate import render_sequence
-root = render_sequence(tiny_scene(**{{"sensor.exposure_gain": 600000.0}}), sys.argv[1])
+root = render_sequence(tiny_scene(**{{"sensor.exposure_gain": 600000.0, **json.loads(sys.argv[2])}}), sys.argv[1])
 print(json.dumps(backend_info()))
 """
 
 
-def _render(tmp_path: Path, variant: str | None) -> tuple[dict, np.ndarray]:
+def _render(tmp_path: Path, variant: str | None, overrides: dict) -> tuple[dict, np.ndarray]:
     from floorvo.sequence import Sequence
 
     env = {k: v for k, v in os.environ.items() if k != "FLOORSIM_VARIANT"}
@@ -33,16 +33,28 @@ def _render(tmp_path: Path, variant: str | None) -> tuple[dict, np.ndarray]:
         env["FLOORSIM_VARIANT"] = variant
     out = tmp_path / (variant or "auto")
     code = _RENDER.format(tests=str(Path(__file__).parent))
-    proc = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True, check=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", code, str(out), json.dumps(overrides)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     info = json.loads(proc.stdout.strip().splitlines()[-1])
     return info, Sequence.open(out).image(0).astype(np.float64)
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/nvidia0"), reason="needs an NVIDIA device")
-def test_cuda_is_chosen_by_itself_and_renders_what_llvm_renders(tmp_path):
-    info, gpu = _render(tmp_path, None)
+@pytest.mark.parametrize(
+    "overrides",
+    [{}, {"lights.led_size_mm": 3.0}, {"lights.emitter": "bar"}],
+    ids=["point-leds", "3mm-leds", "bar"],
+)
+def test_cuda_is_chosen_by_itself_and_renders_what_llvm_renders(tmp_path, overrides):
+    """Point LEDs and both extended-emitter kernels (one point per bar and sample, importance-sampled)."""
+    info, gpu = _render(tmp_path, None, overrides)
     assert info["variant"] == "cuda_ad_mono"
-    info_cpu, cpu = _render(tmp_path, "llvm_ad_mono")
+    info_cpu, cpu = _render(tmp_path, "llvm_ad_mono", overrides)
     assert info_cpu["variant"] == "llvm_ad_mono"
     # Same scene, seed and exposure: the two backends may differ only in float rounding.
     mse = float(np.mean((gpu - cpu) ** 2))
