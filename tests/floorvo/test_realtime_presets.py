@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 import pytest
 from _synth import flat_floor_depth, frame_pair, stereo_pairs
@@ -35,6 +36,7 @@ PRESETS = {
             "akaze_threshold": 0.001,
             "max_keypoints": 600,
             "describe_kept_only": True,
+            "adapt_threshold": True,
         },
         (0.03, 0.05),
     ),
@@ -47,6 +49,7 @@ PRESETS = {
             "akaze_threshold": 0.001,
             "max_keypoints": 600,
             "describe_kept_only": True,
+            "adapt_threshold": True,
         },
         (0.03, 0.05),
     ),
@@ -164,3 +167,54 @@ def test_describing_the_kept_keypoints_only_gives_the_same_features():
     order_all, order_kept = np.lexsort(pts_all.T), np.lexsort(pts_kept.T)
     assert np.array_equal(pts_all[order_all], pts_kept[order_kept])
     assert np.array_equal(desc_all[order_all], desc_kept[order_kept])
+
+
+def test_adapted_threshold_finds_the_same_features_in_one_pass():
+    """``adapt_threshold`` (the AKAZE presets): from the second frame on, AKAZE detects and
+    describes once at a threshold taken from the previous frame's keypoints, and keeps the same
+    keypoints with bit-identical descriptors as detecting at the config's threshold and
+    describing the strongest; a frame that yields fewer than ``max_keypoints`` above the adapted
+    threshold (here a blurred one) is detected again at the config's threshold."""
+    frames = list(frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))[:2])
+    frames.append(cv2.GaussianBlur(frames[1], (0, 0), 4.0))  # far fewer strong keypoints
+    _, _, flat = frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))
+    name = "akaze-guided-fast"
+    adapted = get_estimator(name)(make_config(name), CAM_FULL, height_mm=100.0, flatfield=flat)
+    fixed = get_estimator(name)(
+        make_config(name, {"adapt_threshold": "false"}), CAM_FULL, height_mm=100.0, flatfield=flat
+    )
+    state = adapted.start()
+    calls = {"detect": 0, "compute": 0, "detectAndCompute": 0}
+    adapted.detector = _CountingDetector(adapted.detector, calls)
+    thresholds = []
+    for i, img in enumerate(frames):
+        thresholds.append(state.threshold)
+        pts_a, desc_a = adapted._detect(img, state)
+        pts_f, desc_f = fixed._detect(img)
+        oa, of = np.lexsort(pts_a.T), np.lexsort(pts_f.T)
+        assert len(pts_a) == len(pts_f) and len(pts_a) > 0, i
+        assert np.array_equal(pts_a[oa], pts_f[of]), i
+        assert np.array_equal(desc_a[oa], desc_f[of]), i
+        if i == 1:  # the adapted threshold: one pass, one scale space
+            assert calls == {"detect": 1, "compute": 1, "detectAndCompute": 1}
+    assert thresholds[0] is None and thresholds[1] > make_config(name).akaze_threshold
+    # The blurred frame: one pass at the adapted threshold found too few, and it was detected again.
+    assert calls == {"detect": 2, "compute": 2, "detectAndCompute": 2}
+
+
+class _CountingDetector:
+    """An AKAZE detector that counts its detect / compute / detectAndCompute calls."""
+
+    def __init__(self, detector, calls: dict):
+        self._d, self._calls = detector, calls
+
+    def __getattr__(self, key):
+        attr = getattr(self._d, key)
+        if key in self._calls:
+
+            def counted(*a, **k):
+                self._calls[key] += 1
+                return attr(*a, **k)
+
+            return counted
+        return attr

@@ -45,6 +45,7 @@ from the current frame (the motion over the gap is unknown; the lost frames show
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -61,7 +62,7 @@ from floorvo.geometry import (
     rigid_fit_precision,
     umeyama,
 )
-from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import match_guided, match_nn, pack_descriptors
 
 __all__ = [
@@ -127,6 +128,15 @@ class AkazeConfig(Config):
         doc="detect, keep the max_keypoints strongest, then describe those only (the same descriptors; "
         "pays for a second scale space, so it only helps with a small one and many more keypoints than kept)",
     )
+    adapt_threshold: bool = param(
+        False,
+        doc="detect at adapt_threshold_margin x the response of the previous frame's max_keypoints-th strongest "
+        "keypoint (never below akaze_threshold): one detectAndCompute finds the same strongest keypoints with "
+        "one scale space instead of describe_kept_only's two; a frame yielding fewer is detected again",
+    )
+    adapt_threshold_margin: float = param(
+        0.8, gt=0.0, max=1.0, doc="adapt_threshold: the previous frame's max_keypoints-th response times this"
+    )
     hamming_threshold: int = param(120, min=1, max=512, doc="largest descriptor distance of a match, in bits (of 486)")
     search_radius_px: float = param(
         24.0, unit="px", gt=0.0, doc="guided search radius around each predicted position (24 px: 3 mm on the rig)"
@@ -188,6 +198,7 @@ class _State:
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # camera height of the reference frame, measured or fitted (None: the rig's)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
+    threshold: float | None = None  # adapt_threshold: the detector threshold of the next frame (None: the config's)
 
 
 @dataclass(frozen=True)
@@ -223,6 +234,7 @@ class _AkazeBase:
         self.camera = camera
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
+        self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)  # once, not per frame
         self.detector = cv2.AKAZE.create(
             descriptor_type=cv2.AKAZE_DESCRIPTOR_MLDB_UPRIGHT if config.upright else cv2.AKAZE_DESCRIPTOR_MLDB,
             threshold=config.akaze_threshold,
@@ -234,26 +246,62 @@ class _AkazeBase:
     def start(self) -> _State:
         return _State()
 
-    def _detect(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        img8 = to_uint8_contrast(illumination_corrected(image, self.flatfield))
-        if self.config.describe_kept_only:
+    def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The ``max_keypoints`` strongest keypoints (N, 2) px and their descriptors (N, B) uint8.
+
+        With ``adapt_threshold`` and a ``state`` that holds a threshold from the previous frame,
+        AKAZE detects and describes at that threshold in one pass: every keypoint whose response
+        is above it is found, so when at least ``max_keypoints`` are, the strongest of them are
+        the strongest the config's threshold would give, with the same descriptors (the scale
+        space and the descriptors do not depend on the threshold). A frame yielding fewer is
+        detected again at the config's threshold. The next frame's threshold is
+        ``adapt_threshold_margin`` times the response of this frame's ``max_keypoints``-th keypoint.
+        """
+        cfg = self.config
+        img8 = to_uint8_contrast(illumination_corrected(image, gain=self.flat_gain))
+        adapt = cfg.adapt_threshold and state is not None
+        kps: Sequence[cv2.KeyPoint] | None = None
+        desc: np.ndarray | None = None
+        if adapt and state is not None and state.threshold is not None and state.threshold > cfg.akaze_threshold:
+            self.detector.setThreshold(state.threshold)
+            try:
+                kps, desc = self.detector.detectAndCompute(img8, None)
+            finally:
+                self.detector.setThreshold(cfg.akaze_threshold)
+            if len(kps) < cfg.max_keypoints:
+                kps, desc = None, None  # fewer than are kept: detect again at the config's threshold
+        found: Sequence[cv2.KeyPoint] | None = kps  # every keypoint found (the next threshold is taken from them)
+        if kps is None and cfg.describe_kept_only:
             # The descriptors of the keypoints that are dropped are never used: describe the
             # kept ones only (OpenCV builds the scale space again for compute(): worth it
             # with one octave of one sublevel and thousands of keypoints, 7 ms of 36 on vinyl).
             found = self.detector.detect(img8, None)
-            if len(found) > self.config.max_keypoints:
-                order = np.argsort([-k.response for k in found])[: self.config.max_keypoints]
-                found = [found[i] for i in order]
-            kps, desc = self.detector.compute(img8, found) if len(found) else ((), None)
-        else:
+            kept = found
+            if len(found) > cfg.max_keypoints:
+                order = np.argsort([-k.response for k in found])[: cfg.max_keypoints]
+                kept = [found[i] for i in order]
+            kps, desc = self.detector.compute(img8, kept) if len(kept) else ((), None)
+        elif kps is None:
             kps, desc = self.detector.detectAndCompute(img8, None)
+            found = kps
+        if adapt and state is not None:
+            state.threshold = self._next_threshold(found or ())
         if desc is None or len(kps) == 0:
             return np.zeros((0, 2)), np.zeros((0, 61), dtype=np.uint8)
-        if len(kps) > self.config.max_keypoints:
-            order = np.argsort([-k.response for k in kps])[: self.config.max_keypoints]
+        if len(kps) > cfg.max_keypoints:
+            order = np.argsort([-k.response for k in kps])[: cfg.max_keypoints]
             kps = [kps[i] for i in order]
             desc = desc[order]
         return np.array([k.pt for k in kps], dtype=np.float64), desc
+
+    def _next_threshold(self, kps: Sequence[cv2.KeyPoint]) -> float | None:
+        """``adapt_threshold``: the next frame's detector threshold from this frame's keypoints
+        (None, the config's, when there are fewer than ``max_keypoints``)."""
+        n = self.config.max_keypoints
+        if len(kps) < n:
+            return None
+        responses = np.fromiter((k.response for k in kps), dtype=np.float64, count=len(kps))
+        return float(self.config.adapt_threshold_margin * np.partition(responses, len(responses) - n)[-n])
 
     def _bruteforce(self, state: _State, kps: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mutual nearest Hamming neighbours (cross-checked brute force)."""
@@ -479,7 +527,7 @@ class _AkazeBase:
         bad = frame_problem(frame.image, self.camera)
         if bad:
             return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
-        kps, desc = self._detect(frame.image)
+        kps, desc = self._detect(frame.image, state)
         packed = pack_descriptors(desc)
         t1 = time.perf_counter()
         if state.kps is None:
@@ -587,6 +635,7 @@ AkazeFastConfig = with_defaults(
     akaze_threshold=0.001,
     max_keypoints=600,
     describe_kept_only=True,
+    adapt_threshold=True,
 )
 
 

@@ -43,7 +43,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
-from floorvo.imaging import illumination_corrected, to_uint8_contrast
+from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
 __all__ = ["OrbIcp", "OrbIcpConfig", "OrbIcpFast", "OrbIcpFastConfig", "homogenise_keypoints"]
@@ -144,6 +144,7 @@ class OrbIcp:
         self.camera = camera
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
+        self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)  # once, not per frame
         n_max = config.grid_cols * config.grid_rows * config.per_cell
         self.orb = cv2.ORB.create(
             nfeatures=4 * n_max,
@@ -170,7 +171,7 @@ class OrbIcp:
         self, image: np.ndarray, depth_mm: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         cfg = self.config
-        img8 = to_uint8_contrast(illumination_corrected(image, self.flatfield))
+        img8 = to_uint8_contrast(illumination_corrected(image, gain=self.flat_gain))
         kps = self.orb.detect(img8, None)
         kps = homogenise_keypoints(list(kps), img8.shape, cfg.grid_cols, cfg.grid_rows, cfg.per_cell)
         kps, desc = self.orb.compute(img8, kps)

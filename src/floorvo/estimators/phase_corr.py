@@ -40,7 +40,7 @@ from floorvo.config import Config, param
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
-from floorvo.imaging import illumination_corrected
+from floorvo.imaging import flatfield_gain, illumination_corrected
 
 __all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
 
@@ -248,8 +248,7 @@ class PhaseCorr:
                 raise ValueError(
                     f"flatfield shape {flat.shape} differs from the camera's {camera.height_px}x{camera.width_px}"
                 )
-            flat = flat / (float(flat.max()) or 1.0)
-            self.inv_flat = np.where(flat > 0.005, 1.0 / np.maximum(flat, 1e-6), 0.0).astype(np.float32)
+            self.inv_flat = flatfield_gain(flat)
             if self.rect_map is not None:  # the flat field in the pinhole's pixels, region only
                 inv = np.zeros((camera.height_px, camera.width_px), np.float32)
                 inv[self.ry0 : self.ry1, self.rx0 : self.rx1] = self._rectified(self.inv_flat)

@@ -44,7 +44,7 @@ from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import Frame, StepResult, frame_problem
 from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, invert_T, rigid_fit_robust
-from floorvo.imaging import illumination_corrected, local_contrast_uint8, to_uint8_contrast
+from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8, to_uint8_contrast
 from floorvo.matching import match_ratio
 
 __all__ = ["StereoSift", "StereoSiftConfig", "StereoSiftFast", "StereoSiftFastConfig"]
@@ -149,6 +149,9 @@ class StereoSift:
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         self.flatfield_right = flatfield_right if config.use_flatfield else None
+        # The flat fields' gains, once per run rather than per frame.
+        self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)
+        self.flat_gain_right = None if self.flatfield_right is None else flatfield_gain(self.flatfield_right)
         self.T_cam0_cam1 = np.asarray(T_cam0_cam1, dtype=float)
         T10 = invert_T(self.T_cam0_cam1)
         # Eqs. (1)-(3) of paper 002: P = K [R | t] for each camera, the left camera as reference.
@@ -189,8 +192,8 @@ class StereoSift:
 
     def _stereo(self, image: np.ndarray, image_right: np.ndarray) -> _Side:
         """Left keypoints matched in the right frame (M_2), triangulated in the left camera."""
-        imgL = to_uint8_contrast(illumination_corrected(image, self.flatfield))
-        imgR = to_uint8_contrast(illumination_corrected(image_right, self.flatfield_right))
+        imgL = to_uint8_contrast(illumination_corrected(image, gain=self.flat_gain))
+        imgR = to_uint8_contrast(illumination_corrected(image_right, gain=self.flat_gain_right))
         uvL, dL = self._detect(imgL)
         uvR, dR = self._detect(imgR)
         qi, ti = self._ratio_match(dL, dR)
