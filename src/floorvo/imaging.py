@@ -62,18 +62,21 @@ def illumination_corrected(
             out *= np.float32(1.0 / m)
         return out
     sigma = blur_sigma_px or max(img.shape) / 16.0
-    f = int(sigma // 4) if blur_downscale is None else int(blur_downscale)
-    if f >= 2:
-        # A wide blur is smooth: compute it on an f-times smaller image and scale it back up.
-        small = cv2.resize(img, (max(1, img.shape[1] // f), max(1, img.shape[0] // f)), interpolation=cv2.INTER_AREA)
-        illum = cv2.resize(
-            cv2.GaussianBlur(small, (0, 0), sigma / f), (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR
-        )
-    else:
-        illum = cv2.GaussianBlur(img, (0, 0), sigma)
+    illum = _blur(img, sigma, int(sigma // 4) if blur_downscale is None else int(blur_downscale))
     out = np.zeros_like(img)
     np.divide(img, illum, out=out, where=illum > 1e-3 * max(float(illum.max()), 1e-12))
     return out
+
+
+def _blur(img: np.ndarray, sigma_px: float, downscale: int = 1) -> np.ndarray:
+    """Gaussian blur of ``sigma_px`` of the float32 (H, W) ``img``; with ``downscale`` f >= 2 computed on an
+    f-times smaller copy (area averaging) and scaled back up by linear interpolation: a wide blur is smooth,
+    and the copy costs about 1/f^2 of the work."""
+    if downscale < 2:
+        return cv2.GaussianBlur(img, (0, 0), sigma_px)
+    h, w = img.shape
+    small = cv2.resize(img, (max(1, w // downscale), max(1, h // downscale)), interpolation=cv2.INTER_AREA)
+    return cv2.resize(cv2.GaussianBlur(small, (0, 0), sigma_px / downscale), (w, h), interpolation=cv2.INTER_LINEAR)
 
 
 def to_uint8_contrast(corrected: np.ndarray, gain_sigma: float = 3.0) -> np.ndarray:
@@ -85,7 +88,7 @@ def to_uint8_contrast(corrected: np.ndarray, gain_sigma: float = 3.0) -> np.ndar
     return np.clip(128.0 + (c - mean) * (127.0 / (gain_sigma * std)), 0, 255).astype(np.uint8)
 
 
-def local_contrast_uint8(image: np.ndarray, sigma_px: float = 6.0) -> np.ndarray:
+def local_contrast_uint8(image: np.ndarray, sigma_px: float = 6.0, blur_downscale: int = 1) -> np.ndarray:
     """uint8 (H, W) image with the local mean removed and the local contrast equalised.
 
     ``(img - G(img)) / sqrt(G((img - G(img))^2))`` with ``G`` a Gaussian blur of ``sigma_px``,
@@ -93,10 +96,14 @@ def local_contrast_uint8(image: np.ndarray, sigma_px: float = 6.0) -> np.ndarray
     brightness that varies smoothly across the frame and differs between two views of the
     same floor (the LED falloff of two cameras of a stereo rig, a flat-field frame that no
     longer fits a tilted rig) cancels, so a Lucas-Kanade alignment of two such images is not
-    biased by it (it was by 0.3-0.5 px on a rendered tilted stereo pair).
+    biased by it (it was by 0.3-0.5 px on a rendered tilted stereo pair). ``blur_downscale``
+    f >= 2: both blurs computed on f-times smaller copies (:func:`illumination_corrected`'s
+    way; 9.6 -> 2.7 ms of CPU on a 648x494 frame with f = 2), and the median local deviation
+    (the regulariser) taken on every f-th row and column.
     """
     f = np.asarray(image, dtype=np.float32)
-    hp = f - cv2.GaussianBlur(f, (0, 0), sigma_px)
-    sd = np.sqrt(cv2.GaussianBlur(hp * hp, (0, 0), sigma_px))
-    eps = 0.05 * float(np.median(sd)) + 1e-6
+    hp = f - _blur(f, sigma_px, blur_downscale)
+    sd = np.sqrt(_blur(hp * hp, sigma_px, blur_downscale))
+    step = max(1, int(blur_downscale))
+    eps = 0.05 * float(np.median(sd[::step, ::step])) + 1e-6
     return np.clip(128.0 + 40.0 * hp / (sd + eps), 0, 255).astype(np.uint8)

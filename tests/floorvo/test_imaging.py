@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from floorvo.imaging import flatfield_gain, illumination_corrected
+from floorvo.estimators.base import frame_is_blank
+from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8
 
 
 def test_flatfield_gain_corrects_as_dividing_by_the_flat_field():
@@ -27,3 +28,32 @@ def test_flatfield_gain_corrects_as_dividing_by_the_flat_field():
         np.testing.assert_allclose(out, expected, rtol=2e-6, atol=1e-7)
     with pytest.raises(ValueError, match="gain shape"):
         illumination_corrected(image[:, :50], gain=gain)
+
+
+def test_local_contrast_with_downscaled_blurs_is_the_exact_one_within_a_few_levels():
+    """``blur_downscale=2`` (stereo-sift-fast's local-contrast images) computes the two wide blurs
+    on half-size copies: the texture image stays the exact one's within a grey level or two, on a
+    textured frame under a steep brightness ramp (which both remove)."""
+    from _synth import floor_texture
+
+    tex = floor_texture(300, 5)[:200, :260].astype(np.float32)
+    ramp = np.linspace(0.3, 1.0, 260, dtype=np.float32)[None, :]
+    img = tex * ramp
+    exact = local_contrast_uint8(img).astype(float)
+    fast = local_contrast_uint8(img, blur_downscale=2).astype(float)
+    inner = (slice(20, -20), slice(20, -20))  # the blurs' borders are resampled differently
+    diff = np.abs(fast - exact)[inner]
+    # (a blur of sigma 4 or 9 px instead of 6, exact, is 1.5-2.3 levels off on average, 5-8 at the 99th percentile)
+    assert np.mean(diff) < 0.3 and np.percentile(diff, 99) <= 2
+    assert np.corrcoef(fast[inner].ravel(), exact[inner].ravel())[0, 1] > 0.9999
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_frame_is_blank_as_a_zero_standard_deviation(dtype):
+    rng = np.random.default_rng(0)
+    flat = np.full((5, 7), 9, dtype=dtype)
+    textured = rng.integers(0, 200, size=(5, 7)).astype(dtype)
+    one_pixel = flat.copy()
+    one_pixel[2, 3] = 10
+    for img in (flat, textured, one_pixel):
+        assert frame_is_blank(img) == (float(img.std()) == 0.0)

@@ -41,7 +41,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
-from floorvo.estimators.base import Frame, StepResult, frame_problem
+from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -212,7 +212,7 @@ class OrbIcp:
         bad = frame_problem(img, self.camera) or frame_problem(frame.depth_mm, self.camera, "depth image")
         if bad:
             return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
-        if float(img.std()) == 0.0:
+        if frame_is_blank(img):
             return StepResult(
                 "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
             )

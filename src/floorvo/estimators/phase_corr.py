@@ -38,7 +38,7 @@ from scipy import fft as sfft
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_is_blank, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
 from floorvo.imaging import flatfield_gain, illumination_corrected
 
@@ -310,7 +310,7 @@ class PhaseCorr:
         if bad:
             return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         img = np.asarray(frame.image)
-        if float(img.std()) == 0.0:
+        if frame_is_blank(img):
             return StepResult(
                 "lost",
                 reason="empty frame (no texture)",

@@ -28,6 +28,12 @@ state, so each frame's SIFT runs once):
    (:func:`floorvo.geometry.floor_plane_step`). ``plane`` is the default (see
    BENCHMARKS.md, "6-DoF with depth and stereo").
 
+The real-time preset ``stereo-sift-fast`` (issue 14 item 5) departs from step 3: SIFT runs on
+the left frame only, and the left keypoints are found in the right frame by Lucas-Kanade from
+their positions through the previous frame's floor plane (``right_features = "flow"``; SIFT
+again when fewer than ``min_matches`` are found). The temporal matching, RANSAC, the self-checks
+and the update are the same.
+
 Requires a stereo sequence (``requires = {"stereo"}``).
 """
 
@@ -42,7 +48,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, frame_problem
+from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem
 from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, invert_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8, to_uint8_contrast
 from floorvo.matching import match_ratio
@@ -97,6 +103,21 @@ class StereoSiftConfig(Config):
         min=0,
         max=63,
         doc="update = plane: window of the Lucas-Kanade refinement of the stereo grid the plane is fitted to; 0 = off",
+    )
+    contrast_blur_downscale: int = param(
+        1,
+        min=1,
+        max=8,
+        doc="update = plane: the local-contrast images' blurs computed on copies this many times smaller (1: exact)",
+    )
+    right_features: str = param(
+        "sift",
+        choices=("sift", "flow"),
+        doc="sift: SIFT on the right frame, ratio-matched (paper 002's M_2); flow: the left keypoints followed "
+        "into the right frame by Lucas-Kanade through the previous frame's floor plane (SIFT when too few)",
+    )
+    flow_max_correction_px: float = param(
+        4.0, unit="px", gt=0.0, doc="right_features = flow: a point moved further from its prediction is dropped"
     )
     plane_step_px: int = param(
         12, unit="px", min=2, max=128, doc="update = plane: spacing of the left-image grid the plane is fitted to"
@@ -153,7 +174,7 @@ class StereoSift:
         self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)
         self.flat_gain_right = None if self.flatfield_right is None else flatfield_gain(self.flatfield_right)
         self.T_cam0_cam1 = np.asarray(T_cam0_cam1, dtype=float)
-        T10 = invert_T(self.T_cam0_cam1)
+        self.T10 = T10 = invert_T(self.T_cam0_cam1)  # left camera -> right camera
         # Eqs. (1)-(3) of paper 002: P = K [R | t] for each camera, the left camera as reference.
         self.P_left = camera.K @ np.hstack([np.eye(3), np.zeros((3, 1))])
         self.P_right = camera_right.K @ T10[:3, :]
@@ -190,33 +211,103 @@ class StereoSift:
         m = match_ratio(da, db, self.config.ratio, unique="none")
         return m.i0, m.i1
 
-    def _stereo(self, image: np.ndarray, image_right: np.ndarray) -> _Side:
-        """Left keypoints matched in the right frame (M_2), triangulated in the left camera."""
+    def _stereo(
+        self, image: np.ndarray, image_right: np.ndarray, plane_guess: tuple[np.ndarray, float] | None = None
+    ) -> _Side:
+        """Left keypoints matched in the right frame (M_2), triangulated in the left camera.
+
+        ``right_features = "flow"``: the left keypoints are followed into the right frame by
+        Lucas-Kanade from their positions through ``plane_guess`` (the previous frame's floor
+        plane ``(n, d_mm)`` in the left camera; the rig's nominal one when None), instead of
+        SIFT on the right frame and the ratio test; with fewer than ``min_matches`` followed,
+        the frame is matched by SIFT.
+        """
+        cfg = self.config
         imgL = to_uint8_contrast(illumination_corrected(image, gain=self.flat_gain))
         imgR = to_uint8_contrast(illumination_corrected(image_right, gain=self.flat_gain_right))
         uvL, dL = self._detect(imgL)
-        uvR, dR = self._detect(imgR)
-        qi, ti = self._ratio_match(dL, dR)
+        contrast = None
+        qi, uvR_q = np.zeros(0, np.int64), np.zeros((0, 2))
+        if cfg.right_features == "flow":
+            contrast = self._local_contrast(imgL, imgR)
+            qi, uvR_q = self._flow_right(contrast, uvL, plane_guess or (np.array([0.0, 0.0, 1.0]), self.height_mm))
+        if len(qi) < cfg.min_matches:
+            uvR, dR = self._detect(imgR)
+            qi, ti = self._ratio_match(dL, dR)
+            uvR_q = uvR[ti]
         if len(qi) == 0:
             return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)))
         xl = np.hstack([uvL[qi], np.ones((len(qi), 1))])
-        xr = np.hstack([uvR[ti], np.ones((len(ti), 1))])
+        xr = np.hstack([uvR_q, np.ones((len(qi), 1))])
         line = xl @ self.F.T  # epipolar lines in the right image
         dist = np.abs(np.sum(line * xr, axis=1)) / np.maximum(np.hypot(line[:, 0], line[:, 1]), 1e-12)
-        ok = dist < self.config.epipolar_px
-        qi, ti = qi[ok], ti[ok]
+        ok = dist < cfg.epipolar_px
+        qi, uvR_q = qi[ok], uvR_q[ok]
         if len(qi) == 0:
             return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)))
-        X = cv2.triangulatePoints(self.P_left, self.P_right, uvL[qi].T.astype(np.float64), uvR[ti].T.astype(np.float64))
+        X = cv2.triangulatePoints(self.P_left, self.P_right, uvL[qi].T.astype(np.float64), uvR_q.T.astype(np.float64))
         xyz = (X[:3] / X[3]).T
         front = xyz[:, 2] > 0
         plane = None
-        if self.config.update == "plane" and int(front.sum()) >= self.config.min_matches:
-            plane = self._floor_plane(imgL, imgR, uvL[qi][front], uvR[ti][front])
+        if cfg.update == "plane" and int(front.sum()) >= cfg.min_matches:
+            plane = self._floor_plane(imgL, imgR, uvL[qi][front], uvR_q[front], contrast)
         return _Side(uvL[qi][front], dL[qi][front], xyz[front], plane)
 
+    def _local_contrast(self, imgL: np.ndarray, imgR: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The left and right frames' local-contrast images (:func:`floorvo.imaging.local_contrast_uint8`)."""
+        f = self.config.contrast_blur_downscale
+        return local_contrast_uint8(imgL, blur_downscale=f), local_contrast_uint8(imgR, blur_downscale=f)
+
+    def _flow_right(
+        self, contrast: tuple[np.ndarray, np.ndarray], uvL: np.ndarray, plane: tuple[np.ndarray, float]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The left keypoints ``uvL`` (N, 2) px found in the right frame: ``(indices (K,), right px (K, 2))``.
+
+        Each is carried through the homography the floor plane ``n . p = d`` (left camera, mm)
+        induces between the two cameras, ``H = K_R (R + t n^T / d) K_L^-1`` with ``p_R = R p_L + t``
+        (Hartley & Zisserman, Result 13.1), then aligned by Lucas-Kanade (window ``refine_win_px``,
+        two pyramid levels) on the local-contrast images; a point moved more than
+        ``flow_max_correction_px`` from its prediction, or lost by Lucas-Kanade, is dropped.
+        """
+        cfg = self.config
+        n, d = plane
+        Hn = self.T10[:3, :3] + np.outer(self.T10[:3, 3], np.asarray(n, dtype=float)) / float(d)
+        H = self.camera_right.K @ Hn @ np.linalg.inv(self.camera.K)
+        lcL, lcR = contrast
+        w = max(cfg.refine_win_px, 9)
+        h_px, w_px = lcR.shape
+        if len(uvL) == 0:
+            return np.zeros(0, np.int64), np.zeros((0, 2))
+        pred = cv2.perspectiveTransform(uvL.reshape(-1, 1, 2).astype(np.float64), H).reshape(-1, 2)
+        inside = (pred[:, 0] >= w) & (pred[:, 0] < w_px - w) & (pred[:, 1] >= w) & (pred[:, 1] < h_px - w)
+        # SIFT gives a point of several dominant gradient orientations once per orientation: keep
+        # one (the ratio-matched right SIFT of the paper's M_2 keeps at most one of them, too).
+        _, first = np.unique(uvL, axis=0, return_index=True)
+        inside[np.setdiff1d(np.arange(len(uvL)), first)] = False
+        idx = np.nonzero(inside)[0]
+        if len(idx) == 0:
+            return idx, np.zeros((0, 2))
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(
+            lcL,
+            lcR,
+            uvL[idx].reshape(-1, 1, 2).astype(np.float32),
+            pred[idx].reshape(-1, 1, 2).astype(np.float32),
+            winSize=(w, w),
+            maxLevel=1,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+            criteria=(cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001),
+        )
+        p1 = p1.reshape(-1, 2).astype(np.float64)
+        good = (st.ravel() == 1) & (np.linalg.norm(p1 - pred[idx], axis=1) <= cfg.flow_max_correction_px)
+        return idx[good], p1[good]
+
     def _floor_plane(
-        self, imgL: np.ndarray, imgR: np.ndarray, uvL: np.ndarray, uvR: np.ndarray
+        self,
+        imgL: np.ndarray,
+        imgR: np.ndarray,
+        uvL: np.ndarray,
+        uvR: np.ndarray,
+        contrast: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, float] | None:
         """The floor plane ``(n, d_mm)`` in the left camera, from a dense grid of stereo points.
 
@@ -228,7 +319,7 @@ class StereoSift:
         positions are a tenth or two off (a few tenths of a millimetre of depth each at a 20 mm
         baseline). They are triangulated and the plane fitted to them
         (:func:`floorvo.geometry.fit_plane`). None when the homography or fewer than
-        ``min_matches`` points remain.
+        ``min_matches`` points remain. ``contrast``: the two local-contrast images when already made.
         """
         cfg = self.config
         if len(uvL) < cfg.min_matches:
@@ -245,9 +336,10 @@ class StereoSift:
         inside = (gr[:, 0] >= w) & (gr[:, 0] < w_px - w) & (gr[:, 1] >= w) & (gr[:, 1] < h_px - w)
         gl, gr = gl[inside], gr[inside]
         if w > 0 and len(gl):
+            lcL, lcR = contrast or self._local_contrast(imgL, imgR)
             p1, st, _ = cv2.calcOpticalFlowPyrLK(
-                local_contrast_uint8(imgL),
-                local_contrast_uint8(imgR),
+                lcL,
+                lcR,
                 gl.reshape(-1, 1, 2),
                 gr.reshape(-1, 1, 2).copy(),
                 winSize=(w, w),
@@ -275,11 +367,11 @@ class StereoSift:
         if bad:
             return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
         for im in (frame.image, frame.image_right):
-            if float(np.asarray(im).std()) == 0.0:
+            if frame_is_blank(im):
                 return StepResult(
                     "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
                 )
-        cur = self._stereo(frame.image, frame.image_right)
+        cur = self._stereo(frame.image, frame.image_right, state.prev.plane if state.prev is not None else None)
         t1 = time.perf_counter()
         prev = state.prev
         if prev is None:
@@ -383,12 +475,20 @@ def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
 #: The real-time preset (issue 14 item 5): SIFT doubles the frame before its first octave,
 #: which at a fixed camera height buys nothing but time (most of SIFT's cost is that doubled
 #: octave). Run on the frame halved, its first octave is the frame's own size. Meant for the
-#: full-size 648x494 camera (on a frame already halved it sees too little). Frames/s and
-#: drift against the default: BENCHMARKS.md, "Real time on one core".
-StereoSiftFastConfig = with_defaults(StereoSiftConfig, "StereoSiftFastConfig", detect_scale=0.5)
+#: full-size 648x494 camera (on a frame already halved it sees too little). SIFT runs on the
+#: left frame only: the right frame's keypoints are the left ones followed by Lucas-Kanade
+#: through the previous frame's floor plane (``right_features = "flow"``), and the
+#: local-contrast images are blurred at half size. Frames/s and drift against the default:
+#: BENCHMARKS.md, "Real time on one core".
+StereoSiftFastConfig = with_defaults(
+    StereoSiftConfig, "StereoSiftFastConfig", detect_scale=0.5, contrast_blur_downscale=2, right_features="flow"
+)
 
 
 class StereoSiftFast(StereoSift):
     name = "stereo-sift-fast"
-    description = "stereo-sift's real-time preset: SIFT on the frame halved (its first octave at full size)"
+    description = (
+        "stereo-sift's real-time preset: SIFT on the left frame halved (its first octave at full size), "
+        "right keypoints by Lucas-Kanade through the floor plane"
+    )
     Config = StereoSiftFastConfig
