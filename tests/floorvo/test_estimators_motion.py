@@ -19,7 +19,7 @@ from floorvo.sequence import Sequence
 from floorvo.synthetic import led_falloff, write_synthetic_sequence
 
 CAM = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)  # GSD 0.1233 mm at 100 mm
-MONO = ["phase-corr", "akaze-guided", "akaze-bruteforce"]
+MONO = ["phase-corr", "phase-corr-fast", "akaze-guided", "akaze-bruteforce"]
 
 
 def _step_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
@@ -290,3 +290,32 @@ def test_phase_corr_measures_the_first_frame_of_a_sharp_turn(tmp_path):
     for k, (res, T_true) in enumerate(zip(results[1:], truth), start=1):
         assert res.status == "ok", f"step {k}: {res.reason}"
         assert _within_bound(res.T_prev_cur, T_true), f"step {k}: {_step_error(res.T_prev_cur, T_true)}"
+
+
+def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
+    """:func:`~floorvo.estimators.phase_corr.block_shifts` measures a stack of block pairs in one
+    pass: each block's known sub-pixel shift (a texture moved by the Fourier shift theorem,
+    exact; one of them by whole pixels too) within 0.02 px, and the same as measuring it alone."""
+    from scipy.ndimage import fourier_shift
+
+    from floorvo.estimators.phase_corr import _Spectral, block_shift, block_shifts
+    from tests.floorvo._synth import floor_texture
+
+    n = 64
+    tex = floor_texture(4 * n, 2).astype(np.float64)
+    sp = _Spectral(n, 0.3)
+    truth = np.array([[0.25, -0.4], [1.7, 0.05], [-3.35, 2.6], [0.0, 0.0]])  # (dx, dy) px
+    a_blocks, b_blocks = [], []
+    for i, (dx, dy) in enumerate(truth):
+        a = tex[(i // 2) * 2 * n : (i // 2) * 2 * n + 2 * n, (i % 2) * 2 * n : (i % 2) * 2 * n + 2 * n]
+        b = np.fft.ifft2(fourier_shift(np.fft.fft2(a), (dy, dx))).real  # b(x) = a(x - d)
+        a_blocks.append(a[n // 2 : n // 2 + n, n // 2 : n // 2 + n])
+        b_blocks.append(b[n // 2 : n // 2 + n, n // 2 : n // 2 + n])
+    Fa, Fb = sp.spectrum(np.array(a_blocks)), sp.spectrum(np.array(b_blocks))
+    d, peaks = block_shifts(Fa, Fb, sp)
+    assert d.shape == (4, 2) and peaks.shape == (4,)
+    np.testing.assert_allclose(d, truth, atol=0.02)
+    for i in range(4):
+        d_i, peak_i = block_shift(sp.spectrum(a_blocks[i]), sp.spectrum(b_blocks[i]), sp)
+        np.testing.assert_allclose(d_i, d[i], atol=1e-9)
+        assert peak_i == pytest.approx(peaks[i], abs=1e-6)

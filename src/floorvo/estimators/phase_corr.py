@@ -36,13 +36,13 @@ import numpy as np
 from scipy import fft as sfft
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param
+from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_is_blank, frame_problem
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
 from floorvo.imaging import flatfield_gain, illumination_corrected
 
-__all__ = ["PhaseCorr", "PhaseCorrConfig", "block_shift"]
+__all__ = ["PhaseCorr", "PhaseCorrConfig", "PhaseCorrFast", "PhaseCorrFastConfig", "block_shift", "block_shifts"]
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,13 @@ class PhaseCorrConfig(Config):
         unit="px",
         min=0.0,
         doc="blocks agreeing within this RMS (a similarity fit) are within their own precision: yaw not checked",
+    )
+    downscale: int = param(
+        1,
+        min=1,
+        max=4,
+        doc="correlate the frames binned this many times smaller (area average; crop_px, margin_px and the "
+        "pixel tolerances stay in the frame's pixels): about downscale^2 less work, less precise per step",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     predict: bool = param(True, doc="start each frame from the last motion")
@@ -146,46 +153,60 @@ class _Spectral:
         self.low = low
         self.kx_low, self.ky_low = kx[low], ky[low]
         self.A_low = np.stack([-2 * np.pi * self.kx_low, -2 * np.pi * self.ky_low], axis=1)  # phi = A d
+        self.AA_low = (self.A_low[:, :, None] * self.A_low[:, None, :]).reshape(-1, 4)  # (L, 4): A_l^T A_l
 
     def spectrum(self, block: np.ndarray) -> np.ndarray:
-        """rfft2 of the windowed, mean-free block, in single precision (complex64): scipy's FFT
+        """rfft2 of the windowed, mean-free block (..., n, n), in single precision (complex64): scipy's FFT
         keeps float32 (numpy's computes in double), 2x faster forward and 6x inverse on a
-        192 px block; the phase-slope fit needs no more (its sub-pixel part is fitted in double)."""
+        192 px block; the phase-slope fit needs no more (its sub-pixel part is fitted in double).
+        A stack of blocks (B, n, n) is transformed in one call."""
         b = np.asarray(block, dtype=np.float32)
-        return sfft.rfft2((b - b.mean()) * self.win)
+        return sfft.rfft2((b - b.mean(axis=(-2, -1), keepdims=True)) * self.win, axes=(-2, -1))
 
 
 def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarray, float]:
     """Content displacement ``d = (dx, dy)`` px of block b relative to a, and the peak height.
 
-    ``Fa``, ``Fb``: rfft2 spectra of the windowed blocks (size sp.n).
+    ``Fa``, ``Fb``: rfft2 spectra of the windowed blocks (size sp.n). :func:`block_shifts` for a stack.
+    """
+    d, peak = block_shifts(Fa[None], Fb[None], sp)
+    return d[0], float(peak[0])
+
+
+def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`block_shift` of a stack of B block pairs in one pass: ``(d (B, 2) px, peaks (B,))``.
+
+    ``Fa``, ``Fb``: (B, n, n // 2 + 1) rfft2 spectra of the windowed blocks (size sp.n). Phase
+    correlation ``ifft(Fb Fa* / |Fb Fa*|)`` gives each block's integer shift at its peak; a
+    weighted least-squares fit of the cross-power spectrum's phase slope over the low
+    frequencies, after the integer shift is removed, gives the sub-pixel part (for
+    b(x) = a(x - d): Fb Fa* = |Fa|^2 exp(-2 pi i k.d / n)).
     """
     cross = Fb * np.conj(Fa)
     mag = np.abs(cross)
     R = cross / np.maximum(mag, 1e-12)
-    corr = sfft.irfft2(R, s=(sp.n, sp.n))
-    iy, ix = np.unravel_index(int(np.argmax(corr)), corr.shape)
-    peak = float(corr[iy, ix])
     n = sp.n
-    dy0 = iy - n if iy > n // 2 else iy
-    dx0 = ix - n if ix > n // 2 else ix
+    corr = sfft.irfft2(R, s=(n, n), axes=(-2, -1)).reshape(len(R), -1)
+    flat_peak = np.argmax(corr, axis=1)
+    peaks = corr[np.arange(len(R)), flat_peak].astype(np.float64)
+    iy, ix = np.divmod(flat_peak, n)
+    d0 = np.stack([np.where(ix > n // 2, ix - n, ix), np.where(iy > n // 2, iy - n, iy)], axis=1).astype(np.float64)
     # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy),
     # weighted by the cross-power magnitude, over the low frequencies only.
-    m = sp.low
-    Q = R[m] * np.exp(2j * np.pi * (sp.kx_low * dx0 + sp.ky_low * dy0))
-    phi = np.angle(Q)
-    w = mag[m]
-    A = sp.A_low
-    Aw = A * w[:, None]
-    sol = np.linalg.solve(Aw.T @ A + 1e-12 * np.eye(2), Aw.T @ phi)
-    d = np.array([dx0 + sol[0], dy0 + sol[1]])
-    return d, peak
+    Q = R[:, sp.low]
+    if np.any(d0):
+        Q = Q * np.exp(2j * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low))
+    phi = np.angle(Q).astype(np.float64)
+    w = mag[:, sp.low].astype(np.float64)
+    lhs = (w @ sp.AA_low).reshape(-1, 2, 2) + 1e-12 * np.eye(2)  # sum_l w_l A_l^T A_l, per block
+    rhs = (w * phi) @ sp.A_low  # sum_l w_l phi_l A_l
+    return d0 + np.linalg.solve(lhs, rhs[..., None])[..., 0], peaks
 
 
 @dataclass
 class _State:
     prev: np.ndarray | None = None  # corrected previous frame, float32
-    prev_blocks: list[np.ndarray] | None = None  # spectra of the previous frame's blocks
+    prev_blocks: np.ndarray | None = None  # spectra (g * g, n, n // 2 + 1) of the previous frame's blocks
     prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
     n_lost: int = 0  # frames lost in a row since the reference
@@ -214,49 +235,54 @@ class PhaseCorr:
         # The ideal pinhole the frames are measured in (step 0 of the module doc): square
         # pixels, no distortion, the camera's principal point.
         self.pinhole = _square_pinhole(camera)
+        # The pixel grid the frames are correlated on: the pinhole's, or its pixels binned
+        # ``downscale`` x ``downscale`` (area average); crop, margin and blocks are in its pixels.
+        k = config.downscale
+        self.grid_cam = self.pinhole if k == 1 else _binned(self.pinhole, k)
+        gc = self.grid_cam
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
-        side = min(camera.width_px, camera.height_px)
+        side = min(gc.width_px, gc.height_px)
         g = config.grid
-        crop = min(config.crop_px, int(0.9 * side))
+        crop = min(config.crop_px // k, int(0.9 * side))
         bs = crop // g
         bs -= bs % 2
         if bs < 16:
             raise ConfigError(
-                f"phase-corr: image {camera.width_px}x{camera.height_px} too small for a {g}x{g} grid of blocks"
+                f"phase-corr: image {camera.width_px}x{camera.height_px} (downscale {k}) too small for a "
+                f"{g}x{g} grid of blocks"
             )
         self.block = bs
         self.crop = bs * g
-        self.x0 = int(round(camera.cx_px - self.crop / 2 + 0.5))
-        self.y0 = int(round(camera.cy_px - self.crop / 2 + 0.5))
+        self.x0 = int(round(gc.cx_px - self.crop / 2 + 0.5))
+        self.y0 = int(round(gc.cy_px - self.crop / 2 + 0.5))
         # The region of each frame that is normalised: the crop plus a margin for the motion.
-        m = config.margin_px
+        m = config.margin_px // k
         self.rx0, self.ry0 = max(0, self.x0 - m), max(0, self.y0 - m)
-        self.rx1 = min(camera.width_px, self.x0 + self.crop + m)
-        self.ry1 = min(camera.height_px, self.y0 + self.crop + m)
-        # Rectifying map of the normalised region (None: the camera is an ideal square pinhole).
+        self.rx1 = min(gc.width_px, self.x0 + self.crop + m)
+        self.ry1 = min(gc.height_px, self.y0 + self.crop + m)
+        # Rectifying map of the normalised region, in the frame's pixels (None: the camera is an
+        # ideal square pinhole).
         self.rect_map: tuple[np.ndarray, np.ndarray] | None = None
+        fy0, fy1, fx0, fx1 = k * self.ry0, k * self.ry1, k * self.rx0, k * self.rx1
         if self.pinhole is not camera:
             mx, my = cv2.initUndistortRectifyMap(
                 camera.K, np.asarray(camera.distortion), None, self.pinhole.K, camera.size, cv2.CV_32FC1
             )
-            self.rect_map = (mx[self.ry0 : self.ry1, self.rx0 : self.rx1], my[self.ry0 : self.ry1, self.rx0 : self.rx1])
-        self.inv_flat = None
+            self.rect_map = (mx[fy0:fy1, fx0:fx1], my[fy0:fy1, fx0:fx1])
+        # The flat-field gain of the region, in the grid's pixels (None: no flat field).
+        self.region_gain: np.ndarray | None = None
         if self.flatfield is not None:
             flat = np.asarray(self.flatfield, dtype=np.float32)
             if flat.shape != (camera.height_px, camera.width_px):
                 raise ValueError(
                     f"flatfield shape {flat.shape} differs from the camera's {camera.height_px}x{camera.width_px}"
                 )
-            self.inv_flat = flatfield_gain(flat)
-            if self.rect_map is not None:  # the flat field in the pinhole's pixels, region only
-                inv = np.zeros((camera.height_px, camera.width_px), np.float32)
-                inv[self.ry0 : self.ry1, self.rx0 : self.rx1] = self._rectified(self.inv_flat)
-                self.inv_flat = inv
+            self.region_gain = self._region(flatfield_gain(flat)).astype(np.float32)
         self.sp = _Spectral(bs, config.low_freq_fraction)
         self.sp_crop = _Spectral(self.crop, config.low_freq_fraction)
         c = (np.arange(g) + 0.5) * bs
-        cx, cy = np.meshgrid(c + self.x0 - camera.cx_px, c + self.y0 - camera.cy_px)
+        cx, cy = np.meshgrid(c + self.x0 - gc.cx_px, c + self.y0 - gc.cy_px)
         self.block_centres = np.stack([cx.ravel(), cy.ravel()], axis=1)  # prev-centred px
 
     def start(self) -> _State:
@@ -273,24 +299,43 @@ class PhaseCorr:
             borderMode=cv2.BORDER_REFLECT,
         )
 
+    def _region(self, img: np.ndarray) -> np.ndarray:
+        """The region around the crop of a full frame (or of a per-pixel map such as the flat-field
+        gain) in the grid's pixels: resampled into the ideal pinhole when the camera is not one,
+        then binned ``downscale`` x ``downscale`` (float32; the frame's own pixels, sliced, otherwise)."""
+        k = self.config.downscale
+        if self.rect_map is not None:
+            reg = self._rectified(img)
+        else:
+            reg = img[k * self.ry0 : k * self.ry1, k * self.rx0 : k * self.rx1]
+        if k == 1:
+            return reg
+        return cv2.resize(
+            np.asarray(reg, dtype=np.float32),
+            (self.rx1 - self.rx0, self.ry1 - self.ry0),
+            interpolation=cv2.INTER_AREA,
+        )
+
     def _normalised(self, img: np.ndarray) -> np.ndarray:
-        """Flat-field corrected (or blur-normalised) region around the crop, float32, frame coordinates offset by
-        (rx0, ry0), in the ideal pinhole's pixels."""
-        reg = img[self.ry0 : self.ry1, self.rx0 : self.rx1] if self.rect_map is None else self._rectified(img)
-        if self.inv_flat is not None:
-            out = reg.astype(np.float32) * self.inv_flat[self.ry0 : self.ry1, self.rx0 : self.rx1]
+        """Flat-field corrected (or blur-normalised) region around the crop, float32, grid coordinates offset by
+        (rx0, ry0), in the ideal pinhole's (binned) pixels."""
+        reg = self._region(img)
+        if self.region_gain is not None:
+            out = reg.astype(np.float32) * self.region_gain
             mean = float(out.mean())
             return out / mean if mean > 0 else out
         return illumination_corrected(reg, None)
 
-    def _blocks(self, img: np.ndarray) -> list:
+    def _blocks(self, img: np.ndarray) -> np.ndarray:
+        """The spectra (g * g, n, n // 2 + 1) of the crop ``img``'s blocks, row by row, in one transform."""
         bs, g = self.block, self.config.grid
-        return [self.sp.spectrum(img[j * bs : (j + 1) * bs, i * bs : (i + 1) * bs]) for j in range(g) for i in range(g)]
+        stack = np.asarray(img, dtype=np.float32).reshape(g, bs, g, bs).swapaxes(1, 2).reshape(g * g, bs, bs)
+        return self.sp.spectrum(stack)
 
     def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
         """cur sampled at M(p) for p on the previous frame's crop grid (moved by ``offset`` px)."""
-        c = np.array([[1, 0, self.camera.cx_px], [0, 1, self.camera.cy_px], [0, 0, 1.0]])
-        c_inv = np.array([[1, 0, -self.camera.cx_px], [0, 1, -self.camera.cy_px], [0, 0, 1.0]])
+        c = np.array([[1, 0, self.grid_cam.cx_px], [0, 1, self.grid_cam.cy_px], [0, 0, 1.0]])
+        c_inv = np.array([[1, 0, -self.grid_cam.cx_px], [0, 1, -self.grid_cam.cy_px], [0, 0, 1.0]])
         o = np.array([[1, 0, self.x0 + offset[0]], [0, 1, self.y0 + offset[1]], [0, 0, 1.0]])
         r = np.array([[1, 0, -self.rx0], [0, 1, -self.ry0], [0, 0, 1.0]])  # frame -> region coordinates
         A = (r @ c @ M @ c_inv @ o)[:2]
@@ -372,7 +417,7 @@ class PhaseCorr:
         # when the frame has one, else the rig's); the step carries the height change.
         h_prev = state.height_mm or self.height_mm
         h_cur = self._frame_height(frame) or self.height_mm
-        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.pinhole, h_cur, centred=True)
+        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
         state.M_pred, state.n_lost, state.height_mm = M, 0, self._frame_height(frame)
@@ -407,7 +452,7 @@ class PhaseCorr:
         return ""
 
     def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> _Measured:
-        """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px) from a start value.
+        """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px of the grid) from a start value.
 
         ``iterations`` warp-and-measure rounds, fewer when the whole-pixel warp repeats; a
         rotating warp (yaw above ``exact_yaw_max_deg``) takes up to ``MAX_EXTRA_ROUNDS`` more
@@ -415,6 +460,7 @@ class PhaseCorr:
         blocks' own disagreement (their largest residual: what a round can resolve): a
         7.6-degree turn measured from a straight prediction moved 1.2 px in its second round,
         and two rounds reported it ok and 0.15 mm off.
+        The residuals and the last round's move are returned in the frame's pixels, whatever the grid.
         """
         assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
@@ -447,15 +493,13 @@ class PhaseCorr:
                 # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
             w = self._warp_into_prev(cur, M, off)
-            measured = [block_shift(Fa, Fb, self.sp) for Fa, Fb in zip(prev_blocks, self._blocks(w))]
-            shifts = np.array([d for d, _ in measured])
-            peaks = [pk for _, pk in measured]
+            shifts, peaks = block_shifts(prev_blocks, self._blocks(w), self.sp)
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
             R2, t2 = rigid_fit(centres, centres + shifts)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(centres @ R2.T + t2 - centres - shifts).max())
-            min_peak = float(min(peaks))
+            min_peak = float(peaks.min())
             # The yaw's precision from the blocks' agreement; a similarity fit, so that the
             # scale change of a height bounce is not counted as disagreement.
             Rs, ts, sc = umeyama(centres, centres + shifts, with_scale=True)
@@ -482,15 +526,17 @@ class PhaseCorr:
                 break
         if not rotating:
             moved_px = 0.0  # a whole-pixel warp's last round measures the step exactly (no rounds to converge)
-        return _Measured(M, min_peak, resid, yaw[0], yaw[1], moved_px)
+        # The residuals in the frame's pixels, whatever the grid (the config's tolerances are in them).
+        k = cfg.downscale
+        return _Measured(M, min_peak, resid * k, yaw[0] * k, yaw[1], moved_px * k)
 
     def _crop_offset(self, M: np.ndarray) -> tuple[int, int]:
         """Where the previous frame's crop is measured (px from the centred one): (0, 0) when the
         motion ``M`` keeps the crop inside the current frame's region, else half the motion back,
         kept inside the previous frame's region."""
         corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + [self.x0, self.y0]
-        centred = corners - [self.camera.cx_px, self.camera.cy_px]
-        moved = centred @ M[:2, :2].T + M[:2, 2] + [self.camera.cx_px, self.camera.cy_px]
+        centred = corners - [self.grid_cam.cx_px, self.grid_cam.cy_px]
+        moved = centred @ M[:2, :2].T + M[:2, 2] + [self.grid_cam.cx_px, self.grid_cam.cy_px]
         if (
             moved[:, 0].min() >= self.rx0
             and moved[:, 1].min() >= self.ry0
@@ -569,6 +615,19 @@ def _rotation(angle_rad: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def _binned(camera: CameraModel, k: int) -> CameraModel:
+    """The pinhole ``camera`` with its pixels binned ``k`` x ``k`` from the top-left corner (a
+    partial row or column at the far edges dropped): f' = f / k, c' = (c + 0.5) / k - 0.5."""
+    return CameraModel(
+        camera.width_px // k,
+        camera.height_px // k,
+        camera.fx_px / k,
+        camera.fy_px / k,
+        (camera.cx_px + 0.5) / k - 0.5,
+        (camera.cy_px + 0.5) / k - 0.5,
+    )
+
+
 def _translation(d: np.ndarray) -> np.ndarray:
     T = np.eye(3)
     T[:2, 2] = d
@@ -577,3 +636,16 @@ def _translation(d: np.ndarray) -> np.ndarray:
 
 def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
     return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}
+
+
+#: The real-time preset (issue 14 item 5: phase-corr at least 10x faster than the fastest feature
+#: estimator): the same method on the frames binned 2 x 2, a 192 px crop of four 96 px blocks
+#: (the 384 px crop of the frame's own pixels). Frames/s and drift against the default:
+#: BENCHMARKS.md, "Real time on one core".
+PhaseCorrFastConfig = with_defaults(PhaseCorrConfig, "PhaseCorrFastConfig", downscale=2)
+
+
+class PhaseCorrFast(PhaseCorr):
+    name = "phase-corr-fast"
+    description = "phase-corr's real-time preset: the same on the frames binned 2 x 2"
+    Config = PhaseCorrFastConfig

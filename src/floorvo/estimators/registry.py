@@ -67,6 +67,7 @@ BUILTIN_ESTIMATORS: dict[str, str] = {
     "akaze-bruteforce-fast": "floorvo.estimators.akaze:AkazeBruteforceFast",
     "orb-icp-fast": "floorvo.estimators.orb_icp:OrbIcpFast",
     "stereo-sift-fast": "floorvo.estimators.stereo_sift:StereoSiftFast",
+    "phase-corr-fast": "floorvo.estimators.phase_corr:PhaseCorrFast",
 }
 
 #: The entry-point group a plugin package declares its estimators in.
