@@ -297,9 +297,9 @@ def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
     pass: each block's known sub-pixel shift (a texture moved by the Fourier shift theorem,
     exact; one of them by whole pixels too) within 0.02 px, and the same as measuring it alone."""
     from scipy.ndimage import fourier_shift
+    from tests.floorvo._synth import floor_texture
 
     from floorvo.estimators.phase_corr import _Spectral, block_shift, block_shifts
-    from tests.floorvo._synth import floor_texture
 
     n = 64
     tex = floor_texture(4 * n, 2).astype(np.float64)
