@@ -20,7 +20,8 @@ chaining; wall clock from ``result.json``'s ``fps``, and thread CPU time of the 
 travelled. The guided/brute-force matching-time ratio (paper 000's claim) is measured
 in the same run on the same frames, and so is each real-time preset ``NAME-fast`` against
 ``NAME`` (issue 14 item 5): frames/s from the wall clock and from the thread CPU time, their
-fast/default ratios, and the end drift of both.
+fast/default ratios, and the end drift of both; and each phase-corr variant's frames/s over the
+fastest feature estimator's (issue 14: at least 10x).
 """
 
 from __future__ import annotations
@@ -205,10 +206,21 @@ def main() -> None:
         print("|" + "---|" * len(pcols))
         for r in presets:
             print("| " + " | ".join(str(r[c]) for c in pcols) + " |")
+    dense = _dense_ratio_rows(rows)
+    if dense:
+        print("\nphase-corr against the fastest feature estimator (frames/s from thread CPU time, same run):")
+        dcols = list(dense[0])
+        print("| " + " | ".join(dcols) + " |")
+        print("|" + "---|" * len(dcols))
+        for r in dense:
+            print("| " + " | ".join(str(r[c]) for c in dcols) + " |")
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     calibrated = _calibrated_rows(seqs, rows, args.calibrate_on, out) if args.calibrate_on else []
     (out / "estimators.json").write_text(
-        json.dumps({"rows": rows, "match_ratio": ratios, "presets": presets, "calibrated": calibrated}, indent=2)
+        json.dumps(
+            {"rows": rows, "match_ratio": ratios, "presets": presets, "dense": dense, "calibrated": calibrated},
+            indent=2,
+        )
     )
 
 
@@ -238,6 +250,32 @@ def _preset_rows(rows: list[dict]) -> list[dict]:
                 "lost_fast": f["lost"],
             }
         )
+    return out
+
+
+def _dense_ratio_rows(rows: list[dict]) -> list[dict]:
+    """Per sequence, each phase-corr variant's frames/s (thread CPU time) over that of the fastest
+    feature estimator of the same run (issue 14 item 5: at least 10x)."""
+    out = []
+    for sname in dict.fromkeys(r["sequence"] for r in rows):
+        seq_rows = [r for r in rows if r["sequence"] == sname and r["cpu_ms_per_frame"] > 0]
+        feats = [r for r in seq_rows if not r["estimator"].startswith("phase-corr")]
+        if not feats:
+            continue
+        fastest = min(feats, key=lambda r: r["cpu_ms_per_frame"])
+        for r in seq_rows:
+            if r["estimator"].startswith("phase-corr"):
+                out.append(
+                    {
+                        "sequence": sname,
+                        "estimator": r["estimator"],
+                        "cpu_fps": round(1000.0 / r["cpu_ms_per_frame"], 1),
+                        "fastest_feature": fastest["estimator"],
+                        "its_cpu_fps": round(1000.0 / fastest["cpu_ms_per_frame"], 1),
+                        "ratio": round(fastest["cpu_ms_per_frame"] / r["cpu_ms_per_frame"], 2),
+                        "end_drift_pct": r["end_drift_pct"],
+                    }
+                )
     return out
 
 

@@ -179,10 +179,12 @@ def test_adapted_threshold_finds_the_same_features_in_one_pass():
     describes once at a threshold taken from the previous frame's keypoints, and keeps the same
     keypoints with bit-identical descriptors as detecting at the config's threshold and
     describing the strongest; a frame that yields fewer than ``max_keypoints`` above the adapted
-    threshold (here a blurred one) is detected again at the config's threshold."""
-    frames = list(frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))[:2])
-    frames.append(cv2.GaussianBlur(frames[1], (0, 0), 4.0))  # far fewer strong keypoints
-    _, _, flat = frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))
+    threshold (here a blurred one) is detected again at the config's threshold, and after a frame
+    with fewer than ``max_keypoints`` in all (a strongly blurred one) the next is detected and
+    described whole in one pass, as the first is."""
+    f0, f1, flat = frame_pair(CAM_FULL, _motion(1.0, 0.0, 0.0))
+    blur = [cv2.GaussianBlur(f, (0, 0), s) for f, s in ((f1, 4.0), (f1, 6.0), (f0, 6.0))]
+    frames = [f0, f1, *blur]
     name = "akaze-guided-fast"
     adapted = get_estimator(name)(make_config(name), CAM_FULL, height_mm=100.0, flatfield=flat)
     fixed = get_estimator(name)(
@@ -191,20 +193,27 @@ def test_adapted_threshold_finds_the_same_features_in_one_pass():
     state = adapted.start()
     calls = {"detect": 0, "compute": 0, "detectAndCompute": 0}
     adapted.detector = _CountingDetector(adapted.detector, calls)
-    thresholds = []
+    thresholds, counts, n_kept = [], [], []
     for i, img in enumerate(frames):
         thresholds.append(state.threshold)
         pts_a, desc_a = adapted._detect(img, state)
+        counts.append(dict(calls))
         pts_f, desc_f = fixed._detect(img)
+        n_kept.append(len(pts_f))
         oa, of = np.lexsort(pts_a.T), np.lexsort(pts_f.T)
         assert len(pts_a) == len(pts_f) and len(pts_a) > 0, i
         assert np.array_equal(pts_a[oa], pts_f[of]), i
         assert np.array_equal(desc_a[oa], desc_f[of]), i
-        if i == 1:  # the adapted threshold: one pass, one scale space
-            assert calls == {"detect": 1, "compute": 1, "detectAndCompute": 1}
-    assert thresholds[0] is None and thresholds[1] > make_config(name).akaze_threshold
-    # The blurred frame: one pass at the adapted threshold found too few, and it was detected again.
-    assert calls == {"detect": 2, "compute": 2, "detectAndCompute": 2}
+    assert n_kept[:3] == [600, 600, 600] and n_kept[3] < 600  # sigma 6 px: fewer keypoints than are kept
+    base = make_config(name).akaze_threshold
+    assert thresholds[0] is None and thresholds[1] > base and thresholds[2] > base and thresholds[4] is None
+    assert [(c["detect"], c["compute"], c["detectAndCompute"]) for c in counts] == [
+        (0, 0, 1),  # the first frame: one pass at the config's threshold
+        (0, 0, 2),  # the adapted threshold: one pass, one scale space
+        (1, 1, 3),  # too few above the adapted threshold: detected again, the strongest described
+        (2, 2, 4),  # the same, and fewer than max_keypoints in all
+        (2, 2, 5),  # so the next frame is one pass at the config's threshold
+    ]
 
 
 class _CountingDetector:

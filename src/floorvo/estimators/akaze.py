@@ -132,7 +132,8 @@ class AkazeConfig(Config):
         False,
         doc="detect at adapt_threshold_margin x the response of the previous frame's max_keypoints-th strongest "
         "keypoint (never below akaze_threshold): one detectAndCompute finds the same strongest keypoints with "
-        "one scale space instead of describe_kept_only's two; a frame yielding fewer is detected again",
+        "one scale space instead of describe_kept_only's two; a frame yielding fewer is detected again; after a "
+        "frame with fewer than max_keypoints, one detectAndCompute at akaze_threshold",
     )
     adapt_threshold_margin: float = param(
         0.8, gt=0.0, max=1.0, doc="adapt_threshold: the previous frame's max_keypoints-th response times this"
@@ -255,13 +256,16 @@ class _AkazeBase:
         the strongest the config's threshold would give, with the same descriptors (the scale
         space and the descriptors do not depend on the threshold). A frame yielding fewer is
         detected again at the config's threshold. The next frame's threshold is
-        ``adapt_threshold_margin`` times the response of this frame's ``max_keypoints``-th keypoint.
+        ``adapt_threshold_margin`` times the response of this frame's ``max_keypoints``-th keypoint;
+        after a frame with fewer (a floor with few keypoints: wood), the next is detected and
+        described whole at the config's threshold in one pass.
         """
         cfg = self.config
         img8 = to_uint8_contrast(illumination_corrected(image, gain=self.flat_gain))
         adapt = cfg.adapt_threshold and state is not None
         kps: Sequence[cv2.KeyPoint] | None = None
         desc: np.ndarray | None = None
+        kept_only = cfg.describe_kept_only
         if adapt and state is not None and state.threshold is not None and state.threshold > cfg.akaze_threshold:
             self.detector.setThreshold(state.threshold)
             try:
@@ -270,8 +274,12 @@ class _AkazeBase:
                 self.detector.setThreshold(cfg.akaze_threshold)
             if len(kps) < cfg.max_keypoints:
                 kps, desc = None, None  # fewer than are kept: detect again at the config's threshold
+        elif adapt:
+            # No threshold to adapt (the first frame, or fewer than max_keypoints in the last one):
+            # a floor giving fewer keypoints than are kept is described whole in one pass.
+            kept_only = False
         found: Sequence[cv2.KeyPoint] | None = kps  # every keypoint found (the next threshold is taken from them)
-        if kps is None and cfg.describe_kept_only:
+        if kps is None and kept_only:
             # The descriptors of the keypoints that are dropped are never used: describe the
             # kept ones only (OpenCV builds the scale space again for compute(): worth it
             # with one octave of one sublevel and thousands of keypoints, 7 ms of 36 on vinyl).

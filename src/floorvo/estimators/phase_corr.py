@@ -151,7 +151,13 @@ class _Spectral:
         low = (np.abs(kx) <= low_frac) & (np.abs(ky) <= low_frac)
         low[0, 0] = False
         self.low = low
-        self.kx_low, self.ky_low = kx[low], ky[low]
+        # The low frequencies as whole rows (|ky| <= low_frac) of the first columns (kx <= low_frac):
+        # taken by rows, not by a mask; the DC term, in it, has weight 0.
+        self.low_rows = np.nonzero(np.abs(ky[:, 0]) <= low_frac)[0]
+        self.low_cols = int(np.count_nonzero(np.abs(kx[0]) <= low_frac))
+        kx_l, ky_l = kx[self.low_rows, : self.low_cols], ky[self.low_rows, : self.low_cols]
+        self.low_not_dc = ((kx_l != 0) | (ky_l != 0)).astype(np.float32)
+        self.kx_low, self.ky_low = kx_l.ravel(), ky_l.ravel()
         self.A_low = np.stack([-2 * np.pi * self.kx_low, -2 * np.pi * self.ky_low], axis=1)  # phi = A d
         self.AA_low = (self.A_low[:, :, None] * self.A_low[:, None, :]).reshape(-1, 4)  # (L, 4): A_l^T A_l
 
@@ -193,11 +199,12 @@ def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndar
     d0 = np.stack([np.where(ix > n // 2, ix - n, ix), np.where(iy > n // 2, iy - n, iy)], axis=1).astype(np.float64)
     # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy),
     # weighted by the cross-power magnitude, over the low frequencies only.
-    Q = R[:, sp.low]
-    if np.any(d0):
-        Q = Q * np.exp(2j * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low))
-    phi = np.angle(Q).astype(np.float64)
-    w = mag[:, sp.low].astype(np.float64)
+    B = len(R)
+    phi = np.angle(R[:, sp.low_rows, : sp.low_cols]).reshape(B, -1).astype(np.float64)
+    if np.any(d0):  # the phase of R exp(2 pi i k.d0), wrapped into (-pi, pi]
+        phi += 2 * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low)
+        phi = np.pi - np.mod(np.pi - phi, 2 * np.pi)
+    w = (mag[:, sp.low_rows, : sp.low_cols] * sp.low_not_dc).reshape(B, -1).astype(np.float64)
     lhs = (w @ sp.AA_low).reshape(-1, 2, 2) + 1e-12 * np.eye(2)  # sum_l w_l A_l^T A_l, per block
     rhs = (w * phi) @ sp.A_low  # sum_l w_l phi_l A_l
     return d0 + np.linalg.solve(lhs, rhs[..., None])[..., 0], peaks
