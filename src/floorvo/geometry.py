@@ -61,6 +61,7 @@ __all__ = [
     "planar_T",
     "floor_rigid_to_T",
     "fit_plane",
+    "plane_fit_precision",
     "depth_floor_plane",
     "level_rotation",
     "rays_to_plane",
@@ -473,6 +474,41 @@ def fit_plane(
         keep = new
         n, d = fit(P[keep])
     return n, d, keep
+
+
+def plane_fit_precision(
+    points_mm: np.ndarray, n: np.ndarray, d_mm: float, *, overlap: float = 1.0
+) -> tuple[float, float]:
+    """Standard errors of a least-squares plane ``n . p = d`` fitted to (K, 3) points (mm), from its residuals.
+
+    The counterpart of :func:`rigid_fit_precision` for :func:`fit_plane` (pass the points it
+    kept). In the plane's levelled frame (:func:`level_rotation`) the fit is ``z = h + a x + b
+    y`` about the points' centroid ``c``; with independent residuals of variance ``sigma^2 =
+    sum r_i^2 / (K - 3)`` (``r_i = n . p_i - d``), the slopes have the covariance ``sigma^2
+    S^-1`` (``S`` (2, 2): the scatter of the levelled x-y coordinates about their centroid) and
+    the plane's distance from the camera, ``d`` (the camera's height: the plane at the foot of
+    the camera, ``c_xy`` away from the centroid), the variance ``sigma^2 (1 / K + c_xy^T S^-1
+    c_xy)``. Returns ``(sigma_height_mm, sigma_tilt_rad)``; the second is the total over both
+    slopes (``sqrt(trace(sigma^2 S^-1))``). ``overlap`` (>= 1): how many points share one
+    independent error, when their measurements share data (stereo points aligned by
+    Lucas-Kanade windows wider than the grid's spacing: ``(window / spacing)^2``); the
+    variances are multiplied by it (the fit has ``K / overlap`` independent points). Other
+    correlated errors (a disparity bias shared by a region under the same light) make the true
+    errors larger still. ``(inf, inf)`` with fewer than 4 points or points on a line.
+    """
+    P = np.asarray(points_mm, dtype=float).reshape(-1, 3)
+    k = len(P)
+    if k < 4:
+        return float("inf"), float("inf")
+    n = np.asarray(n, dtype=float).reshape(3)
+    var = float(np.sum((P @ n - float(d_mm)) ** 2)) / (k - 3) * max(float(overlap), 1.0)
+    q = P @ level_rotation(n)[:2].T  # levelled x-y (rows of Q: the levelled x and y axes)
+    c = q.mean(axis=0)
+    S = (q - c).T @ (q - c)
+    if np.linalg.det(S) <= 1e-12 * max(float(np.trace(S)) ** 2, 1e-300):
+        return float("inf"), float("inf")
+    S_inv = np.linalg.inv(S)
+    return float(np.sqrt(var * (1.0 / k + c @ S_inv @ c))), float(np.sqrt(var * np.trace(S_inv)))
 
 
 def depth_floor_plane(

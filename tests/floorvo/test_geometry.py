@@ -11,6 +11,7 @@ from floorvo.camera import CameraModel
 from floorvo.geometry import (
     T_world_cam_down,
     consensus_problem,
+    fit_plane,
     floor_mm_to_pixels,
     floor_rigid_to_T,
     footprint_T,
@@ -19,6 +20,7 @@ from floorvo.geometry import (
     pixel_rigid_to_floor,
     pixels_to_floor_mm,
     planar_T,
+    plane_fit_precision,
     rigid_fit,
     rigid_fit_precision,
     rigid_fit_robust,
@@ -323,6 +325,52 @@ def test_rigid_fit_precision_exact_pairs_and_bad_input():
     # All points at one place: the angle is not observed.
     same = np.zeros((4, 2))
     assert rigid_fit_precision(same, same, np.eye(2), np.zeros(2)) == (float("inf"), float("inf"))
+
+
+@pytest.mark.parametrize("overlap", [1, 4])
+def test_plane_fit_precision_matches_the_spread_of_fits_over_noise_draws(overlap):
+    """The plane's standard errors (height at the camera, tilt), from one draw's residuals,
+    against the spread of :func:`fit_plane` over 500 seeded noise draws (independent truth).
+
+    A tilted floor 100 mm away, 160 points off-centre (the camera's foot is 18 mm from their
+    centroid: the tilt's error moves the height there by that lever arm), 0.03 mm of Gaussian
+    noise along the normal. ``overlap = 4``: each error is shared by four points (neighbouring
+    Lucas-Kanade windows on the same pixels), so the fit has a quarter of the independent points
+    and twice the spread; the residuals alone cannot tell, ``overlap`` says so."""
+    rng = np.random.default_rng(7)
+    n_true = Rotation.from_euler("xy", [0.03, -0.02]).apply([0.0, 0.0, 1.0])
+    Q = np.eye(3)
+    Q[:, 2] = n_true
+    Q[:, 0] = np.cross([0.0, 1.0, 0.0], n_true)
+    Q[:, 0] /= np.linalg.norm(Q[:, 0])
+    Q[:, 1] = np.cross(n_true, Q[:, 0])
+    # 160 points in groups of ``overlap`` neighbours (within 0.5 mm)
+    q = np.repeat(rng.uniform(-15.0, 15.0, (160 // overlap, 2)), overlap, axis=0) + rng.uniform(-0.5, 0.5, (160, 2))
+    base = np.column_stack([q + np.array([15.0, -10.0]), np.full(160, 100.0)]) @ Q.T  # on n . p = 100
+    heights, tilts, sig_h, sig_t = [], [], [], []
+    for _ in range(500):
+        e = np.repeat(rng.normal(0.0, 0.03, 160 // overlap), overlap)
+        P = base + e[:, None] * n_true
+        n, d, keep = fit_plane(P)
+        heights.append(d)
+        tilts.append(np.arccos(min(1.0, float(n @ n_true))))
+        sh, st = plane_fit_precision(P[keep], n, d, overlap=overlap)
+        sig_h.append(sh)
+        sig_t.append(st)
+    spread_h = float(np.std(heights))
+    spread_t = float(np.sqrt(np.mean(np.square(tilts))))
+    assert np.sqrt(np.mean(np.square(sig_h))) == pytest.approx(spread_h, rel=0.15)
+    assert np.sqrt(np.mean(np.square(sig_t))) == pytest.approx(spread_t, rel=0.15)
+    # The lever arm matters: the height's error is well above the centroid's alone.
+    assert spread_h > 1.5 * 0.03 / np.sqrt(160 / overlap)
+
+
+def test_plane_fit_precision_exact_points_and_too_few():
+    P = np.array([[0.0, 0.0, 50.0], [10.0, 0.0, 50.0], [0.0, 10.0, 50.0], [10.0, 10.0, 50.0]])
+    assert plane_fit_precision(P, np.array([0.0, 0.0, 1.0]), 50.0) == pytest.approx((0.0, 0.0), abs=1e-12)
+    assert plane_fit_precision(P[:3], np.array([0.0, 0.0, 1.0]), 50.0) == (float("inf"), float("inf"))
+    line = np.column_stack([np.arange(5.0), np.zeros(5), np.full(5, 50.0)])  # the tilt across it is not observed
+    assert plane_fit_precision(line, np.array([0.0, 0.0, 1.0]), 50.0) == (float("inf"), float("inf"))
 
 
 def test_rival_search_draws_the_samples_that_find_a_rival_of_half_the_others(monkeypatch):
