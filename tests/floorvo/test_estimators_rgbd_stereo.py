@@ -274,3 +274,33 @@ def test_two_motions_in_one_frame_are_lost_not_measured(name):
     est.step(st, frames[0])
     r = est.step(st, f2)
     assert r.status == "lost" and r.T_prev_cur is None and r.reason.startswith("two motions"), r.reason
+
+
+def _stereo_run_errors(tmp_path, poses, name, noise_dn=1.0):
+    """A synthetic stereo sequence (324x247, 20 mm baseline) of ``poses`` run by ``name``: the
+    run and the error of every step it reported ok against the camera's true 6-DoF step from the
+    frame it was measured from (:func:`floorvo.scoring.ok_step_errors`)."""
+    from floorvo.run import run_estimator
+    from floorvo.scoring import ok_step_errors
+    from floorvo.synthetic import write_synthetic_sequence
+
+    seq = write_synthetic_sequence(tmp_path / "seq", CAM, poses, stereo_baseline_mm=20.0, noise_dn=noise_dn)
+    run = run_estimator(seq, name, tmp_path / "run")
+    return run, ok_step_errors(list(run.status), list(run.reason), poses, run.T_world_cam[run.placed])
+
+
+@pytest.mark.parametrize("name", ["stereo-sift", "stereo-sift-fast"])
+def test_stereo_sift_says_when_it_restarts_its_track(tmp_path, name):
+    """A frame over another stretch of floor (the rig lifted and set down 150 mm on: nothing in
+    common with the previous frame) is lost; stereo-sift takes it as the next step's reference, and
+    says so (RESTART_NOTE), so the next step is scored from it. Without the note the next step,
+    4 mm measured, was held against the 154 mm from the last tracked frame: a wrong step reported ok."""
+    from floorvo.estimators.base import RESTART_NOTE
+    from floorvo.metrics import wrong_steps
+
+    poses = np.stack([T_world_cam_down(x, 0.0, 100.0) for x in (0.0, 4.0, 154.0, 158.0)])
+    run, e = _stereo_run_errors(tmp_path, poses, name)
+    assert list(run.status) == ["init", "ok", "lost", "ok"], list(run.reason)
+    assert RESTART_NOTE in run.reason[2]
+    assert e is not None and len(e["trans_mm"]) == 2
+    assert not wrong_steps(e).any(), e

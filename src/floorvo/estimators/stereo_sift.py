@@ -48,7 +48,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_is_blank, frame_problem
 from floorvo.geometry import consensus_problem, fit_plane, floor_plane_step, invert_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8, to_uint8_contrast
 from floorvo.matching import match_ratio
@@ -390,6 +390,9 @@ class StereoSift:
                 n_keypoints=n_kp,
                 timing_ms=_timing(t0, t1, t1, time.perf_counter()),
             )
+        # From here on the current frame is the next step's reference, lost or not: a lost step
+        # restarts the track on it (the motion over the gap is unknown; scoring measures the
+        # next step from this frame, RESTART_NOTE).
         state.prev = cur
         qi, ti = self._ratio_match(prev.desc, cur.desc)  # M_1 (restricted to stereo-matched points)
         t2 = time.perf_counter()
@@ -398,7 +401,7 @@ class StereoSift:
         def lost(why: str, n_in: int = 0) -> StepResult:
             return StepResult(
                 "lost",
-                reason=why,
+                reason=f"{why}; {RESTART_NOTE}",
                 n_keypoints=n_kp,
                 n_matches=n_m,
                 n_inliers=n_in,
