@@ -207,7 +207,11 @@ def test_rendered_stereo_and_depth_sequences(tmp_path, scene, name):
     from floorvo.tum import read_tum
 
     seq = render_sequence(load_scene(scene), tmp_path / "seq", scale=0.5, frames=6)
-    res = run_estimator(seq, name, tmp_path / "run")
+    # At 324x247 stereo-sift's floor planes leave its steps about 0.06 mm uncertain (one standard
+    # error), too much to vouch for issue 14's bound: its precision check loses them (tested in
+    # test_stereo_sift_never_reports_an_imprecise_step_ok). The accuracy over the distance is
+    # what this test checks, so the check is off here.
+    res = run_estimator(seq, name, tmp_path / "run", {"precision_sigmas": 0.0} if name == "stereo-sift" else None)
     assert res.lost == 0 and res.ok == 5
     _, T_est = read_tum(tmp_path / "run" / "trajectory.txt")
     _, T_gt = read_tum(seq / "groundtruth.txt")
@@ -304,3 +308,31 @@ def test_stereo_sift_says_when_it_restarts_its_track(tmp_path, name):
     assert RESTART_NOTE in run.reason[2]
     assert e is not None and len(e["trans_mm"]) == 2
     assert not wrong_steps(e).any(), e
+
+
+def _tilting_poses(n: int = 10) -> np.ndarray:
+    """4 mm/frame with a 2 mm bounce at 2 Hz and roll/pitch of 0.03 rad at 1.5 Hz (30 fps)."""
+    t = np.arange(n) / 30.0
+    w = 2 * np.pi * 1.5 * t
+    return np.stack(
+        [
+            T_world_cam_down(
+                4.0 * i, 0.0, 100.0 + 2.0 * np.sin(4 * np.pi * t[i]), 0.0, 0.03 * np.sin(w[i]), 0.03 * np.cos(w[i])
+            )
+            for i in range(n)
+        ]
+    )
+
+
+def test_stereo_sift_never_reports_an_imprecise_step_ok(tmp_path):
+    """stereo-sift-fast on small, noisy frames (324x247, 8 grey levels of noise; the preset is
+    meant for 648x494) of a bouncing, tilting run: 8-11 SIFT pairs a step, and floor planes
+    good to about 0.3 mrad, leave each 6-DoF step 0.05-0.07 mm uncertain (one standard error),
+    against issue 14's bound of 0.13 mm. Without the precision check two of its steps were
+    reported ok 0.13-0.15 mm off; with it, every step reported ok is within the bound of the
+    true 6-DoF step, and the others are lost as imprecise."""
+    from floorvo.metrics import wrong_steps
+
+    run, e = _stereo_run_errors(tmp_path, _tilting_poses(), "stereo-sift-fast", noise_dn=8.0)
+    assert e is None or not wrong_steps(e).any(), e
+    assert any(str(r).startswith("imprecise step") for r in run.reason), list(run.reason)
