@@ -24,6 +24,16 @@ Per frame:
    magnitude spectra (a sharp turn: Reddy & Chatterji's rotation by phase correlation).
 5. Pixels to floor millimetres with the camera model at the camera height (eq. (1) of
    paper 000 generalised), then to the camera motion ``T_prev_cur``.
+
+Self-checks (issue 14: a step reported ok must be within 0.05 mm + 2 % of the step and 0.3
+degrees of the truth, else it is lost with the reason): the weakest block's correlation
+peak, the blocks' largest disagreement with the rigid fit, the yaw's standard error, the
+convergence of the rounds, and two checks of the translation against that bound
+(``max_step_error_*``): its standard error from the blocks' disagreement
+(``precision_sigmas`` of them, as the AKAZE estimators check their fit), and its
+reproducibility: measured again through the whole-pixel warp on its other side it must not
+move by more than the bound (``check_warp_spread``; image content that does not move with the
+floor pulls the blocks' shifts toward the warp, which the blocks' agreement does not show).
 """
 
 from __future__ import annotations
@@ -61,7 +71,15 @@ class PhaseCorrConfig(Config):
     disagreeing by 0.7-0.9 px RMS passed ``max_residual_px`` with a yaw 0.3-0.4 degrees off
     (BENCHMARKS.md, "Wrong steps reported ok"). Below ``block_precision_px`` the blocks agree
     as well as their shifts are measured, and small frames (blocks close together) keep
-    their steps."""
+    their steps. ``precision_sigmas``: the translation's standard error at the principal
+    point left by the blocks' disagreement (the same similarity fit), this many of them, must
+    lie within issue 14's bound (``max_step_error_mm`` + ``max_step_error_fraction`` of the
+    step): at half size binned 2 x 2 a block pixel is 0.49 mm, ten times the bound's 0.05 mm,
+    and the checks in pixels let blocks 0.2-0.35 px RMS apart report steps 0.12-0.14 mm off
+    (BENCHMARKS.md, "phase-corr-fast's wrong steps at half size"). ``check_warp_spread``: each step
+    that passes is measured once more through the whole-pixel warp on its other side; the two
+    warps must bracket it, and the two estimates agree within the same bound
+    (:meth:`PhaseCorr._warp_spread`)."""
 
     crop_px: int = param(384, unit="px", min=32, max=4096, doc="side of the central square crop that is correlated")
     margin_px: int = param(
@@ -113,6 +131,24 @@ class PhaseCorrConfig(Config):
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
     )
+    precision_sigmas: float = param(
+        2.5,
+        min=0.0,
+        doc="the blocks' disagreement leaving the step's translation uncertain beyond the max_step_error_* bound "
+        "at this many standard errors: lost (0: no such check)",
+    )
+    check_warp_spread: bool = param(
+        True,
+        doc="measure each step again through the whole-pixel warp on its other side; warps that do not bracket "
+        "it, or two estimates further apart than issue 14's bound (max_step_error_*): lost",
+    )
+    max_step_error_mm: float = param(
+        0.05, unit="mm", gt=0.0, doc="precision a step reported ok must have: this plus max_step_error_fraction"
+    )
+    max_step_error_fraction: float = param(
+        0.02, min=0.0, doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)"
+    )
+    max_step_error_deg: float = param(0.3, unit="deg", gt=0.0, doc="precision of the yaw of a step reported ok")
 
 
 #: Rounds a rotating warp may take beyond ``iterations`` while its estimate still moves.
@@ -123,9 +159,14 @@ MAX_EXTRA_ROUNDS = 3
 class _Measured:
     """One measurement of a step: ``M`` (3x3, prev-centred px -> cur-centred px), the lowest
     block peak, the largest block residual from the rigid fit (px), the blocks' RMS residual
-    from a similarity fit (px) and the standard error of the yaw it leaves (deg), and how far
+    from a similarity fit (px) and the standard error of the yaw it leaves (deg), how far
     the last round of a rotating warp moved the estimate at a block centre (px; 0 when the
-    warp did not rotate)."""
+    warp did not rotate), the step's length at the principal point (mm, at the rig's height) and the standard error
+    of its translation there from the blocks' residual (mm; the similarity fit's,
+    :func:`floorvo.geometry.rigid_fit_precision`). ``warp`` (3x3, the last round's whole-pixel
+    warp, grid px), ``offset`` (the previous frame's crop offset) and ``prev_blocks``,
+    ``centres`` (the blocks it was measured with): what :meth:`PhaseCorr._warp_spread`
+    measures the step again with."""
 
     M: np.ndarray
     min_peak: float
@@ -133,6 +174,12 @@ class _Measured:
     block_rms_px: float
     yaw_sigma_deg: float
     unconverged_px: float
+    step_mm: float
+    shift_sigma_mm: float
+    warp: np.ndarray
+    offset: tuple[int, int]
+    prev_blocks: np.ndarray
+    centres: np.ndarray
 
 
 def _hann2(h: int, w: int) -> np.ndarray:
@@ -402,7 +449,7 @@ class PhaseCorr:
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
-        problem = self._problem(m)
+        problem = self._problem(m) or self._spread_problem(cur, m)
         if problem:
             # Lost: the next frame is measured against the last good one, from no prediction;
             # after restart_after_lost such frames the current one becomes the reference (the
@@ -427,7 +474,11 @@ class PhaseCorr:
         R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
-        state.M_pred, state.n_lost, state.height_mm = M, 0, self._frame_height(frame)
+        # The next frame is predicted from the motion per frame: a step measured across lost
+        # frames spans n_lost + 1 of them (as a prediction, twice the step left phase-corr-fast's
+        # rounds 1.5 px short of it).
+        state.M_pred = _per_frame(M, state.n_lost + 1)
+        state.n_lost, state.height_mm = 0, self._frame_height(frame)
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
@@ -455,6 +506,12 @@ class PhaseCorr:
             return (
                 f"rotating warp not converged: the last round moved the blocks {m.unconverged_px:.2f} px "
                 f"> {cfg.converged_px:g} + their disagreement {m.resid_px:.2f}"
+            )
+        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
+        if cfg.precision_sigmas > 0.0 and cfg.precision_sigmas * m.shift_sigma_mm > bound_mm:
+            return (
+                f"imprecise step: {cfg.precision_sigmas:g} standard errors of its translation are "
+                f"{cfg.precision_sigmas * m.shift_sigma_mm:.3f} mm (bound {bound_mm:.3f} mm)"
             )
         return ""
 
@@ -487,7 +544,7 @@ class PhaseCorr:
             ox, oy = self.x0 - self.rx0 + off[0], self.y0 - self.ry0 + off[1]
             prev_blocks = self._blocks(state.prev[oy : oy + self.crop, ox : ox + self.crop])
             centres = self.block_centres + np.array(off, dtype=float)
-        min_peak, resid, yaw = 0.0, np.inf, (np.inf, np.inf)
+        min_peak, resid, yaw, sig_px = 0.0, np.inf, (np.inf, np.inf), np.inf
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         moved_px, M_last = np.inf, None  # how far the last round moved the estimate at the blocks
         for rnd in range(1, cfg.iterations + MAX_EXTRA_ROUNDS + 1):
@@ -499,6 +556,7 @@ class PhaseCorr:
                 # The same quantisation in a rotating warp biases yaw (+17 % at 0.2 deg/frame):
                 # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
+            W = M.copy()  # the whole-pixel warp of this round
             w = self._warp_into_prev(cur, M, off)
             shifts, peaks = block_shifts(prev_blocks, self._blocks(w), self.sp)
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
@@ -507,12 +565,13 @@ class PhaseCorr:
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(centres @ R2.T + t2 - centres - shifts).max())
             min_peak = float(peaks.min())
-            # The yaw's precision from the blocks' agreement; a similarity fit, so that the
-            # scale change of a height bounce is not counted as disagreement.
+            # The yaw's and the translation's precision from the blocks' agreement; a similarity
+            # fit, so that the scale change of a height bounce is not counted as disagreement.
             Rs, ts, sc = umeyama(centres, centres + shifts, with_scale=True)
             moved = centres + shifts
             rms = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1))))
-            yaw = (rms, float(np.degrees(rigid_fit_precision(centres, moved, Rs, ts, scale=sc)[1])))
+            sig_px, sig_rad = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
+            yaw = (rms, float(np.degrees(sig_rad)))
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
@@ -532,10 +591,81 @@ class PhaseCorr:
             if rnd >= cfg.iterations and (not rotating or moved_px <= cfg.converged_px + resid):
                 break
         if not rotating:
-            moved_px = 0.0  # a whole-pixel warp's last round measures the step exactly (no rounds to converge)
+            # A whole-pixel warp's last round measures the step itself (no rounds to converge);
+            # one that leaves a residual is pulled toward the warp, which the warp on its other side
+            # shows (:meth:`_warp_spread`).
+            moved_px = 0.0
         # The residuals in the frame's pixels, whatever the grid (the config's tolerances are in them).
         k = cfg.downscale
-        return _Measured(M, min_peak, resid * k, yaw[0] * k, yaw[1], moved_px * k)
+        mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
+        return _Measured(
+            M,
+            min_peak,
+            resid * k,
+            yaw[0] * k,
+            yaw[1],
+            moved_px * k,
+            float(np.linalg.norm(M[:2, 2])) * mm_per_px,
+            sig_px * mm_per_px,
+            W,
+            off,
+            prev_blocks,
+            centres,
+        )
+
+    def _warp_spread(self, cur: np.ndarray, m: _Measured) -> tuple[float, float, bool]:
+        """The step ``m.M``, measured through the whole-pixel warp ``m.warp``, measured again
+        through the whole-pixel warp on its other side (per axis, the nearest whole pixel
+        beyond ``m.M`` seen from ``m.warp``; the neighbour of a warp that converged): the
+        distance between the two estimates' translations at the principal point (mm, at the
+        rig's height), between their yaws (deg), and whether the two warps bracket the step
+        (each one's blocks see it toward the other).
+
+        The blocks' phase-slope fit measures what is left after the warp, and image content
+        that does not move with the floor (under LEDs that ride with the camera: structure of
+        the illumination, strongest in the lowest spatial frequencies) pulls each block's shift
+        toward zero, i.e. the estimate toward the warp: on a half-size render of the tilted
+        wood run binned 2 x 2 (54 px blocks) the blocks measured 0.55 px per pixel of residual,
+        and a step half a pixel from its warp came out 0.2 mm off while the blocks agreed.
+        Through two warps that bracket the step the two estimates lie either side of it, so
+        their distance bounds the error of either; warps that do not bracket it (a step still
+        1.5 px from its warp after the rounds: the prediction after a lost frame was twice the
+        step) leave it unknown how far off it is. One more round through a warp per step that
+        passed every other check."""
+        d = m.M[:2, 2] - m.warp[:2, 2]
+        W2 = m.warp.copy()
+        W2[:2, 2] = np.where(d >= 0.0, np.floor(m.M[:2, 2]) + 1.0, np.ceil(m.M[:2, 2]) - 1.0)
+        w = self._warp_into_prev(cur, W2, m.offset)
+        shifts, _ = block_shifts(m.prev_blocks, self._blocks(w), self.sp)
+        R2, t2 = rigid_fit(m.centres, m.centres + shifts)
+        E = np.eye(3)
+        E[:2, :2], E[:2, 2] = R2, t2
+        M2 = W2 @ E
+        mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
+        spread_mm = float(np.linalg.norm(M2[:2, 2] - m.M[:2, 2])) * mm_per_px
+        spread_deg = abs(float(np.degrees(np.arctan2(M2[1, 0], M2[0, 0]) - np.arctan2(m.M[1, 0], m.M[0, 0]))))
+        bracketed = bool(np.all((M2[:2, 2] - W2[:2, 2]) * d <= 0.0))
+        return spread_mm, spread_deg, bracketed
+
+    def _spread_problem(self, cur: np.ndarray, m: _Measured) -> str:
+        """Why the step ``m`` is not the same measured through the whole-pixel warp on its other
+        side ('' if it is; :meth:`_warp_spread`), against issue 14's bound (``max_step_error_*``)."""
+        cfg = self.config
+        if not cfg.check_warp_spread:
+            return ""
+        spread_mm, spread_deg, bracketed = self._warp_spread(cur, m)
+        if not bracketed:
+            return (
+                "step not converged: measured again through the whole-pixel warp beyond it, the blocks "
+                "still see it further on"
+            )
+        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
+        if spread_mm > bound_mm or spread_deg > cfg.max_step_error_deg:
+            return (
+                f"step depends on the warp: through the whole-pixel warp on its other side it moves "
+                f"{spread_mm:.3f} mm and {spread_deg:.2f} deg (bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg)"
+            )
+        return ""
 
     def _crop_offset(self, M: np.ndarray) -> tuple[int, int]:
         """Where the previous frame's crop is measured (px from the centred one): (0, 0) when the
@@ -620,6 +750,16 @@ def _rotation(angle_rad: float) -> np.ndarray:
     """3x3 rotation of centred pixel coordinates by ``angle_rad`` (x right, y down)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _per_frame(M: np.ndarray, n: int) -> np.ndarray:
+    """The rigid motion ``M`` (3x3, centred px) measured over ``n`` frames, per frame at constant
+    velocity: ``1/n`` of its rotation and of its translation (a prediction; not exactly ``M^(1/n)``)."""
+    if n <= 1:
+        return M
+    out = _rotation(float(np.arctan2(M[1, 0], M[0, 0])) / n)
+    out[:2, 2] = M[:2, 2] / n
+    return out
 
 
 def _binned(camera: CameraModel, k: int) -> CameraModel:
