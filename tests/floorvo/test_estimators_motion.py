@@ -328,11 +328,12 @@ def test_phase_corr_measures_the_first_frame_of_a_sharp_turn(tmp_path):
 def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
     """:func:`~floorvo.estimators.phase_corr.block_shifts` measures a stack of block pairs in one
     pass: each block's known sub-pixel shift (a texture moved by the Fourier shift theorem,
-    exact; one of them by whole pixels too) within 0.02 px, and the same as measuring it alone."""
+    exact; one of them by whole pixels too) within 0.02 px, and the same as measuring it alone;
+    :func:`~floorvo.estimators.phase_corr.block_shifts_near`, given the whole pixels, the same."""
     from scipy.ndimage import fourier_shift
     from tests.floorvo._synth import floor_texture
 
-    from floorvo.estimators.phase_corr import _Spectral, block_shift, block_shifts
+    from floorvo.estimators.phase_corr import _Spectral, block_shift, block_shifts, block_shifts_near
 
     n = 64
     tex = floor_texture(4 * n, 2).astype(np.float64)
@@ -352,3 +353,7 @@ def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
         d_i, peak_i = block_shift(sp.spectrum(a_blocks[i]), sp.spectrum(b_blocks[i]), sp)
         np.testing.assert_allclose(d_i, d[i], atol=1e-9)
         assert peak_i == pytest.approx(peaks[i], abs=1e-6)
+    # With the whole pixels known (block_shifts_near: no correlation, no peak search) the same shifts.
+    d_near = block_shifts_near(Fa, Fb, sp, np.round(truth))
+    np.testing.assert_allclose(d_near, truth, atol=0.02)
+    np.testing.assert_allclose(d_near, d, atol=1e-5)

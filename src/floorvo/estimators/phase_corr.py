@@ -52,7 +52,15 @@ from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_heigh
 from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
 from floorvo.imaging import flatfield_gain, illumination_corrected
 
-__all__ = ["PhaseCorr", "PhaseCorrConfig", "PhaseCorrFast", "PhaseCorrFastConfig", "block_shift", "block_shifts"]
+__all__ = [
+    "PhaseCorr",
+    "PhaseCorrConfig",
+    "PhaseCorrFast",
+    "PhaseCorrFastConfig",
+    "block_shift",
+    "block_shifts",
+    "block_shifts_near",
+]
 
 
 @dataclass(frozen=True)
@@ -244,17 +252,34 @@ def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndar
     peaks = corr[np.arange(len(R)), flat_peak].astype(np.float64)
     iy, ix = np.divmod(flat_peak, n)
     d0 = np.stack([np.where(ix > n // 2, ix - n, ix), np.where(iy > n // 2, iy - n, iy)], axis=1).astype(np.float64)
-    # Remove the integer shift, then fit the remaining phase slope: phi = -2 pi (kx dx + ky dy),
-    # weighted by the cross-power magnitude, over the low frequencies only.
-    B = len(R)
-    phi = np.angle(R[:, sp.low_rows, : sp.low_cols]).reshape(B, -1).astype(np.float64)
+    low = (slice(None), sp.low_rows, slice(0, sp.low_cols))
+    return d0 + _phase_slope(R[low], mag[low], d0, sp), peaks
+
+
+def block_shifts_near(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral, d0: np.ndarray) -> np.ndarray:
+    """:func:`block_shifts` of block pairs whose integer shifts ``d0`` (B, 2) px are known: no
+    correlation and no peak search, the phase-slope fit alone over the low frequencies (the
+    cross-power spectrum formed there only). ``(B, 2)`` px."""
+    low = (slice(None), sp.low_rows, slice(0, sp.low_cols))
+    cross = Fb[low] * np.conj(Fa[low])
+    d0 = np.asarray(d0, dtype=np.float64).reshape(-1, 2)
+    return d0 + _phase_slope(cross, np.abs(cross), d0, sp)
+
+
+def _phase_slope(cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp: _Spectral) -> np.ndarray:
+    """The sub-pixel shifts (B, 2) px left after the integer shifts ``d0`` (B, 2): a weighted
+    least-squares fit of the phase slope ``phi = -2 pi (kx dx + ky dy)`` of the cross-power
+    spectrum ``cross_low`` (B, rows, cols: the low frequencies of :class:`_Spectral`, or a
+    positive multiple of them), weighted by its magnitude ``mag_low``."""
+    B = len(cross_low)
+    phi = np.angle(cross_low).reshape(B, -1).astype(np.float64)
     if np.any(d0):  # the phase of R exp(2 pi i k.d0), wrapped into (-pi, pi]
         phi += 2 * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low)
         phi = np.pi - np.mod(np.pi - phi, 2 * np.pi)
-    w = (mag[:, sp.low_rows, : sp.low_cols] * sp.low_not_dc).reshape(B, -1).astype(np.float64)
+    w = (mag_low * sp.low_not_dc).reshape(B, -1).astype(np.float64)
     lhs = (w @ sp.AA_low).reshape(-1, 2, 2) + 1e-12 * np.eye(2)  # sum_l w_l A_l^T A_l, per block
     rhs = (w * phi) @ sp.A_low  # sum_l w_l phi_l A_l
-    return d0 + np.linalg.solve(lhs, rhs[..., None])[..., 0], peaks
+    return np.linalg.solve(lhs, rhs[..., None])[..., 0]
 
 
 @dataclass
@@ -636,7 +661,11 @@ class PhaseCorr:
         W2 = m.warp.copy()
         W2[:2, 2] = np.where(d >= 0.0, np.floor(m.M[:2, 2]) + 1.0, np.ceil(m.M[:2, 2]) - 1.0)
         w = self._warp_into_prev(cur, W2, m.offset)
-        shifts, _ = block_shifts(m.prev_blocks, self._blocks(w), self.sp)
+        # Through W2 each block sees the step where M puts it (M = W2 E: block centre c moves by
+        # E c - c), so its whole pixels are known and the phase-slope fit measures the rest.
+        E = np.linalg.solve(W2, m.M)
+        d0 = np.round(m.centres @ E[:2, :2].T + E[:2, 2] - m.centres)
+        shifts = block_shifts_near(m.prev_blocks, self._blocks(w), self.sp, d0)
         R2, t2 = rigid_fit(m.centres, m.centres + shifts)
         E = np.eye(3)
         E[:2, :2], E[:2, 2] = R2, t2
