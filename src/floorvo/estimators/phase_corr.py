@@ -169,9 +169,9 @@ class _Measured:
     block peak, the largest block residual from the rigid fit (px), the blocks' RMS residual
     from a similarity fit (px) and the standard error of the yaw it leaves (deg), how far
     the last round of a rotating warp moved the estimate at a block centre (px; 0 when the
-    warp did not rotate), the step's length at the principal point (mm, at the rig's height) and the standard error
-    of its translation there from the blocks' residual (mm; the similarity fit's,
-    :func:`floorvo.geometry.rigid_fit_precision`). ``warp`` (3x3, the last round's whole-pixel
+    warp did not rotate), the step's length at the principal point (mm, at the rig's
+    height) and the standard error of its translation there from the blocks' residual (mm;
+    the similarity fit's, :func:`floorvo.geometry.rigid_fit_precision`). ``warp`` (3x3, the last round's whole-pixel
     warp, grid px), ``offset`` (the previous frame's crop offset) and ``prev_blocks``,
     ``centres`` (the blocks it was measured with): what :meth:`PhaseCorr._warp_spread`
     measures the step again with."""
@@ -569,7 +569,7 @@ class PhaseCorr:
             ox, oy = self.x0 - self.rx0 + off[0], self.y0 - self.ry0 + off[1]
             prev_blocks = self._blocks(state.prev[oy : oy + self.crop, ox : ox + self.crop])
             centres = self.block_centres + np.array(off, dtype=float)
-        min_peak, resid, yaw, sig_px = 0.0, np.inf, (np.inf, np.inf), np.inf
+        min_peak, resid = 0.0, np.inf
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         moved_px, M_last = np.inf, None  # how far the last round moved the estimate at the blocks
         for rnd in range(1, cfg.iterations + MAX_EXTRA_ROUNDS + 1):
@@ -585,18 +585,16 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M, off)
             shifts, peaks = block_shifts(prev_blocks, self._blocks(w), self.sp)
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
-            R2, t2 = rigid_fit(centres, centres + shifts)
+            # The rigid fit and the similarity fit (for the precision below) in one SVD: the
+            # least-squares rotation does not depend on the scale (Umeyama), and the rigid
+            # translation is the centroids' difference through it (what rigid_fit returns).
+            moved = centres + shifts
+            Rs, ts, sc = umeyama(centres, moved, with_scale=True)
+            R2, t2 = Rs, moved.mean(axis=0) - Rs @ centres.mean(axis=0)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(centres @ R2.T + t2 - centres - shifts).max())
             min_peak = float(peaks.min())
-            # The yaw's and the translation's precision from the blocks' agreement; a similarity
-            # fit, so that the scale change of a height bounce is not counted as disagreement.
-            Rs, ts, sc = umeyama(centres, centres + shifts, with_scale=True)
-            moved = centres + shifts
-            rms = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1))))
-            sig_px, sig_rad = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
-            yaw = (rms, float(np.degrees(sig_rad)))
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
@@ -615,6 +613,10 @@ class PhaseCorr:
                 break
             if rnd >= cfg.iterations and (not rotating or moved_px <= cfg.converged_px + resid):
                 break
+        # The yaw's and the translation's precision from the last round's blocks; a similarity
+        # fit, so that the scale change of a height bounce is not counted as disagreement.
+        rms = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1))))
+        sig_px, sig_rad = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
         if not rotating:
             # A whole-pixel warp's last round measures the step itself (no rounds to converge);
             # one that leaves a residual is pulled toward the warp, which the warp on its other side
@@ -627,8 +629,8 @@ class PhaseCorr:
             M,
             min_peak,
             resid * k,
-            yaw[0] * k,
-            yaw[1],
+            rms * k,
+            float(np.degrees(sig_rad)),
             moved_px * k,
             float(np.linalg.norm(M[:2, 2])) * mm_per_px,
             sig_px * mm_per_px,
