@@ -474,17 +474,23 @@ class PhaseCorr:
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
-        problem = self._problem(m) or self._spread_problem(cur, m)
+        gross = self._gross_problem(m)
+        problem = gross or self._precision_problem(m) or self._spread_problem(cur, m)
         if problem:
-            # Lost: the next frame is measured against the last good one, from no prediction;
-            # after restart_after_lost such frames the current one becomes the reference (the
-            # motion over the gap is unknown, and the gap shows in the run).
-            state.M_pred = np.eye(3)
+            # Lost: the next frame is measured against the last good one; after
+            # restart_after_lost such frames the current one becomes the reference (the motion
+            # over the gap is unknown, and the gap shows in the run). A step lost only for its
+            # precision was measured nonetheless (the blocks agree, the rounds converged): the
+            # next frame is predicted from it, one frame on (a spin lost every later frame from
+            # no prediction); after a gross failure, from no motion.
+            per_frame = _per_frame(M, state.n_lost + 1)
             state.n_lost += 1
             why = problem
+            state.M_pred = np.eye(3) if gross else M @ per_frame
             if state.n_lost >= self.config.restart_after_lost:
                 state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
                 state.height_mm = self._frame_height(frame)
+                state.M_pred = np.eye(3) if gross else per_frame
                 why += f"; {RESTART_NOTE}"
             return StepResult(
                 "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
@@ -513,10 +519,13 @@ class PhaseCorr:
         return frame_height_mm(frame, self.config.use_height_signal)
 
     def _failed(self, m: _Measured) -> bool:
-        return bool(self._problem(m))
+        """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
+        A step that is only imprecise is not measured again from a worse start."""
+        return bool(self._gross_problem(m))
 
-    def _problem(self, m: _Measured) -> str:
-        """Why a measured step cannot be trusted ('' when it can)."""
+    def _gross_problem(self, m: _Measured) -> str:
+        """Why a measurement failed ('' when it did not): a weak peak, blocks that disagree, an
+        imprecise yaw, a rotating warp that did not converge."""
         cfg = self.config
         if m.min_peak < cfg.min_peak:
             return f"weak correlation peak {m.min_peak:.3f}"
@@ -532,6 +541,13 @@ class PhaseCorr:
                 f"rotating warp not converged: the last round moved the blocks {m.unconverged_px:.2f} px "
                 f"> {cfg.converged_px:g} + their disagreement {m.resid_px:.2f}"
             )
+        return ""
+
+    def _precision_problem(self, m: _Measured) -> str:
+        """Why a measured step is too imprecise to report ('' when it is not): its translation's
+        standard error from the blocks' disagreement, ``precision_sigmas`` of them, beyond issue
+        14's bound (``max_step_error_*``)."""
+        cfg = self.config
         bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
         if cfg.precision_sigmas > 0.0 and cfg.precision_sigmas * m.shift_sigma_mm > bound_mm:
             return (
