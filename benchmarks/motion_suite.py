@@ -19,6 +19,8 @@ time per frame of the run, one core) and the lost frames per kind of reason. Wit
 ``--from-cache DIR`` the suite's scenes are not rendered: the newest ``DIR/SCENE-*`` sequence
 of each (a bench's render cache) is benched as it is.
 
+``--est-set NAME.KEY=VALUE`` sets an estimator's config key in every run (as ``floorsim bench``).
+
 ``--calibrate`` (issue 14 item 1: the suite's drift after a per-material scale calibration):
 for each floor material of the suite, the shipped straight run over it
 (``scenes/material_MATERIAL.toml``: the paper-000 rig, 100 mm along x at 4 mm/frame; from
@@ -45,6 +47,7 @@ import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
 from floorsim.bench.suites import suite_scenes  # noqa: E402
+from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
 from floorsim.scene import load_scene, resolve_scene_path  # noqa: E402
 from floorvo.calibration import SCALE_RANGE, calibrate_run, save_scale_calibration  # noqa: E402
 from floorvo.errors import FloorbenchError  # noqa: E402
@@ -72,8 +75,12 @@ def main() -> None:
     ap.add_argument(
         "--calibrate", action="store_true", help="also run each scene with a per-material scale calibration"
     )
+    ap.add_argument(
+        "--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key (repeatable)"
+    )
     ap.add_argument("-o", "--output", type=Path, required=True)
     args = ap.parse_args()
+    est_sets = parse_estimator_sets(args.est_set)
     cv2.setNumThreads(1)
     estimators: list[str] | None = [e.strip() for e in args.estimators.split(",") if e.strip()] or None
     scenes: list[Path] = suite_scenes(args.suite)
@@ -82,11 +89,19 @@ def main() -> None:
     material_of = {n: sc.floor.material for n, sc in zip(names, loaded)}
     if args.from_cache is not None:
         scenes = [_cached(args.from_cache, n) or _no_cache(args.from_cache, n) for n in names]
-    res = run_bench(scenes, estimators, args.output, scale=args.scale, cache_dir=args.cache, report=True)
+    res = run_bench(
+        scenes,
+        estimators,
+        args.output,
+        scale=args.scale,
+        cache_dir=args.cache,
+        report=True,
+        estimator_overrides=est_sets,
+    )
     calibrated: dict[tuple[str, str], dict] = {}
     scales: dict[tuple[str, str], str] = {}
     if args.calibrate:
-        calibrated, scales = _calibrated_rows(args, scenes, names, material_of, estimators)
+        calibrated, scales = _calibrated_rows(args, scenes, names, material_of, estimators, est_sets)
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %", "frames/s"]
     if args.calibrate:
         cols += ["scale x (material)", "calibrated end drift %", "calibrated wrong ok, footprint"]
@@ -136,7 +151,7 @@ def _scene_name(row) -> str:
     return re.sub(r"-[0-9a-f]{12}$", "", str(row["scene"]))  # a cached sequence's folder: NAME-HASH
 
 
-def _calibrated_rows(args, scenes, names, material_of, estimators):
+def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets):
     """Fit each estimator's scale per material on the material's straight run, then run the
     suite's scenes again with it. Returns ``({(scene, estimator): row}, {(material, estimator): 'scale (material)'})``."""
     out = args.output / "calibration"
@@ -146,7 +161,15 @@ def _calibrated_rows(args, scenes, names, material_of, estimators):
         shipped = resolve_scene_path(f"material_{m}")
         cached = _cached(args.from_cache, f"material_{m}") if args.from_cache is not None else None
         cal_scenes.append(cached or shipped)
-    cal = run_bench(cal_scenes, estimators, out / "runs", scale=args.scale, cache_dir=args.cache, report=False)
+    cal = run_bench(
+        cal_scenes,
+        estimators,
+        out / "runs",
+        scale=args.scale,
+        cache_dir=args.cache,
+        report=False,
+        estimator_overrides=est_sets,
+    )
     files: dict[tuple[str, str], Path] = {}
     scales: dict[tuple[str, str], str] = {}
     for r in cal.rows:
@@ -179,6 +202,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators):
             cache_dir=args.cache,
             report=False,
             scale_calibrations={e: files[(m, e)] for e in with_cal},
+            estimator_overrides=est_sets,
         )
         for r in res.rows:
             rows[(_scene_name(r), r["estimator"])] = r

@@ -53,6 +53,7 @@ __all__ = [
     "rigid_fit",
     "rigid_fit_robust",
     "rigid_fit_precision",
+    "axis_scales_fit",
     "rival_homography_support",
     "consensus_problem",
     "pixels_to_floor_mm",
@@ -288,6 +289,46 @@ def rigid_fit_precision(
     var_angle = var / spread  # the relative scale, when fitted, has the same variance
     lever = float(mu @ mu) * var_angle * (p - 2)
     return float(np.sqrt(2.0 * var / n + lever)), float(np.sqrt(var_angle))
+
+
+def axis_scales_fit(points: np.ndarray, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The image scale along each axis of a small motion, and its standard errors, from shifts at points.
+
+    Least squares of the linearised motion ``d_x = (s_x - 1) p_x - theta p_y + t_x``,
+    ``d_y = (s_y - 1) p_y + theta p_x + t_y`` (an axis-aligned scale, a small rotation
+    ``theta`` and a translation: five parameters) to the shifts ``d_i`` measured at the
+    points ``p_i``. A camera that rises by ``dh`` at height ``h`` shrinks its picture by
+    ``h / (h + dh)`` on both axes; the two axes are fitted apart because a picture lit at
+    grazing angle along one axis moves unevenly along it (BENCHMARKS.md, "phase-corr: the
+    camera height from the image scale"). The standard errors are those of the fit from its
+    residuals, ``sigma^2 = RSS / (2 N - 5)`` times the diagonal of ``(A^T A)^-1``.
+
+    ``points``, ``shifts``: (N, 2), N >= 3, in one unit (px), the points not all on a line
+    parallel to an axis; the shifts small against the points' spread (the linearisation).
+    Returns ``(scales (2,) = (s_x, s_y), sigmas (2,))``; the sigmas are inf when N = 3 (no
+    residual to estimate them from).
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    d = np.asarray(shifts, dtype=float).reshape(-1, 2)
+    n = len(p)
+    if n < 3 or len(d) != n:
+        raise ValueError(f"axis_scales_fit: need two (N, 2) arrays with N >= 3, got {p.shape} and {d.shape}")
+    A = np.zeros((2 * n, 5))
+    A[:n, 0], A[:n, 2], A[:n, 3] = p[:, 0], -p[:, 1], 1.0
+    A[n:, 1], A[n:, 2], A[n:, 4] = p[:, 1], p[:, 0], 1.0
+    b = np.concatenate([d[:, 0], d[:, 1]])
+    AtA = A.T @ A
+    if np.linalg.matrix_rank(AtA) < 5:
+        raise ValueError("axis_scales_fit: the points do not spread along both axes")
+    cov = np.linalg.inv(AtA)
+    x = cov @ (A.T @ b)
+    dof = 2 * n - 5
+    if dof <= 0:
+        sig = np.full(2, np.inf)
+    else:
+        var = float(np.sum((A @ x - b) ** 2)) / dof
+        sig = np.sqrt(var * np.diag(cov)[:2])
+    return 1.0 + x[:2], sig
 
 
 # ----------------------------------------------------------------------------- pixels <-> floor

@@ -49,7 +49,14 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_is_blank, frame_problem
-from floorvo.geometry import floor_rigid_to_T, pixel_rigid_to_floor, rigid_fit, rigid_fit_precision, umeyama
+from floorvo.geometry import (
+    axis_scales_fit,
+    floor_rigid_to_T,
+    pixel_rigid_to_floor,
+    rigid_fit,
+    rigid_fit_precision,
+    umeyama,
+)
 from floorvo.imaging import flatfield_gain, illumination_corrected
 
 __all__ = [
@@ -157,6 +164,17 @@ class PhaseCorrConfig(Config):
         0.02, min=0.0, doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)"
     )
     max_step_error_deg: float = param(0.3, unit="deg", gt=0.0, doc="precision of the yaw of a step reported ok")
+    fit_image_scale: bool = param(
+        False,
+        doc="a frame without a measured height: follow the camera height from the blocks' image scale, "
+        "h_cur = h_prev / scale, from the rig's (else the rig's height throughout)",
+    )
+    image_scale_axis: str = param(
+        "y",
+        choices=("x", "y", "both"),
+        doc="the image axis whose scale gives the height (fit_image_scale): y runs along the rig's LED bars, "
+        "where the grazing light moves the picture evenly; both: the similarity fit's scale",
+    )
 
 
 #: Rounds a rotating warp may take beyond ``iterations`` while its estimate still moves.
@@ -174,7 +192,9 @@ class _Measured:
     the similarity fit's, :func:`floorvo.geometry.rigid_fit_precision`). ``warp`` (3x3, the last round's whole-pixel
     warp, grid px), ``offset`` (the previous frame's crop offset) and ``prev_blocks``,
     ``centres`` (the blocks it was measured with): what :meth:`PhaseCorr._warp_spread`
-    measures the step again with."""
+    measures the step again with. ``scale``, ``scale_sigma``: the image scale of the current
+    frame relative to the previous one and its standard error (:meth:`PhaseCorr._image_scale`;
+    1 and 0 without ``fit_image_scale``)."""
 
     M: np.ndarray
     min_peak: float
@@ -188,6 +208,8 @@ class _Measured:
     offset: tuple[int, int]
     prev_blocks: np.ndarray
     centres: np.ndarray
+    scale: float = 1.0
+    scale_sigma: float = 0.0
 
 
 def _hann2(h: int, w: int) -> np.ndarray:
@@ -474,8 +496,17 @@ class PhaseCorr:
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
+        # The camera height of the current frame: measured (a height signal), followed from the
+        # image scale (fit_image_scale: the picture scales by h_prev / h_cur about the principal
+        # point, eq. (1) of paper 000 read backwards), or the rig's.
+        h_prev = state.height_mm or self.height_mm
+        h_meas = self._frame_height(frame)
+        height_sigma_mm = 0.0
+        if h_meas is None and self.config.fit_image_scale:
+            h_meas = h_prev / m.scale
+            height_sigma_mm = h_prev * m.scale_sigma / m.scale**2
         gross = self._gross_problem(m)
-        problem = gross or self._precision_problem(m) or self._spread_problem(cur, m)
+        problem = gross or self._precision_problem(m, height_sigma_mm) or self._spread_problem(cur, m)
         if problem:
             # Lost: the next frame is measured against the last good one; after
             # restart_after_lost such frames the current one becomes the reference (the motion
@@ -499,9 +530,9 @@ class PhaseCorr:
         # M maps prev-centred px to cur-centred px: the floor's motion in the image. A floor
         # point at the previous image centre is at t px in the current image, i.e. at
         # t h_cur / f mm: the current frame's height converts the shift (the measured height
-        # when the frame has one, else the rig's); the step carries the height change.
-        h_prev = state.height_mm or self.height_mm
-        h_cur = self._frame_height(frame) or self.height_mm
+        # when the frame has one, or the one its image scale gives, else the rig's); the step
+        # carries the height change.
+        h_cur = h_meas or self.height_mm
         R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
@@ -509,7 +540,7 @@ class PhaseCorr:
         # frames spans n_lost + 1 of them (as a prediction, twice the step left phase-corr-fast's
         # rounds 1.5 px short of it).
         state.M_pred = _per_frame(M, state.n_lost + 1)
-        state.n_lost, state.height_mm = 0, self._frame_height(frame)
+        state.n_lost, state.height_mm = 0, h_meas
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
@@ -543,16 +574,19 @@ class PhaseCorr:
             )
         return ""
 
-    def _precision_problem(self, m: _Measured) -> str:
+    def _precision_problem(self, m: _Measured, height_sigma_mm: float = 0.0) -> str:
         """Why a measured step is too imprecise to report ('' when it is not): its translation's
-        standard error from the blocks' disagreement, ``precision_sigmas`` of them, beyond issue
-        14's bound (``max_step_error_*``)."""
+        standard error from the blocks' disagreement, with that of the height change the image
+        scale gives (``height_sigma_mm``, ``fit_image_scale``: ``h_prev sigma_scale / scale^2``),
+        ``precision_sigmas`` of them, beyond issue 14's bound (``max_step_error_*``)."""
         cfg = self.config
         bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
-        if cfg.precision_sigmas > 0.0 and cfg.precision_sigmas * m.shift_sigma_mm > bound_mm:
+        sigma_mm = float(np.hypot(m.shift_sigma_mm, height_sigma_mm))
+        if cfg.precision_sigmas > 0.0 and not cfg.precision_sigmas * sigma_mm <= bound_mm:
+            what = "its translation" if not height_sigma_mm else "its translation and height change"
             return (
-                f"imprecise step: {cfg.precision_sigmas:g} standard errors of its translation are "
-                f"{cfg.precision_sigmas * m.shift_sigma_mm:.3f} mm (bound {bound_mm:.3f} mm)"
+                f"imprecise step: {cfg.precision_sigmas:g} standard errors of {what} are "
+                f"{cfg.precision_sigmas * sigma_mm:.3f} mm (bound {bound_mm:.3f} mm)"
             )
         return ""
 
@@ -654,7 +688,30 @@ class PhaseCorr:
             off,
             prev_blocks,
             centres,
+            *self._image_scale(centres, shifts),
         )
+
+    def _image_scale(self, centres: np.ndarray, shifts: np.ndarray) -> tuple[float, float]:
+        """The current frame's image scale relative to the previous one's (``h_prev / h_cur``)
+        and its standard error, from the block ``shifts`` (B, 2) px at their ``centres`` (B, 2)
+        px (the warp is rigid, so the blocks see the whole scale): along ``image_scale_axis``
+        (:func:`floorvo.geometry.axis_scales_fit`), or the similarity fit's for ``both`` (its
+        standard error: the rotation's, :func:`floorvo.geometry.rigid_fit_precision`).
+        ``(1, 0)`` without ``fit_image_scale``.
+
+        Under the rig's grazing LEDs the picture moves unevenly across the bars (x): on the
+        full-size vinyl run the x scale (and a similarity's) read a camera rising 0.01 mm a
+        frame that did not; along the bars (y) it did not (BENCHMARKS.md, "phase-corr: the
+        camera height from the image scale")."""
+        cfg = self.config
+        if not cfg.fit_image_scale:
+            return 1.0, 0.0
+        if cfg.image_scale_axis == "both":
+            R, t, k = umeyama(centres, centres + shifts, with_scale=True)
+            return float(k), float(rigid_fit_precision(centres, centres + shifts, R, t, scale=k)[1])
+        scales, sigmas = axis_scales_fit(centres, shifts)
+        i = 0 if cfg.image_scale_axis == "x" else 1
+        return float(scales[i]), float(sigmas[i])
 
     def _warp_spread(self, cur: np.ndarray, m: _Measured) -> tuple[float, float, bool]:
         """The step ``m.M``, measured through the whole-pixel warp ``m.warp``, measured again
@@ -696,7 +753,10 @@ class PhaseCorr:
 
     def _spread_problem(self, cur: np.ndarray, m: _Measured) -> str:
         """Why the step ``m`` is not the same measured through the whole-pixel warp on its other
-        side ('' if it is; :meth:`_warp_spread`), against issue 14's bound (``max_step_error_*``)."""
+        side ('' if it is; :meth:`_warp_spread`), against issue 14's bound (``max_step_error_*``).
+        The translation only: the height change ``fit_image_scale`` reads from the image scale
+        is checked by its standard error (:meth:`_precision_problem`); through the other warp it
+        moved by up to 0.18 mm on the full-size bounce where its error was under 0.09 mm."""
         cfg = self.config
         if not cfg.check_warp_spread:
             return ""
