@@ -8,7 +8,11 @@ Per frame:
    ideal pinhole with square pixels ``f = max(fx, fy)`` and the same principal point,
    where the floor's motion is a rigid image motion again; the principal point centres
    the crop. An ideal square-pixel camera is used as it is (no resampling).
-1. Divide out the LED falloff (flat-field frame, or a blur estimate without one).
+1. Divide out the LED falloff (flat-field frame, or a blur estimate without one), and replace
+   the pixels far from their 3 x 3 median by it (``impulse_threshold``,
+   :func:`floorvo.imaging.impulses_replaced`): a sensor's hot and dead pixels stay put in the
+   frame and, whitened by the phase correlation, held it at no motion (BENCHMARKS.md,
+   "phase-corr and a sensor's hot and dead pixels").
 2. Resample the current frame into the previous frame's coordinates through the
    predicted rigid motion (constant velocity: the last measured motion), so the
    residual to measure is small and the window does not bias it.
@@ -57,7 +61,7 @@ from floorvo.geometry import (
     rigid_fit_precision,
     umeyama,
 )
-from floorvo.imaging import flatfield_gain, illumination_corrected
+from floorvo.imaging import flatfield_gain, illumination_corrected, impulses_replaced
 
 __all__ = [
     "PhaseCorr",
@@ -130,6 +134,12 @@ class PhaseCorrConfig(Config):
         "pixel tolerances stay in the frame's pixels): about downscale^2 less work, less precise per step",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
+    impulse_threshold: float = param(
+        0.5,
+        min=0.0,
+        doc="a corrected pixel further than this fraction of its 3 x 3 median from it is replaced by the median "
+        "(hot and dead pixels, fixed in the frame, otherwise hold the correlation at no motion); 0: none",
+    )
     predict: bool = param(True, doc="start each frame from the last motion")
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
@@ -424,8 +434,12 @@ class PhaseCorr:
         if self.region_gain is not None:
             out = reg.astype(np.float32) * self.region_gain
             mean = float(out.mean())
-            return out / mean if mean > 0 else out
-        return illumination_corrected(reg, None)
+            out = out / mean if mean > 0 else out
+        else:
+            out = illumination_corrected(reg, None)
+        if self.config.impulse_threshold > 0.0:
+            out = impulses_replaced(out, self.config.impulse_threshold)
+        return out
 
     def _blocks(self, img: np.ndarray) -> np.ndarray:
         """The spectra (g * g, n, n // 2 + 1) of the crop ``img``'s blocks, row by row, in one transform."""
@@ -894,9 +908,10 @@ def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
 
 #: The real-time preset (issue 14 item 5: phase-corr at least 10x faster than the fastest feature
 #: estimator): the same method on the frames binned 2 x 2, a 192 px crop of four 96 px blocks
-#: (the 384 px crop of the frame's own pixels). Frames/s and drift against the default:
-#: BENCHMARKS.md, "Real time on one core".
-PhaseCorrFastConfig = with_defaults(PhaseCorrConfig, "PhaseCorrFastConfig", downscale=2)
+#: (the 384 px crop of the frame's own pixels), without the impulse check: the 2 x 2 binning already
+#: averages a hot or dead pixel with three others (it tracked the renders with them). Frames/s
+#: and drift against the default: BENCHMARKS.md, "Real time on one core".
+PhaseCorrFastConfig = with_defaults(PhaseCorrConfig, "PhaseCorrFastConfig", downscale=2, impulse_threshold=0.0)
 
 
 class PhaseCorrFast(PhaseCorr):
