@@ -68,17 +68,19 @@ def illumination_corrected(
     return out
 
 
-def impulses_replaced(image: np.ndarray, threshold: float = 0.5) -> np.ndarray:
-    """float32 (H, W) ``image`` with each pixel further than ``threshold`` times its 3 x 3 median
-    from that median replaced by it: a sensor's hot and dead pixels (stuck near full scale or at
-    zero) in a frame normalised to a mean level around 1 (:func:`illumination_corrected`).
+def impulses_replaced(image: np.ndarray, ratio: float = 2.0) -> np.ndarray:
+    """float32 (H, W) ``image`` with each pixel brighter than ``ratio`` times its 3 x 3 median
+    replaced by that median: a sensor's hot pixels (stuck near full scale) in a frame whose
+    LED falloff was divided out (:func:`illumination_corrected`).
 
-    Only those pixels change: a median of the whole frame also removes them, but it is not
-    shift-equivariant below a pixel and biased phase-corr's steps by 0.25 % on a render whose
-    picture moves rigidly with the floor. ``image``: (H, W), non-negative."""
+    Only bright outliers: under grazing light the floor's own shadows are black pixels beside
+    lit ones (a fifth of an asphalt frame is 0), so a dark pixel is no defect by itself, and a
+    median of the whole frame, which removes them all, is not shift-equivariant below a pixel
+    (it biased phase-corr's steps by 0.25 % on a render whose picture moves rigidly with the
+    floor). ``image``: (H, W), non-negative; ``ratio`` > 1."""
     img = np.ascontiguousarray(image, dtype=np.float32)
     med = cv2.medianBlur(img, 3)
-    return np.where(np.abs(img - med) > threshold * med, med, img)
+    return np.where(img > ratio * med, med, img)
 
 
 def _blur(img: np.ndarray, sigma_px: float, downscale: int = 1) -> np.ndarray:

@@ -59,20 +59,19 @@ def test_frame_is_blank_as_a_zero_standard_deviation(dtype):
         assert frame_is_blank(img) == (float(img.std()) == 0.0)
 
 
-def test_impulses_replaced_changes_only_the_hot_and_dead_pixels():
+def test_impulses_replaced_changes_only_the_hot_pixels():
     """A smooth normalised frame (a ramp and a sine around 1) with one pixel stuck high (3.0)
-    and one at zero: those two become their 3 x 3 medians, every other pixel is returned
-    bit for bit (a plain median would change them all)."""
+    and one at zero: the bright one becomes its 3 x 3 median; the dark one is left (under
+    grazing light the floor's own shadows are black pixels), and so is every other pixel, bit
+    for bit (a plain median would change them all)."""
     v, u = np.mgrid[0:40, 0:50].astype(np.float32)
     img = (1.0 + 0.004 * u + 0.1 * np.sin(0.3 * v)).astype(np.float32)
     bad = img.copy()
     bad[10, 20], bad[30, 5] = 3.0, 0.0
     out = impulses_replaced(bad)
     assert out.dtype == np.float32
-    changed = np.argwhere(out != bad)
-    assert changed.tolist() == [[10, 20], [30, 5]]
-    for r, c in changed:
-        neighbours = np.sort(bad[r - 1 : r + 2, c - 1 : c + 2].ravel())
-        assert out[r, c] == neighbours[4]  # the 3 x 3 median
-        assert out[r, c] == pytest.approx(img[r, c], rel=0.02)
+    assert np.argwhere(out != bad).tolist() == [[10, 20]]
+    neighbours = np.sort(bad[9:12, 19:22].ravel())
+    assert out[10, 20] == neighbours[4]  # the 3 x 3 median
+    assert out[10, 20] == pytest.approx(img[10, 20], rel=0.02)
     np.testing.assert_array_equal(impulses_replaced(img), img)

@@ -9,10 +9,10 @@ Per frame:
    where the floor's motion is a rigid image motion again; the principal point centres
    the crop. An ideal square-pixel camera is used as it is (no resampling).
 1. Divide out the LED falloff (flat-field frame, or a blur estimate without one), and replace
-   the pixels far from their 3 x 3 median by it (``impulse_threshold``,
-   :func:`floorvo.imaging.impulses_replaced`): a sensor's hot and dead pixels stay put in the
-   frame and, whitened by the phase correlation, held it at no motion (BENCHMARKS.md,
-   "phase-corr and a sensor's hot and dead pixels").
+   the pixels brighter than twice their 3 x 3 median by it (``impulse_ratio``,
+   :func:`floorvo.imaging.impulses_replaced`): a sensor's hot pixels stay put in the frame
+   and, whitened by the phase correlation, held it at no motion (BENCHMARKS.md, "phase-corr
+   and a sensor's hot and dead pixels").
 2. Resample the current frame into the previous frame's coordinates through the
    predicted rigid motion (constant velocity: the last measured motion), so the
    residual to measure is small and the window does not bias it.
@@ -134,11 +134,11 @@ class PhaseCorrConfig(Config):
         "pixel tolerances stay in the frame's pixels): about downscale^2 less work, less precise per step",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
-    impulse_threshold: float = param(
-        0.5,
+    impulse_ratio: float = param(
+        2.0,
         min=0.0,
-        doc="a corrected pixel further than this fraction of its 3 x 3 median from it is replaced by the median "
-        "(hot and dead pixels, fixed in the frame, otherwise hold the correlation at no motion); 0: none",
+        doc="a corrected pixel brighter than this times its 3 x 3 median is replaced by the median (hot pixels, "
+        "fixed in the frame, otherwise hold the correlation at no motion); 0: none",
     )
     predict: bool = param(True, doc="start each frame from the last motion")
     use_height_signal: bool = param(
@@ -437,8 +437,8 @@ class PhaseCorr:
             out = out / mean if mean > 0 else out
         else:
             out = illumination_corrected(reg, None)
-        if self.config.impulse_threshold > 0.0:
-            out = impulses_replaced(out, self.config.impulse_threshold)
+        if self.config.impulse_ratio > 0.0:
+            out = impulses_replaced(out, self.config.impulse_ratio)
         return out
 
     def _blocks(self, img: np.ndarray) -> np.ndarray:
@@ -911,7 +911,7 @@ def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
 #: (the 384 px crop of the frame's own pixels), without the impulse check: the 2 x 2 binning already
 #: averages a hot or dead pixel with three others (it tracked the renders with them). Frames/s
 #: and drift against the default: BENCHMARKS.md, "Real time on one core".
-PhaseCorrFastConfig = with_defaults(PhaseCorrConfig, "PhaseCorrFastConfig", downscale=2, impulse_threshold=0.0)
+PhaseCorrFastConfig = with_defaults(PhaseCorrConfig, "PhaseCorrFastConfig", downscale=2, impulse_ratio=0.0)
 
 
 class PhaseCorrFast(PhaseCorr):
