@@ -52,8 +52,8 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param, with_defaults
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_problem
+from floorvo.config import param, with_defaults
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepBoundConfig, StepResult, frame_height_mm, frame_problem
 from floorvo.geometry import (
     consensus_problem,
     floor_rigid_to_T,
@@ -94,7 +94,7 @@ def mean_std_filter(movement: np.ndarray, passes: int = 2) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class AkazeConfig(Config):
+class AkazeConfig(StepBoundConfig):
     """AKAZE detector threshold, keypoint budget, guided-matching, filter and self-check settings.
 
     Guided matching (section II-B): around each eq. (2) prediction the new frame's
@@ -160,19 +160,6 @@ class AkazeConfig(Config):
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
     )
-    precision_sigmas: float = param(
-        2.5,
-        min=0.0,
-        doc="a fit leaving the step uncertain beyond the max_step_error_* bound at this many standard errors: lost "
-        "(0: no precision check)",
-    )
-    max_step_error_mm: float = param(
-        0.05, unit="mm", gt=0.0, doc="precision a step reported ok must have: this plus max_step_error_fraction"
-    )
-    max_step_error_fraction: float = param(
-        0.02, min=0.0, doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)"
-    )
-    max_step_error_deg: float = param(0.3, unit="deg", gt=0.0, doc="precision of the yaw of a step reported ok")
     doubt_radius_fraction: float = param(
         0.75, gt=0.0, max=1.0, doc="a guided fit correcting the prediction by this much of the radius: brute force"
     )

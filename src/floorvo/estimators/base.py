@@ -25,6 +25,8 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from floorvo.camera import CameraModel
+from floorvo.config import Config, param
+from floorvo.metrics import WRONG_STEP_DEG, WRONG_STEP_FRACTION, WRONG_STEP_MM
 
 __all__ = [
     "Frame",
@@ -34,7 +36,40 @@ __all__ = [
     "frame_height_mm",
     "frame_is_blank",
     "RESTART_NOTE",
+    "StepBoundConfig",
 ]
+
+
+@dataclass(frozen=True)
+class StepBoundConfig(Config):
+    """The keys of an estimator that checks each step's precision against issue 14's bound
+    (a step reported ok within ``max_step_error_mm`` + ``max_step_error_fraction`` of the step
+    and ``max_step_error_deg``; the defaults are :data:`floorvo.metrics.WRONG_STEP_MM` and its
+    siblings, what scoring counts as wrong): a step whose standard errors, from the residuals
+    of the estimator's own fits, leave it uncertain beyond that bound at ``precision_sigmas``
+    of them is lost. Which standard errors: each estimator's docstring."""
+
+    precision_sigmas: float = param(
+        2.5,
+        min=0.0,
+        doc="a step left uncertain beyond the max_step_error_* bound at this many standard errors: lost "
+        "(0: no precision check)",
+    )
+    max_step_error_mm: float = param(
+        WRONG_STEP_MM,
+        unit="mm",
+        gt=0.0,
+        doc="precision a step reported ok must have: this plus max_step_error_fraction",
+    )
+    max_step_error_fraction: float = param(
+        WRONG_STEP_FRACTION,
+        min=0.0,
+        doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)",
+    )
+    max_step_error_deg: float = param(
+        WRONG_STEP_DEG, unit="deg", gt=0.0, doc="precision of the rotation of a step reported ok"
+    )
+
 
 #: The note a lost step's reason ends with when the estimator restarts its track on that
 #: frame (the next step is measured from it): scoring (:func:`floorvo.scoring.score_run`)

@@ -50,9 +50,17 @@ import numpy as np
 from scipy import fft as sfft
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param, with_defaults
+from floorvo.config import param, with_defaults
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, frame_is_blank, frame_problem
+from floorvo.estimators.base import (
+    RESTART_NOTE,
+    Frame,
+    StepBoundConfig,
+    StepResult,
+    frame_height_mm,
+    frame_is_blank,
+    frame_problem,
+)
 from floorvo.geometry import (
     axis_scales_fit,
     floor_rigid_to_T,
@@ -75,7 +83,7 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class PhaseCorrConfig(Config):
+class PhaseCorrConfig(StepBoundConfig):
     """``crop_px``: side of the central square crop that is correlated (a power of two is
     fastest; capped at 90 % of the shorter image side); ``margin_px``: extra border of the
     current frame normalised around the crop (the largest expected motion per frame);
@@ -156,24 +164,11 @@ class PhaseCorrConfig(Config):
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
     )
-    precision_sigmas: float = param(
-        2.5,
-        min=0.0,
-        doc="the blocks' disagreement leaving the step's translation uncertain beyond the max_step_error_* bound "
-        "at this many standard errors: lost (0: no such check)",
-    )
     check_warp_spread: bool = param(
         True,
         doc="measure each step again through the whole-pixel warp on its other side; warps that do not bracket "
         "it, or two estimates further apart than issue 14's bound (max_step_error_*): lost",
     )
-    max_step_error_mm: float = param(
-        0.05, unit="mm", gt=0.0, doc="precision a step reported ok must have: this plus max_step_error_fraction"
-    )
-    max_step_error_fraction: float = param(
-        0.02, min=0.0, doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)"
-    )
-    max_step_error_deg: float = param(0.3, unit="deg", gt=0.0, doc="precision of the yaw of a step reported ok")
     fit_image_scale: bool = param(
         False,
         doc="a frame without a measured height: follow the camera height from the blocks' image scale, "

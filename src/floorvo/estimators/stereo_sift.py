@@ -56,9 +56,9 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param, with_defaults
+from floorvo.config import param, with_defaults
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_is_blank, frame_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepBoundConfig, StepResult, frame_is_blank, frame_problem
 from floorvo.geometry import (
     consensus_problem,
     fit_plane,
@@ -78,7 +78,7 @@ __all__ = ["StereoSift", "StereoSiftConfig", "StereoSiftFast", "StereoSiftFastCo
 
 
 @dataclass(frozen=True)
-class StereoSiftConfig(Config):
+class StereoSiftConfig(StepBoundConfig):
     """``n_features``: SIFT keypoint budget per image; ``contrast_threshold``: SIFT's DoG
     threshold; ``ratio``: Lowe ratio test; ``epipolar_px``: largest distance of a right
     keypoint from its epipolar line; ``ransac_threshold_px``: RANSAC homography threshold;
@@ -148,19 +148,6 @@ class StereoSiftConfig(Config):
     max_tilt_rad: float = param(
         0.2, unit="rad", gt=0.0, doc="update = plane: a floor plane tilted more than this from the optical axis: lost"
     )
-    precision_sigmas: float = param(
-        2.5,
-        min=0.0,
-        doc="update = plane: a step whose standard errors (the in-plane fit's and the two floor planes') leave it "
-        "uncertain beyond the max_step_error_* bound at this many of them: lost (0: no precision check)",
-    )
-    max_step_error_mm: float = param(
-        0.05, unit="mm", gt=0.0, doc="precision a step reported ok must have: this plus max_step_error_fraction"
-    )
-    max_step_error_fraction: float = param(
-        0.02, min=0.0, doc="precision a step reported ok must have, as a fraction of the step (issue 14's bound)"
-    )
-    max_step_error_deg: float = param(0.3, unit="deg", gt=0.0, doc="precision of the rotation of a step reported ok")
 
 
 @dataclass
