@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.geometry import invert_T
+from floorvo.geometry import T_world_cam_down, invert_T
 from floorvo.synthetic import floor_texture as _floor_texture
 from floorvo.synthetic import led_falloff as falloff  # rig-fixed: bright at the left and right edges
 
@@ -95,3 +95,18 @@ def stereo_pairs(
     out = [np.clip(np.round(i * scale + rng.normal(0, noise_dn, i.shape)), 0, 255).astype(np.uint8) for i in imgs]
     flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
     return (out[0], out[1]), (out[2], out[3]), flat, T01
+
+
+def disturbed_poses(n: int = 10) -> np.ndarray:
+    """(n, 4, 4) T_world_cam: 4 mm/frame with a 2 mm bounce at 2 Hz and roll/pitch of 0.03 rad
+    at 1.5 Hz (30 fps): the motion suite's disturbances, up to 0.0094 rad of tilt change a frame."""
+    t = np.arange(n) / 30.0
+    w = 2 * np.pi * 1.5 * t
+    return np.stack(
+        [
+            T_world_cam_down(
+                4.0 * i, 0.0, 100.0 + 2.0 * np.sin(4 * np.pi * t[i]), 0.0, 0.03 * np.sin(w[i]), 0.03 * np.cos(w[i])
+            )
+            for i in range(n)
+        ]
+    )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _synth import flat_floor_depth, frame_pair, stereo_pairs
+from _synth import disturbed_poses, flat_floor_depth, frame_pair, stereo_pairs
 
 from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError
@@ -310,20 +310,6 @@ def test_stereo_sift_says_when_it_restarts_its_track(tmp_path, name):
     assert not wrong_steps(e).any(), e
 
 
-def _tilting_poses(n: int = 10) -> np.ndarray:
-    """4 mm/frame with a 2 mm bounce at 2 Hz and roll/pitch of 0.03 rad at 1.5 Hz (30 fps)."""
-    t = np.arange(n) / 30.0
-    w = 2 * np.pi * 1.5 * t
-    return np.stack(
-        [
-            T_world_cam_down(
-                4.0 * i, 0.0, 100.0 + 2.0 * np.sin(4 * np.pi * t[i]), 0.0, 0.03 * np.sin(w[i]), 0.03 * np.cos(w[i])
-            )
-            for i in range(n)
-        ]
-    )
-
-
 def test_stereo_sift_never_reports_an_imprecise_step_ok(tmp_path):
     """stereo-sift-fast on small, noisy frames (324x247, 8 grey levels of noise; the preset is
     meant for 648x494) of a bouncing, tilting run: 8-11 SIFT pairs a step, and floor planes
@@ -333,6 +319,6 @@ def test_stereo_sift_never_reports_an_imprecise_step_ok(tmp_path):
     true 6-DoF step, and the others are lost as imprecise."""
     from floorvo.metrics import wrong_steps
 
-    run, e = _stereo_run_errors(tmp_path, _tilting_poses(), "stereo-sift-fast", noise_dn=8.0)
+    run, e = _stereo_run_errors(tmp_path, disturbed_poses(), "stereo-sift-fast", noise_dn=8.0)
     assert e is None or not wrong_steps(e).any(), e
     assert any(str(r).startswith("imprecise step") for r in run.reason), list(run.reason)

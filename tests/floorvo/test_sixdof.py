@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _synth import disturbed_poses
 from scipy.spatial.transform import Rotation
 
 from floorvo.camera import CameraModel
@@ -158,24 +159,9 @@ def test_tilted_synthetic_view_and_depth_are_those_of_the_ray_cast_floor():
     np.testing.assert_array_equal(floor_depth(CAM, T_world_cam_down(0, 0, 80.0)), np.float32(80.0))
 
 
-def _disturbed_poses(n: int = 10) -> np.ndarray:
-    """4 mm/frame with a 2 mm bounce at 2 Hz and roll/pitch of 0.03 rad at 1.5 Hz (30 fps):
-    the motion suite's disturbances, up to 0.0094 rad of tilt change a frame."""
-    t = np.arange(n) / 30.0
-    w = 2 * np.pi * 1.5 * t
-    return np.stack(
-        [
-            T_world_cam_down(
-                4.0 * i, 0.0, 100.0 + 2.0 * np.sin(4 * np.pi * t[i]), 0.0, 0.03 * np.sin(w[i]), 0.03 * np.cos(w[i])
-            )
-            for i in range(n)
-        ]
-    )
-
-
 @pytest.fixture(scope="module")
 def disturbed_seq(tmp_path_factory):
-    poses = _disturbed_poses()
+    poses = disturbed_poses()
     root = tmp_path_factory.mktemp("sixdof") / "seq"
     write_synthetic_sequence(root, CAM, poses, depth=True, depth_noise_mm=0.3, stereo_baseline_mm=20.0)
     return root, poses
@@ -218,7 +204,7 @@ def test_local_contrast_image_cancels_a_smooth_brightness_change():
 
 @pytest.fixture(scope="module")
 def tilted_mono_seq(tmp_path_factory):
-    poses = _disturbed_poses()
+    poses = disturbed_poses()
     root = tmp_path_factory.mktemp("homography") / "seq"
     write_synthetic_sequence(root, CAM, poses)
     return root, poses
