@@ -166,8 +166,9 @@ def main() -> None:
                     "loop_ms_per_frame": round(1000.0 / loop_fps, 2) if loop_fps > 0 else None,
                     "run_cpu_ms_per_frame": round(run_cpu_ms, 2),
                     "frames_per_s": round(1000.0 / t["total_ms"], 1) if t["total_ms"] > 0 else None,
-                    "end_drift_pct": round(sc["end_drift_pct"], 4),
-                    "distance_error_pct": round(sc["distance_error_pct"], 4),
+                    # None when the run tracked too little for pose metrics (every step lost)
+                    "end_drift_pct": _rounded(sc.get("end_drift_pct")),
+                    "distance_error_pct": _rounded(sc.get("distance_error_pct")),
                     "lost": int(sc.get("lost_frames", 0) or 0),
                 }
             )
@@ -304,8 +305,8 @@ def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> 
                 "scale_x": round(cal.scale_x, 5),
                 "scale_y": round(cal.scale_y, 5),
                 "end_drift_pct_raw": r["end_drift_pct"],
-                "end_drift_pct_calibrated": round(sc["end_drift_pct"], 4),
-                "distance_error_pct_calibrated": round(sc["distance_error_pct"], 4),
+                "end_drift_pct_calibrated": _rounded(sc.get("end_drift_pct")),
+                "distance_error_pct_calibrated": _rounded(sc.get("distance_error_pct")),
             }
         )
     if table:
@@ -316,6 +317,11 @@ def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> 
         for t in table:
             print("| " + " | ".join(str(t[c]) for c in cols) + " |")
     return table
+
+
+def _rounded(value, digits: int = 4) -> float | None:
+    """``value`` rounded, or None when the score has no such metric."""
+    return None if value is None else round(float(value), digits)
 
 
 if __name__ == "__main__":
