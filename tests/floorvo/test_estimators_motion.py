@@ -330,6 +330,18 @@ def test_phase_corr_is_not_held_at_no_motion_by_hot_and_dead_pixels():
             assert all(_within_bound(r.T_prev_cur, T) for r, T in ok), [_step_error(r.T_prev_cur, T) for r, T in ok]
 
 
+def test_phase_corr_refuses_an_impulse_ratio_that_would_replace_ordinary_pixels():
+    """A ratio in (0, 1] would replace every pixel brighter than its median (a median filter,
+    which biases the steps): refused in one line naming the key and the rule; 0 turns it off."""
+    from floorvo.errors import ConfigError
+
+    cls = get_estimator("phase-corr")
+    with pytest.raises(ConfigError, match=r"^phase-corr\.impulse_ratio = 0\.5: must be 0 \(none\) or > 1"):
+        cls(make_config("phase-corr", {"impulse_ratio": "0.5"}), CAM, height_mm=100.0)
+    for ok in ("0", "1.5"):
+        cls(make_config("phase-corr", {"impulse_ratio": ok}), CAM, height_mm=100.0)
+
+
 def test_phase_corr_measures_a_step_larger_than_half_its_crop(tmp_path):
     """30 mm per frame (900 mm/s at 30 fps): 243 px at full size, more than half the 384 px
     crop, whose correlation wraps it to -141 px, and the crop moved by it leaves the frame.

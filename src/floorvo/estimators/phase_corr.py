@@ -343,6 +343,11 @@ class PhaseCorr:
         self.pinhole = _square_pinhole(camera)
         # The pixel grid the frames are correlated on: the pinhole's, or its pixels binned
         # ``downscale`` x ``downscale`` (area average); crop, margin and blocks are in its pixels.
+        if 0.0 < config.impulse_ratio <= 1.0:
+            raise ConfigError(
+                f"phase-corr.impulse_ratio = {config.impulse_ratio:g}: must be 0 (none) or > 1 (a pixel brighter "
+                "than that times its 3 x 3 median is replaced)"
+            )
         k = config.downscale
         self.grid_cam = self.pinhole if k == 1 else _binned(self.pinhole, k)
         gc = self.grid_cam
