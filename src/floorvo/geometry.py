@@ -305,8 +305,8 @@ def axis_scales_fit(points: np.ndarray, shifts: np.ndarray) -> tuple[np.ndarray,
 
     ``points``, ``shifts``: (N, 2), N >= 3, in one unit (px), the points not all on a line
     parallel to an axis; the shifts small against the points' spread (the linearisation).
-    Returns ``(scales (2,) = (s_x, s_y), sigmas (2,))``; the sigmas are inf when N = 3 (no
-    residual to estimate them from).
+    Returns ``(scales (2,) = (s_x, s_y), sigmas (2,))``; the sigmas rest on ``2 N - 5``
+    degrees of freedom (3 for phase-corr's four blocks: a rough estimate).
     """
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     d = np.asarray(shifts, dtype=float).reshape(-1, 2)
@@ -322,13 +322,8 @@ def axis_scales_fit(points: np.ndarray, shifts: np.ndarray) -> tuple[np.ndarray,
         raise ValueError("axis_scales_fit: the points do not spread along both axes")
     cov = np.linalg.inv(AtA)
     x = cov @ (A.T @ b)
-    dof = 2 * n - 5
-    if dof <= 0:
-        sig = np.full(2, np.inf)
-    else:
-        var = float(np.sum((A @ x - b) ** 2)) / dof
-        sig = np.sqrt(var * np.diag(cov)[:2])
-    return 1.0 + x[:2], sig
+    var = float(np.sum((A @ x - b) ** 2)) / (2 * n - 5)  # n >= 3: at least one degree of freedom
+    return 1.0 + x[:2], np.sqrt(var * np.diag(cov)[:2])
 
 
 # ----------------------------------------------------------------------------- pixels <-> floor
