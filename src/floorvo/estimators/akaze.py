@@ -428,7 +428,7 @@ class _AkazeBase:
         (its yaw) is too imprecise for issue 14's bound ('' if it is not)."""
         cfg = self.config
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * float(np.linalg.norm(M[:2, 2])) * mm_per_px
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(M[:2, 2])) * mm_per_px)
         k = cfg.precision_sigmas
         if k * sig_px * mm_per_px > bound_mm or k * np.degrees(sig_rad) > cfg.max_step_error_deg:
             return (

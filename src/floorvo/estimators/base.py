@@ -70,6 +70,11 @@ class StepBoundConfig(Config):
         WRONG_STEP_DEG, unit="deg", gt=0.0, doc="precision of the rotation of a step reported ok"
     )
 
+    def bound_mm(self, step_mm: float) -> float:
+        """The translation error (mm) a step of ``step_mm`` reported ok may have:
+        ``max_step_error_mm + max_step_error_fraction * step_mm``."""
+        return self.max_step_error_mm + self.max_step_error_fraction * float(step_mm)
+
 
 #: The note a lost step's reason ends with when the estimator restarts its track on that
 #: frame (the next step is measured from it): scoring (:func:`floorvo.scoring.score_run`)

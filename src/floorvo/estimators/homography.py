@@ -186,7 +186,7 @@ class HomographySixDof(_AkazeBase):
         k = cfg.precision_sigmas
         err_mm = k * float(np.sqrt(np.sum((t - t.mean(axis=0)) ** 2) / (m - 1) / m))
         err_deg = k * float(np.degrees(np.sqrt(np.sum(np.square(angle_rad)) / (m - 1) / m)))
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * float(np.linalg.norm(T_prev_cur[:3, 3]))
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
         if err_mm > bound_mm or err_deg > cfg.max_step_error_deg:
             return (
                 f"imprecise homography: {m} blocks of its pairs disagree; {k:g} standard errors are "
@@ -210,7 +210,7 @@ class HomographySixDof(_AkazeBase):
         if not self.lights_ride:
             return ""
         tilt = float(np.arccos(np.clip(T_prev_cur[2, 2], -1.0, 1.0)))
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * float(np.linalg.norm(T_prev_cur[:3, 3]))
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
         if height_mm * tilt > bound_mm:
             return (
                 f"tilt not observable: the step tilts the camera {1e3 * tilt:.1f} mrad, {height_mm * tilt:.3f} mm at "

@@ -594,7 +594,7 @@ class PhaseCorr:
         scale gives (``height_sigma_mm``, ``fit_image_scale``: ``h_prev sigma_scale / scale^2``),
         ``precision_sigmas`` of them, beyond issue 14's bound (``max_step_error_*``)."""
         cfg = self.config
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
+        bound_mm = cfg.bound_mm(m.step_mm)
         sigma_mm = float(np.hypot(m.shift_sigma_mm, height_sigma_mm))
         if cfg.precision_sigmas > 0.0 and not cfg.precision_sigmas * sigma_mm <= bound_mm:
             what = "its translation" if not height_sigma_mm else "its translation and height change"
@@ -702,15 +702,18 @@ class PhaseCorr:
             off,
             prev_blocks,
             centres,
-            *self._image_scale(centres, shifts),
+            *self._image_scale(centres, shifts, float(sc), float(sig_rad)),
         )
 
-    def _image_scale(self, centres: np.ndarray, shifts: np.ndarray) -> tuple[float, float]:
+    def _image_scale(
+        self, centres: np.ndarray, shifts: np.ndarray, similarity_scale: float, similarity_sigma: float
+    ) -> tuple[float, float]:
         """The current frame's image scale relative to the previous one's (``h_prev / h_cur``)
         and its standard error, from the block ``shifts`` (B, 2) px at their ``centres`` (B, 2)
         px (the warp is rigid, so the blocks see the whole scale): along ``image_scale_axis``
-        (:func:`floorvo.geometry.axis_scales_fit`), or the similarity fit's for ``both`` (its
-        standard error: the rotation's, :func:`floorvo.geometry.rigid_fit_precision`).
+        (:func:`floorvo.geometry.axis_scales_fit`), or for ``both`` the similarity fit's that
+        :meth:`_measure` made of the same shifts (``similarity_scale``, and ``similarity_sigma``:
+        the rotation's standard error, :func:`floorvo.geometry.rigid_fit_precision`).
         ``(1, 0)`` without ``fit_image_scale``.
 
         Under the rig's grazing LEDs the picture moves unevenly across the bars (x): on the
@@ -721,8 +724,7 @@ class PhaseCorr:
         if not cfg.fit_image_scale:
             return 1.0, 0.0
         if cfg.image_scale_axis == "both":
-            R, t, k = umeyama(centres, centres + shifts, with_scale=True)
-            return float(k), float(rigid_fit_precision(centres, centres + shifts, R, t, scale=k)[1])
+            return similarity_scale, similarity_sigma
         scales, sigmas = axis_scales_fit(centres, shifts)
         i = 0 if cfg.image_scale_axis == "x" else 1
         return float(scales[i]), float(sigmas[i])
@@ -780,7 +782,7 @@ class PhaseCorr:
                 "step not converged: measured again through the whole-pixel warp beyond it, the blocks "
                 "still see it further on"
             )
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * m.step_mm
+        bound_mm = cfg.bound_mm(m.step_mm)
         if spread_mm > bound_mm or spread_deg > cfg.max_step_error_deg:
             return (
                 f"step depends on the warp: through the whole-pixel warp on its other side it moves "

@@ -542,7 +542,7 @@ class StereoSift:
             var_mm += sig_h_mm**2 + (d_mm * sig_tilt_rad) ** 2
             var_rad += sig_tilt_rad**2
         sig_mm, sig_deg = float(np.sqrt(var_mm)), float(np.degrees(np.sqrt(var_rad)))
-        bound_mm = cfg.max_step_error_mm + cfg.max_step_error_fraction * float(np.linalg.norm(T[:3, 3]))
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(T[:3, 3])))
         k = cfg.precision_sigmas
         if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
             return (
