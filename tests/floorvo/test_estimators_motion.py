@@ -34,6 +34,13 @@ def _within_bound(T_est: np.ndarray, T_true: np.ndarray) -> bool:
     return e_t <= 0.05 + 0.02 * float(np.linalg.norm(T_true[:2, 3])) and e_yaw <= 0.3
 
 
+def _step_frames(name: str, frames, overrides: dict | None = None, flatfield=None) -> list:
+    """Estimator ``name`` (config ``overrides``) stepped over the frames (uint8 images of ``CAM``, 30 fps)."""
+    est = get_estimator(name)(make_config(name, overrides), CAM, height_mm=100.0, flatfield=flatfield)
+    state = est.start()
+    return [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+
+
 def _run(name: str, seq: Sequence, **overrides):
     """Step results of estimator ``name`` over every frame of ``seq``, and the true steps T_prev_cur."""
     est = get_estimator(name)(make_config(name, overrides), seq.camera, height_mm=100.0, flatfield=seq.flatfield())
@@ -115,9 +122,7 @@ def _featureless_frames(n: int, seed: int = 0) -> tuple[list[np.ndarray], np.nda
 def test_featureless_floor_is_lost_not_a_wrong_motion(name):
     """Noise alone gives keypoints and matches, but no motion: every step is lost with a reason."""
     frames, flat = _featureless_frames(4)
-    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0, flatfield=flat)
-    state = est.start()
-    results = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+    results = _step_frames(name, frames, flatfield=flat)
     assert results[0].status in ("init", "lost")
     for r in results[1:]:
         assert r.status == "lost" and r.T_prev_cur is None and r.reason, (r.status, r.reason)
@@ -248,10 +253,8 @@ def test_phase_corr_blocks_that_disagree_on_the_yaw_are_lost(tmp_path):
     frames = [np.clip(np.round(f / np.percentile(prev, 99.5) * 200.0), 0, 255).astype(np.uint8) for f in (prev, cur)]
     # Without the yaw check (and the translation's precision check, which these blocks fail too) it was ok.
     relaxed = {"max_yaw_sigma_deg": "10", "precision_sigmas": "0"}
-    for name, overrides, status in [("phase-corr", {}, "lost"), ("phase-corr", relaxed, "ok")]:
-        est = get_estimator(name)(make_config(name, overrides), CAM, height_mm=100.0)
-        state = est.start()
-        res = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+    for overrides, status in [({}, "lost"), (relaxed, "ok")]:
+        res = _step_frames("phase-corr", frames, overrides)
         assert res[1].status == status, res[1].reason
         if status == "lost":
             assert res[1].reason.startswith("imprecise yaw"), res[1].reason
@@ -278,9 +281,7 @@ def test_phase_corr_blocks_that_leave_the_step_imprecise_are_lost(name):
     cur = np.where((u >= CAM.cx_px) & (v >= CAM.cy_px), kept, moved)  # the bottom right block sees the step
     frames = [np.clip(np.round(f / np.percentile(prev, 99.5) * 200.0), 0, 255).astype(np.uint8) for f in (prev, cur)]
     for overrides, status in [({}, "lost"), ({"precision_sigmas": "0"}, "ok")]:
-        est = get_estimator(name)(make_config(name, overrides), CAM, height_mm=100.0)
-        state = est.start()
-        res = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+        res = _step_frames(name, frames, overrides)
         assert res[1].status == status, res[1].reason
         if status == "lost":
             assert res[1].reason.startswith("imprecise step"), res[1].reason
@@ -318,10 +319,7 @@ def test_phase_corr_is_not_held_at_no_motion_by_hot_and_dead_pixels():
         frames.append(img)
     steps = [invert_T(a) @ b for a, b in zip(truth, truth[1:])]
     for ratio, held in [("0", True), ("2", False)]:
-        cfg = make_config("phase-corr", {"impulse_ratio": ratio})
-        est = get_estimator("phase-corr")(cfg, CAM, height_mm=100.0)
-        state = est.start()
-        res = [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
+        res = _step_frames("phase-corr", frames, {"impulse_ratio": ratio})
         ok = [(r, T) for r, T in zip(res[1:], steps) if r.status == "ok"]
         if held:  # the defect the check is there for: steps of no motion reported ok
             assert any(not _within_bound(r.T_prev_cur, T) for r, T in ok)
