@@ -14,6 +14,7 @@ import pytest
 
 from floorvo.camera import CameraModel
 from floorvo.estimators import Frame, get_estimator, make_config
+from floorvo.estimators.akaze import _State
 from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
 from floorvo.sequence import Sequence
 from floorvo.synthetic import led_falloff, write_synthetic_sequence
@@ -223,6 +224,58 @@ def test_imprecise_fit_is_lost_a_precise_one_kept(name):
     # Without the check (precision_sigmas = 0) the crowded pairs were reported ok.
     est0 = get_estimator(name)(make_config(name, {"precision_sigmas": "0"}), CAM, height_mm=100.0)
     assert est0._fit(src, dst, M_true).problem == ""
+
+
+def _image_motion(yaw_deg: float, tx_px: float) -> np.ndarray:
+    """3x3 rigid image motion (prev-centred px -> cur-centred px): a rotation and a shift along x."""
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    return np.array([[c, -s, tx_px], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_guided_fit_pulled_by_its_prediction_is_doubted():
+    """A tiled floor under a turn whose rate changes (the full-size ceramic corner: 6 degrees
+    predicted at 7.65). Each of 80 keypoints lies on a grout line, half along x and half along
+    y: along its line the nearest-first search takes a like keypoint at the predicted
+    position, across it the true one (0.3 px of seeded noise). The fit lands between the
+    prediction and the truth, 0.9 degrees off, and passes every other check (RMS, consensus,
+    one motion, precision). Matched again around that fit the step turns by another 0.5
+    degrees: the check reports the pull, so the step falls back to brute force. True matches
+    come back unchanged (a fixed point); with ``check_rematch`` off the pulled fit passed."""
+    name = "akaze-guided"
+    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0)
+    rng = np.random.default_rng(0)
+    centre = np.array([CAM.cx_px, CAM.cy_px])
+    src = centre + rng.uniform(-100.0, 100.0, (80, 2))
+    along_x = np.arange(len(src)) % 2 == 0
+    noise = rng.normal(0.0, 0.3, src.shape)
+    M_true = _image_motion(6.0, -32.4)  # 6 degrees and 4 mm along x
+
+    def on_grout_lines(state, kps, packed, M_pred=None):
+        pred = est._predict(state.M_last if M_pred is None else M_pred, src)
+        dst = est._predict(M_true, src)
+        dst[along_x, 0] = pred[along_x, 0]
+        dst[~along_x, 1] = pred[~along_x, 1]
+        return src, dst + noise
+
+    def true_matches(state, kps, packed, M_pred=None):
+        return src, est._predict(M_true, src) + noise
+
+    state = _State(kps=src, packed=np.zeros((len(src), 1), dtype=np.uint64), M_last=_image_motion(7.65, -32.4))
+    est._guided = on_grout_lines
+    fit = est._fit(*est._guided(state, src, state.packed), state.M_last)
+    assert fit.problem == "" and est._prediction_doubt(fit, state.M_last) == ""
+    assert abs(np.degrees(yaw_of_R(fit.M[:2, :2])) - 6.0) > 0.3  # wrong beyond issue 14's bound
+    problem = est._rematch_problem(state, src, state.packed, fit, 1.0)
+    assert "the prediction pulled the matches" in problem, problem
+    est._guided = true_matches
+    fit = est._fit(*est._guided(state, src, state.packed), state.M_last)
+    assert fit.problem == "" and abs(np.degrees(yaw_of_R(fit.M[:2, :2])) - 6.0) < 0.05
+    assert est._rematch_problem(state, src, state.packed, fit, 1.0) == ""
+    # Without the check the pulled fit was reported ok.
+    est0 = get_estimator(name)(make_config(name, {"check_rematch": "false"}), CAM, height_mm=100.0)
+    est0._guided = on_grout_lines
+    fit = est0._fit(*est0._guided(state, src, state.packed), state.M_last)
+    assert est0._rematch_problem(state, src, state.packed, fit, 1.0) == ""
 
 
 def test_phase_corr_blocks_that_disagree_on_the_yaw_are_lost(tmp_path):
