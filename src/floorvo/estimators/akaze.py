@@ -55,7 +55,15 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepBoundConfig, StepResult, frame_height_mm, frame_problem
+from floorvo.estimators.base import (
+    RESTART_NOTE,
+    Frame,
+    StepBoundConfig,
+    StepResult,
+    frame_height_mm,
+    frame_problem,
+    stage_timing_ms,
+)
 from floorvo.geometry import (
     consensus_problem,
     floor_rigid_to_T,
@@ -574,7 +582,7 @@ class _AkazeBase:
         t0 = time.perf_counter()
         bad = frame_problem(frame.image, self.camera)
         if bad:
-            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+            return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         kps, desc = self._detect(frame.image, state)
         packed = pack_descriptors(desc)
         t1 = time.perf_counter()
@@ -584,13 +592,16 @@ class _AkazeBase:
                     "lost",
                     reason=f"too few keypoints ({len(kps)}) to start from",
                     n_keypoints=len(kps),
-                    timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                    timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
                 )
             state.kps, state.desc, state.packed = kps, desc, packed
             state.height_mm = self._frame_height(frame)
             self._start_reference(state, frame)
             return StepResult(
-                "init", reason="first frame", n_keypoints=len(kps), timing_ms=_timing(t0, t1, t1, time.perf_counter())
+                "init",
+                reason="first frame",
+                n_keypoints=len(kps),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         note = ""
         if len(kps) < self.config.min_matches:
@@ -624,7 +635,7 @@ class _AkazeBase:
                 n_keypoints=len(kps),
                 n_matches=fit.n_matches,
                 n_inliers=len(fit.src),
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
             )
         T, problem = self._motion(state, fit, frame)
         if T is None:
@@ -636,7 +647,7 @@ class _AkazeBase:
                 n_keypoints=len(kps),
                 n_matches=fit.n_matches,
                 n_inliers=len(fit.src),
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
             )
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
         state.height_mm = self._height_after(state, fit, frame)
@@ -648,7 +659,7 @@ class _AkazeBase:
             n_keypoints=len(kps),
             n_matches=fit.n_matches,
             n_inliers=len(fit.src),
-            timing_ms=_timing(t0, t1, t2, t3),
+            timing_ms=stage_timing_ms(t0, t1, t2, t3),
             matches_px=np.hstack([fit.src, fit.dst]),
         )
 
@@ -697,7 +708,3 @@ class AkazeBruteforceFast(AkazeBruteforce):
     name = "akaze-bruteforce-fast"
     description = "akaze-bruteforce's real-time preset: one AKAZE octave of one sublevel, upright, 600 keypoints"
     Config = AkazeFastConfig
-
-
-def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
-    return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}

@@ -37,6 +37,7 @@ __all__ = [
     "frame_is_blank",
     "RESTART_NOTE",
     "StepBoundConfig",
+    "stage_timing_ms",
 ]
 
 
@@ -127,6 +128,18 @@ class StepResult:
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+
+def stage_timing_ms(t0_s: float, t1_s: float, t2_s: float, t3_s: float) -> dict[str, float]:
+    """:attr:`StepResult.timing_ms` from four ``time.perf_counter()`` readings (s): the step's start,
+    the end of detection, the end of matching and its end; each stage and the total in ms
+    (a stage a step skipped is 0: pass the same reading twice)."""
+    return {
+        "detect": (t1_s - t0_s) * 1e3,
+        "match": (t2_s - t1_s) * 1e3,
+        "estimate": (t3_s - t2_s) * 1e3,
+        "total": (t3_s - t0_s) * 1e3,
+    }
 
 
 class Estimator(Protocol):

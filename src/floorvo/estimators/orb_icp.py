@@ -41,7 +41,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param, with_defaults
-from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem
+from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem, stage_timing_ms
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -208,13 +208,13 @@ class OrbIcp:
         t0 = time.perf_counter()
         img = np.asarray(frame.image)
         if frame.depth_mm is None:
-            return StepResult("lost", reason="frame has no depth image", timing_ms=_timing(t0, t0, t0, t0))
+            return StepResult("lost", reason="frame has no depth image", timing_ms=stage_timing_ms(t0, t0, t0, t0))
         bad = frame_problem(img, self.camera) or frame_problem(frame.depth_mm, self.camera, "depth image")
         if bad:
-            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+            return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         if frame_is_blank(img):
             return StepResult(
-                "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
+                "lost", reason="empty frame (no texture)", timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter())
             )
         uv, desc, xyz, img8 = self._features(frame.image, frame.depth_mm)
         plane = self.floor_plane(frame.depth_mm) if self.config.update == "plane" else None
@@ -228,21 +228,24 @@ class OrbIcp:
             state.kps, state.desc, state.xyz, state.img8, state.plane = uv, desc, xyz, img8, plane
         if first:
             return StepResult(
-                "init", reason="first frame", n_keypoints=len(uv), timing_ms=_timing(t0, t1, t1, time.perf_counter())
+                "init",
+                reason="first frame",
+                n_keypoints=len(uv),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         if len(uv) < self.config.min_matches:
             return StepResult(
                 "lost",
                 reason=f"too few keypoints ({len(uv)})",
                 n_keypoints=len(uv),
-                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         if n_depth < self.config.min_matches:
             return StepResult(
                 "lost",
                 reason=f"too few keypoints with depth ({n_depth})",
                 n_keypoints=len(uv),
-                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         kp0, d0, xyz0, img0 = prev
         assert kp0 is not None and d0 is not None and xyz0 is not None and img0 is not None  # set by frame 0
@@ -257,7 +260,7 @@ class OrbIcp:
                 n_keypoints=len(uv),
                 n_matches=n_matches,
                 n_inliers=n_in,
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
             )
 
         def ok(T_prev_cur: np.ndarray, uv_prev_kept: np.ndarray, uv_cur_kept: np.ndarray) -> StepResult:
@@ -268,7 +271,7 @@ class OrbIcp:
                 n_keypoints=len(uv),
                 n_matches=n_matches,
                 n_inliers=len(uv_prev_kept),
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
                 matches_px=np.hstack([uv_prev_kept, uv_cur_kept]),
             )
 
@@ -341,10 +344,6 @@ class OrbIcp:
         if rms_mm > self.config.max_residual_mm:
             return lost(f"ICP residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum()))
         return ok(make_T(R, t), uv_prev[has_depth][keep], uv_cur[has_depth][keep])
-
-
-def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
-    return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}
 
 
 #: The real-time preset (issue 14 item 5): one ORB level instead of the pyramid (at a fixed

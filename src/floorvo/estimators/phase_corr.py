@@ -60,6 +60,7 @@ from floorvo.estimators.base import (
     frame_height_mm,
     frame_is_blank,
     frame_problem,
+    stage_timing_ms,
 )
 from floorvo.geometry import (
     axis_scales_fit,
@@ -468,7 +469,7 @@ class PhaseCorr:
         t0 = time.perf_counter()
         bad = frame_problem(frame.image, self.camera)
         if bad:
-            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+            return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         img = np.asarray(frame.image)
         if frame_is_blank(img):
             return StepResult(
@@ -486,7 +487,7 @@ class PhaseCorr:
             state.prev_blocks = self._blocks(crop)
             state.prev_crop = crop
             state.height_mm = self._frame_height(frame)
-            return StepResult("init", reason="first frame", timing_ms=_timing(t0, t1, t1, time.perf_counter()))
+            return StepResult("init", reason="first frame", timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
         m = self._measure(state, cur, M0)
         if self._failed(m) and not np.array_equal(M0, np.eye(3)):
@@ -538,7 +539,7 @@ class PhaseCorr:
                 state.M_pred = np.eye(3) if gross else per_frame
                 why += f"; {RESTART_NOTE}"
             return StepResult(
-                "lost", reason=why, n_matches=n_blocks, timing_ms=_timing(t0, t1, t2_, time.perf_counter())
+                "lost", reason=why, n_matches=n_blocks, timing_ms=stage_timing_ms(t0, t1, t2_, time.perf_counter())
             )
         new_blocks = self._blocks(crop)
         # M maps prev-centred px to cur-centred px: the floor's motion in the image. A floor
@@ -557,7 +558,7 @@ class PhaseCorr:
         state.n_lost, state.height_mm = 0, h_meas
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
-        return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=_timing(t0, t1, t2_, t3))
+        return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=stage_timing_ms(t0, t1, t2_, t3))
 
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
@@ -902,10 +903,6 @@ def _translation(d: np.ndarray) -> np.ndarray:
     T = np.eye(3)
     T[:2, 2] = d
     return T
-
-
-def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
-    return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}
 
 
 #: The real-time preset (issue 14 item 5: phase-corr at least 10x faster than the fastest feature

@@ -58,7 +58,15 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepBoundConfig, StepResult, frame_is_blank, frame_problem
+from floorvo.estimators.base import (
+    RESTART_NOTE,
+    Frame,
+    StepBoundConfig,
+    StepResult,
+    frame_is_blank,
+    frame_problem,
+    stage_timing_ms,
+)
 from floorvo.geometry import (
     consensus_problem,
     fit_plane,
@@ -397,16 +405,18 @@ class StereoSift:
     def step(self, state: _State, frame: Frame) -> StepResult:
         t0 = time.perf_counter()
         if frame.image_right is None:
-            return StepResult("lost", reason="frame has no right image", timing_ms=_timing(t0, t0, t0, t0))
+            return StepResult("lost", reason="frame has no right image", timing_ms=stage_timing_ms(t0, t0, t0, t0))
         bad = frame_problem(frame.image, self.camera) or frame_problem(
             frame.image_right, self.camera_right, "right frame"
         )
         if bad:
-            return StepResult("lost", reason=bad, timing_ms=_timing(t0, t0, t0, time.perf_counter()))
+            return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         for im in (frame.image, frame.image_right):
             if frame_is_blank(im):
                 return StepResult(
-                    "lost", reason="empty frame (no texture)", timing_ms=_timing(t0, t0, t0, time.perf_counter())
+                    "lost",
+                    reason="empty frame (no texture)",
+                    timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()),
                 )
         cur = self._stereo(frame.image, frame.image_right, state.prev.plane if state.prev is not None else None)
         t1 = time.perf_counter()
@@ -417,7 +427,7 @@ class StereoSift:
                 "init",
                 reason="first frame",
                 n_keypoints=len(cur.uv),
-                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         n_kp = len(cur.uv)
         if n_kp < self.config.min_matches:
@@ -425,7 +435,7 @@ class StereoSift:
                 "lost",
                 reason=f"too few stereo keypoints ({n_kp})",
                 n_keypoints=n_kp,
-                timing_ms=_timing(t0, t1, t1, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
         # From here on the current frame is the next step's reference, lost or not: a lost step
         # restarts the track on it (the motion over the gap is unknown; scoring measures the
@@ -442,7 +452,7 @@ class StereoSift:
                 n_keypoints=n_kp,
                 n_matches=n_m,
                 n_inliers=n_in,
-                timing_ms=_timing(t0, t1, t2, time.perf_counter()),
+                timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
             )
 
         if n_m < self.config.min_matches:
@@ -506,7 +516,7 @@ class StereoSift:
             n_keypoints=n_kp,
             n_matches=n_m,
             n_inliers=n_in,
-            timing_ms=_timing(t0, t1, t2, t3),
+            timing_ms=stage_timing_ms(t0, t1, t2, t3),
             matches_px=np.hstack([prev.uv[qi[inl]], cur.uv[ti[inl]]]),
         )
 
@@ -552,10 +562,6 @@ class StereoSift:
                 f"tilt {prev.plane_sigma[1] * 1e3:.2f}/{cur.plane_sigma[1] * 1e3:.2f} mrad)"
             )
         return ""
-
-
-def _timing(t0: float, t1: float, t2: float, t3: float) -> dict:
-    return {"detect": (t1 - t0) * 1e3, "match": (t2 - t1) * 1e3, "estimate": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3}
 
 
 #: The real-time preset (issue 14 item 5): SIFT doubles the frame before its first octave,
