@@ -349,6 +349,14 @@ def _decodes(path: Path) -> bool:
     return True
 
 
+def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> None:
+    """Refuse an image whose bits per pixel (8 for uint8, 16 for uint16) are not what sequence.json's
+    ``key`` states (no check where it states none): a 16-bit frame read as 8-bit is 256 times too
+    bright, and an estimator would measure it as if it were."""
+    if bits is not None and 8 * img.dtype.itemsize != bits:
+        raise SequenceError(f"{path}: image is {8 * img.dtype.itemsize}-bit, sequence.json says {key} = {bits}")
+
+
 #: The last 12 bytes of every PNG: the empty IEND chunk and its CRC.
 _PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
@@ -518,6 +526,7 @@ class Sequence:
                 f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}, "
                 f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
             )
+        _check_bit_depth(img, self.meta.get("bit_depth"), self.image_path(index, cam), "bit_depth")
         return img
 
     def depth_mm(self, index: int) -> np.ndarray:
@@ -537,7 +546,11 @@ class Sequence:
     def flatfield(self, cam: str = "cam0") -> np.ndarray | None:
         """Flat-field calibration frame of ``cam`` as stored, or None if the sequence has none."""
         p = self.root / "calib" / f"{cam}_flatfield.png"
-        return read_png(p) if p.is_file() else None
+        if not p.is_file():
+            return None
+        img = read_png(p)
+        _check_bit_depth(img, (self.meta.get("calib") or {}).get("flatfield_bit_depth"), p, "calib.flatfield_bit_depth")
+        return img
 
     def groundtruth(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(timestamps_s (N,), T_world_cam0 (N, 4, 4) mm)`` or None when there is none.

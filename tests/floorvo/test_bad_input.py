@@ -321,3 +321,31 @@ def test_an_error_line_is_one_line_whatever_it_quotes(tmp_path, capsys):
     p.mkdir()
     assert floorvo_main(["run", str(p), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
     assert "\\nline" in _one_line(capsys, "floorvo")
+
+
+@pytest.mark.parametrize("which", ["frame", "flatfield"])
+def test_an_image_of_another_bit_depth_than_sequence_json_states_is_refused(tmp_path, capsys, which):
+    """A 16-bit frame in a sequence whose sequence.json says bit_depth = 8 was read as it was, 256
+    times too bright, and phase-corr ran on with exit code 0; so was a flat field of another
+    depth than calib.flatfield_bit_depth."""
+    from floorvo.io import read_png, write_png
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    meta = json.loads((seq / "sequence.json").read_text())
+    path = seq / "cam0" / "000001.png" if which == "frame" else seq / "calib" / "cam0_flatfield.png"
+    bits = 8 * read_png(path).dtype.itemsize
+    if which == "frame":
+        meta["bit_depth"] = bits
+    else:
+        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": bits}
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    run = ["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run0")]
+    assert floorvo_main(run) == 0  # as written: the stated depth is the file's
+    capsys.readouterr()
+    image = read_png(path).astype(np.float64)
+    write_png(path, (image * 257).astype(np.uint16) if bits == 8 else (image / 257).astype(np.uint8))
+    assert floorvo_main(run[:-1] + [str(tmp_path / "run1")]) == 1
+    key = "bit_depth" if which == "frame" else "calib.flatfield_bit_depth"
+    other = 16 if bits == 8 else 8
+    assert f"{path}: image is {other}-bit, sequence.json says {key} = {bits}" in _one_line(capsys, "floorvo")
