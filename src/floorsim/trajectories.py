@@ -581,8 +581,11 @@ def build_trajectory(
         else build(Disturbance, disturbance, "trajectory.disturbance")
     )
     n, path, events = ttype.build(p, float(fps), int(seed))
-    if n < 1:
-        raise ConfigError(f"trajectory: type {type_name!r} with these parameters has no frames")
+    if n < 2:  # one frame is a picture, not a trajectory: no step to estimate or score
+        raise ConfigError(
+            f"trajectory: type {type_name!r} with these parameters (at fps = {fps:g}) gives {n} frame"
+            f"{'' if n == 1 else 's'}: must give at least 2 (a shorter step, a lower speed or a longer path)"
+        )
     _frame_count(n)
     return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
 

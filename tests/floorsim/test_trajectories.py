@@ -170,3 +170,12 @@ def test_registry_has_the_design_types():
     assert {"uniform", "sigmoid", "line", "arc", "spin", "s_curve", "turns", "lawnmower", "kidnap", "strip"} <= set(
         TRAJECTORIES
     )
+
+
+def test_a_trajectory_of_one_frame_is_refused():
+    """160 mm of arc at 5000 mm/s is 167 mm a frame at 30 fps: one frame, which rendered as a
+    sequence with no step to estimate or score (exit code 0). 4000 mm/s gives two frames."""
+    arc = {"radius_mm": 150.0, "length_mm": 160.0}
+    with pytest.raises(ConfigError, match=r"type 'arc' with these parameters \(at fps = 30\) gives 1 frame: must give"):
+        build_trajectory("arc", {**arc, "speed_mm_s": 5000.0}, height_mm=100.0, fps=30.0)
+    assert build_trajectory("arc", {**arc, "speed_mm_s": 4000.0}, height_mm=100.0, fps=30.0).frame_count == 2
