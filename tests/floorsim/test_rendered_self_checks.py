@@ -2,7 +2,7 @@
 
 Blocks too close together for their own precision to bound the yaw: with ``crop_px = 33``
 (four 16 px blocks) on a quarter-size render of the concrete floor, phase-corr reported
-every step it kept ok with the yaw 0.5-1.0 degrees off (4 of 4 ok, 22 lost), because blocks
+every step it kept ok with the yaw 0.39-1.05 degrees off (4 of 4 ok, 21 lost), because blocks
 agreeing within ``block_precision_px`` skipped the yaw check. Such a layout now holds each
 step's yaw to issue 14's bound at ``precision_sigmas`` standard errors.
 """
@@ -59,7 +59,7 @@ def test_the_yaw_floor_of_the_block_layout_is_the_hand_computed_one():
 
 def test_blocks_too_close_to_bound_the_yaw_report_no_wrong_step(concrete_quarter):
     """crop_px = 33 on the quarter-size concrete run: no step reported ok is off by more than issue
-    14's bound (before: 4 of 4 were, 0.5-1.0 degrees); the default crop there keeps every step
+    14's bound (before: 4 of 4 were, 0.39-1.05 degrees); the default crop there keeps every step
     and each within it."""
     seq = concrete_quarter
     T_true = seq.groundtruth()[1]
