@@ -275,7 +275,8 @@ def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndar
     """
     cross = Fb * np.conj(Fa)
     mag = np.abs(cross)
-    R = cross / np.maximum(mag, 1e-12)
+    # Normalised by multiplying with the magnitude's reciprocal: a third of a complex division's time.
+    R = cross * np.reciprocal(np.maximum(mag, np.float32(1e-12)))
     n = sp.n
     corr = sfft.irfft2(R, s=(n, n), axes=(-2, -1)).reshape(len(R), -1)
     flat_peak = np.argmax(corr, axis=1)
@@ -303,9 +304,9 @@ def _phase_slope(cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp:
     positive multiple of them), weighted by its magnitude ``mag_low``."""
     B = len(cross_low)
     phi = np.angle(cross_low).reshape(B, -1).astype(np.float64)
-    if np.any(d0):  # the phase of R exp(2 pi i k.d0), wrapped into (-pi, pi]
+    if np.any(d0):  # the phase of R exp(2 pi i k.d0), wrapped into [-pi, pi] (by rounding: np.mod is 7x slower)
         phi += 2 * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low)
-        phi = np.pi - np.mod(np.pi - phi, 2 * np.pi)
+        phi -= 2 * np.pi * np.round(phi * (0.5 / np.pi))
     w = (mag_low * sp.low_not_dc).reshape(B, -1).astype(np.float64)
     lhs = (w @ sp.AA_low).reshape(-1, 2, 2) + 1e-12 * np.eye(2)  # sum_l w_l A_l^T A_l, per block
     rhs = (w * phi) @ sp.A_low  # sum_l w_l phi_l A_l
