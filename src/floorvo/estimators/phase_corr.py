@@ -22,7 +22,10 @@ Per frame:
    part (for b(x) = a(x - d): B A* = |A|^2 exp(-2 pi i k.d / N)).
 4. A rigid 2D fit (rotation + translation, least squares) of the block centres and
    their shifts updates the motion (this measures yaw); repeat 2-4 ``iterations`` times
-   (a warp that rotates repeats until its estimate stops moving, else the step is lost).
+   (a warp that rotates repeats until its estimate stops moving, else the step is lost),
+   fewer when the next round's whole-pixel warp would be this one's: exactly, or for a
+   rotating warp's first round within ``converged_px`` at the blocks (a steady turn started
+   from the last step).
    When the blocks fail from the prediction and from no motion, a first guess is taken
    from the whole region (a step larger than half the crop) or from the crops' log-polar
    magnitude spectra (a sharp turn: Reddy & Chatterji's rotation by phase correlation).
@@ -634,7 +637,9 @@ class PhaseCorr:
     def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> _Measured:
         """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px of the grid) from a start value.
 
-        ``iterations`` warp-and-measure rounds, fewer when the whole-pixel warp repeats; a
+        ``iterations`` warp-and-measure rounds, fewer when the whole-pixel warp repeats (a
+        rotating warp's first round: when the next one's would move no block centre by more
+        than ``converged_px`` and the blocks agree, :meth:`_settled_px`); a
         rotating warp (yaw above ``exact_yaw_max_deg``) takes up to ``MAX_EXTRA_ROUNDS`` more
         while the estimate still moves at a block centre by more than ``converged_px`` plus the
         blocks' own disagreement (their largest residual: what a round can resolve): a
@@ -698,6 +703,15 @@ class PhaseCorr:
                 moved_px = float(
                     np.abs((centres @ (M_new[:2, :2] - M_last[:2, :2]).T) + M_new[:2, 2] - M_last[:2, 2]).max()
                 )
+            elif rotating:
+                # The first round of a rotating warp (a steady turn, started from the last step's
+                # motion): when the next round's warp would move no block centre by more than
+                # converged_px it would measure the same, and is left out (:meth:`_settled_px`);
+                # that move is reported as the last round's.
+                settled_px = self._settled_px(W, M_new, centres, moved, Rs, ts, sc, exact_yaw)
+                if settled_px is not None:
+                    M, M_last, moved_px = M_new, M_new.copy(), settled_px / cfg.downscale
+                    break
             M, M_last = M_new, M_new.copy()
             if same_warp:
                 moved_px = 0.0
@@ -731,6 +745,46 @@ class PhaseCorr:
             centres,
             *self._image_scale(centres, shifts, float(sc), float(sig_rad)),
         )
+
+    def _settled_px(
+        self,
+        W: np.ndarray,
+        M_new: np.ndarray,
+        centres: np.ndarray,
+        moved: np.ndarray,
+        Rs: np.ndarray,
+        ts: np.ndarray,
+        sc: float,
+        exact_yaw_rad: float,
+    ) -> float | None:
+        """After the first round of a rotating warp ``W`` (3x3, whole-pixel translation) measured
+        ``M_new`` (3x3, prev-centred px -> cur-centred px of the grid) from the block ``centres``
+        (B, 2) grid px moved to ``moved`` (B, 2; ``Rs``, ``ts``, ``sc``: their similarity fit):
+        how far (frame px) the next round's warp would move a block centre from this round's,
+        when that round can be left out, else None.
+
+        It can when the next warp has the same whole-pixel translation and a rotation that moves
+        no block centre by more than ``converged_px`` (the tolerance a round's move is held to),
+        and the blocks agree within ``block_precision_px`` RMS (their similarity fit): the
+        next round would see the step through the same warp, to within that, and measure the
+        same. A residual rotation or a block disagreement beyond that takes the second round
+        (the S-curves' turn rate changes 0.5-0.65 degrees a frame: their first round's estimate
+        moved up to 0.17 frame px in the second). The step is then measured through the other
+        whole-pixel warp as every step is (:meth:`_warp_spread`)."""
+        cfg = self.config
+        if not np.array_equal(np.round(M_new[:2, 2]), W[:2, 2]):
+            return None
+        # The next round's warp: M_new with its translation rounded (the same), its rotation
+        # dropped at or below exact_yaw_max_deg (a non-rotating warp: another warp).
+        R_next = M_new[:2, :2] if abs(np.arctan2(M_new[1, 0], M_new[0, 0])) > exact_yaw_rad else np.eye(2)
+        k = cfg.downscale
+        change_px = float(np.abs(centres @ (R_next - W[:2, :2]).T).max()) * k
+        if change_px > cfg.converged_px:
+            return None
+        rms_px = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1)))) * k
+        if rms_px > cfg.block_precision_px:
+            return None
+        return change_px
 
     def _image_scale(
         self, centres: np.ndarray, shifts: np.ndarray, similarity_scale: float, similarity_sigma: float
