@@ -413,6 +413,13 @@ class PhaseCorr:
         spread_px = k * np.sqrt(np.sum((self.block_centres - self.block_centres.mean(axis=0)) ** 2))
         self.yaw_floor_deg = float(np.degrees(config.block_precision_px / spread_px))
         self.layout_bounds_yaw = self.yaw_floor_deg <= config.max_yaw_sigma_deg
+        # The crop's top-left corner from the principal point, and the principal point in the
+        # region (grid px): what a warp into the crop adds around the centred motion.
+        self.crop_from_centre = np.array([self.x0 - gc.cx_px, self.y0 - gc.cy_px])
+        self.centre_in_region = np.array([gc.cx_px - self.rx0, gc.cy_px - self.ry0])
+        self.crop_corners_centred = (
+            np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + self.crop_from_centre
+        )
 
     def start(self) -> _State:
         return _State()
@@ -466,13 +473,16 @@ class PhaseCorr:
         return self.sp.spectrum(stack)
 
     def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
-        """cur sampled at M(p) for p on the previous frame's crop grid (moved by ``offset`` px)."""
-        c = np.array([[1, 0, self.grid_cam.cx_px], [0, 1, self.grid_cam.cy_px], [0, 0, 1.0]])
-        c_inv = np.array([[1, 0, -self.grid_cam.cx_px], [0, 1, -self.grid_cam.cy_px], [0, 0, 1.0]])
-        o = np.array([[1, 0, self.x0 + offset[0]], [0, 1, self.y0 + offset[1]], [0, 0, 1.0]])
-        r = np.array([[1, 0, -self.rx0], [0, 1, -self.ry0], [0, 0, 1.0]])  # frame -> region coordinates
-        A = (r @ c @ M @ c_inv @ o)[:2]
-        if np.array_equal(A[:, :2], np.eye(2)) and np.array_equal(A[:, 2], np.round(A[:, 2])):
+        """cur sampled at M(p) for p on the previous frame's crop grid (moved by ``offset`` px).
+
+        ``M`` (3x3) maps prev-centred px to cur-centred px; a crop pixel p (from the crop's corner)
+        is sampled at the region's pixel ``A p = R (p + o - c) + t + c - r0`` (o: the crop's corner,
+        c: the principal point, r0: the region's corner; R, t: M's rotation and translation)."""
+        R = M[:2, :2]
+        A = np.empty((2, 3))
+        A[:, :2] = R
+        A[:, 2] = R @ (self.crop_from_centre + offset) + M[:2, 2] + self.centre_in_region
+        if R[0, 0] == 1.0 and R[1, 1] == 1.0 and R[0, 1] == 0.0 and R[1, 0] == 0.0 and np.all(A[:, 2] % 1.0 == 0.0):
             # A whole-pixel translation: a slice, exact and free.
             x, y = int(A[0, 2]), int(A[1, 2])
             if 0 <= x and 0 <= y and x + self.crop <= cur.shape[1] and y + self.crop <= cur.shape[0]:
@@ -673,7 +683,8 @@ class PhaseCorr:
             # 1/32 px, which biased the measured shift by ~0.03 px per frame; the phase-slope
             # fit measures the whole fractional part instead (exact for a translation).
             M[:2, 2] = np.round(M[:2, 2])
-            if abs(np.arctan2(M[1, 0], M[0, 0])) <= exact_yaw:
+            rotating = abs(np.arctan2(M[1, 0], M[0, 0])) > exact_yaw
+            if not rotating:
                 # The same quantisation in a rotating warp biases yaw (+17 % at 0.2 deg/frame):
                 # small rotations are left to the block shifts, which measure them themselves.
                 M[:2, :2] = np.eye(2)
@@ -694,11 +705,10 @@ class PhaseCorr:
             M_new = M @ E
             # Converged when the next whole-pixel warp would be the same one.
             same_warp = (
-                np.array_equal(np.round(M_new[:2, 2]), M[:2, 2])
+                not rotating
+                and np.array_equal(np.round(M_new[:2, 2]), M[:2, 2])
                 and abs(np.arctan2(M_new[1, 0], M_new[0, 0])) <= exact_yaw
-                and np.array_equal(M[:2, :2], np.eye(2))
             )
-            rotating = not np.array_equal(M[:2, :2], np.eye(2))
             if M_last is not None:
                 moved_px = float(
                     np.abs((centres @ (M_new[:2, :2] - M_last[:2, :2]).T) + M_new[:2, 2] - M_last[:2, 2]).max()
@@ -875,15 +885,9 @@ class PhaseCorr:
         """Where the previous frame's crop is measured (px from the centred one): (0, 0) when the
         motion ``M`` keeps the crop inside the current frame's region, else half the motion back,
         kept inside the previous frame's region."""
-        corners = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + [self.x0, self.y0]
-        centred = corners - [self.grid_cam.cx_px, self.grid_cam.cy_px]
-        moved = centred @ M[:2, :2].T + M[:2, 2] + [self.grid_cam.cx_px, self.grid_cam.cy_px]
-        if (
-            moved[:, 0].min() >= self.rx0
-            and moved[:, 1].min() >= self.ry0
-            and moved[:, 0].max() <= self.rx1
-            and moved[:, 1].max() <= self.ry1
-        ):
+        moved = self.crop_corners_centred @ M[:2, :2].T + M[:2, 2] + self.centre_in_region  # region px
+        lo, hi = moved.min(axis=0), moved.max(axis=0)
+        if lo[0] >= 0 and lo[1] >= 0 and hi[0] <= self.rx1 - self.rx0 and hi[1] <= self.ry1 - self.ry0:
             return (0, 0)
         ox = int(np.clip(-round(float(M[0, 2]) / 2), self.rx0 - self.x0, self.rx1 - self.crop - self.x0))
         oy = int(np.clip(-round(float(M[1, 2]) / 2), self.ry0 - self.y0, self.ry1 - self.crop - self.y0))
