@@ -775,12 +775,15 @@ class PhaseCorr:
 
         It can when the next warp has the same whole-pixel translation and a rotation that moves
         no block centre by more than ``converged_px`` (the tolerance a round's move is held to),
-        and the blocks agree within ``block_precision_px`` RMS (their similarity fit): the
-        next round would see the step through the same warp, to within that, and measure the
-        same. A residual rotation or a block disagreement beyond that takes the second round
-        (the S-curves' turn rate changes 0.5-0.65 degrees a frame: their first round's estimate
-        moved up to 0.17 frame px in the second). The step is then measured through the other
-        whole-pixel warp as every step is (:meth:`_warp_spread`)."""
+        and the blocks agree: within ``block_precision_px`` RMS (their similarity fit), and
+        closely enough that the translation passes the precision check
+        (:meth:`_precision_problem`, its standard error without a height change's): the next
+        round would see the step through the same warp, to within that, and measure the same. A
+        residual rotation or a block disagreement beyond that takes the second round (the
+        S-curves' turn rate changes 0.5-0.65 degrees a frame: their first round's estimate moved
+        up to 0.17 frame px in the second; on the full-size polished spin two steps whose first
+        round was imprecise were precise after the second). The step is then measured through
+        the other whole-pixel warp as every step is (:meth:`_warp_spread`)."""
         cfg = self.config
         if not np.array_equal(np.round(M_new[:2, 2]), W[:2, 2]):
             return None
@@ -794,6 +797,13 @@ class PhaseCorr:
         rms_px = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1)))) * k
         if rms_px > cfg.block_precision_px:
             return None
+        if cfg.precision_sigmas > 0.0:
+            mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
+            sig_px, _ = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
+            if cfg.precision_sigmas * sig_px * mm_per_px > cfg.bound_mm(
+                float(np.linalg.norm(M_new[:2, 2])) * mm_per_px
+            ):
+                return None
         return change_px
 
     def _image_scale(
