@@ -165,7 +165,8 @@ class PhaseCorrConfig(StepBoundConfig):
         0.1,
         unit="px",
         gt=0.0,
-        doc="a rotating warp whose last round moves the estimate more than this (plus the blocks' disagreement) is lost",
+        doc="a rotating warp whose last round moves the estimate more than this (plus the blocks' disagreement) is "
+        "lost; its first round is the last when the next round's warp would move no block centre by more than this",
     )
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
@@ -616,6 +617,12 @@ class PhaseCorr:
             )
         return ""
 
+    def _imprecise(self, sigma_mm: float, step_mm: float) -> bool:
+        """``precision_sigmas`` standard errors ``sigma_mm`` of a step of ``step_mm`` exceed issue
+        14's bound for it (``max_step_error_*``); never with ``precision_sigmas = 0``."""
+        cfg = self.config
+        return cfg.precision_sigmas > 0.0 and not cfg.precision_sigmas * sigma_mm <= cfg.bound_mm(step_mm)
+
     def _precision_problem(self, m: _Measured, height_sigma_mm: float = 0.0) -> str:
         """Why a measured step is too imprecise to report ('' when it is not): its translation's
         standard error from the blocks' disagreement, with that of the height change the image
@@ -631,7 +638,7 @@ class PhaseCorr:
             return ""
         bound_mm = cfg.bound_mm(m.step_mm)
         sigma_mm = float(np.hypot(m.shift_sigma_mm, height_sigma_mm))
-        if not cfg.precision_sigmas * sigma_mm <= bound_mm:
+        if self._imprecise(sigma_mm, m.step_mm):
             what = "its translation" if not height_sigma_mm else "its translation and height change"
             return (
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of {what} are "
@@ -800,9 +807,7 @@ class PhaseCorr:
         if cfg.precision_sigmas > 0.0:
             mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
             sig_px, _ = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
-            if cfg.precision_sigmas * sig_px * mm_per_px > cfg.bound_mm(
-                float(np.linalg.norm(M_new[:2, 2])) * mm_per_px
-            ):
+            if self._imprecise(sig_px * mm_per_px, float(np.linalg.norm(M_new[:2, 2])) * mm_per_px):
                 return None
         return change_px
 
