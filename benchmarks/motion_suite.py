@@ -14,7 +14,9 @@ per scene x estimator from the bench's rows: steps, ok steps, **wrong ok steps**
 (``wrong_ok_steps``: off by more than 0.05 mm + 2 % of the true step or 0.3 degrees, issue
 14's bound), the same against the planar step of the camera's footprint
 (``wrong_ok_steps_footprint``: the bound for a planar estimator on a tilted or bouncing run),
-lost frames, end drift in % of the path, frames per second (from the mean total
+lost frames, end drift in % of the path, the turn error (``turn_error_pct``: measured minus
+true turn over the steps reported ok, in % of the true turn; none under 10 degrees), frames
+per second (from the mean total
 time per frame of the run, one core) and the lost frames per kind of reason. With
 ``--from-cache DIR`` the suite's scenes are not rendered: the newest ``DIR/SCENE-*`` sequence
 of each (a bench's render cache) is benched as it is.
@@ -102,7 +104,8 @@ def main() -> None:
     scales: dict[tuple[str, str], str] = {}
     if args.calibrate:
         calibrated, scales = _calibrated_rows(args, scenes, names, material_of, estimators, est_sets)
-    cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %", "frames/s"]
+    cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %"]
+    cols += ["turn error %", "frames/s"]
     if args.calibrate:
         cols += ["scale x (material)", "calibrated end drift %", "calibrated wrong ok, footprint"]
     cols.append("lost frames by reason")
@@ -121,6 +124,7 @@ def main() -> None:
             _fmt(r.get("wrong_ok_steps_footprint"), 0),
             str(lost),
             _fmt(r.get("end_drift_pct")),
+            _fmt(r.get("turn_error_pct")),
             _fmt(r.get("fps"), 1),
         ]
         if args.calibrate:

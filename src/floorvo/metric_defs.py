@@ -31,6 +31,8 @@ __all__ = [
     "DISTANCE_ERROR",
     "PATH_LENGTH",
     "MEASURED",
+    "TURN",
+    "TURN_ERROR",
     "segment_t_err",
     "SEG_MEAN_T_ERR",
     "SEG_MEAN_R_ERR",
@@ -130,6 +132,15 @@ DISTANCE_ERROR = MetricDef(
 )
 PATH_LENGTH = MetricDef("path_length_mm", "mm", "path mm", None, "length of the reference path")
 MEASURED = MetricDef("measured_mm", "mm", "measured mm", None, "estimated start-to-end distance")
+TURN = MetricDef("turn_deg", "deg", "turn deg", None, "true turn over the steps reported ok (sum of |yaw change|)")
+TURN_ERROR = MetricDef(
+    "turn_error_pct",
+    "%",
+    "turn error %",
+    None,
+    "measured minus true turn over the steps reported ok, in % of the true turn (signed: the yaw's scale "
+    "error); empty under 10 degrees of turn",
+)
 
 
 def segment_t_err(length_mm: float) -> MetricDef:
@@ -190,7 +201,7 @@ def all_metrics(
     defs = [d for a in ALIGNMENTS for d in (ate_rmse(a), ate_mean(a), ate_max(a))]
     defs += [ATE_SE3_ROT_RMSE, RPE_FRAME_TRANS_RMSE, RPE_FRAME_ROT_RMSE]
     defs += [rpe_distance_trans_rmse(d) for d in rpe_deltas_mm]
-    defs += [END_DRIFT, DISTANCE_ERROR, PATH_LENGTH, MEASURED]
+    defs += [END_DRIFT, DISTANCE_ERROR, PATH_LENGTH, MEASURED, TURN, TURN_ERROR]
     defs += [segment_t_err(L) for L in segment_lengths_mm]
     defs += [SEG_MEAN_T_ERR, SEG_MEAN_R_ERR, LOST_FRAMES, LOSS_EVENTS, TRACKED_FRACTION, WRONG_OK_STEPS]
     defs += [WRONG_OK_STEPS_FOOTPRINT]

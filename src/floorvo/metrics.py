@@ -59,6 +59,8 @@ __all__ = [
     "rpe",
     "step_errors",
     "wrong_steps",
+    "turn_error",
+    "MIN_TURN_DEG",
     "reason_kind",
     "lost_reasons",
     "end_point_drift",
@@ -318,6 +320,41 @@ def wrong_steps(
     """(K,) bool: the steps of :func:`step_errors` off by more than ``abs_mm + fraction * step``
     in translation or ``rot_deg`` in rotation (issue 14's bound by default)."""
     return (errors["trans_mm"] > abs_mm + fraction * errors["step_mm"]) | (errors["rot_deg"] > rot_deg)
+
+
+#: Less true turn than this (degrees, summed over a run's steps) leaves the turn error unreported:
+#: on a straight run it would be the ratio of two noises.
+MIN_TURN_DEG = 10.0
+
+
+def turn_error(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray | None = None) -> dict[str, float]:
+    """How much of the true turn a run's steps measure: the yaw's scale error.
+
+    Steps as in :func:`step_errors` (consecutive associated poses (N, 4, 4); ``T_ref_from``
+    (N-1, 4, 4): the true pose each step was measured from). With d_k the true and e_k the
+    measured yaw change of step k (degrees, about the camera's z axis: ``yaw_of_R`` of the
+    step's rotation): ``turn_deg`` = sum |d_k| (the true turn, both directions counted, as on
+    an S-curve), ``measured_turn_deg`` = sum e_k sign(d_k), and ``turn_error_pct`` = 100
+    (measured - true) / true: the signed error of the turn, as ``distance_error_pct`` is of
+    the distance; NaN below :data:`MIN_TURN_DEG` of true turn. A planar estimator that reads
+    every rotation s times too large has turn_error_pct = 100 (s - 1); on a turning run that
+    error, not the step's length, can dominate the end drift (it swings the rest of the path).
+    Steps with no true pose at either end (NaN) are left out.
+    """
+    A, B = _check_pair(T_ref, T_est)
+    A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
+    d_true = invert_T(A_from) @ A[1:]
+    d_est = invert_T(B[:-1]) @ B[1:]
+    yaw_true = np.degrees(np.arctan2(d_true[:, 1, 0], d_true[:, 0, 0]))
+    yaw_est = np.degrees(np.arctan2(d_est[:, 1, 0], d_est[:, 0, 0]))
+    known = np.isfinite(yaw_true) & np.isfinite(yaw_est)
+    turn = float(np.abs(yaw_true[known]).sum())
+    measured = float((yaw_est[known] * np.sign(yaw_true[known])).sum())
+    return {
+        "turn_deg": turn,
+        "measured_turn_deg": measured,
+        "turn_error_pct": 100.0 * (measured - turn) / turn if turn >= MIN_TURN_DEG else float("nan"),
+    }
 
 
 # ----------------------------------------------------------------------------- drift

@@ -38,6 +38,7 @@ from floorvo.metrics import (
     step_errors,
     timing_stats,
     tracking_stats,
+    turn_error,
     wrong_steps,
 )
 from floorvo.runfolder import RunFolder
@@ -124,7 +125,7 @@ class Score:
             f[md.RPE_FRAME_ROT_RMSE.name] = self.rpe_frame["rot_deg"]["rmse"]
         for r in self.rpe_distance:
             f[md.rpe_distance_trans_rmse(r["delta"]).name] = r["trans_mm"]["rmse"]
-        for d in (md.END_DRIFT, md.DISTANCE_ERROR, md.PATH_LENGTH, md.MEASURED):
+        for d in (md.END_DRIFT, md.DISTANCE_ERROR, md.PATH_LENGTH, md.MEASURED, md.TURN, md.TURN_ERROR):
             if d.name in self.drift:
                 f[d.name] = self.drift[d.name]
         for s in self.segments:
@@ -320,6 +321,12 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         planar = _ok_steps_of_run(run, seq_dir, t_ref, footprint_T(T_ref, height), max_diff_s, planar=True)
         if planar is not None:
             score.tracking["wrong_ok_steps_footprint"] = int(wrong_steps(planar).sum())
+        poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
+        if poses is not None:
+            A, A_from, B = poses
+            turn = turn_error(A, B, T_ref_from=A_from)
+            # Under MIN_TURN_DEG the error is not reported: left out (an empty results.csv cell), not NaN.
+            score.drift.update({k: v for k, v in turn.items() if math.isfinite(v)})
     if result:
         score.extra["result"] = {
             k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result

@@ -271,3 +271,32 @@ def test_numbers_agree_with_evo_on_the_same_tum_files(tmp_path, monkeypatch):
 
     stats = fi.load_res_file(str(res)).stats
     assert M.ate(A, B, "se3")["trans_mm"]["rmse"] == pytest.approx(stats["rmse"] * 1000.0, rel=1e-6)
+
+
+def test_turn_error_is_the_yaw_scale_error_of_the_steps_hand_computed():
+    """An S-curve's yaw steps, +0.02 rad for 20 frames then -0.02 rad for 20 (45.8 degrees of turn
+    both ways counted, net none), measured 1 % too large: turn_error_pct = +1.0; measured exactly
+    right but one step wrong by +0.005 rad: 100 * 0.2865 / 45.84 %. A straight run has no turn to
+    scale: NaN, and a step measured from a restart frame (``T_ref_from``) counts its true turn."""
+    yaw_steps = np.r_[np.full(20, 0.02), np.full(20, -0.02)]
+
+    def traj(steps):
+        yaw = np.r_[0.0, np.cumsum(steps)]
+        return np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, yaw[i]) for i in range(len(yaw))])
+
+    ref = traj(yaw_steps)
+    t = M.turn_error(ref, traj(1.01 * yaw_steps))
+    assert t["turn_deg"] == pytest.approx(np.degrees(0.8), rel=1e-9)
+    assert t["turn_error_pct"] == pytest.approx(1.0, rel=1e-6)
+    one_off = yaw_steps.copy()
+    one_off[5] += 0.005
+    t = M.turn_error(ref, traj(one_off))
+    assert t["measured_turn_deg"] - t["turn_deg"] == pytest.approx(np.degrees(0.005), rel=1e-6)
+    assert t["turn_error_pct"] == pytest.approx(100 * 0.005 / 0.8, rel=1e-6)
+    assert np.isnan(M.turn_error(line_traj(), line_traj(yaw_rate=0.001))["turn_error_pct"])
+    # Frame 1 lost: the run's poses at frames 0, 2, 3, its first step measured from frame 0 (0.04 rad),
+    # its second from a restart on frame 1 (T_ref_from: the true step 1 -> 3, 0.04 rad, not 2 -> 3).
+    est = traj(yaw_steps)[[0, 2, 3]]
+    two = M.turn_error(ref[[0, 2, 3]], est, T_ref_from=ref[[0, 1]])
+    assert two["turn_deg"] == pytest.approx(np.degrees(0.08), rel=1e-9)  # under MIN_TURN_DEG: no error
+    assert two["measured_turn_deg"] == pytest.approx(np.degrees(0.06), rel=1e-9) and np.isnan(two["turn_error_pct"])

@@ -14,14 +14,15 @@ from floorvo.tum import write_tum
 
 
 # ----------------------------------------------------------------------------- score_run and the CLI
-def _fake_run(tmp_path, *, scale=1.01, lost=(7, 8)):
-    """A sequence folder (ground truth only) and a run folder with a scaled estimate and two lost frames."""
+def _fake_run(tmp_path, *, scale=1.01, lost=(7, 8), yaw_rate=0.0, yaw_scale=1.0):
+    """A sequence folder (ground truth only) and a run folder with a scaled estimate and two lost frames
+    (``yaw_rate`` rad a frame: a turning run, its yaw steps measured ``yaw_scale`` times)."""
     seq = tmp_path / "seq"
     run = tmp_path / "run"
     n = 26
     ts = np.arange(n) / 10.0
-    ref = line_traj(n)
-    est = line_traj(n, scale=scale)
+    ref = line_traj(n, yaw_rate=yaw_rate)
+    est = line_traj(n, scale=scale, yaw_rate=yaw_rate * yaw_scale)
     seq.mkdir()
     write_tum(seq / "groundtruth.txt", ts, ref)
     camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
@@ -49,6 +50,25 @@ def test_score_run_reads_run_folder(tmp_path):
     f = s.flat()
     assert f["lost_frames"] == 2 and f["end_drift_pct"] == pytest.approx(1.0, rel=1e-6)
     json.dumps(s.to_dict())  # serialisable
+
+
+def test_the_turn_error_is_scored_over_the_steps_reported_ok(tmp_path, capsys):
+    """A run turning 0.02 rad a frame (25 steps, 28.6 degrees), every yaw step measured 1 % too
+    large, frames 7 and 8 lost: the step 6 -> 9 is measured from frame 6 (3 frames of turn), so
+    the steps reported ok still cover the whole turn, and the turn error is +1 %. A straight run
+    has none (left out: an empty results.csv cell)."""
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path, scale=1.0, yaw_rate=0.02, yaw_scale=1.01)
+    s = S.score_run(run, seq)
+    assert s.drift["turn_deg"] == pytest.approx(np.degrees(0.5), rel=1e-6)
+    assert s.drift["turn_error_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert s.flat()["turn_error_pct"] == pytest.approx(1.0, rel=1e-6)
+    assert main(["score", str(run), "--gt", str(seq)]) == 0
+    assert "turn_error_pct 1 %  (measured 28.93 deg of 28.65 deg turned" in capsys.readouterr().out
+    (tmp_path / "straight").mkdir()
+    straight_seq, straight_run = _fake_run(tmp_path / "straight")
+    assert "turn_error_pct" not in S.score_run(straight_run, straight_seq).flat()
 
 
 def test_floorvo_score_cli_prints_table_and_writes_score_json(tmp_path, capsys):
@@ -157,13 +177,13 @@ def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(
         [f"ate_{a}_{s}_mm" for a in ("none", "origin", "se2", "se3") for s in ("rmse", "mean", "max")]
         + ["ate_se3_rot_rmse_deg", "rpe_frame_trans_rmse_mm", "rpe_frame_rot_rmse_deg"]
         + ["rpe_10mm_trans_rmse_mm", "rpe_100mm_trans_rmse_mm"]
-        + ["end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm"]
+        + ["end_drift_pct", "distance_error_pct", "path_length_mm", "measured_mm", "turn_deg", "turn_error_pct"]
         + ["seg_10mm_t_err_pct", "seg_25mm_t_err_pct", "seg_50mm_t_err_pct", "seg_100mm_t_err_pct"]
         + ["seg_mean_t_err_pct", "seg_mean_r_err_deg_per_m", "lost_frames", "loss_events", "tracked_fraction"]
         + ["wrong_ok_steps", "wrong_ok_steps_footprint"]
         + ["time_total_ms_mean", "time_detect_ms_mean", "time_match_ms_mean", "time_estimate_ms_mean", "fps"]
     )
-    assert list(flat) == by_hand
+    assert list(flat) == [n for n in by_hand if n != "turn_error_pct"]  # a straight run: no turn to have an error
     declared = md.all_metrics(segment_lengths_mm=(10.0, 25.0, 50.0, 100.0))
     assert list(declared) == by_hand
     for name in by_hand:

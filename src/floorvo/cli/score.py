@@ -84,6 +84,11 @@ def format_score_table(score: Score) -> str:
             f"end_drift_pct {_fmt(d['end_drift_pct'])} %  (end error {_fmt(d['end_error_mm'])} mm over "
             f"{_fmt(d['path_length_mm'])} mm; measured {_fmt(d['measured_mm'])} mm of {_fmt(d['true_mm'])} mm)"
         )
+    if "turn_error_pct" in d:
+        lines.append(
+            f"turn_error_pct {_fmt(d['turn_error_pct'])} %  (measured {_fmt(d['measured_turn_deg'])} deg of "
+            f"{_fmt(d['turn_deg'])} deg turned over the steps reported ok)"
+        )
     for s in score.segments:
         lines.append(
             f"segment {s['length_mm']:>6g} mm: t_err {_fmt(s['t_err_pct'])} %  r_err {_fmt(s['r_err_deg_per_m'])} deg/m  (n={s['count']})"
