@@ -69,7 +69,7 @@ def run_estimator(
     """Run estimator ``name`` over ``seq`` (or the listed ``frames`` of it) into ``out_dir``.
 
     ``scale_calibration`` (:mod:`floorvo.calibration`): divide each step's camera-frame
-    x, y translation by the rig's calibrated scales before chaining it. ``T_world_start``
+    x, y translation and its yaw by the rig's calibrated scales before chaining it. ``T_world_start``
     (4, 4) mm: where the run starts (default: the first frame's ground-truth pose, else the
     identity; ``--initial-pose``, :class:`InitialPose`). ``out_dir`` is locked while the run
     lasts (:func:`floorvo.locking.lock_folder`): a second writer of it is refused in one line.

@@ -1,4 +1,5 @@
-"""``floorvo calibrate RUN --gt SEQ -o FILE``: fit a rig's per-axis odometry scale on a run with ground truth."""
+"""``floorvo calibrate RUN [RUN ...] --gt SEQ [--gt SEQ ...] -o FILE``: fit a rig's per-axis odometry
+scale (and its yaw's) on runs with ground truth."""
 
 from __future__ import annotations
 
@@ -12,15 +13,28 @@ __all__ = ["add_parser", "run"]
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "calibrate",
-        help="fit the camera-frame x, y scale of a run against ground truth (use it with 'floorvo run --scale-calibration')",
-        description="Least-squares scale of the estimated step translations over the true ones, per camera axis "
-        "(floorvo.calibration). Fit it on one run of a rig over a floor, apply it to later runs of that rig.",
+        help="fit the camera-frame x, y scale (and the yaw's) of runs against ground truth "
+        "(use it with 'floorvo run --scale-calibration')",
+        description="Least-squares scale of the estimated step translations over the true ones, per camera axis, "
+        "and of the estimated yaw changes over the true ones (floorvo.calibration). Fit it on runs of a rig over a "
+        "floor (a straight run for x and y, a turning one such as a spin in place for the yaw; several runs are "
+        "fitted together), apply it to later runs of that rig.",
     )
-    p.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `floorvo run`")
-    p.add_argument("--gt", metavar="SEQ", type=Path, required=True, help="sequence folder (or a TUM ground-truth file)")
+    p.add_argument("run_dirs", metavar="RUN", type=Path, nargs="+", help="run folder(s) written by `floorvo run`")
+    p.add_argument(
+        "--gt",
+        metavar="SEQ",
+        type=Path,
+        action="append",
+        required=True,
+        help="sequence folder (or a TUM ground-truth file) of each RUN, in their order (one for all: the same)",
+    )
     add_output_argument(p, "calibration file to write (JSON)", metavar="FILE", type=Path)
     p.add_argument(
         "--min-travel-mm", type=float, default=10.0, help="an axis with less travel keeps scale 1 (default 10)"
+    )
+    p.add_argument(
+        "--min-turn-deg", type=float, default=10.0, help="runs turning less keep the yaw's scale 1 (default 10)"
     )
     p.add_argument(
         "--max-diff", type=float, default=0.01, help="timestamp association tolerance in seconds (default 0.01)"
@@ -29,9 +43,13 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from floorvo.calibration import calibrate_run, save_scale_calibration
+    from floorvo.calibration import calibrate_runs, save_scale_calibration
+    from floorvo.errors import ConfigError
 
-    cal = calibrate_run(args.run_dir, args.gt, args.max_diff, args.min_travel_mm)
+    gts = args.gt * len(args.run_dirs) if len(args.gt) == 1 else args.gt
+    if len(gts) != len(args.run_dirs):
+        raise ConfigError(f"--gt: given {len(args.gt)} times for {len(args.run_dirs)} runs: give one, or one per run")
+    cal = calibrate_runs(list(zip(args.run_dirs, gts)), args.max_diff, args.min_travel_mm, args.min_turn_deg)
     save_scale_calibration(cal, args.output)
     parts = []
     for axis in "xy":
@@ -40,5 +58,9 @@ def run(args) -> int:
             parts.append(f"{axis} {getattr(cal, f'scale_{axis}'):.5f} ({travel:.0f} mm of travel)")
         else:
             parts.append(f"{axis} not observed ({travel:.1f} mm of travel), kept at 1")
+    if cal.observed_yaw:
+        parts.append(f"yaw {cal.scale_yaw:.5f} ({cal.turn_deg:.0f} deg of turn)")
+    else:
+        parts.append(f"yaw not observed ({cal.turn_deg:.1f} deg of turn), kept at 1")
     print(f"scale {'; '.join(parts)}; {cal.steps} steps -> {args.output}")
     return 0
