@@ -30,6 +30,8 @@ Conventions
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +43,8 @@ __all__ = [
     "R_WORLD_CAM_DOWN",
     "make_T",
     "invert_T",
+    "rigid_problem",
+    "RIGID_TOLERANCE",
     "rot_z",
     "T_world_cam_down",
     "T_from_xyz_quat",
@@ -95,6 +99,33 @@ def invert_T(T: np.ndarray) -> np.ndarray:
     out[..., :3, 3] = -(Rt @ T[..., :3, 3:4])[..., 0]
     out[..., 3, 3] = 1.0
     return out
+
+
+#: How far ``R^T R`` may be from the identity, and the bottom row from ``[0, 0, 0, 1]``, in a
+#: transform :func:`rigid_problem` accepts (float64 products of rotations stay near 1e-15).
+RIGID_TOLERANCE = 1e-6
+
+
+def rigid_problem(T: Any) -> str | None:
+    """Why ``T`` is not a rigid transform (4, 4) of finite numbers, or None when it is one.
+
+    Rigid: ``R = T[:3, :3]`` orthonormal with ``det R = +1`` and the bottom row ``[0, 0, 0, 1]``,
+    each within :data:`RIGID_TOLERANCE`. The reason names the rule broken (for an error message).
+    """
+    try:
+        A = np.asarray(T, dtype=float)
+    except (TypeError, ValueError):
+        return f"a {type(T).__name__}, not a (4, 4) array of numbers"
+    if A.shape != (4, 4):
+        return f"shape {A.shape}, not (4, 4)"
+    if not np.isfinite(A).all():
+        return "holds a non-finite value"
+    if np.max(np.abs(A[3] - [0.0, 0.0, 0.0, 1.0])) > RIGID_TOLERANCE:
+        return f"bottom row {A[3].tolist()}, not [0, 0, 0, 1]"
+    R = A[:3, :3]
+    if np.max(np.abs(R.T @ R - np.eye(3))) > RIGID_TOLERANCE or np.linalg.det(R) <= 0:
+        return "its 3x3 part is not a rotation (orthonormal, determinant +1)"
+    return None
 
 
 def rot_z(yaw_rad: float) -> np.ndarray:

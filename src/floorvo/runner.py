@@ -31,7 +31,7 @@ import numpy as np
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
 from floorvo.estimators.base import Frame, StepResult
-from floorvo.geometry import depth_floor_plane
+from floorvo.geometry import depth_floor_plane, rigid_problem
 from floorvo.metrics import lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
@@ -161,6 +161,14 @@ class RunResult:
         return RunFolder(ts, T, self.timing_columns(reasons=reasons), dict(result), header)
 
 
+def _check_rigid(T: Any, name: str, index: int, what: str) -> None:
+    """A pose an estimator returned must be a rigid (4, 4) transform of finite numbers: chained
+    as it is, a scaled, sheared or NaN matrix gives every later pose of the run that flaw."""
+    problem = rigid_problem(T)
+    if problem is not None:
+        raise ValueError(f"{name}: frame {index}: {what} is not a rigid transform ({problem})")
+
+
 def run_frames(
     estimator: Any,
     frames: Iterable[Frame],
@@ -176,8 +184,8 @@ def run_frames(
     chaining). ``scale_calibration`` is divided out of every motion step, never out of an
     absolute pose. ``on_step(k, frame, step_result)`` is called after each step (progress,
     match samples). ``name``: the run's estimator name (default ``estimator.name``).
-    An estimator that breaks the protocol (an unknown status, ``ok`` without motion) is a
-    bug: ``ValueError``.
+    An estimator that breaks the protocol (an unknown status, ``ok`` without motion, a motion or
+    pose that is not a rigid (4, 4) transform of finite numbers) is a bug: ``ValueError``.
     """
     name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
     T_world = np.array(T_world_start, dtype=float)
@@ -189,17 +197,21 @@ def run_frames(
     t0 = time.perf_counter()
     for k, frame in enumerate(frames):
         res = estimator.step(state, frame)
+        if not isinstance(res, StepResult):
+            raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
         st = res.status
         fix = False
         if st not in _PLACED:
             if st != "lost":
                 raise ValueError(f"{name}: frame {frame.index}: status {st!r} (an estimator returns init, ok or lost)")
         elif res.T_world_cam is not None:
+            _check_rigid(res.T_world_cam, name, frame.index, "T_world_cam")
             T_world = np.array(res.T_world_cam, dtype=float)
             fix = True
         elif st == "ok":
             if res.T_prev_cur is None:
                 raise ValueError(f"{name}: frame {frame.index}: status 'ok' without T_prev_cur")
+            _check_rigid(res.T_prev_cur, name, frame.index, "T_prev_cur")
             step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
             T_world = T_world @ step
         index.append(frame.index)

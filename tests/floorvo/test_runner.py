@@ -102,10 +102,26 @@ def test_scale_calibration_divides_the_steps_but_not_a_fix():
 
 @pytest.mark.parametrize(
     "bad, message",
-    [(StepResult("ok"), "status 'ok' without T_prev_cur"), (StepResult("reset"), "status 'reset'")],
+    [
+        (StepResult("ok"), "status 'ok' without T_prev_cur"),
+        (StepResult("reset"), "status 'reset'"),
+        (None, r"step returned a NoneType, not a StepResult"),
+        # a motion that is not rigid was chained as it was: a scaled step ran with exit code 0,
+        # a NaN ended in an SVD error and a 3x3 in a matmul error from deep inside
+        (StepResult("ok", np.eye(3)), r"T_prev_cur is not a rigid transform \(shape \(3, 3\), not \(4, 4\)\)"),
+        (StepResult("ok", np.diag([2.0, 1.0, 1.0, 1.0])), r"T_prev_cur is not a rigid transform \(its 3x3 part"),
+        (StepResult("ok", np.diag([-1.0, 1.0, 1.0, 1.0])), r"T_prev_cur is not a rigid transform \(its 3x3 part"),
+        (StepResult("ok", make_T(np.eye(3), [np.nan, 0.0, 0.0])), r"T_prev_cur .*non-finite"),
+        (
+            StepResult("ok", np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, 1.0]])),
+            r"T_prev_cur is not a rigid transform \(bottom row",
+        ),
+        (StepResult("ok", "eye"), r"T_prev_cur is not a rigid transform \(a str"),
+        (StepResult("init", T_world_cam=np.eye(4)[:3]), r"T_world_cam is not a rigid transform \(shape \(3, 4\)"),
+    ],
 )
 def test_an_estimator_breaking_the_protocol_is_a_bug_not_a_user_error(bad, message):
-    with pytest.raises(ValueError, match=message) as exc:
+    with pytest.raises(ValueError, match=f"scripted: frame 1: {message}") as exc:
         run_frames(Scripted([StepResult("init"), bad]), _frames(2), T_world_start=np.eye(4))
     assert not isinstance(exc.value, FloorbenchError)
 
