@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration
-from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.errors import ConfigError, FloorbenchError, shorten
 from floorvo.estimators import estimator_source, get_estimator, make_config
 from floorvo.geometry import T_from_se2, T_from_xyz_quat
 from floorvo.io import ensure_writable_dir
@@ -27,9 +28,32 @@ from floorvo.locking import locks_folder
 from floorvo.runner import RunResult, camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
-__all__ = ["run_estimator", "RunResult", "build_estimator", "InitialPose"]
+__all__ = ["run_estimator", "RunResult", "build_estimator", "estimator_faults", "InitialPose"]
 
 log = logging.getLogger(__name__)
+
+
+@contextmanager
+def estimator_faults(name: str, what: str) -> Iterator[None]:
+    """Run ``what`` of estimator ``name``: an exception raised by the code of a plugin or a
+    ``module:Class`` estimator (its ``__init__``, ``start`` or ``step``, or a step that breaks
+    the protocol, :func:`floorvo.runner.run_frames`) becomes a one-line :class:`FloorbenchError`
+    naming the estimator, where it came from and the exception (``-v`` logs its traceback), so
+    ``floorvo run`` exits 1 in one line and the bench records a failed row and goes on, as for
+    an external program that crashes. A built-in's exception is a bug of this project and keeps
+    its traceback; user errors (:class:`FloorbenchError`) and OS errors pass as they are."""
+    try:
+        yield
+    except (FloorbenchError, OSError):
+        raise
+    except Exception as exc:
+        src = estimator_source(name)
+        if src.kind == "built-in":
+            raise
+        log.debug("%s: %s raised", name, what, exc_info=True)
+        raise FloorbenchError(
+            f"estimator {name!r} ({src.kind} {src.detail}): {what} raised {type(exc).__name__}: {shorten(str(exc), 300)}"
+        ) from exc
 
 
 def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | None = None):
@@ -52,7 +76,8 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
     if seq.led_positions_cam_mm is not None:  # the rig's own lights (homography-6dof's tilt check)
         rig["led_positions_cam_mm"] = seq.led_positions_cam_mm
     flat = seq.flatfield()
-    return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
+    with estimator_faults(name, "__init__"):
+        return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
 
 
 @locks_folder("out_dir", "run folder")
@@ -80,15 +105,16 @@ def run_estimator(
     out = ensure_writable_dir(out_dir)
     indices = list(range(seq.frame_count) if frames is None else frames)
     n = len(indices)
-    run = run_sequence(
-        seq,
-        est,
-        frames=indices,
-        scale_calibration=scale_calibration,
-        T_world_start=T_world_start,
-        on_step=None if on_frame is None else (lambda k, frame, res: on_frame(k + 1, n)),
-        name=name,
-    )
+    with estimator_faults(name, "the run"):
+        run = run_sequence(
+            seq,
+            est,
+            frames=indices,
+            scale_calibration=scale_calibration,
+            T_world_start=T_world_start,
+            on_step=None if on_frame is None else (lambda k, frame, res: on_frame(k + 1, n)),
+            name=name,
+        )
     run = replace(run, run_dir=str(out))
     header = f"floorvo {name}: T_world_cam, metres" if run.placed.any() else f"floorvo {name}: no frame tracked"
     result = {

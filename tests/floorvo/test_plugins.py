@@ -191,6 +191,53 @@ def test_module_class_reference_runs_without_installing(line_sequence, tmp_path,
     assert "cannot be imported: AttributeError" in err and len(err.strip().splitlines()) == 1
 
 
+FAULTY_SOURCE = (
+    MODULE_SOURCE
+    + """
+class RaisesInInit(Dead):
+    def __init__(self, *args, **kwargs):
+        raise RuntimeError("no licence file")
+
+class RaisesInStep(Dead):
+    def step(self, state, frame):
+        raise ZeroDivisionError("division by zero")
+
+class Scales(Dead):
+    def step(self, state, frame):
+        res = super().step(state, frame)
+        return StepResult("ok", np.diag([2.0, 2.0, 1.0, 1.0])) if res.ok else res
+"""
+)
+
+
+@pytest.mark.parametrize(
+    "cls, message",
+    [
+        ("RaisesInInit", "__init__ raised RuntimeError: no licence file"),
+        ("RaisesInStep", "the run raised ZeroDivisionError: division by zero"),
+        ("Scales", "frame 1: T_prev_cur is not a rigid transform"),
+    ],
+)
+def test_a_module_class_that_raises_is_one_line_and_a_failed_bench_row(
+    cls, message, line_sequence, tmp_path, monkeypatch, capsys
+):
+    """A plugin's own exception (in __init__ or step, or a step breaking the protocol) was a
+    traceback from inside the plugin and, in the bench, ended the whole bench; now it is one
+    line naming the estimator, exit code 1, and a failed row as for a crashing program."""
+    (tmp_path / "faulty_vo_for_tests.py").write_text(FAULTY_SOURCE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    ref = f"faulty_vo_for_tests:{cls}"
+    assert floorvo_main(["run", str(line_sequence), "-e", ref, "-o", str(tmp_path / "run")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"estimator {ref!r} (module {ref})" in err[0] and message in err[0], err
+    from floorsim.bench import run_bench
+
+    res = run_bench([line_sequence], [ref, "phase-corr"], tmp_path / "bench", report=False)
+    rows = {r["estimator"]: r for r in res.rows}
+    assert rows[ref]["status"].startswith("failed: ") and message in rows[ref]["status"]
+    assert rows["phase-corr"]["status"] == "ok"
+
+
 EXTERNAL = Path(__file__).resolve().parents[2] / "examples" / "external-estimator"
 
 
