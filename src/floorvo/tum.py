@@ -16,7 +16,7 @@ from floorvo.errors import SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, xyz_quat_from_T
 from floorvo.io import atomic_write_text, read_text
 
-__all__ = ["write_tum", "read_tum", "format_tum"]
+__all__ = ["write_tum", "read_tum", "format_tum", "check_increasing"]
 
 
 def format_tum(timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> str:
@@ -44,18 +44,32 @@ def write_tum(
     atomic_write_text(path, format_tum(timestamps_s, T_world_cam, header))
 
 
+def check_increasing(path: str | os.PathLike, timestamps_s: list[float], linenos: list[int]) -> None:
+    """One-line :class:`SequenceError` unless the pose times read from ``path`` (line ``linenos[i]``
+    holds ``timestamps_s[i]``) strictly increase: a trajectory is in time order, one pose per
+    time. Poses out of order or repeated were scored as they stood (a path length of poses
+    visited back and forth, a drift against the wrong pose)."""
+    t = np.asarray(timestamps_s, dtype=float)
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if len(bad):
+        k = int(bad[0]) + 1
+        raise SequenceError(
+            f"{path}:{linenos[k]}: timestamp {t[k]:.9f} s follows {t[k - 1]:.9f} s: the poses' timestamps must increase"
+        )
+
+
 def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM file. Returns ``(timestamps_s (N,), T_world_cam (N, 4, 4) in mm)``.
 
-    Lines starting with ``#`` and blank lines are skipped. A malformed line, or a file
-    without pose lines unless ``allow_empty`` (then N = 0), raises :class:`SequenceError`
-    naming the file and line.
+    Lines starting with ``#`` and blank lines are skipped. A malformed line, timestamps that do
+    not increase (:func:`check_increasing`), or a file without pose lines unless ``allow_empty``
+    (then N = 0), raises :class:`SequenceError` naming the file and line.
     """
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"{path}: trajectory file is missing")
     text = read_text(path, SequenceError, what="a TUM text file")
-    ts, Ts = [], []
+    ts, Ts, linenos = [], [], []
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -76,6 +90,8 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
         ts.append(vals[0])
         Ts.append(T_from_xyz_quat(xyz_mm, q / n))
+        linenos.append(lineno)
+    check_increasing(path, ts, linenos)
     if not ts and allow_empty:
         return np.zeros(0), np.zeros((0, 4, 4))
     if not ts:

@@ -253,6 +253,27 @@ def test_binary_or_absurd_trajectory_and_json_files_are_one_line(tmp_path, small
     assert "not a TUM text file" in _one_line(capsys, "floorvo")
 
 
+@pytest.mark.parametrize(
+    "order, line, words", [((1, 0, 2), 3, "0.000000000 s follows 0.033333000 s"), ((0, 1, 1, 2), 4, "")]
+)
+def test_a_trajectory_whose_timestamps_do_not_increase_is_one_line(small_seq, tmp_path, capsys, order, line, words):
+    """Poses out of time order or a time given twice were scored as they stood, exit 0 (the
+    path length of a trajectory walked back and forth: 'end error 0 mm over 16 mm; measured
+    12 mm of 12 mm'); read_tum, the one TUM reader, now refuses them for every caller."""
+    from floorvo.errors import SequenceError
+    from floorvo.tum import read_tum
+
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    lines = [x for x in (run / "trajectory.txt").read_text().splitlines() if not x.startswith("#")]
+    (run / "trajectory.txt").write_text("# header\n" + "".join(lines[i] + "\n" for i in order))
+    with pytest.raises(SequenceError, match=rf"trajectory.txt:{line}: timestamp .*{words}.*must increase"):
+        read_tum(run / "trajectory.txt")
+    capsys.readouterr()
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
+    assert "the poses' timestamps must increase" in _one_line(capsys, "floorvo")
+
+
 # --------------------------------------------------------------------------- sequence.json
 @pytest.mark.parametrize(
     "content, words",

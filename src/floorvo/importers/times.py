@@ -19,7 +19,7 @@ import numpy as np
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat
 from floorvo.io import read_text
-from floorvo.tum import read_tum
+from floorvo.tum import check_increasing, read_tum
 
 __all__ = ["TIME_UNITS_S", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
 
@@ -64,12 +64,13 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     """EuRoC/ASL pose CSV: ``(timestamps_s (N,), T_world_body (N, 4, 4) mm)``.
 
     Columns: ``timestamp [ns], p_x, p_y, p_z [m], q_w, q_x, q_y, q_z``, then anything
-    (velocities, biases). Quaternions are normalised; a zero one is refused.
+    (velocities, biases). Quaternions are normalised; a zero one is refused, and so are
+    timestamps that do not increase (:func:`floorvo.tum.check_increasing`).
     """
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"ground-truth file {path}: does not exist")
-    ts, Ts = [], []
+    ts, Ts, linenos = [], [], []
     for lineno, f in _rows(path, "ground-truth file"):
         if len(f) < 8:
             raise SequenceError(f"{path}:{lineno}: a EuRoC pose row has >= 8 fields (t_ns px py pz qw qx qy qz)")
@@ -84,6 +85,8 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
         ts.append(t_ns * 1e-9)
         Ts.append(T_from_xyz_quat(v[:3] * 1000.0, q / n))
+        linenos.append(lineno)
+    check_increasing(path, ts, linenos)
     if not ts:
         raise SequenceError(f"ground-truth file {path}: holds no poses")
     return np.array(ts), np.stack(Ts)
@@ -105,8 +108,4 @@ def read_groundtruth_file(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"ground-truth file {path}: does not exist")
-    t, T = read_euroc_groundtruth(path) if _is_euroc_csv(path) else read_tum(path)
-    if np.any(np.diff(t) <= 0):
-        k = int(np.nonzero(np.diff(t) <= 0)[0][0]) + 1
-        raise SequenceError(f"ground-truth file {path}: timestamps must increase (pose {k} at {t[k]:.9f} s)")
-    return t, T
+    return read_euroc_groundtruth(path) if _is_euroc_csv(path) else read_tum(path)
