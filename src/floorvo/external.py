@@ -26,7 +26,9 @@ The run folder (``RUN/trajectory.txt``, ``timing.csv``, ``result.json``) is writ
 :class:`floorvo.runfolder.RunFolder`; what the program wrote stays in ``RUN/program/``, its
 standard output and error in ``RUN/stdout.txt`` and ``RUN/stderr.txt``.
 
-A crash, a non-zero exit, a timeout, a missing or malformed trajectory is an
+A crash, a non-zero exit, a timeout, a missing or malformed trajectory (one whose times do
+not increase, or a pose at no frame time of the sequence: not within
+:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S` of one) is an
 :class:`~floorvo.errors.ExternalEstimatorError` whose ``reason`` and ``stderr_tail`` the bench
 writes into a ``failed`` row.
 """
@@ -55,8 +57,9 @@ from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
+from floorvo.metrics import associate
 from floorvo.runfolder import RunFolder
-from floorvo.sequence import Sequence
+from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
 __all__ = [
     "PLACEHOLDERS",
@@ -239,6 +242,27 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     return (None if timed_out.is_set() else status), wall, usage.ru_maxrss / 1024.0  # Linux: KiB
 
 
+def _pose_at_no_frame(seq: Sequence, timestamps_s: np.ndarray) -> str:
+    """Why the first pose of ``timestamps_s`` that is at no frame time of ``seq`` (none within
+    :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`, each frame taking one pose) is wrong; ""
+    when every pose is at one. A program that stamps its poses with other times (its own
+    clock, ``i / fps`` on a recording stamped otherwise, poses past the last frame) was placed
+    and scored as if they were frames, exit code 0."""
+    ts = np.asarray(timestamps_s, dtype=float)
+    frame_ts = seq.timestamps_s
+    _, paired = associate(frame_ts, ts, GROUNDTRUTH_MAX_DIFF_S)
+    stray = np.setdiff1d(np.arange(len(ts)), paired)
+    if not len(stray):
+        return ""
+    k = int(stray[0])
+    j = int(np.argmin(np.abs(frame_ts - ts[k])))
+    return (
+        f"trajectory.txt: pose {k} at {ts[k]:.6f} s is at no frame time of the sequence (nearest: frame {j} at "
+        f"{frame_ts[j]:.6f} s; {len(stray)} of {len(ts)} poses are more than {GROUNDTRUTH_MAX_DIFF_S:g} s from "
+        "a frame): stamp each pose with its frame's time"
+    )
+
+
 def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:
     """Where the run starts (see the module doc): ground truth at ``t_first_s``
     (:meth:`Sequence.groundtruth_at`), else ``T_world_start``, else the identity."""
@@ -325,6 +349,9 @@ def run_external(
         raise fail(f"malformed output: {' '.join(str(exc).split())}") from None
     if len(written.timestamps_s) == 0:
         raise fail("trajectory.txt holds no pose")
+    stray = _pose_at_no_frame(seq, written.timestamps_s)
+    if stray:
+        raise fail(stray)
     T_prog = written.T_world_cam
     T_start = _start_pose(seq, float(written.timestamps_s[0]), T_world_start)
     T_world_cam = T_start @ np.linalg.inv(T_prog[0]) @ T_prog

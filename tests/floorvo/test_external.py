@@ -80,6 +80,43 @@ def test_a_failing_program_is_an_error_with_reason_and_stderr_tail(line_sequence
     assert not (tmp_path / "run" / "result.json").exists()  # no finished run is claimed
 
 
+# A program that writes the sequence's ground truth with its times moved by ``shift`` s, plus
+# ``extra`` poses 1/30 s apart after the last one.
+_GT_COPY = (
+    "import sys, pathlib; seq, out, shift, extra = sys.argv[1], sys.argv[2], float(sys.argv[3]), int(sys.argv[4]); "
+    "ls = [l.split() for l in pathlib.Path(seq, 'groundtruth.txt').read_text().splitlines() if l[:1] != '#']; "
+    "ls += [[str(float(ls[-1][0]) + (k + 1) / 30)] + ls[-1][1:] for k in range(extra)]; "
+    "pathlib.Path(out, 'trajectory.txt').write_text(''.join('%.6f ' % (float(l[0]) + shift) + ' '.join(l[1:]) "
+    "+ chr(10) for l in ls))"
+)
+
+
+@pytest.mark.parametrize(
+    ("shift", "extra", "words"),
+    [
+        (0.0, 0, ""),
+        (100.0, 0, "pose 0 at 100.000000 s is at no frame time of the sequence (nearest: frame 13 at 0.433333 s"),
+        (0.02, 0, "pose 0 at 0.020000 s is at no frame time of the sequence (nearest: frame 1 at 0.033333 s"),
+        (0.0, 3, "pose 14 at 0.4666"),  # 0.466666 or 7: three poses past the last frame
+    ],
+)
+def test_poses_at_other_times_than_the_frames_are_a_failed_run(line_sequence, tmp_path, shift, extra, words):
+    """A program's poses stamped 100 s late, between the frames or past the last frame were
+    placed and scored as if they were the frames' (13 poses for 8 frames, exit code 0)."""
+    spec = ExternalEstimator(
+        name="copy", command=(sys.executable, "-c", _GT_COPY, "{sequence}", "{output}", str(shift), str(extra))
+    )
+    if not words:
+        assert run_external(line_sequence, spec, tmp_path / "run").placed == 14
+        return
+    with pytest.raises(ExternalEstimatorError) as info:
+        run_external(line_sequence, spec, tmp_path / "run")
+    assert words in info.value.reason and info.value.reason.endswith("stamp each pose with its frame's time")
+    if extra:
+        assert "(nearest: frame 13 at 0.433333 s; 3 of 17 poses are more than 0.01 s from a frame)" in info.value.reason
+    assert not (tmp_path / "run" / "result.json").exists()
+
+
 def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
     spec = _failing("import time; time.sleep(30)", timeout_s=0.5)
     with pytest.raises(ExternalEstimatorError, match=r"timed out after 0\.5 s \(killed\)") as info:
