@@ -169,15 +169,28 @@ def load_estimator_file(path: str | os.PathLike) -> ExternalEstimator:
     return build(ExternalEstimator, data, path.name)
 
 
+def _program_name(argv: tuple[str, ...]) -> str:
+    """The name of the program ``argv`` runs: its file name; for a script run by the interpreter
+    (``{python} my_vo.py ...``, ``{python} -m my_vo ...``) the script's or module's name."""
+    if not argv:
+        return ""
+    if argv[0] == "{python}":
+        for arg in argv[1:]:
+            if not arg.startswith("-"):
+                return Path(arg).stem or Path(arg).name
+    return Path(argv[0]).name
+
+
 def parse_external(command: str, name: str = "") -> ExternalEstimator:
     """An :class:`ExternalEstimator` from a command line given as text (``--external``), split like a
-    shell does; ``name`` defaults to the program's file name (``floorvo run --external CMD``)."""
+    shell does; ``name`` defaults to the program's file name, or the script's for ``{python} SCRIPT``
+    (``floorvo run --external CMD``)."""
     try:
         argv = tuple(shlex.split(command))
     except ValueError as exc:
         raise ConfigError(f"--external {command!r}: {exc}") from None
     if not name:
-        name = Path(argv[0]).name if argv else ""
+        name = _program_name(argv)
     return build(ExternalEstimator, {"name": name, "command": argv, "here": os.getcwd()}, "--external")
 
 

@@ -157,6 +157,9 @@ def test_external_argument_is_split_like_a_shell_and_hashed_as_given():
     assert spec.source.detail == "sha256:" + command_hash(spec.command)[:12]
     assert command_hash(spec.command) != command_hash(("my_vo", "{sequence}", "{output}"))
     assert parse_external("/opt/vo/bin/my_vo {sequence}").name == "my_vo"
+    # the {python} placeholder runs a script: the script names it ('--external.name = {python}' was refused)
+    assert parse_external("{python} /opt/vo/fft_vo.py {sequence} {output}").name == "fft_vo"
+    assert parse_external("{python} -u -m my_vo {sequence} {output}").name == "my_vo"
     with pytest.raises(ConfigError, match=r"^--external\.command argument '\{sequence': a brace without a placeholder"):
         parse_external("my_vo {sequence")
 
