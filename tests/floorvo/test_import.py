@@ -172,6 +172,23 @@ def test_video_imports_with_its_frame_times_and_runs(tmp_path, synth):
     assert moved == pytest.approx(np.linalg.norm(T[-1][:3, 3] - T[0][:3, 3]), rel=0.005)
 
 
+def test_a_truncated_video_is_one_line_not_a_shorter_sequence(tmp_path, synth, capsys):
+    """A video cut at two thirds imported the frames the decoder gave, the last one damaged
+    (pixels off by up to 246 DN), as a shorter sequence with exit code 0."""
+    _, frames, _ = synth
+    path = tmp_path / "clip.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (CAM.width_px, CAM.height_px), isColor=False)
+    for f in frames:
+        w.write(f)
+    w.release()
+    data = path.read_bytes()
+    (tmp_path / "cut.avi").write_bytes(data[: len(data) * 2 // 3])
+    err = _one_line_error(capsys, ["import", str(tmp_path / "cut.avi"), "-o", str(tmp_path / "s"), *FLAGS])
+    assert "of the 7 frames the container states could be decoded (the file is truncated or damaged" in err
+    assert not (tmp_path / "s").exists()
+    assert main(["import", str(path), "-o", str(tmp_path / "whole"), *FLAGS]) == 0  # the whole file imports
+
+
 # ----------------------------------------------------------------------------- camera files
 def test_camera_files_ros_opencv_kalibr(tmp_path):
     (tmp_path / "ros.yaml").write_text(

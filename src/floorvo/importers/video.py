@@ -43,6 +43,7 @@ def read(source: Path, options=None) -> Recording:
     """Count the frames of ``source`` and take their times; the images are decoded again when written."""
     cap = _open(source)
     fps = float(cap.get(cv2.CAP_PROP_FPS))
+    stated = cap.get(cv2.CAP_PROP_FRAME_COUNT)  # the container's count (0 or less: it states none)
     times_ms, size = [], None
     try:
         while True:
@@ -57,6 +58,12 @@ def read(source: Path, options=None) -> Recording:
     if not times_ms or size is None:
         raise SequenceError(f"{source}: no frame could be decoded")
     n = len(times_ms)
+    if np.isfinite(stated) and n < int(stated):
+        # a truncated file: the decoder stops early, and the last frame it gave may be half a frame
+        raise SequenceError(
+            f"{source}: {n} of the {int(stated)} frames the container states could be decoded "
+            "(the file is truncated or damaged; the last frame decoded may be incomplete)"
+        )
     fps_ok = np.isfinite(fps) and fps > 0
     ts = np.round(np.array(times_ms) * 1000.0) / 1e6  # to the microsecond: decoders add float noise
     if n > 1 and np.any(np.diff(ts) <= 0):
