@@ -383,6 +383,20 @@ def test_bag_topic_choice_refusals(tmp_path, synth, capsys):
     assert "--topic left=/camera/image: unknown role" in err
 
 
+def test_a_bag_whose_images_are_stamped_by_two_clocks_is_one_line(tmp_path, synth, capsys):
+    """One image with a zero header stamp took the bag's receive time, 4 s after the camera's
+    stamps of the others: it was sorted to the end of the sequence, exit code 0."""
+    _, frames, T = synth
+    stamps_ns = np.array([10**18, 0, 10**18 + 66_000_000])
+    _write_bag(tmp_path / "bag", frames[:3], T[:3], stamps_ns, compressed=False, gt="odometry")
+    err = _one_line_error(capsys, ["import", str(tmp_path / "bag"), "-o", str(tmp_path / "s"), *FLAGS])
+    assert (
+        "/camera/image: 1 of 3 images have a zero header stamp (the first received at 0.005000000 s), the others the camera's"
+        in err
+    )
+    assert not (tmp_path / "s").exists()
+
+
 # ----------------------------------------------------------------------------- refusals
 def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     _, frames, _ = synth

@@ -16,7 +16,8 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   ``TransformStamped`` or ``nav_msgs/Odometry`` (its pose is taken as the camera's,
   ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame).
 
-Frame times are the image headers' stamps (the bag's receive time where a stamp is zero).
+Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
+some zero and some not is refused: two clocks).
 A right or depth image belongs to the left image whose stamp is within 1 ms of its own;
 left images without their partner are left out (with a warning). The bag is read twice
 (stamps and calibration first, images when written), so it is never held in memory.
@@ -272,6 +273,7 @@ def read(source: Path, options=None) -> Recording:
             roles_of.setdefault(name, []).append(role)
         conns = [c for t in set(topics.values()) | {"/tf_static"} for c in by_topic.get(t, [])]
         stamps: dict[str, list[int]] = {"image": [], "right": [], "depth": []}
+        unstamped: list[int] = []  # bag times (ns) that stood in for a left image's zero header stamp
         infos: dict[str, Any] = {}
         gt_t: list[int] = []
         gt_T: list[np.ndarray] = []
@@ -285,6 +287,8 @@ def read(source: Path, options=None) -> Recording:
             roles = roles_of.get(conn.topic, [])
             for role in roles:
                 if role in stamps:
+                    if role == "image" and _stamp_ns(msg, -1) == -1 and int(bag_ns) != 0:
+                        unstamped.append(int(bag_ns))  # (a stamp 0 received at 0, as exported at t = 0, is not)
                     stamps[role].append(_stamp_ns(msg, bag_ns))
                     if role == "image" and size is None:
                         img = decode_image(msg, conn.msgtype, f"{source} {conn.topic}")
@@ -310,6 +314,13 @@ def read(source: Path, options=None) -> Recording:
     if size is None:
         raise SequenceError(f"{what}: the image topic has no messages")
     left = np.asarray(stamps["image"], dtype=np.int64)
+    if 0 < len(unstamped) < len(left):
+        # two clocks: the bag's receive time of some images beside the camera's stamps of the others
+        # sorted a frame to the end of the sequence, 4 s after its neighbours, with exit code 0
+        raise SequenceError(
+            f"{what}: {len(unstamped)} of {len(left)} images have a zero header stamp (the first received at "
+            f"{unstamped[0] * 1e-9:.9f} s), the others the camera's: frame times from two clocks cannot be put in order"
+        )
     if np.any(np.diff(left) <= 0):
         order = np.argsort(left, kind="stable")
         left = left[order]
