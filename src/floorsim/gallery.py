@@ -24,6 +24,7 @@ from floorsim.materials import MATERIALS
 from floorsim.scene import Scene, load_scene
 from floorsim.simulate import EXPOSURE_FILE, read_exposure_log, render_sequence
 from floorvo.io import ensure_writable_dir, write_png
+from floorvo.locking import locks_folder
 from floorvo.sequence import Sequence
 
 __all__ = ["LIGHTING_VARIANTS", "AE_FRAMES", "AE_VARIANT", "render_gallery"]
@@ -88,6 +89,7 @@ def _label(tile: np.ndarray, text: str) -> np.ndarray:
     return np.vstack([tile, band])
 
 
+@locks_folder("out_dir", "gallery folder")
 def render_gallery(
     out_dir: str | os.PathLike,
     base: str | os.PathLike = "demo",
@@ -95,7 +97,11 @@ def render_gallery(
     columns: int = 4,
     on_tile: Callable[[int, int], None] | None = None,
 ) -> Path:
-    """Render the gallery into ``out_dir`` and return the path of ``gallery.png``."""
+    """Render the gallery into ``out_dir`` and return the path of ``gallery.png``.
+
+    ``out_dir`` is locked while the gallery renders (:func:`floorvo.locking.lock_folder`): the
+    empty path, a file-system root and a folder another writer holds are refused in one line.
+    """
     out = ensure_writable_dir(out_dir)
     jobs: list[tuple[str, dict[str, str]]] = []
     for name in sorted(MATERIALS):

@@ -15,6 +15,25 @@ def test_every_material_has_a_scene_and_is_distinct():
         assert load_scene(f"material_{name}").floor.material == name
 
 
+@pytest.mark.parametrize(
+    "out, words", [("", "output folder '': the path is empty"), ("/", "is the root of a file system")]
+)
+def test_gallery_refuses_the_empty_path_and_the_root_in_one_line(tmp_path, monkeypatch, capsys, out, words):
+    """-o "" rendered the gallery into the current folder and -o / into the file-system root."""
+    import floorsim.gallery
+    from floorsim.cli import main
+
+    def no_writing(path):
+        raise AssertionError(f"the gallery was about to write into {path!r}")
+
+    monkeypatch.setattr(floorsim.gallery, "ensure_writable_dir", no_writing)
+    monkeypatch.chdir(tmp_path)
+    assert main(["gallery", "-o", out, "--scale", "0.05"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.fixture(scope="module")
 def gallery(tmp_path_factory):
     """The demo gallery at quarter scale, rendered once for the tests of this module: (folder, sheet path)."""
