@@ -58,7 +58,7 @@ from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
 from floorvo.metrics import associate
-from floorvo.runfolder import RunFolder
+from floorvo.runfolder import SEQUENCE_SHA256, RunFolder, sequence_sha256
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
 __all__ = [
@@ -389,6 +389,7 @@ def run_external(
             "program_result": dict(written.result),
         },
         "sequence": str(seq.root),
+        SEQUENCE_SHA256: sequence_sha256(seq.meta),
     }
     if statuses is not None:
         result["status_counts"] = {s: statuses.count(s) for s in ("init", "ok", "lost")}

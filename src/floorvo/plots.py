@@ -10,7 +10,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence as SequenceT
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +19,7 @@ import numpy as np
 from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_bytes
 from floorvo.metrics import associate, translation_error_along_path
-from floorvo.runfolder import RunFolder
+from floorvo.runfolder import RunFolder, check_run_of_sequence
 from floorvo.tum import read_tum
 
 __all__ = ["PlotRun", "pyplot", "draw_trajectories", "draw_errors", "load_plot_run", "plot_runs"]
@@ -37,11 +37,13 @@ def pyplot():
 
 @dataclass(frozen=True)
 class PlotRun:
-    """One run to draw: its ``label`` and the poses it placed, ``t_s`` (N,) and ``T_world_cam`` (N, 4, 4) mm."""
+    """One run to draw: its ``label`` and the poses it placed, ``t_s`` (N,) and ``T_world_cam`` (N, 4, 4) mm;
+    ``result``: its ``result.json``."""
 
     label: str
     t_s: np.ndarray
     T_world_cam: np.ndarray
+    result: dict = field(default_factory=dict, repr=False, compare=False)
 
 
 def load_plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotRun | None:
@@ -54,7 +56,7 @@ def load_plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotR
     if len(run.timestamps_s) == 0:
         return None
     name = label or str(run.result.get("estimator") or Path(run_dir).name)
-    return PlotRun(name, run.timestamps_s, run.T_world_cam)
+    return PlotRun(name, run.timestamps_s, run.T_world_cam, dict(run.result))
 
 
 def draw_trajectories(ax: Any, runs: SequenceT[PlotRun], reference: tuple[np.ndarray, np.ndarray] | None) -> bool:
@@ -128,6 +130,8 @@ def plot_runs(
     reference = None
     if groundtruth is not None:
         gt = Path(groundtruth)
+        for d, r in zip(run_dirs, runs):
+            check_run_of_sequence(d, r.result, gt)
         reference = read_tum(gt / "groundtruth.txt" if gt.is_dir() else gt)
     plt = pyplot()
     panels = 2 if reference is not None else 1

@@ -25,6 +25,7 @@ from floorvo.estimators import estimator_source, get_estimator, make_config
 from floorvo.geometry import T_from_se2, T_from_xyz_quat
 from floorvo.io import ensure_writable_dir
 from floorvo.locking import locks_folder
+from floorvo.runfolder import SEQUENCE_SHA256, sequence_sha256
 from floorvo.runner import RunResult, camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
@@ -122,6 +123,7 @@ def run_estimator(
         "config": asdict(cfg),
         "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
         "sequence": str(seq.root),
+        SEQUENCE_SHA256: sequence_sha256(seq.meta),
         "source": estimator_source(name).to_dict(),
     }
     run.run_folder(header=header, result=result, reasons=True).write(out)

@@ -48,6 +48,7 @@ from floorvo.io import (
     atomic_write_json,
     atomic_write_text,
     ensure_writable_dir,
+    json_sha256,
     read_json,
     read_text,
 )
@@ -65,7 +66,41 @@ __all__ = [
     "read_timing_csv",
     "write_match_sample",
     "read_match_samples",
+    "SEQUENCE_SHA256",
+    "sequence_sha256",
+    "check_run_of_sequence",
 ]
+
+#: The ``result.json`` key holding the content hash of the ``sequence.json`` a run was made on.
+SEQUENCE_SHA256 = "sequence_sha256"
+
+
+def sequence_sha256(meta: Any) -> str:
+    """The identity of a sequence a run records (:data:`SEQUENCE_SHA256`): the hash of its
+    ``sequence.json`` content (:func:`floorvo.io.json_sha256`; a copy of the folder has the same)."""
+    return json_sha256(meta)
+
+
+def check_run_of_sequence(run_dir: str | os.PathLike, result: Any, seq_dir: str | os.PathLike) -> None:
+    """One-line :class:`SequenceError` when the run in ``run_dir`` (its ``result.json`` content
+    ``result``) records that it was made on another sequence than the folder ``seq_dir``.
+
+    Nothing is checked for a run that records no :data:`SEQUENCE_SHA256` (older runs, runs
+    written by hand) or when ``seq_dir`` is not a sequence folder (a TUM file). A run scored,
+    plotted or calibrated against a sequence it was not run on gave figures with exit code 0:
+    ground truth of another trajectory and another camera paired by time with its poses.
+    """
+    recorded = result.get(SEQUENCE_SHA256) if isinstance(result, dict) else None
+    meta_path = Path(seq_dir) / "sequence.json"
+    if not isinstance(recorded, str) or not meta_path.is_file():
+        return
+    current = sequence_sha256(read_json(meta_path, SequenceError))
+    if current != recorded:
+        raise SequenceError(
+            f"{run_dir}: was run on another sequence ({shown(str(result.get('sequence', '?')))}, sequence.json "
+            f"sha256 {recorded[:12]}) than {seq_dir} (sha256 {current[:12]}); give the sequence it was run on"
+        )
+
 
 #: What an estimator says of a frame (:class:`floorvo.estimators.base.StepResult`).
 STATUSES = ("init", "ok", "lost")

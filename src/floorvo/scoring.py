@@ -41,7 +41,7 @@ from floorvo.metrics import (
     turn_error,
     wrong_steps,
 )
-from floorvo.runfolder import RunFolder
+from floorvo.runfolder import RunFolder, check_run_of_sequence
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
 
@@ -254,14 +254,17 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     """``(groundtruth path, (t_ref, T_ref), run)`` of a run; ``run`` is its :class:`~floorvo.runfolder.RunFolder`.
 
     ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
-    ("score", "calibrate") words the error when there is no ground truth.
+    ("score", "calibrate") words the error when there is no ground truth. A run that records
+    another sequence than ``seq_dir`` is refused (:func:`~floorvo.runfolder.check_run_of_sequence`).
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
     if not gt_path.is_file():
         raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+    run = RunFolder.read(run_dir)
+    check_run_of_sequence(run_dir, run.result, seq_dir)
     ref = read_tum(gt_path)
-    return gt_path, ref, RunFolder.read(run_dir)
+    return gt_path, ref, run
 
 
 def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:
@@ -272,6 +275,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
+        check_run_of_sequence(run_dir, RunFolder.read(run_dir).result, seq_dir)
         score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
         log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)
         return score

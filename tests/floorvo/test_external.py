@@ -205,8 +205,8 @@ def test_floorvo_plot_draws_runs_against_ground_truth(line_sequence, tmp_path, c
     (other / "groundtruth.txt").write_text(
         "".join(f"{ti + 1000.0:.6f} 0 0 0.1 1 0 0 0\n" for ti in t)  # the same poses' count, 1000 s later
     )
-    capsys.readouterr()
-    assert floorvo_main(["plot", str(tmp_path / "a"), "--gt", str(other), "-o", str(png)]) == 1
+    capsys.readouterr()  # (its file: the folder is another sequence than the run's, refused before)
+    assert floorvo_main(["plot", str(tmp_path / "a"), "--gt", str(other / "groundtruth.txt"), "-o", str(png)]) == 1
     assert "shares two timestamps" in capsys.readouterr().err
 
 

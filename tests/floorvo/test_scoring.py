@@ -213,3 +213,34 @@ def test_write_score_writes_json_atomically(tmp_path):
     data = json.loads((tmp_path / "out" / "score.json").read_text())
     assert data["estimator"] == "fake" and data["tracking"]["lost_frames"] == 2
     assert [p.name for p in (tmp_path / "out").iterdir()] == ["score.json"]  # no temporary file left
+
+
+def test_a_run_against_another_sequence_is_refused_by_score_plot_and_calibrate(tmp_path, capsys):
+    """A run of one sequence scored, plotted or calibrated against another (another camera,
+    another path) gave figures with exit code 0: now the run records the sequence it was run on
+    (result.json sequence_sha256) and the three refuse another one in a line; a copy of the
+    sequence folder is the same sequence, and a TUM file is not checked."""
+    import shutil
+
+    from floorvo.camera import CameraModel
+    from floorvo.cli import main
+    from floorvo.synthetic import line_poses, write_synthetic_sequence
+
+    cam = CameraModel.from_sensor().scaled(0.25)
+    seq = write_synthetic_sequence(tmp_path / "a", cam, line_poses(8.0, 2.0), seed=0)
+    other = write_synthetic_sequence(tmp_path / "b", cam.scaled(1.25), line_poses(8.0, 2.0, yaw_step_rad=0.05), seed=0)
+    run = tmp_path / "run"
+    assert main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    for argv in (
+        ["score", str(run), "--gt", str(other)],
+        ["plot", str(run), "--gt", str(other), "-o", str(tmp_path / "p.png")],
+        ["calibrate", str(run), "--gt", str(other), "-o", str(tmp_path / "c.json")],
+    ):
+        capsys.readouterr()
+        assert main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"run: was run on another sequence ('{seq}'" in err, err
+    assert not (tmp_path / "p.png").exists() and not (tmp_path / "c.json").exists()
+    copy = shutil.copytree(seq, tmp_path / "copy")
+    assert main(["score", str(run), "--gt", str(copy)]) == 0
+    assert main(["score", str(run), "--gt", str(other / "groundtruth.txt")]) == 0

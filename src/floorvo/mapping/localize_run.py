@@ -25,6 +25,7 @@ from floorvo.errors import ConfigError
 from floorvo.io import ensure_writable_dir
 from floorvo.locking import locks_folder
 from floorvo.mapping.fused import MapFused, MapFusedConfig
+from floorvo.runfolder import SEQUENCE_SHA256, sequence_sha256
 from floorvo.runner import camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
@@ -90,6 +91,7 @@ def localize_sequence(
         "map": str(Path(map_dir)),
         "map_keyframes": est.map.n_keyframes,
         "sequence": str(seq.root),
+        SEQUENCE_SHA256: sequence_sha256(seq.meta),
     }
     run.run_folder(header=header, result=result, reasons=True).write(out)
     log.info(
