@@ -208,6 +208,16 @@ def test_margin_to_the_nearest_breaking_point_along_a_key():
             "search.fails = 'under': must be one of 'below', 'above'",
         ),
         ('seeds = [7, 7]\n[vary]\n"lights.power" = [1.0]\n', "seeds = \\[7, 7\\]: must be distinct"),
+        # a fixed value the grid or the search replaces: the study ran with the varied values, silently
+        (
+            '[set]\n"lights.power" = 2.0\n[vary]\n"lights.power" = [1.0, 3.0]\n',
+            "set.lights.power = 2.0: is varied in \\[vary\\] too",
+        ),
+        (
+            '[set]\n"lights.height_mm" = 2.0\n[search]\nkey = "lights.height_mm"\nlow = 1\nhigh = 3\nfails = "below"\n'
+            "tolerance = 0.1\n[criterion]\nlost_frames = 0\n",
+            "set.lights.height_mm = 2.0: is searched in \\[search\\] too",
+        ),
         (
             '[vary]\n"lights.power" = [1.0]\n[operating_point]\n"lights.height_mm" = 3\n',
             "operating_point.lights.height_mm: not a varied or searched key",

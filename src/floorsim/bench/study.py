@@ -179,6 +179,11 @@ class StudyFile(Config):
                 raise ConfigFieldError(f"vary.{shorten(k)}", f" = {shown(v)}: values must be distinct")
         if self.search is not None and self.search.key in self.vary:
             raise ConfigFieldError("search.key", f" = {shown(self.search.key)}: is varied in [vary] too")
+        for k, v in self.set.items():  # a fixed value the grid or the search replaces would be ignored
+            if k in self.vary:
+                raise ConfigFieldError(f"set.{shorten(k)}", f" = {shown(v)}: is varied in [vary] too")
+            if self.search is not None and k == self.search.key:
+                raise ConfigFieldError(f"set.{shorten(k)}", f" = {shown(v)}: is searched in [search] too")
         if self.search is not None and not self.criterion:
             raise ConfigFieldError("criterion", ": a [search] needs a [criterion] (when does a run fail?)")
         if self.estimators is not None and not self.estimators:
