@@ -14,7 +14,40 @@ import numpy as np
 
 from floorvo.errors import ConfigError, shown
 
-__all__ = ["CameraModel"]
+__all__ = ["CameraModel", "K_RULE", "K_problem", "intrinsics_from_K"]
+
+
+#: The rule a pinhole camera matrix ``K`` follows (:func:`K_problem`).
+K_RULE = "must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
+
+
+def K_problem(K: np.ndarray) -> str | None:
+    """:data:`K_RULE` when the 3x3 matrix ``K`` (finite numbers) is not a pinhole camera matrix
+    ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` with ``fx, fy > 0`` (a skew, a bottom row other than
+    ``[0, 0, 1]``), else None. The one rule for ``sequence.json``, camera files and ``camera_info``."""
+    if K[0, 0] <= 0 or K[1, 1] <= 0 or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
+        return K_RULE
+    return None
+
+
+def intrinsics_from_K(K: Any, what: str = "camera: K") -> tuple[float, float, float, float]:
+    """``(fx, fy, cx, cy)`` px of a pinhole camera matrix (:func:`K_problem`); a matrix that is not
+    3x3 numbers or breaks the rule is a one-line :class:`~floorvo.errors.ConfigError` naming
+    ``what``. Read as ``fx, fy, cx, cy`` alone, a matrix whose bottom row was ``[0, 0, 2]`` gave
+    a camera off by a factor 2, silently."""
+    try:
+        A = np.asarray(K, dtype=float)
+    except (TypeError, ValueError):
+        A = np.zeros(0)
+    if A.shape != (3, 3):
+        raise ConfigError(f"{what} = {shown(K)}: must be a 3x3 matrix of numbers")
+    fx, fy, cx, cy = float(A[0, 0]), float(A[1, 1]), float(A[0, 2]), float(A[1, 2])
+    if not np.isfinite([fx, fy, cx, cy]).all():
+        return fx, fy, cx, cy  # CameraModel refuses them, naming every intrinsic
+    problem = K_problem(A)
+    if problem:
+        raise ConfigError(f"{what} = {shown(A.tolist())}: {problem}")
+    return fx, fy, cx, cy
 
 
 @dataclass(frozen=True)
@@ -85,24 +118,11 @@ class CameraModel:
         """
         if not isinstance(d, Mapping) or not {"width_px", "height_px", "K"} <= set(d):
             raise ConfigError(f"camera: {shown(d)}: need a table with width_px, height_px and K")
-        try:
-            K = np.asarray(d["K"], dtype=float)
-        except (TypeError, ValueError):
-            K = np.zeros(0)
-        if K.shape != (3, 3):
-            raise ConfigError(f"camera: K = {shown(d['K'])}: must be a 3x3 matrix of numbers")
+        fx, fy, cx, cy = intrinsics_from_K(d["K"], "camera: K")
         distortion = d.get("distortion", (0.0,) * 5)
         if not isinstance(distortion, (list, tuple)):
             raise ConfigError(f"camera: distortion = {shown(distortion)}: must be a list of numbers")
-        return cls(
-            d["width_px"],
-            d["height_px"],
-            float(K[0, 0]),
-            float(K[1, 1]),
-            float(K[0, 2]),
-            float(K[1, 2]),
-            tuple(distortion),
-        )
+        return cls(d["width_px"], d["height_px"], fx, fy, cx, cy, tuple(distortion))
 
     def to_dict(self) -> dict:
         """JSON-ready dict: ``K`` (3x3 list), ``width_px``, ``height_px``, ``distortion``."""

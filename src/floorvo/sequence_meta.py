@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from floorvo.camera import K_problem
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 
@@ -69,10 +70,9 @@ class CameraBlock(Config):
 
     def validate(self) -> None:
         K = _matrix(self.K, (3, 3), "K")
-        if K[0, 0] <= 0 or K[1, 1] <= 0 or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
-            raise ConfigFieldError(
-                "K", f" = {K.tolist()}: must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
-            )
+        problem = K_problem(K)
+        if problem:
+            raise ConfigFieldError("K", f" = {K.tolist()}: {problem}")
         if len(self.distortion) not in (4, 5) or not np.isfinite(self.distortion).all():
             raise ConfigFieldError("distortion", f" = {list(self.distortion)}: must be 4 or 5 finite numbers")
 

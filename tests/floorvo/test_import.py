@@ -239,6 +239,14 @@ def test_camera_file_refusals(tmp_path):
     (tmp_path / "bad.yaml").write_text("a: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         read_camera_file(tmp_path / "bad.yaml")
+    # a camera matrix of another form was read as fx, fy, cx, cy alone: K[2][2] = 2 gave a camera
+    # twice as long in focal length as the matrix states, a skew was dropped
+    for K in ("[100, 0, 32, 0, 100, 24, 0, 0, 2]", "[100, 3, 32, 0, 100, 24, 0, 0, 1]"):
+        (tmp_path / "k2.yaml").write_text(f"image_width: 64\nimage_height: 48\ncamera_matrix: {K}\n")
+        with pytest.raises(
+            ConfigError, match=r"k2.yaml camera matrix = .*: must be \[\[fx, 0, cx\], \[0, fy, cy\], \[0, 0, 1\]\]"
+        ):
+            read_camera_file(tmp_path / "k2.yaml")
 
 
 # ----------------------------------------------------------------------------- ROS 2 bags made here

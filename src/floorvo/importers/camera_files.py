@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.camera import CameraModel
+from floorvo.camera import CameraModel, intrinsics_from_K
 from floorvo.errors import ConfigError, shown
 from floorvo.geometry import invert_T
 from floorvo.io import read_text
@@ -142,6 +142,7 @@ def _get(d: dict, keys: SequenceT[str]) -> Any:
 def _from_matrix_yaml(d: dict, what: str) -> CameraModel:
     """ROS camera_info YAML, a dumped CameraInfo message, or an OpenCV calibration YAML."""
     K = _numbers(_get(d, ("camera_matrix", "K", "k", "cameraMatrix")), f"{what} camera matrix", 9).reshape(3, 3)
+    fx, fy, cx, cy = intrinsics_from_K(K, f"{what} camera matrix")
     w = _get(d, ("image_width", "width", "imageWidth"))
     h = _get(d, ("image_height", "height", "imageHeight"))
     size = _get(d, ("image_size", "imageSize", "resolution"))
@@ -154,7 +155,7 @@ def _from_matrix_yaml(d: dict, what: str) -> CameraModel:
         _get(d, ("distortion_model",)),
         what,
     )
-    return camera_from_parts(w, h, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist, what)
+    return camera_from_parts(w, h, fx, fy, cx, cy, dist, what)
 
 
 def _from_intrinsics(d: dict, what: str) -> CameraModel:

@@ -33,7 +33,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from floorvo.camera import CameraModel
+from floorvo.camera import CameraModel, intrinsics_from_K
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.geometry import T_from_xyz_quat, invert_T
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from
@@ -141,8 +141,9 @@ def _camera_of_info(msg: Any, what: str) -> CameraModel | None:
     K = np.asarray(msg.k, dtype=float).reshape(3, 3)
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         return None  # an uncalibrated camera publishes zeros
+    fx, fy, cx, cy = intrinsics_from_K(K, f"{what} camera_info k")
     dist = distortion_from(np.asarray(msg.d, dtype=float), msg.distortion_model, what)
-    return camera_from_parts(msg.width, msg.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], dist, what)
+    return camera_from_parts(msg.width, msg.height, fx, fy, cx, cy, dist, what)
 
 
 def _T_of(position: Any, orientation: Any) -> np.ndarray:
