@@ -350,9 +350,10 @@ def _decodes(path: Path) -> bool:
 
 
 def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> None:
-    """Refuse an image whose bits per pixel (8 for uint8, 16 for uint16) are not what sequence.json's
-    ``key`` states (no check where it states none): a 16-bit frame read as 8-bit is 256 times too
-    bright, and an estimator would measure it as if it were."""
+    """Refuse an image whose bits per pixel (8 for uint8, 16 for uint16) are not ``bits``, what
+    sequence.json's ``key`` states (no check where ``bits`` is None; frames of a sequence that
+    states none are held to frame 0's): a 16-bit frame read as 8-bit is 256 times too bright,
+    and an estimator would measure it as if it were."""
     if bits is not None and 8 * img.dtype.itemsize != bits:
         raise SequenceError(f"{path}: image is {8 * img.dtype.itemsize}-bit, sequence.json says {key} = {bits}")
 
@@ -407,6 +408,7 @@ class Sequence:
     meta: dict
     _timestamps_s: np.ndarray | None = field(default=None, repr=False, compare=False)
     _heights: tuple[np.ndarray | None] | None = field(default=None, repr=False, compare=False)
+    _frame0_bits: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def open(cls, root: str | os.PathLike) -> Sequence:
@@ -526,7 +528,17 @@ class Sequence:
                 f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}, "
                 f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
             )
-        _check_bit_depth(img, self.meta.get("bit_depth"), self.image_path(index, cam), "bit_depth")
+        stated = self.meta.get("bit_depth")
+        if stated is not None:
+            _check_bit_depth(img, stated, self.image_path(index, cam), "bit_depth")
+        else:  # no depth stated: frame 0's is the sequence's (a 16-bit frame among 8-bit ones was read as it was)
+            if cam not in self._frame0_bits:
+                self._frame0_bits[cam] = 8 * (img if index == 0 else self.image(0, cam)).dtype.itemsize
+            if 8 * img.dtype.itemsize != self._frame0_bits[cam]:
+                raise SequenceError(
+                    f"{self.image_path(index, cam)}: image is {8 * img.dtype.itemsize}-bit, frame 0 is "
+                    f"{self._frame0_bits[cam]}-bit (sequence.json states no bit_depth: a sequence's frames have one)"
+                )
         return img
 
     def depth_mm(self, index: int) -> np.ndarray:

@@ -370,3 +370,19 @@ def test_an_image_of_another_bit_depth_than_sequence_json_states_is_refused(tmp_
     key = "bit_depth" if which == "frame" else "calib.flatfield_bit_depth"
     other = 16 if bits == 8 else 8
     assert f"{path}: image is {other}-bit, sequence.json says {key} = {bits}" in _one_line(capsys, "floorvo")
+
+
+def test_a_frame_of_another_bit_depth_than_frame_0_is_refused_where_none_is_stated(tmp_path, capsys):
+    """sequence.json may state no bit_depth (the least sequence.json of the README, a synthetic
+    sequence): a 16-bit frame among 8-bit ones was then read as it was, 256 times too bright,
+    with exit code 0; frame 0's depth is the sequence's."""
+    from floorvo.io import read_png, write_png
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    assert "bit_depth" not in json.loads((seq / "sequence.json").read_text())
+    path = seq / "cam0" / "000001.png"
+    write_png(path, read_png(path).astype(np.uint16) * 257)
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert f"{path}: image is 16-bit, frame 0 is 8-bit (sequence.json states no bit_depth" in err
