@@ -74,6 +74,7 @@ __all__ = [
     "SEQUENCE_FORMAT",
     "check_timestamps",
     "check_heights",
+    "check_groundtruth_times",
     "read_height_csv",
     "DEPTH_PNG_SCALE_PER_MM",
 ]
@@ -384,6 +385,23 @@ def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
     return ts
 
 
+def check_groundtruth_times(ts_gt: np.ndarray, frame_ts: np.ndarray, what: str, frame_source: str) -> None:
+    """Ground truth of one pose per frame (as every render writes it) must be at the frames' times
+    ``frame_ts`` (from ``frame_source``) within :data:`GROUNDTRUTH_MAX_DIFF_S`; else a one-line
+    SequenceError naming ``what`` (the ground truth) and the first pose that is not. Ground truth
+    at another rate (a motion-capture system) is paired by time and not checked here."""
+    ts_gt, frame_ts = np.asarray(ts_gt, dtype=float), np.asarray(frame_ts, dtype=float)
+    if len(ts_gt) != len(frame_ts):
+        return
+    off = np.abs(ts_gt - frame_ts)
+    if not np.all(off <= GROUNDTRUTH_MAX_DIFF_S):
+        i = int(np.argmax(~(off <= GROUNDTRUTH_MAX_DIFF_S)))
+        raise SequenceError(
+            f"{what}: one pose per frame, but pose {i} is at {ts_gt[i]:.6f} s and frame {i} at {frame_ts[i]:.6f} s "
+            f"({frame_source}): the frame times and the ground truth disagree"
+        )
+
+
 def check_heights(h: np.ndarray, frame_count: int, what: str) -> np.ndarray:
     """``h`` if it holds ``frame_count`` heights (mm), each finite and > 0 or NaN (no reading);
     else a one-line SequenceError."""
@@ -579,16 +597,9 @@ class Sequence:
             return None
         ts_gt, T = read_tum(p)
         if len(ts_gt) == self.frame_count:
-            ts = self.timestamps_s
-            off = np.abs(ts_gt - ts)
-            if not np.all(off <= GROUNDTRUTH_MAX_DIFF_S):
-                i = int(np.argmax(off > GROUNDTRUTH_MAX_DIFF_S))
-                stamps = self.root / TIMESTAMPS_FILE
-                source = stamps if stamps.is_file() else f"fps = {self.fps:g} Hz in {self.root / 'sequence.json'}"
-                raise SequenceError(
-                    f"{p}: one pose per frame, but pose {i} is at {ts_gt[i]:.6f} s and frame {i} at {ts[i]:.6f} s "
-                    f"({source}): the frame times and the ground truth disagree"
-                )
+            stamps = self.root / TIMESTAMPS_FILE
+            source = stamps if stamps.is_file() else f"fps = {self.fps:g} Hz in {self.root / 'sequence.json'}"
+            check_groundtruth_times(ts_gt, self.timestamps_s, str(p), str(source))
         return ts_gt, T
 
     def groundtruth_at(

@@ -405,6 +405,44 @@ def test_a_bag_whose_images_are_stamped_by_two_clocks_is_one_line(tmp_path, synt
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.parametrize(
+    "times, words",
+    [
+        (
+            (100.0, 100.1, 100.2),
+            "--groundtruth: one pose per frame, but pose 0 is at 100.000000 s and frame 0 at 0.000000 s",
+        ),
+        (
+            (100.0, 100.1),
+            "--groundtruth: no pose within 0.01 s of a frame (poses at 100.000000-100.100000 s, frames at",
+        ),
+    ],
+)
+def test_ground_truth_on_another_clock_than_the_frames_is_refused_before_writing(tmp_path, synth, capsys, times, words):
+    """Ground truth 100 s after the frames was imported with exit code 0: one pose per frame into a
+    sequence its own reader then refused ('the frame times and the ground truth disagree'), and
+    poses at another rate into one that every score called 'shares no timestamp'."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    (tmp_path / "gt.txt").write_text("".join(f"{t} 0 0 0.1 0 0 0 1\n" for t in times))
+    argv = [
+        "import",
+        str(src),
+        "-o",
+        str(tmp_path / "s"),
+        *FLAGS,
+        "--fps",
+        "10",
+        "--groundtruth",
+        str(tmp_path / "gt.txt"),
+    ]
+    assert words in _one_line_error(capsys, argv)
+    assert not (tmp_path / "s").exists()
+
+
 # ----------------------------------------------------------------------------- refusals
 def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     _, frames, _ = synth

@@ -25,7 +25,14 @@ from floorvo import __version__
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import read_image
-from floorvo.sequence import SequenceWriter, check_heights, check_timestamps
+from floorvo.metrics import associate
+from floorvo.sequence import (
+    GROUNDTRUTH_MAX_DIFF_S,
+    SequenceWriter,
+    check_groundtruth_times,
+    check_heights,
+    check_timestamps,
+)
 
 __all__ = [
     "FrameImages",
@@ -294,6 +301,15 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             )
         meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flat.itemsize}
     check_timestamps(ts, n, f"timestamps ({time_source})")
+    if gt is not None:  # checked as the sequence's reader will check it: refused now, not after writing
+        gt_what = "--groundtruth" if opts.groundtruth is not None else f"{what}: ground truth"
+        check_groundtruth_times(gt[0], ts, gt_what, f"timestamps ({time_source})")
+        if len(associate(gt[0], ts, GROUNDTRUTH_MAX_DIFF_S)[0]) == 0:
+            raise SequenceError(
+                f"{gt_what}: no pose within {GROUNDTRUTH_MAX_DIFF_S:g} s of a frame (poses at {gt[0][0]:.6f}-"
+                f"{gt[0][-1]:.6f} s, frames at {ts[0]:.6f}-{ts[-1]:.6f} s, timestamps ({time_source})): "
+                "the ground truth and the frames are on different clocks"
+            )
     if opts.height_signal_mm is not None:
         check_heights(np.asarray(opts.height_signal_mm, dtype=float), n, "--height-file")
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
