@@ -80,6 +80,21 @@ def test_a_bad_suite_file_is_one_line_naming_it(tmp_path, doubles, capsys, text,
     assert not D.RENDER_CALLS
 
 
+@pytest.mark.parametrize("how", ["suite", "argument and suite", "arguments"])
+def test_the_same_scene_twice_is_refused_in_one_line(tmp_path, doubles, capsys, how):
+    """A scene listed twice ran twice, as 'a' and 'a-2', with the same seed: two rows of one run."""
+    a = D.write_scene(tmp_path / "a.toml", name="a")
+    suite = tmp_path / "mine.toml"
+    suite.write_text('scenes = ["a.toml", "a.toml"]\n' if how == "suite" else 'scenes = ["a.toml"]\n')
+    args = {"suite": ["--suite", str(suite)], "argument and suite": [str(a), "--suite", str(suite)]}.get(
+        how, [str(a), str(a)]
+    )
+    assert main(["bench", *args, "--estimators", "scaled", "--no-report", "-o", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a.toml is given twice (as an argument or in a suite)" in err, err
+    assert not D.RENDER_CALLS and not (tmp_path / "out").exists()
+
+
 def test_an_unknown_suite_or_no_scene_at_all_is_refused_in_one_line(tmp_path, doubles, capsys):
     assert main(["bench", "--suite", "nope", "-o", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err

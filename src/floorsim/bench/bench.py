@@ -69,7 +69,7 @@ from floorsim.bench.results import write_results_csv
 from floorsim.scene import load_scene as load_scene_file
 from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
-from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json, read_json
 from floorvo.locking import lock_folder, locks_folder
@@ -411,6 +411,14 @@ def run_bench(
         raise ConfigError(f"--repeat {repetitions}: must be >= 1")
     if not scene_paths:
         raise ConfigError("bench: give at least one scene file or sequence folder")
+    given: set[Path] = set()
+    for p in scene_paths:  # the same file twice ran twice, as SCENE and SCENE-2, rows counted twice in the report
+        if Path(p).resolve() in given:
+            raise ConfigError(
+                f"bench: {shorten(str(p))} is given twice (as an argument or in a suite); give each scene file or "
+                "sequence folder once (--repeat N renders a scene N times with other seeds)"
+            )
+        given.add(Path(p).resolve())
     out_dir = Path(out_dir)
     cache_dir = Path(cache_dir) if cache_dir is not None else out_dir / "sequences"
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
