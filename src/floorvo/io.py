@@ -26,7 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from floorvo.errors import SequenceError, shorten
+from floorvo.errors import SequenceError, shorten, shown
 
 __all__ = [
     "atomic_write_bytes",
@@ -75,8 +75,11 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     (a full disk: ``[Errno 28]``, a read-only folder) leaves no temporary file behind and
     names ``path`` in its ``filename``, so the CLIs report it in one line. The temporary is
     named ``.NAME.XXXXXXXX.tmp``; one left behind by a killed process is removed by
-    :func:`remove_stale_temporaries`.
+    :func:`remove_stale_temporaries`. A path that names no file (``""``, ``/``, ``..``) is a
+    one-line :class:`SequenceError` (``-o ""`` said ``.: Device or resource busy``).
     """
+    if not os.fspath(path).strip() or Path(path).name in ("", ".", ".."):
+        raise SequenceError(f"output file {shown(os.fspath(path))}: names no file; give a file name")
     path = Path(path)
     tmp = None
     try:

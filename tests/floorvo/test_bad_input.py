@@ -386,3 +386,18 @@ def test_a_frame_of_another_bit_depth_than_frame_0_is_refused_where_none_is_stat
     assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
     err = _one_line(capsys, "floorvo")
     assert f"{path}: image is 16-bit, frame 0 is 8-bit (sequence.json states no bit_depth" in err
+
+
+@pytest.mark.parametrize("name", ["", "..", " "])
+def test_an_output_file_path_that_names_no_file_is_one_line(small_seq, tmp_path, monkeypatch, capsys, name):
+    """floorvo score/plot/calibrate -o "" said '.: Device or resource busy (errno 16)'."""
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    for command in ("score", "plot", "calibrate"):
+        capsys.readouterr()
+        assert floorvo_main([command, str(run), "--gt", str(small_seq), "-o", name]) == 1
+        assert ": names no file; give a file name" in _one_line(capsys, "floorvo")  # ("" reaches it as ".")
+    assert list(work.iterdir()) == []
