@@ -28,7 +28,8 @@ standard output and error in ``RUN/stdout.txt`` and ``RUN/stderr.txt``.
 
 A crash, a non-zero exit, a timeout, a missing or malformed trajectory (one whose times do
 not increase, or a pose at no frame time of the sequence: not within
-:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S` of one) is an
+:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S` of one), a ``timing.csv`` that does not fit
+the sequence or the trajectory (:func:`_timing_problem`) is an
 :class:`~floorvo.errors.ExternalEstimatorError` whose ``reason`` and ``stderr_tail`` the bench
 writes into a ``failed`` row.
 """
@@ -276,6 +277,29 @@ def _pose_at_no_frame(seq: Sequence, timestamps_s: np.ndarray) -> str:
     )
 
 
+def _timing_problem(seq: Sequence, written: RunFolder) -> str:
+    """Why the program's ``timing.csv`` does not fit the sequence or its own trajectory: a frame
+    index past the sequence's last frame, or ``init``/``ok`` frames that are not as many as its
+    poses (a pose at each frame it tracked and at no other); "" when it fits or there is none. A
+    program's 7 frames 'lost' beside 8 poses was scored as tracking 12.5 % of a perfect
+    trajectory, and frame 99 of an 8-frame sequence was taken, with exit code 0."""
+    timing = written.timing
+    if not timing:
+        return ""
+    frames = timing.get("frame")
+    if frames is not None and len(frames) and int(np.max(frames)) >= seq.frame_count:
+        return f"timing.csv: frame {int(np.max(frames))} is past the sequence's last frame ({seq.frame_count - 1})"
+    statuses = written.statuses
+    if statuses is not None:
+        placed = sum(s in ("init", "ok") for s in statuses)
+        if placed != len(written.timestamps_s):
+            return (
+                f"timing.csv marks {placed} frame(s) init or ok and trajectory.txt holds {len(written.timestamps_s)} "
+                "pose(s): a pose at each frame tracked and at no other"
+            )
+    return ""
+
+
 def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:
     """Where the run starts (see the module doc): ground truth at ``t_first_s``
     (:meth:`Sequence.groundtruth_at`), else ``T_world_start``, else the identity."""
@@ -362,7 +386,7 @@ def run_external(
         raise fail(f"malformed output: {' '.join(str(exc).split())}") from None
     if len(written.timestamps_s) == 0:
         raise fail("trajectory.txt holds no pose")
-    stray = _pose_at_no_frame(seq, written.timestamps_s)
+    stray = _pose_at_no_frame(seq, written.timestamps_s) or _timing_problem(seq, written)
     if stray:
         raise fail(stray)
     T_prog = written.T_world_cam

@@ -117,6 +117,34 @@ def test_poses_at_other_times_than_the_frames_are_a_failed_run(line_sequence, tm
     assert not (tmp_path / "run" / "result.json").exists()
 
 
+# The ground truth as the trajectory, and a timing.csv of the given rows (frame,status).
+_GT_AND_TIMING = (
+    "import sys, pathlib; seq, out, rows = sys.argv[1], sys.argv[2], sys.argv[3]; "
+    "pathlib.Path(out, 'trajectory.txt').write_text(pathlib.Path(seq, 'groundtruth.txt').read_text()); "
+    "pathlib.Path(out, 'timing.csv').write_text('frame,status' + chr(10) + rows.replace(';', chr(10)) + chr(10))"
+)
+
+
+@pytest.mark.parametrize(
+    ("rows", "words"),
+    [
+        (";".join(["0,init"] + [f"{i},ok" for i in range(1, 14)]), ""),
+        (";".join(["0,init"] + [f"{i},lost" for i in range(1, 14)]), "timing.csv marks 1 frame(s) init or ok and"),
+        (";".join(["0,init"] + [f"{i},ok" for i in range(1, 13)] + ["99,ok"]), "frame 99 is past the sequence's last"),
+    ],
+)
+def test_a_timing_csv_that_does_not_fit_is_a_failed_run(line_sequence, tmp_path, rows, words):
+    """A program's timing.csv saying 13 of 14 frames lost beside 14 poses was scored as tracking
+    7 % of a perfect trajectory, and one naming frame 99 of a 14-frame sequence was taken, exit 0."""
+    spec = ExternalEstimator(name="t", command=(sys.executable, "-c", _GT_AND_TIMING, "{sequence}", "{output}", rows))
+    if not words:
+        assert run_external(line_sequence, spec, tmp_path / "run").placed == 14
+        return
+    with pytest.raises(ExternalEstimatorError) as info:
+        run_external(line_sequence, spec, tmp_path / "run")
+    assert words in info.value.reason and not (tmp_path / "run" / "result.json").exists()
+
+
 def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
     spec = _failing("import time; time.sleep(30)", timeout_s=0.5)
     with pytest.raises(ExternalEstimatorError, match=r"timed out after 0\.5 s \(killed\)") as info:
