@@ -13,7 +13,8 @@ TOML file passed with ``--estimator-file FILE``::
 
 :func:`run_external` fills the placeholders (:data:`PLACEHOLDERS`: the sequence folder, the
 folder the program writes into, a camera file in OpenCV YAML, ...), runs the program in a
-process group of its own, and expects ``{output}/trajectory.txt`` (TUM: seconds and metres,
+process group of its own (what it leaves running there is killed when it ends), and expects
+``{output}/trajectory.txt`` (TUM: seconds and metres,
 ``T_world_cam``, one line per frame it placed, stamped with the sequence's frame times) and
 optionally ``{output}/timing.csv`` (the run folder's columns, ``frame`` at least). It records
 the wall time and the child's peak resident memory (``ru_maxrss`` of its own ``wait4``).
@@ -227,7 +228,9 @@ def _tail(path: Path, lines: int = STDERR_TAIL_LINES) -> str:
 
 def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, float, float]:
     """Wait for ``proc`` with a blocking ``os.wait4`` (its own resource usage, not every child's);
-    after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL 2 s later. Returns
+    after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL 2 s later. Once it
+    has ended, whatever it left running in its process group is killed: a child it started kept
+    running after the run (and through the next estimator's timing in a bench). Returns
     ``(wait status, or None when it was killed for the timeout; wall s; peak RSS MiB)``."""
     done, timed_out = threading.Event(), threading.Event()
 
@@ -252,6 +255,10 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     done.set()
     if timer is not None:
         timer.cancel()
+    try:  # what the program left running in its group (a child it started) ends with it
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
     proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
     return (None if timed_out.is_set() else status), wall, usage.ru_maxrss / 1024.0  # Linux: KiB
 

@@ -145,6 +145,38 @@ def test_a_timing_csv_that_does_not_fit_is_a_failed_run(line_sequence, tmp_path,
     assert words in info.value.reason and not (tmp_path / "run" / "result.json").exists()
 
 
+def test_what_a_program_leaves_running_ends_with_it(line_sequence, tmp_path):
+    """A child the program started (here a sleep of 60 s) kept running after the run had ended."""
+    import os
+    import signal
+    import time
+
+    code = (
+        "import sys, pathlib, subprocess; seq, out = sys.argv[1], sys.argv[2]; "
+        "p = subprocess.Popen(['sleep', '60']); pathlib.Path(out, 'child.pid').write_text(str(p.pid)); "
+        "pathlib.Path(out, 'trajectory.txt').write_text(pathlib.Path(seq, 'groundtruth.txt').read_text())"
+    )
+    spec = ExternalEstimator(name="parent", command=(sys.executable, "-c", code, "{sequence}", "{output}"))
+    run_external(line_sequence, spec, tmp_path / "run")
+    pid = int((tmp_path / "run" / "program" / "child.pid").read_text())
+
+    def alive() -> bool:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().split(")")[-1].split()[0] != "Z"  # a zombie has ended
+        except FileNotFoundError:
+            return False
+
+    deadline = time.monotonic() + 5.0
+    while alive() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    try:
+        assert not alive()
+    finally:
+        if alive():
+            os.kill(pid, signal.SIGKILL)
+
+
 def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
     spec = _failing("import time; time.sleep(30)", timeout_s=0.5)
     with pytest.raises(ExternalEstimatorError, match=r"timed out after 0\.5 s \(killed\)") as info:
