@@ -220,15 +220,31 @@ def read_text(
         raise error(f"{name}: not {what} (byte {exc.start} is not UTF-8 text)") from None
 
 
+class _DuplicateKey(ValueError):
+    """A key given twice in one JSON object (see :func:`read_json`)."""
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    obj: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in obj:
+            raise _DuplicateKey(key)
+        obj[key] = value
+    return obj
+
+
 def read_json(path: str | os.PathLike, error: type[Exception] = SequenceError, label: str | None = None) -> Any:
     """Parse a JSON file; a missing, unreadable or malformed file raises ``error`` with one line.
 
-    ``label`` names the file in the message (default: its path).
+    ``label`` names the file in the message (default: its path). A key given twice in one
+    object is refused (JSON parsers keep the last one silently: ``"fps": 30, "fps": 7``).
     """
     name = label or str(path)
     text = read_text(path, error, label, "valid JSON")
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise error(f"{name}: key {shown(str(exc))} is given twice in one object") from None
     except json.JSONDecodeError as exc:
         raise error(f"{name}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except (ValueError, RecursionError) as exc:  # an integer of 5000 digits, arrays nested 100,000 deep

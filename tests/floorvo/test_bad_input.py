@@ -291,6 +291,18 @@ def test_sequence_json_that_is_not_a_table_says_so(tmp_path, capsys, content, wo
     assert words in _one_line(capsys, "floorvo")
 
 
+def test_a_key_given_twice_in_a_json_object_is_refused(tmp_path, capsys):
+    """sequence.json with "fps": 30.0, "fps": 7.0 was read as 7 fps (JSON keeps the last key
+    silently); a sequence without ground truth ran at the wrong frame times, exit 0."""
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(4.0, 4.0), seed=0)
+    (seq / "groundtruth.txt").unlink()
+    text = (seq / "sequence.json").read_text()
+    (seq / "sequence.json").write_text(text.replace('"fps": 30.0,', '"fps": 30.0, "fps": 7.0,', 1))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    assert "sequence.json: key 'fps' is given twice in one object" in _one_line(capsys, "floorvo")
+
+
 def test_a_frame_count_too_large_to_hold_is_refused(tmp_path):
     from floorvo.errors import SequenceError
     from floorvo.sequence import Sequence
