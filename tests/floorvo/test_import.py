@@ -239,6 +239,13 @@ def test_camera_file_refusals(tmp_path):
     (tmp_path / "bad.yaml").write_text("a: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         read_camera_file(tmp_path / "bad.yaml")
+    # a key given twice: PyYAML kept the second camera matrix (half the focal length), silently
+    (tmp_path / "twice.yaml").write_text(
+        "image_width: 64\nimage_height: 48\ncamera_matrix: [100, 0, 32, 0, 100, 24, 0, 0, 1]\n"
+        "camera_matrix: [50, 0, 32, 0, 50, 24, 0, 0, 1]\n"
+    )
+    with pytest.raises(ConfigError, match=r"twice.yaml: key 'camera_matrix' is given twice \(line 4\)"):
+        read_camera_file(tmp_path / "twice.yaml")
     # a camera matrix of another form was read as fx, fy, cx, cy alone: K[2][2] = 2 gave a camera
     # twice as long in focal length as the matrix states, a skew was dropped
     for K in ("[100, 0, 32, 0, 100, 24, 0, 0, 2]", "[100, 3, 32, 0, 100, 24, 0, 0, 1]"):

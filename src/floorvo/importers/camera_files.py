@@ -58,14 +58,24 @@ class CameraCalibration:
 
 
 def load_yaml(path: str | os.PathLike, what: str = "camera file") -> Any:
-    """Parse a YAML file, OpenCV's dialect included (``%YAML:1.0`` header, ``!!opencv-matrix`` tags)."""
+    """Parse a YAML file, OpenCV's dialect included (``%YAML:1.0`` header, ``!!opencv-matrix`` tags).
+
+    A key given twice in one mapping is refused (PyYAML keeps the last one silently).
+    """
     try:
         import yaml
     except ImportError:
         raise ConfigError(f"{what} {path}: reading YAML needs the 'pyyaml' package: pip install pyyaml") from None
 
     class _Loader(yaml.SafeLoader):
-        pass
+        def construct_mapping(self, node, deep=False):  # a key given twice: PyYAML keeps the last, silently
+            keys = [self.construct_object(k, deep=True) for k, _ in node.value]
+            for i, key in enumerate(keys):
+                if key in keys[:i]:
+                    raise ConfigError(
+                        f"{what} {path}: key {shown(str(key))} is given twice (line {node.value[i][0].start_mark.line + 1})"
+                    )
+            return super().construct_mapping(node, deep=deep)
 
     def _matrix(loader, node):
         return loader.construct_mapping(node, deep=True)
