@@ -705,7 +705,8 @@ class FloorRenderer:
         # Evaluated mode: a reduction kernel with a fixed order. Dr.Jit's default switches to atomic
         # scatter-adds (order varies from run to run) when L would take over 1 GiB (about 1000 spp at full size).
         img = dr.block_sum(L, spp, mode="evaluated") * (1.0 / spp)
-        return np.asarray(img.numpy(), dtype=np.float32).reshape(h, w)
+        # With every light off (power 0, no ambient) L is a literal: Dr.Jit holds it as one value.
+        return np.broadcast_to(np.asarray(img.numpy(), dtype=np.float32).ravel(), (h * w,)).reshape(h, w).copy()
 
     @staticmethod
     def _linear_warp(dr, c, xi):

@@ -145,6 +145,25 @@ def test_brightness_linear_in_led_power_until_saturation(tmp_path):
     assert imgs[200.0].min() >= imgs[2.0].min()
 
 
+def test_every_light_off_renders_black_or_says_to_fix_the_exposure(tmp_path, capsys):
+    """lights.power = 0 (documented: off) with no ambient light ended in a traceback from inside the
+    renderer ('cannot reshape array of size 1 into shape (124,162)'): with every light off Dr.Jit
+    holds the image as one value. A fixed exposure renders black frames; automatic exposure asks
+    for one in one line."""
+    from floorsim.cli import main
+
+    off = {"trajectory.distance_mm": 4.0, "lights.power": 0.0, "sensor.exposure_gain": 1000.0}
+    seq = Sequence.open(render_sequence(tiny_scene(**off), tmp_path / "off"))
+    assert seq.image(0).shape == (124, 162) and seq.image(0).max() == 0 and seq.image(1).max() == 0
+    scene = tmp_path / "off.toml"
+    scene.write_text(
+        'name = "off"\n[lights]\npower = 0.0\n[trajectory]\ntype = "uniform"\ndistance_mm = 4.0\nstep_mm = 4.0\n'
+    )
+    assert main(["render", str(scene), "--scale", "0.05", "-o", str(tmp_path / "auto")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the first frame is black (lights off or power 0); set sensor.exposure_gain" in err
+
+
 def test_higher_leds_lower_relief_contrast(tmp_path):
     contrast = {}
     for h in (3.0, 30.0):
