@@ -222,3 +222,13 @@ def test_cli_a_crashing_external_program_is_a_failed_row_and_the_bench_exits_0(t
     assert "failed: exit code 7" in printed
     page = (out / "report.html").read_text()
     assert "segfault in tracker" in page and "Estimators compared" in page
+
+
+def test_a_bench_of_one_frame_is_refused_before_it_renders(tmp_path, doubles, capsys):
+    """--frames 1 benched one-frame sequences: nothing to estimate, every row 'ok' and empty, exit 0."""
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    argv = ["bench", str(scene), "--frames", "1", "--estimators", "scaled", "--no-report", "-o", str(tmp_path / "out")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--frames 1: a bench needs at least 2 frames" in err
+    assert not D.RENDER_CALLS and not (tmp_path / "out").exists()

@@ -227,6 +227,8 @@ def test_margin_to_the_nearest_breaking_point_along_a_key():
             "estimator_config.lossy: 'lossy' is not among estimators",
         ),
         ('[render]\nspp = 0\n[vary]\n"lights.power" = [1.0]\n', "render.spp = 0: must be >= 1"),
+        # one-frame sequences: nothing to estimate, every job an empty 'ok' row
+        ('[render]\nframes = 1\n[vary]\n"lights.power" = [1.0]\n', "render.frames = 1 frames: must be >= 2 frames"),
         (
             '[search]\nkey = "lights.height_mm"\nlow = 1\nhigh = 2\nfails = "below"\ntolerance = 1e-9\n'
             "[criterion]\nlost_frames = 0\n",

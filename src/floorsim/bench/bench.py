@@ -409,6 +409,8 @@ def run_bench(
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if repetitions < 1:
         raise ConfigError(f"--repeat {repetitions}: must be >= 1")
+    if frames is not None and frames < 2:  # one frame: no step to estimate, every row 'ok' and empty
+        raise ConfigError(f"--frames {frames}: a bench needs at least 2 frames (a step to estimate)")
     if not scene_paths:
         raise ConfigError("bench: give at least one scene file or sequence folder")
     given: set[Path] = set()

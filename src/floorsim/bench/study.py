@@ -107,7 +107,7 @@ def as_override(value: Any) -> str:
 class StudyRender(Config):
     """``[render]``: render settings of every job (``floorsim bench --frames/--scale/--spp``)."""
 
-    frames: int | None = param(None, unit="frames", min=1, doc="frames per sequence (none: the scene's)")
+    frames: int | None = param(None, unit="frames", min=2, doc="frames per sequence, 2 at least (none: the scene's)")
     scale: float | None = param(None, gt=0, max=4.0, doc="image size factor (none: full size)")
     spp: int | None = param(None, min=1, doc="samples per pixel (none: the scene's)")
 
