@@ -20,6 +20,10 @@ frames, to the nanosecond (``groundtruth.txt`` holds microseconds). ``sensor.yam
 ``distortion_coefficients`` are EuRoC's radial-tangential (k1, k2, p1, p2), followed by
 k3 when the camera has one (OpenCV's order): a reader that takes only four would model
 another lens.
+
+Neither format carries the flat field, a range sensor's ``height.csv`` or the rig height:
+every export names what it left out (:func:`left_out`) and the ``floorvo import`` flag that
+gives it back.
 """
 
 from __future__ import annotations
@@ -35,13 +39,32 @@ from floorvo.geometry import xyz_quat_from_T
 from floorvo.io import atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
 
-__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence", "euroc_distortion"]
+__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence", "euroc_distortion", "left_out"]
 
 log = logging.getLogger(__name__)
 
 
 def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
+
+
+def left_out(seq: Sequence) -> list[str]:
+    """What of ``seq`` neither format carries, each with the ``floorvo import`` flag that gives it
+    back (logged as a warning by every export: a round trip lost them without a word, and
+    phase-corr's flat-field correction and a range sensor's heights with them)."""
+    missing = []
+    if seq.flatfield() is not None:
+        missing.append("calib/cam0_flatfield.png (give it back with floorvo import --flatfield FILE)")
+    if seq.height_signal_mm is not None:
+        missing.append("height.csv, the range sensor's heights (floorvo import --height-file FILE)")
+    if seq.height_mm is not None:
+        missing.append(f"rig.height_mm = {seq.height_mm:g} (floorvo import --height-mm {seq.height_mm:g})")
+    return missing
+
+
+def _warn_left_out(seq: Sequence, fmt: str) -> None:
+    for what in left_out(seq):
+        log.warning("%s: not exported to %s: %s", seq.root, fmt, what)
 
 
 def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
@@ -61,6 +84,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
     out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
+    _warn_left_out(seq, "a ROS 2 bag")
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
@@ -218,6 +242,7 @@ def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
     """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
     out = _check_out(out)
+    _warn_left_out(seq, "EuRoC")
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])

@@ -152,3 +152,21 @@ def test_rosbag2_refuses_an_existing_empty_folder(stereo_depth_seq, tmp_path):
     (tmp_path / "bag").mkdir()
     with pytest.raises(FloorbenchError, match="output exists"):
         export_sequence(seq_dir, "rosbag2", tmp_path / "bag")
+
+
+@pytest.mark.parametrize("fmt", ["rosbag2", "euroc"])
+def test_an_export_names_what_it_leaves_out(tmp_path, caplog, fmt):
+    """The flat field, a range sensor's height.csv and the rig height were dropped without a word,
+    so a round trip ran phase-corr without flat-field correction or measured heights."""
+    import logging
+
+    from floorvo.synthetic import line_poses, write_synthetic_sequence
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(4.0, 2.0), height_noise_mm=0.5)
+    with caplog.at_level(logging.WARNING, logger="floorsim.export"):
+        export_sequence(seq, fmt, tmp_path / "out")
+    said = " | ".join(r.getMessage() for r in caplog.records)
+    assert "not exported" in said
+    for words in ("calib/cam0_flatfield.png", "--flatfield", "height.csv", "--height-file", "--height-mm 100"):
+        assert words in said, said
