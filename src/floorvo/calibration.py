@@ -212,8 +212,13 @@ def save_scale_calibration(cal: ScaleCalibration, path: str | os.PathLike) -> No
     atomic_write_json(path, cal.to_dict())
 
 
-def load_scale_calibration(path: str | os.PathLike) -> ScaleCalibration:
-    """Read a calibration file; a wrong kind, version, key or value is a one-line ConfigError."""
+def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None) -> ScaleCalibration:
+    """Read a calibration file; a wrong kind, version, key or value is a one-line ConfigError.
+
+    ``estimator``: the estimator it is to be applied to; a file fitted on another estimator's
+    run (its ``estimator``) is refused: a calibration is fitted per estimator, rig and floor,
+    and akaze-guided's was divided out of phase-corr's steps without a word.
+    """
     d = read_json(path, ConfigError)
     if not isinstance(d, dict) or d.get("kind") != KIND:
         raise ConfigError(
@@ -241,7 +246,13 @@ def load_scale_calibration(path: str | os.PathLike) -> ScaleCalibration:
             raise ConfigError(
                 f"{path}: scale_{axis} = {shown(v)} must be a number in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
             )
-    return ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
+    cal = ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
+    if estimator is not None and cal.estimator and cal.estimator != estimator:
+        raise ConfigError(
+            f"{path}: fitted on a run of {shown(cal.estimator)}, not {shown(estimator)}; fit one per estimator "
+            f"(floorvo calibrate on a run of {shown(estimator)})"
+        )
+    return cal
 
 
 def apply_scale(T_prev_cur: np.ndarray, cal: ScaleCalibration) -> np.ndarray:

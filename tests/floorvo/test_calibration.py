@@ -139,13 +139,19 @@ def test_calibration_fitted_on_one_run_corrects_another(tmp_path, capsys):
             '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "scale_z": 1}',
             "unknown key 'scale_z'",
         ),
+        # fitted on another estimator's run: it was divided out of phase-corr's steps without a word
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.02, "scale_y": 1.0, '
+            '"estimator": "akaze-guided"}',
+            "fitted on a run of 'akaze-guided', not 'phase-corr'; fit one per estimator",
+        ),
     ],
 )
 def test_bad_calibration_file_is_one_line_error(tmp_path, capsys, content, message):
     path = tmp_path / "scale.json"
     path.write_text(content)
     with pytest.raises(ConfigError, match=message):
-        load_scale_calibration(path)
+        load_scale_calibration(path, "phase-corr")
     seq = write_synthetic_sequence(tmp_path / "s", CAM, np.stack([T_world_cam_down(0.0, 0.0, 100.0)] * 2))
     assert (
         floorvo_main(

@@ -347,7 +347,7 @@ def _load_scales(
             raise ConfigError(
                 f"--scale-calibration {n}={f}: estimator {n!r} is not among --estimators ({', '.join(estimators)})"
             )
-        cals[n] = (str(f), load_scale_calibration(f))
+        cals[n] = (str(f), load_scale_calibration(f, n))
     return cals
 
 

@@ -80,7 +80,7 @@ def run(args) -> int:
         start = pose.T_world_cam(Sequence.open(args.sequence).height_mm)
     if args.estimator is None:
         return _run_external(args, start)
-    cal = None if args.scale_calibration is None else load_scale_calibration(args.scale_calibration)
+    cal = None if args.scale_calibration is None else load_scale_calibration(args.scale_calibration, args.estimator)
     with progress_callback(args.estimator) as cb:
         res = run_estimator(
             args.sequence,
