@@ -124,9 +124,13 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
     benches: the second waits for the first's render, then reuses it). The same thread may
     take a lock it holds again (re-entrant; the lock ends when its first holder releases it). A path that exists and is not a folder is a
     one-line :class:`~floorvo.errors.FloorbenchError`, and so is a folder that cannot be
-    created or written.
+    created or written, and a sequence folder (``sequence.json``) locked as anything but a
+    ``sequence folder`` or a plain ``folder`` (a run, map or bench written into a sequence).
     """
     path = checked_output_path(folder, FloorbenchError)  # no lock file in the current folder ("") or in "/"
+    if what not in ("folder", "sequence folder") and (path / "sequence.json").is_file():
+        # floorvo run SEQ -o SEQ wrote its run into the sequence, floorsim bench SEQ -o SEQ its bench
+        raise FloorbenchError(f"{path}: is a sequence folder (sequence.json); a {what} goes in a folder of its own")
     waited = False
     while True:
         created = _make_folder(path)

@@ -132,6 +132,25 @@ def test_a_file_where_the_folder_goes_is_one_line(tmp_path):
         lock_folder(tmp_path / "f" / "run")
 
 
+def test_a_run_or_map_into_a_sequence_folder_is_refused(tmp_path, capsys):
+    """floorvo run SEQ -o SEQ wrote trajectory.txt, timing.csv and result.json into the sequence
+    (and floorvo map its map, floorsim bench its bench) with exit code 0."""
+    cam = CameraModel.from_sensor().scaled(0.25)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    before = sorted(p.name for p in seq.iterdir())
+    for argv, what in (
+        (["run", str(seq), "-e", "phase-corr", "-o", str(seq)], "run folder"),
+        (["map", str(seq), "-o", str(seq)], "map folder"),
+    ):
+        capsys.readouterr()
+        assert floorvo_main(argv) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"is a sequence folder (sequence.json); a {what} goes in a folder" in err
+    assert sorted(p.name for p in seq.iterdir()) == before
+    with lock_folder(seq, "sequence folder"):  # its own writer still takes it
+        pass
+
+
 # ----------------------------------------------------------------------------- every floorvo writer
 def _writers(seq: Path, out: Path) -> dict:
     """Each writer of a folder at ``out`` (a callable; the CLIs return their exit code); the
