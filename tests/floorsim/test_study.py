@@ -481,6 +481,22 @@ def test_a_search_whose_renders_fail_says_so_and_exits_1(tmp_path, capsys):
     )
 
 
+@pytest.mark.parametrize(
+    "listed, words", [(["a/rec", "a/rec"], "is listed twice"), (["a/rec", "b/rec"], "has the name of")]
+)
+def test_a_sequence_folder_twice_or_two_of_one_name_are_refused(tmp_path, listed, words):
+    """Two listed folders named alike became two jobs 'sequence=rec' writing one run folder: the
+    second run replaced the first's, and a resumed study counted them as one job done."""
+    D.reset()
+    for sub in ("a", "b"):
+        D.render(D.load_scene(D.write_scene(tmp_path / f"{sub}.toml", name="rec")), tmp_path / sub / "rec")
+    p = tmp_path / "s.toml"
+    p.write_text(f'estimators = ["scaled"]\nsequences = {json.dumps(listed)}\n')
+    with pytest.raises(ConfigError, match=f"s.toml: sequences: '{listed[1]}' {words}") as exc:
+        load_sweep(p)
+    assert "each sequence folder once, with a name of its own" in str(exc.value)
+
+
 def test_a_study_of_sequence_folders_alone_runs_and_is_recorded(tmp_path):
     D.reset()
     rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec", height=2.0)), tmp_path / "rec")

@@ -318,9 +318,16 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     if not isinstance(seqs, list) or not all(isinstance(q, str) for q in seqs):
         raise ConfigError(f"{path}: sequences = {shown(seqs)}: must be a list of sequence folders")
     sequences = [_beside(path, q, "sequences") for q in seqs]
+    named: dict[str, Path] = {}
     for q, full in zip(seqs, sequences):
         if not is_sequence_folder(full):
             raise ConfigError(f"{path}: sequences: {shown(q)}: not a sequence folder (no {full / 'sequence.json'})")
+        other = named.setdefault(full.name, full)  # a job and its run folders are named after the folder
+        if other is not full:
+            why = (
+                "is listed twice" if other.resolve() == full.resolve() else f"has the name of {shorten(str(other))} too"
+            )
+            raise ConfigError(f"{path}: sequences: {shown(q)} {why}: each sequence folder once, with a name of its own")
     base: Path | None = None
     if "base" in d or not sequences:  # a study of sequence folders alone has no grid
         if not isinstance(d.get("base"), str) or not d["base"]:
