@@ -106,11 +106,13 @@ def invert_T(T: np.ndarray) -> np.ndarray:
 RIGID_TOLERANCE = 1e-6
 
 
-def rigid_problem(T: Any) -> str | None:
+def rigid_problem(T: Any, tol: float = RIGID_TOLERANCE) -> str | None:
     """Why ``T`` is not a rigid transform (4, 4) of finite numbers, or None when it is one.
 
-    Rigid: ``R = T[:3, :3]`` orthonormal with ``det R = +1`` and the bottom row ``[0, 0, 0, 1]``,
-    each within :data:`RIGID_TOLERANCE`. The reason names the rule broken (for an error message).
+    Rigid: ``R = T[:3, :3]`` orthonormal with ``det R = +1`` (a reflection is not a pose) and the
+    bottom row ``[0, 0, 0, 1]``, each within ``tol`` (:data:`RIGID_TOLERANCE`; a file written
+    with fewer digits may need more). The reason names the rule broken (for an error message).
+    The one rigidity rule: estimator steps, ``rig.T_cam0_cam1``, a camera file's extrinsics.
     """
     try:
         A = np.asarray(T, dtype=float)
@@ -120,10 +122,10 @@ def rigid_problem(T: Any) -> str | None:
         return f"shape {A.shape}, not (4, 4)"
     if not np.isfinite(A).all():
         return "holds a non-finite value"
-    if np.max(np.abs(A[3] - [0.0, 0.0, 0.0, 1.0])) > RIGID_TOLERANCE:
+    if np.max(np.abs(A[3] - [0.0, 0.0, 0.0, 1.0])) > tol:
         return f"bottom row {A[3].tolist()}, not [0, 0, 0, 1]"
     R = A[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) > RIGID_TOLERANCE or np.linalg.det(R) <= 0:
+    if np.max(np.abs(R.T @ R - np.eye(3))) > tol or np.linalg.det(R) <= 0:
         return "its 3x3 part is not a rotation (orthonormal, determinant +1)"
     return None
 

@@ -20,6 +20,7 @@ import numpy as np
 from floorvo.camera import K_problem
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, shown
+from floorvo.geometry import rigid_problem
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -90,9 +91,9 @@ class RigBlock(Config):
     def validate(self) -> None:
         if self.T_cam0_cam1 is not None:
             T = _matrix(self.T_cam0_cam1, (4, 4), "T_cam0_cam1")
-            R = T[:3, :3]
-            if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
-                raise ConfigFieldError("T_cam0_cam1", f" = {T.tolist()}: must be a rigid 4x4 transform")
+            problem = rigid_problem(T)
+            if problem:
+                raise ConfigFieldError("T_cam0_cam1", f" = {T.tolist()}: must be a rigid 4x4 transform ({problem})")
 
 
 @dataclass(frozen=True)

@@ -239,6 +239,14 @@ def test_camera_file_refusals(tmp_path):
     (tmp_path / "bad.yaml").write_text("a: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         read_camera_file(tmp_path / "bad.yaml")
+    # a mirrored cam1 (det R = -1) passed the orthonormality test
+    (tmp_path / "mirror.yaml").write_text(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [400, 400, 320, 240]\n  resolution: [640, 480]\n"
+        "cam1:\n  camera_model: pinhole\n  intrinsics: [400, 400, 320, 240]\n  resolution: [640, 480]\n"
+        "  T_cn_cnm1: [[1, 0, 0, -0.05], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]]\n"
+    )
+    with pytest.raises(ConfigError, match=r"not a rigid 4x4 transform \(its 3x3 part is not a rotation"):
+        read_camera_file(tmp_path / "mirror.yaml")
     # a key given twice: PyYAML kept the second camera matrix (half the focal length), silently
     (tmp_path / "twice.yaml").write_text(
         "image_width: 64\nimage_height: 48\ncamera_matrix: [100, 0, 32, 0, 100, 24, 0, 0, 1]\n"

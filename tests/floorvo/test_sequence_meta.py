@@ -70,6 +70,12 @@ def _with(path: str, value):
         ("depth", {"format": "exr"}, "depth.format = 'exr': must be one of 'png16', 'npy_float32_mm'"),
         ("cameras", {"cam2": GOOD["camera"]}, "cameras.cam2: unknown camera (known: cam1)"),
         ("rig.T_cam0_cam1", np.diag([1.0, 1.0, 1.0, 2.0]).tolist(), "rig.T_cam0_cam1 = [[1.0, 0.0, 0.0, 0.0]"),
+        # a mirrored right camera (det R = -1) passed the orthonormality test and was used as it was
+        (
+            "rig.T_cam0_cam1",
+            np.diag([1.0, 1.0, -1.0, 1.0]).tolist(),
+            "must be a rigid 4x4 transform (its 3x3 part is not a rotation (orthonormal, determinant +1))",
+        ),
     ],
 )
 def test_bad_sequence_json_is_one_line(tmp_path, capsys, path, value, message):

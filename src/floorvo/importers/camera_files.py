@@ -28,7 +28,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel, intrinsics_from_K
 from floorvo.errors import ConfigError, shown
-from floorvo.geometry import invert_T
+from floorvo.geometry import invert_T, rigid_problem
 from floorvo.io import read_text
 
 __all__ = [
@@ -186,8 +186,9 @@ def _from_intrinsics(d: dict, what: str) -> CameraModel:
 def transform_m_to_mm(value: Any, what: str) -> np.ndarray:
     """A 4x4 transform given in metres (nested list or ``{rows, cols, data}``) with its translation in mm."""
     T = _numbers(value, what, 16).reshape(4, 4)
-    if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5):
-        raise ConfigError(f"{what}: not a rigid 4x4 transform")
+    problem = rigid_problem(T, tol=1e-5)  # calibration tools write a handful of digits
+    if problem:
+        raise ConfigError(f"{what}: not a rigid 4x4 transform ({problem})")
     T = T.copy()
     T[:3, 3] *= 1000.0
     return T
