@@ -566,12 +566,19 @@ class Sequence:
             raise SequenceError(f"{self.root}: sequence has no depth (render it with depth enabled)")
         npy = self.root / "depth" / frame_name(index, "npy")
         if npy.is_file():
+            path = npy
             try:
-                return np.load(npy).astype(np.float32)
+                depth = np.load(npy).astype(np.float32)
             except (ValueError, OSError):
                 raise SequenceError(f"{npy}: not a readable .npy depth map") from None
-        raw = read_png(self.root / "depth" / frame_name(index))
-        return raw.astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
+        else:
+            path = self.root / "depth" / frame_name(index)
+            depth = read_png(path).astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
+        cam = self.camera
+        if depth.shape != (cam.height_px, cam.width_px):  # as a frame of another size is refused (image)
+            size = f"{depth.shape[1]}x{depth.shape[0]}" if depth.ndim == 2 else f"of shape {depth.shape}"
+            raise SequenceError(f"{path}: depth map is {size}, sequence.json says {cam.width_px}x{cam.height_px}")
+        return depth
 
     def flatfield(self, cam: str = "cam0") -> np.ndarray | None:
         """Flat-field calibration frame of ``cam`` as stored, or None if the sequence has none."""

@@ -413,3 +413,14 @@ def test_an_output_file_path_that_names_no_file_is_one_line(small_seq, tmp_path,
         assert floorvo_main([command, str(run), "--gt", str(small_seq), "-o", name]) == 1
         assert ": names no file; give a file name" in _one_line(capsys, "floorvo")  # ("" reaches it as ".")
     assert list(work.iterdir()) == []
+
+
+def test_a_depth_map_of_another_size_is_refused_like_a_frame(tmp_path, capsys):
+    """A depth map of 80x60 in a 160x120 sequence was taken as a lost frame ('depth image is 80x60
+    px') and orb-icp ran on with exit code 0; a frame of another size is refused in one line."""
+    cam = CameraModel.from_sensor(160, 120, 29.97, 6.0)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0, depth=True)
+    path = seq / "depth" / "000001.npy"
+    np.save(path, np.full((60, 80), 100.0, np.float32))
+    assert floorvo_main(["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run")]) == 1
+    assert f"{path}: depth map is 80x60, sequence.json says 160x120" in _one_line(capsys, "floorvo")
