@@ -587,6 +587,13 @@ class Sequence:
             return None
         img = read_png(p)
         _check_bit_depth(img, (self.meta.get("calib") or {}).get("flatfield_bit_depth"), p, "calib.flatfield_bit_depth")
+        model = self.camera_model(cam)
+        if img.shape != (model.height_px, model.width_px):  # estimators ended in a ValueError from inside
+            channels = f" with {img.shape[2]} channels" if img.ndim == 3 else ""
+            raise SequenceError(
+                f"{p}: image is {img.shape[1]}x{img.shape[0]}{channels}, sequence.json says a mono "
+                f"{model.width_px}x{model.height_px}"
+            )
         return img
 
     def groundtruth(self) -> tuple[np.ndarray, np.ndarray] | None:

@@ -424,3 +424,17 @@ def test_a_depth_map_of_another_size_is_refused_like_a_frame(tmp_path, capsys):
     np.save(path, np.full((60, 80), 100.0, np.float32))
     assert floorvo_main(["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run")]) == 1
     assert f"{path}: depth map is 80x60, sequence.json says 160x120" in _one_line(capsys, "floorvo")
+
+
+@pytest.mark.parametrize("shape", [(6, 8), (12, 16, 3)])
+def test_a_flat_field_of_another_size_is_refused_in_one_line(tmp_path, capsys, shape):
+    """A flat field of another size (or a colour one) ended in a ValueError from inside the
+    estimator ('flatfield shape (60, 80) differs from the camera's 120x160')."""
+    from floorvo.io import write_png
+
+    cam = CameraModel.from_sensor().scaled(0.025)  # 16x12
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    write_png(seq / "calib" / "cam0_flatfield.png", np.full(shape, 30000, np.uint16))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert "cam0_flatfield.png: image is" in err and "sequence.json says a mono 16x12" in err
