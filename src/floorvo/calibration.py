@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from floorvo.config import Rule
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import invert_T, rot_z
 from floorvo.io import atomic_write_json, read_json
@@ -120,6 +121,10 @@ def fit_scale_calibration(
 def _fit_steps(G: np.ndarray, E: np.ndarray, min_travel_mm: float, min_turn_deg: float = 10.0) -> ScaleCalibration:
     """The least-squares scales of estimated over true steps ``E``, ``G`` (K, 4, 4), mm: per
     camera axis of their translations, and of their yaw changes."""
+    for name, value, unit in (("--min-travel-mm", min_travel_mm, "mm"), ("--min-turn-deg", min_turn_deg, "deg")):
+        problem = Rule(min=0.0, unit=unit).violation(float(value))
+        if problem:  # NaN left every axis 'not observed' at scale 1, exit 0
+            raise ConfigError(f"{name} = {value} {unit}: {problem}")
     g, e = G[:, :3, 3], E[:, :3, 3]
     out: dict[str, Any] = {}
     for k, axis in enumerate("xy"):

@@ -43,6 +43,8 @@ from typing import Any
 
 import numpy as np
 
+from floorvo.config import Rule
+from floorvo.errors import ConfigError
 from floorvo.geometry import invert_T, rigid_fit
 
 __all__ = [
@@ -103,8 +105,12 @@ def associate(
     ``t_ref_s`` (N,), ``t_est_s`` (M,) in seconds; ``offset_s`` is added to the estimate's
     times. A pair is kept when the difference is at most ``max_diff_s``; each reference
     pose is used at most once (the closest estimate wins). Returns two int arrays
-    ``(idx_ref, idx_est)`` of equal length, sorted by ``idx_est``.
+    ``(idx_ref, idx_est)`` of equal length, sorted by ``idx_est``. A ``max_diff_s`` that is not
+    a finite number >= 0 is a one-line :class:`~floorvo.errors.ConfigError`.
     """
+    problem = Rule(min=0.0, unit="s").violation(float(max_diff_s))
+    if problem:  # a negative or NaN tolerance paired nothing: 'shares no timestamp', exit 0
+        raise ConfigError(f"timestamp association tolerance (--max-diff) = {max_diff_s} s: {problem}")
     t_ref = np.asarray(t_ref_s, dtype=float)
     t_est = np.asarray(t_est_s, dtype=float) + offset_s
     if len(t_ref) == 0 or len(t_est) == 0:

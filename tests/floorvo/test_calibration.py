@@ -256,3 +256,16 @@ def test_one_calibration_from_a_straight_run_and_a_spin(tmp_path, capsys):
     assert err.count("\n") == 1 and "the runs are of different estimators (akaze-guided, phase-corr)" in err
     assert floorvo_main(["calibrate", str(r1), str(r2), str(r3), "--gt", str(s1), "--gt", str(s2), "-o", str(out)]) == 1
     assert "--gt: given 2 times for 3 runs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value, words", [("-1", "must be >= 0.0 mm"), ("nan", "must be a finite number")])
+def test_an_impossible_min_travel_is_refused(tmp_path, capsys, value, words):
+    """floorvo calibrate --min-travel-mm nan kept every axis 'not observed' at scale 1, exit 0."""
+    seq = _diagonal_sequence(tmp_path / "cal", 1, 3.0, 2.0)
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    argv = ["calibrate", str(tmp_path / "run"), "--gt", str(seq), "-o", str(tmp_path / "c.json")]
+    assert floorvo_main([*argv, "--min-travel-mm", value]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--min-travel-mm = {float(value)} mm: {words}" in err
+    assert not (tmp_path / "c.json").exists()

@@ -244,3 +244,15 @@ def test_a_run_against_another_sequence_is_refused_by_score_plot_and_calibrate(t
     copy = shutil.copytree(seq, tmp_path / "copy")
     assert main(["score", str(run), "--gt", str(copy)]) == 0
     assert main(["score", str(run), "--gt", str(other / "groundtruth.txt")]) == 0
+
+
+@pytest.mark.parametrize("value, words", [("-1", "must be >= 0.0 s"), ("nan", "must be a finite number")])
+def test_an_impossible_association_tolerance_is_refused(tmp_path, capsys, value, words):
+    """floorvo score --max-diff -1 (or nan) paired nothing and reported 'the estimate shares no
+    timestamp with the ground truth (within -1.0 s)' with exit code 0."""
+    from floorvo.cli import main
+
+    seq, run = _fake_run(tmp_path)
+    assert main(["score", str(run), "--gt", str(seq), "--max-diff", value]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"timestamp association tolerance (--max-diff) = {float(value)} s: {words}" in err
