@@ -96,3 +96,36 @@ def test_quiet_after_the_command_keeps_only_warnings(tmp_path, caplog, capsys):
         assert floorvo_main(["run", str(seq), "-e", "phase-corr", "--out", str(tmp_path / "run"), *argv]) == 0
         logged = [r for r in caplog.records if r.name.startswith("floorvo") and r.levelno == logging.INFO]
         assert bool(logged) == info, argv
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["floorvo", "import", "SRC", "-o", "OUT", "--topic", "image=/a", "--topic", "image=/b"], "--topic 'image=/b'"),
+        (["floorsim", "bench", "SRC", "-o", "OUT", "--external", "a=x {output}", "--external", "a=y {output}"], "'a'"),
+        (
+            [
+                "floorsim",
+                "bench",
+                "SRC",
+                "-o",
+                "OUT",
+                "--scale-calibration",
+                "e=1.json",
+                "--scale-calibration",
+                "e=2.json",
+            ],
+            "--scale-calibration 'e=2.json'",
+        ),
+    ],
+)
+def test_a_name_given_twice_in_name_value_options_is_refused(tmp_path, monkeypatch, capsys, argv, words):
+    """--external a=CMD1 --external a=CMD2 ran CMD2 alone, --topic image=A --topic image=B read B:
+    the last one was taken silently."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "SRC").mkdir()
+    main = {"floorvo": floorvo_main, "floorsim": floorsim_main}[argv[0]]
+    assert main(argv[1:]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "is given twice" in err, err
+    assert not (tmp_path / "OUT").exists()

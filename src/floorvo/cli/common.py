@@ -23,13 +23,18 @@ def parse_name_values(items: list[str] | None, flag: str, form: str) -> dict[str
     """Repeated ``NAME=VALUE`` options (``--topic image=/cam0/image_raw``) into ``{NAME: VALUE}``.
 
     ``flag`` and ``form`` (``"ROLE=NAME (e.g. image=/cam0/image_raw)"``) word the one-line
-    :class:`ConfigError` for an item without a name or a value.
+    :class:`ConfigError` for an item without a name or a value, and for a name given twice
+    (the last one was taken silently: ``--external a=CMD1 --external a=CMD2`` ran CMD2 alone).
     """
     out: dict[str, str] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name.strip() or not value.strip():
             raise ConfigError(f"{flag} {item!r}: expected {form}")
+        if name.strip() in out:
+            raise ConfigError(
+                f"{flag} {item!r}: {name.strip()!r} is given twice (also {name.strip()}={out[name.strip()]}); give each once"
+            )
         out[name.strip()] = value.strip()
     return out
 
