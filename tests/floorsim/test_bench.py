@@ -232,3 +232,13 @@ def test_a_bench_of_one_frame_is_refused_before_it_renders(tmp_path, doubles, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--frames 1: a bench needs at least 2 frames" in err
     assert not D.RENDER_CALLS and not (tmp_path / "out").exists()
+
+
+def test_an_estimator_listed_twice_is_refused_before_it_renders(tmp_path, doubles, capsys):
+    """--estimators scaled,scaled ran it twice into one run folder: two rows of one run, exit 0."""
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    argv = ["bench", str(scene), "--estimators", "scaled,lossy,scaled", "--no-report", "-o", str(tmp_path / "out")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--estimators: 'scaled' given twice; give each estimator once" in err
+    assert not D.RENDER_CALLS and not (tmp_path / "out").exists()

@@ -208,6 +208,11 @@ def test_margin_to_the_nearest_breaking_point_along_a_key():
             "search.fails = 'under': must be one of 'below', 'above'",
         ),
         ('seeds = [7, 7]\n[vary]\n"lights.power" = [1.0]\n', "seeds = \\[7, 7\\]: must be distinct"),
+        # one estimator twice: two rows of one run folder per job
+        (
+            'estimators = ["scaled", "scaled"]\n[vary]\n"lights.power" = [1.0]\n',
+            "estimators = \\['scaled', 'scaled'\\]: must name each estimator once",
+        ),
         # a fixed value the grid or the search replaces: the study ran with the varied values, silently
         (
             '[set]\n"lights.power" = 2.0\n[vary]\n"lights.power" = [1.0, 3.0]\n',

@@ -429,6 +429,9 @@ def run_bench(
         for n in list(estimators) + list(est_over):
             if not runner.known(n):
                 raise ConfigError(f"--estimators {n!r}: unknown estimator (known: {', '.join(sorted(known))})")
+        twice = sorted({n for n in estimators if list(estimators).count(n) > 1})
+        if twice:  # it ran twice into one run folder, two rows of one run
+            raise ConfigError(f"--estimators: {', '.join(map(repr, twice))} given twice; give each estimator once")
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
     baseline_data = load_baseline(baseline) if baseline is not None else None

@@ -188,6 +188,8 @@ class StudyFile(Config):
             raise ConfigFieldError("criterion", ": a [search] needs a [criterion] (when does a run fail?)")
         if self.estimators is not None and not self.estimators:
             raise ConfigFieldError("estimators", " = []: must name at least one estimator (or be left out)")
+        if self.estimators is not None and len(set(self.estimators)) != len(self.estimators):
+            raise ConfigFieldError("estimators", f" = {list(self.estimators)!r}: must name each estimator once")
         if self.seeds is not None:
             if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
                 raise ConfigFieldError("seeds", f" = {list(self.seeds)}: must be distinct integers >= 0")
