@@ -434,16 +434,24 @@ def from_overrides(
 
 
 # ----------------------------------------------------------------------------- --set
-def parse_set_args(items: Iterable[str] | None) -> dict[str, SetText]:
-    """``["KEY=VALUE", ...]`` (``--set`` arguments) into ``{KEY: VALUE}``; values stay text."""
+def parse_set_args(items: Iterable[str] | None, flag: str = "--set") -> dict[str, SetText]:
+    """``["KEY=VALUE", ...]`` (``--set`` arguments; ``flag`` names them in errors) into ``{KEY: VALUE}``;
+    values stay text.
+
+    A key given twice is refused (``--set grid=3 --set grid=4`` ran with 4, the last, silently).
+    """
     out: dict[str, SetText] = {}
     for item in items or []:
         if "=" not in item:
-            raise ConfigError(f"--set {shown(item)}: expected KEY=VALUE")
+            raise ConfigError(f"{flag} {shown(item)}: expected KEY=VALUE")
         key, value = item.split("=", 1)
         key = key.strip()
         if not key:
-            raise ConfigError(f"--set {shown(item)}: empty key")
+            raise ConfigError(f"{flag} {shown(item)}: empty key")
+        if key in out:
+            raise ConfigError(
+                f"{flag} {shown(item)}: {shown(key)} is given twice (also = {shown(str(out[key]))}); give it once"
+            )
         out[key] = SetText(value.strip())
     return out
 

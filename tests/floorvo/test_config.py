@@ -172,6 +172,11 @@ def test_parse_set_args_splits_once_and_refuses_by_name():
         parse_set_args(["a"])
     with pytest.raises(ConfigError, match=r"--set '=1': empty key"):
         parse_set_args(["=1"])
+    # a key given twice: --set grid=3 --set grid=4 ran with 4, the last, silently
+    with pytest.raises(ConfigError, match=r"--set 'a = 2': 'a' is given twice \(also = '1'\); give it once"):
+        parse_set_args(["a=1", "a = 2"])
+    with pytest.raises(ConfigError, match=r"^--est-set 'e.k=2': 'e.k' is given twice"):
+        parse_set_args(["e.k=1", "e.k=2"], "--est-set")
 
 
 @pytest.mark.parametrize(

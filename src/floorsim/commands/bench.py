@@ -114,7 +114,7 @@ def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
     """``NAME.KEY=VALUE`` items into ``{NAME: {KEY: VALUE}}``; NAME may be a ``package.module:Class``
     reference, whose dots before the colon belong to it (``pkg.vo:MyVo.grid=3``)."""
     out: dict[str, dict[str, str]] = {}
-    for key, value in parse_set_args(items).items():
+    for key, value in parse_set_args(items, "--est-set").items():
         colon = key.find(":")
         dot = key.find(".", colon + 1 if colon >= 0 else 0)
         if dot <= 0:
