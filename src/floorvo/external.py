@@ -56,6 +56,7 @@ import numpy as np
 
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError, shown
+from floorvo.estimators.base import NEEDS
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
@@ -88,8 +89,6 @@ PLACEHOLDERS: dict[str, str] = {
     "here": "the folder of the --estimator-file (for --external: the folder the command was given in)",
     "python": "the Python interpreter floorbench runs in (sys.executable)",
 }
-#: What an external estimator may need besides mono frames.
-NEEDS = ("depth", "stereo")
 #: Lines of the program's standard error kept for a failed row.
 STDERR_TAIL_LINES = 5
 _NAME_CHARS = set(string.ascii_letters + string.digits + "-_.+")

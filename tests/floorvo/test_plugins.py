@@ -238,6 +238,19 @@ def test_a_module_class_that_raises_is_one_line_and_a_failed_bench_row(
     assert rows["phase-corr"]["status"] == "ok"
 
 
+@pytest.mark.parametrize("requires", ['frozenset({"depht"})', '"depth"'])
+def test_a_requirement_not_understood_is_refused_not_ignored(line_sequence, tmp_path, monkeypatch, capsys, requires):
+    """requires = {'depht'} (a typo), or "depth" as a string (its letters), was not understood and
+    the estimator ran on a mono sequence without depth, exit 0."""
+    (tmp_path / "needy_vo_for_tests.py").write_text(
+        MODULE_SOURCE + f"\nclass Needy(Dead):\n    requires = {requires}\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert floorvo_main(["run", str(line_sequence), "-e", "needy_vo_for_tests:Needy", "-o", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "requires = " in err[0] and "must be a set of depth, stereo" in err[0], err
+
+
 EXTERNAL = Path(__file__).resolve().parents[2] / "examples" / "external-estimator"
 
 

@@ -38,7 +38,11 @@ __all__ = [
     "RESTART_NOTE",
     "StepBoundConfig",
     "stage_timing_ms",
+    "NEEDS",
 ]
+
+#: What an estimator (a class's ``requires``, a program's ``needs``) may need besides mono frames.
+NEEDS = ("depth", "stereo")
 
 
 @dataclass(frozen=True)

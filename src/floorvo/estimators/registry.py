@@ -36,7 +36,7 @@ from typing import Any
 from floorvo import __version__
 from floorvo.config import from_overrides
 from floorvo.errors import ConfigError, EstimatorLoadError, shorten
-from floorvo.estimators.base import Estimator
+from floorvo.estimators.base import NEEDS, Estimator
 
 __all__ = [
     "BUILTIN_ESTIMATORS",
@@ -133,6 +133,12 @@ def _checked(cls: Any, name: str | None = None) -> type[Estimator]:
             raise TypeError(f"estimator {getattr(cls, '__name__', cls)!r} lacks {attr!r}")
     if name is not None and cls.name != name:
         raise TypeError(f"estimator {cls.__name__} is named {cls.name!r}, registered as {name!r}")
+    req = cls.requires
+    if isinstance(req, (str, bytes)) or not isinstance(req, (set, frozenset, tuple, list)) or set(req) - set(NEEDS):
+        # 'depht', or "depth" as a string (its letters): a need not understood let it run without it
+        raise TypeError(
+            f"estimator {getattr(cls, '__name__', cls)!r}: requires = {req!r} must be a set of {', '.join(NEEDS)}"
+        )
     return cls
 
 
