@@ -251,6 +251,16 @@ def test_a_requirement_not_understood_is_refused_not_ignored(line_sequence, tmp_
     assert len(err) == 1 and "requires = " in err[0] and "must be a set of depth, stereo" in err[0], err
 
 
+def test_a_config_that_is_not_a_dataclass_is_refused_when_loaded(line_sequence, tmp_path, monkeypatch, capsys):
+    """Config = dict ended in 'TypeError: must be called with a dataclass type or instance' from inside."""
+    (tmp_path / "dict_vo_for_tests.py").write_text(MODULE_SOURCE + "\nclass DictConfig(Dead):\n    Config = dict\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    argv = ["run", str(line_sequence), "-e", "dict_vo_for_tests:DictConfig", "-o", str(tmp_path / "r")]
+    assert floorvo_main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Config = <class 'dict'> must be a dataclass" in err[0], err
+
+
 EXTERNAL = Path(__file__).resolve().parents[2] / "examples" / "external-estimator"
 
 

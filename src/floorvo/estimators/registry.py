@@ -26,6 +26,7 @@ the one configuration mechanism (:mod:`floorvo.config`).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.metadata
 import logging
@@ -133,6 +134,12 @@ def _checked(cls: Any, name: str | None = None) -> type[Estimator]:
             raise TypeError(f"estimator {getattr(cls, '__name__', cls)!r} lacks {attr!r}")
     if name is not None and cls.name != name:
         raise TypeError(f"estimator {cls.__name__} is named {cls.name!r}, registered as {name!r}")
+    if not (isinstance(cls.Config, type) and dataclasses.is_dataclass(cls.Config)):
+        # Config = dict ended in 'TypeError: must be called with a dataclass type or instance' from inside
+        raise TypeError(
+            f"estimator {getattr(cls, '__name__', cls)!r}: Config = {cls.Config!r} must be a dataclass "
+            "(declared with floorvo.config.param)"
+        )
     req = cls.requires
     if isinstance(req, (str, bytes)) or not isinstance(req, (set, frozenset, tuple, list)) or set(req) - set(NEEDS):
         # 'depht', or "depth" as a string (its letters): a need not understood let it run without it
