@@ -154,13 +154,16 @@ class InitialPose:
             values = []
         if len(values) in (7, 8) and all(np.isfinite(values)):
             xyz_m, quat = np.array(values[-7:-4]), np.array(values[-4:])
-            if np.linalg.norm(quat) > 0:
-                return cls(T_full=T_from_xyz_quat(xyz_m * 1000.0, quat / np.linalg.norm(quat)))
+            with np.errstate(over="ignore"):  # metres beyond 1.8e305 overflow in mm: refused below
+                xyz_mm = xyz_m * 1000.0
+            norm = float(np.linalg.norm(quat))
+            if np.isfinite(xyz_mm).all() and 0 < norm < np.inf:  # an inf pose ended in 'SVD did not converge'
+                return cls(T_full=T_from_xyz_quat(xyz_mm, quat / norm))
         if len(values) == 3 and "," in text and all(np.isfinite(values)):
             return cls(se2=(values[0], values[1], values[2]))
         raise ConfigError(
             f"--initial-pose {text!r}: expected x_mm,y_mm,yaw_rad (e.g. 0,0,0) or a TUM line "
-            "'[t] tx ty tz qx qy qz qw' (metres, a non-zero quaternion)"
+            "'[t] tx ty tz qx qy qz qw' (finite metres, a non-zero quaternion)"
         )
 
     def T_world_cam(self, height_mm: float | None) -> np.ndarray:

@@ -307,6 +307,7 @@ def test_initial_pose_is_a_floor_pose_or_a_tum_line():
     for text in ("0.1 0 0.08 1 0 0 0", "42.0 0.1 0 0.08 1 0 0 0"):
         T = InitialPose.parse(text).T_world_cam(None)
         np.testing.assert_allclose(T, T_from_se2(100.0, 0.0, 0.0, 80.0), atol=1e-12)
-    for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan"):
+    # "0 1e306 ...": metres that overflow to inf in mm (a run ended in 'SVD did not converge')
+    for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan", "0 1e306 0 0 0 0 0 1"):
         with pytest.raises(ConfigError, match=r"^--initial-pose .*: expected x_mm,y_mm,yaw_rad"):
             InitialPose.parse(bad)
