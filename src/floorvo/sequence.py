@@ -373,15 +373,22 @@ def _strip_volatile(meta: dict) -> dict:
 
 
 def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
-    """``ts`` if it holds ``frame_count`` finite, strictly increasing times; else a one-line SequenceError."""
+    """``ts`` if it holds ``frame_count`` finite, strictly increasing times; else a one-line SequenceError.
+
+    Increasing as ``timestamps.txt`` stores them, to the nanosecond: frames closer than that
+    (an import at --fps 1e12) were written as equal times that the sequence's reader refused.
+    """
     if ts.ndim != 1 or len(ts) != frame_count:
         raise SequenceError(f"{what}: {len(ts)} timestamp(s) for {frame_count} frame(s); need one per frame")
     if not np.isfinite(ts).all():
         raise SequenceError(f"{what}: timestamp of frame {int(np.argmin(np.isfinite(ts)))} is not a finite number")
-    bad = np.nonzero(np.diff(ts) <= 0)[0]
+    bad = np.nonzero(np.diff(np.round(ts, 9)) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
-        raise SequenceError(f"{what}: timestamps must increase, frame {k} at {ts[k]:.9f} s follows {ts[k - 1]:.9f} s")
+        ns = " (to the nanosecond, as timestamps.txt holds them)" if ts[k] > ts[k - 1] else ""
+        raise SequenceError(
+            f"{what}: timestamps must increase{ns}, frame {k} at {ts[k]:.9f} s follows {ts[k - 1]:.9f} s"
+        )
     return ts
 
 

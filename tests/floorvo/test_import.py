@@ -458,6 +458,20 @@ def test_ground_truth_on_another_clock_than_the_frames_is_refused_before_writing
     assert not (tmp_path / "s").exists()
 
 
+def test_frames_closer_than_a_nanosecond_are_refused_before_writing(tmp_path, synth, capsys):
+    """--fps 1e12 imported a sequence whose timestamps.txt (nanoseconds) held equal times, and its
+    reader then refused it ('timestamps must increase')."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", "1e12"])
+    assert "timestamps must increase (to the nanosecond, as timestamps.txt holds them), frame 1" in err
+    assert not (tmp_path / "s").exists()
+    assert main(["import", str(src), "-o", str(tmp_path / "ok"), *FLAGS, "--fps", "1e6"]) == 0
+
+
 # ----------------------------------------------------------------------------- refusals
 def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     _, frames, _ = synth
