@@ -209,11 +209,15 @@ def read_text(
 ) -> str:
     """The UTF-8 text of a file; an unreadable file or one that is not UTF-8 text (a binary
     file where a TUM, JSON or TOML file belongs) raises ``error`` with one line naming
-    ``label`` (default: the path) and ``what`` the file should be (``a TUM text file``)."""
+    ``label`` (default: the path) and ``what`` the file should be (``a TUM text file``).
+
+    A leading byte-order mark (Windows editors write one) is not part of the text: a scene file
+    saved so was 'not valid TOML (Invalid statement (at line 1, column 1))'.
+    """
     path = Path(path)
     name = label or str(path)
     try:
-        return path.read_bytes().decode("utf-8")
+        return path.read_bytes().decode("utf-8-sig")
     except OSError as exc:
         raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
     except UnicodeDecodeError as exc:

@@ -70,3 +70,19 @@ def test_a_run_folder_has_plain_numbers(tmp_path):
     assert_csv_numbers(tmp_path / "run" / "timing.csv", text_columns=("status", "reason"))
     assert_plain_json(tmp_path / "run" / "result.json")
     assert_plain_json(tmp_path / "seq" / "sequence.json")
+
+
+def test_a_byte_order_mark_is_not_part_of_the_text(tmp_path):
+    """A scene file a Windows editor saved with a BOM was 'not valid TOML (Invalid statement (at
+    line 1, column 1))', a TUM file 'not a number in TUM line', a JSON file 'not valid JSON'."""
+    from floorvo.io import read_json, read_text, read_toml
+    from floorvo.tum import read_tum
+
+    bom = b"\xef\xbb\xbf"
+    (tmp_path / "s.toml").write_bytes(bom + b'name = "x"\n')
+    (tmp_path / "t.txt").write_bytes(bom + b"0.0 0 0 0.1 0 0 0 1\n")
+    (tmp_path / "j.json").write_bytes(bom + b'{"a": 1}')
+    assert read_toml(tmp_path / "s.toml") == {"name": "x"}
+    assert read_tum(tmp_path / "t.txt")[0].tolist() == [0.0]
+    assert read_json(tmp_path / "j.json") == {"a": 1}
+    assert read_text(tmp_path / "s.toml").startswith("name")
