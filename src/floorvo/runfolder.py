@@ -53,7 +53,7 @@ from floorvo.io import (
     read_text,
 )
 from floorvo.locking import lock_folder
-from floorvo.sequence_meta import MAX_FRAME_COUNT
+from floorvo.sequence_meta import MAX_FRAME_COUNT, stable_meta
 from floorvo.tum import format_tum, read_tum
 
 __all__ = [
@@ -77,8 +77,10 @@ SEQUENCE_SHA256 = "sequence_sha256"
 
 def sequence_sha256(meta: Any) -> str:
     """The identity of a sequence a run records (:data:`SEQUENCE_SHA256`): the hash of its
-    ``sequence.json`` content (:func:`floorvo.io.json_sha256`; a copy of the folder has the same)."""
-    return json_sha256(meta)
+    ``sequence.json`` content (:func:`floorvo.io.json_sha256`) without its render timings
+    (:func:`floorvo.sequence_meta.stable_meta`): a copy of the folder, or the same scene rendered
+    again, has the same."""
+    return json_sha256(stable_meta(meta) if isinstance(meta, dict) else meta)
 
 
 def check_run_of_sequence(run_dir: str | os.PathLike, result: Any, seq_dir: str | os.PathLike) -> None:

@@ -58,7 +58,7 @@ from floorvo.io import (
 )
 from floorvo.locking import LOCK_FILE, lock_folder
 from floorvo.metrics import associate
-from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta
+from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta, stable_meta
 from floorvo.tum import read_tum, write_tum
 
 __all__ = [
@@ -179,7 +179,7 @@ class SequenceWriter:
                     )
         ensure_writable_dir(self.root)
         if old is not None:
-            same = _strip_volatile(old) == _strip_volatile(meta)
+            same = stable_meta(old) == stable_meta(meta)
             if same and resume:
                 self.resumed = True
                 if old.get("schema_version") != SCHEMA_VERSION:  # an older version of the same sequence
@@ -361,15 +361,6 @@ def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> Non
 
 #: The last 12 bytes of every PNG: the empty IEND chunk and its CRC.
 _PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
-
-
-def _strip_volatile(meta: dict) -> dict:
-    """Metadata without fields that may differ between identical renders (timings) or that a
-    readable older schema version of the same sequence differs in."""
-    volatile = ("render_stats",) + (
-        ("schema_version",) if meta.get("schema_version") in READABLE_SCHEMA_VERSIONS else ()
-    )
-    return {k: v for k, v in meta.items() if k not in volatile}
 
 
 def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:

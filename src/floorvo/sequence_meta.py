@@ -33,12 +33,25 @@ __all__ = [
     "rolling_row_offsets_s",
     "SequenceMeta",
     "check_sequence_meta",
+    "stable_meta",
 ]
 
 #: Version of the on-disk format written here (2: optional per-frame ``timestamps.txt``).
 SCHEMA_VERSION = 2
 #: Versions a reader accepts; it refuses any other.
 READABLE_SCHEMA_VERSIONS = (1, 2)
+
+
+def stable_meta(meta: dict) -> dict:
+    """``sequence.json`` content without what may differ between identical renders (``render_stats``:
+    timings) or between readable schema versions of one sequence (``schema_version``): what says
+    whether two sequences are the same (a resumed render's, the sequence a run was made on)."""
+    volatile = ("render_stats",) + (
+        ("schema_version",) if meta.get("schema_version") in READABLE_SCHEMA_VERSIONS else ()
+    )
+    return {k: v for k, v in meta.items() if k not in volatile}
+
+
 #: The most frames a sequence may have (its frame times are held in memory: 80 MB).
 MAX_FRAME_COUNT = 10_000_000
 #: Formats of ``depth/`` frames.
