@@ -44,7 +44,7 @@ import numpy as np
 
 from floorvo.config import Rule
 from floorvo.errors import ConfigError, SequenceError, shown
-from floorvo.geometry import invert_T, rot_z
+from floorvo.geometry import invert_T, rot_z, yaw_of_R, yaws_of_T
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import associate
 from floorvo.scoring import ok_step_poses_of_run, read_run_and_groundtruth
@@ -97,11 +97,6 @@ def _steps(T: np.ndarray) -> np.ndarray:
     return (invert_T(T[:-1]) @ T[1:]).reshape(-1, 4, 4)
 
 
-def _yaw_deg(D: np.ndarray) -> np.ndarray:
-    """(K,) yaw (degrees, about the camera's z axis) of the steps ``D`` (K, 4, 4)."""
-    return np.degrees(np.arctan2(D[:, 1, 0], D[:, 0, 0]))
-
-
 def fit_scale_calibration(
     T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: float = 10.0, min_turn_deg: float = 10.0
 ) -> ScaleCalibration:
@@ -133,7 +128,7 @@ def _fit_steps(G: np.ndarray, E: np.ndarray, min_travel_mm: float, min_turn_deg:
         observed = travel >= min_travel_mm and den > 0
         scale = float(e[:, k] @ g[:, k]) / den if observed else 1.0
         out[f"scale_{axis}"], out[f"observed_{axis}"], out[f"travel_{axis}_mm"] = scale, observed, travel
-    yaw_g, yaw_e = _yaw_deg(G), _yaw_deg(E)
+    yaw_g, yaw_e = np.degrees(yaws_of_T(G)), np.degrees(yaws_of_T(E))
     turn = float(np.abs(yaw_g).sum())
     den = float(yaw_g @ yaw_g)
     observed = turn >= min_turn_deg and den > 0
@@ -268,6 +263,6 @@ def apply_scale(T_prev_cur: np.ndarray, cal: ScaleCalibration) -> np.ndarray:
     T[0, 3] /= cal.scale_x
     T[1, 3] /= cal.scale_y
     if cal.scale_yaw != 1.0:
-        yaw = float(np.arctan2(T[1, 0], T[0, 0]))
+        yaw = yaw_of_R(T[:3, :3])
         T[:3, :3] = rot_z(yaw / cal.scale_yaw - yaw) @ T[:3, :3]
     return T

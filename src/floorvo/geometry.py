@@ -53,6 +53,7 @@ __all__ = [
     "T_from_se2",
     "footprint_T",
     "yaw_of_R",
+    "yaws_of_T",
     "umeyama",
     "rigid_fit",
     "rigid_fit_robust",
@@ -175,6 +176,13 @@ def yaw_of_R(R: np.ndarray) -> float:
     """
     R = np.asarray(R, dtype=float)
     return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def yaws_of_T(T: np.ndarray) -> np.ndarray:
+    """(N,) heading (rad) of each of the transforms ``T`` (N, 4, 4) or rotations (N, 3, 3), as
+    :func:`yaw_of_R`: for the relative steps of a run, the yaw change of each step."""
+    T = np.asarray(T, dtype=float)
+    return np.arctan2(T[..., 1, 0], T[..., 0, 0])
 
 
 def se2_from_T(T_world_cam: np.ndarray) -> np.ndarray:

@@ -45,7 +45,7 @@ import numpy as np
 
 from floorvo.config import Rule
 from floorvo.errors import ConfigError
-from floorvo.geometry import invert_T, rigid_fit
+from floorvo.geometry import invert_T, rigid_fit, yaws_of_T
 
 __all__ = [
     "ALIGNMENTS",
@@ -351,8 +351,7 @@ def turn_error(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray |
     A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
     d_true = invert_T(A_from) @ A[1:]
     d_est = invert_T(B[:-1]) @ B[1:]
-    yaw_true = np.degrees(np.arctan2(d_true[:, 1, 0], d_true[:, 0, 0]))
-    yaw_est = np.degrees(np.arctan2(d_est[:, 1, 0], d_est[:, 0, 0]))
+    yaw_true, yaw_est = np.degrees(yaws_of_T(d_true)), np.degrees(yaws_of_T(d_est))
     known = np.isfinite(yaw_true) & np.isfinite(yaw_est)
     turn = float(np.abs(yaw_true[known]).sum())
     measured = float((yaw_est[known] * np.sign(yaw_true[known])).sum())
