@@ -315,7 +315,8 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         max_diff_s=max_diff_s,
     )
     score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
-    steps = _ok_steps_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
+    poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
+    steps = _step_errors_of(poses)
     if steps is not None:
         score.tracking["ok_steps_scored"] = len(steps["trans_mm"])
         score.tracking["wrong_ok_steps"] = int(wrong_steps(steps).sum())
@@ -325,7 +326,6 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         planar = _ok_steps_of_run(run, seq_dir, t_ref, footprint_T(T_ref, height), max_diff_s, planar=True)
         if planar is not None:
             score.tracking["wrong_ok_steps_footprint"] = int(wrong_steps(planar).sum())
-        poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
         if poses is not None:
             A, A_from, B = poses
             turn = turn_error(A, B, T_ref_from=A_from)
@@ -392,7 +392,11 @@ def ok_step_errors(
     arguments these are). Steps with no true pose at either end are left out. None when the
     run does not fit its trajectory.
     """
-    poses = ok_step_poses(statuses, reasons, T_ref_per_frame, T_est_placed)
+    return _step_errors_of(ok_step_poses(statuses, reasons, T_ref_per_frame, T_est_placed))
+
+
+def _step_errors_of(poses: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> dict[str, np.ndarray] | None:
+    """:func:`ok_step_errors` of the poses :func:`ok_step_poses` gave (None: None)."""
     if poses is None:
         return None
     A, A_from, B = poses

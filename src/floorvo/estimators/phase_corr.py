@@ -636,13 +636,12 @@ class PhaseCorr:
         cfg = self.config
         if cfg.precision_sigmas <= 0.0:
             return ""
-        bound_mm = cfg.bound_mm(m.step_mm)
         sigma_mm = float(np.hypot(m.shift_sigma_mm, height_sigma_mm))
         if self._imprecise(sigma_mm, m.step_mm):
             what = "its translation" if not height_sigma_mm else "its translation and height change"
             return (
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of {what} are "
-                f"{cfg.precision_sigmas * sigma_mm:.3f} mm (bound {bound_mm:.3f} mm)"
+                f"{cfg.precision_sigmas * sigma_mm:.3f} mm (bound {cfg.bound_mm(m.step_mm):.3f} mm)"
             )
         if not self.layout_bounds_yaw and not cfg.precision_sigmas * m.yaw_sigma_deg <= cfg.max_step_error_deg:
             return (
