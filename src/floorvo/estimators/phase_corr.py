@@ -187,6 +187,12 @@ class PhaseCorrConfig(StepBoundConfig):
         doc="the image axis whose scale gives the height (fit_image_scale): y runs along the rig's LED bars, "
         "where the grazing light moves the picture evenly; both: the similarity fit's scale",
     )
+    image_scale_min_sigmas: float = param(
+        3.0,
+        min=0.0,
+        doc="fit_image_scale: the height changes only where the image scale differs from 1 by more than this many "
+        "of its standard errors (elsewhere it is kept: no change measured); 0: wherever it differs",
+    )
 
 
 #: Rounds a rotating warp may take beyond ``iterations`` while its estimate still moves.
@@ -546,8 +552,11 @@ class PhaseCorr:
         h_meas = self._frame_height(frame)
         height_sigma_mm = 0.0
         if h_meas is None and self.config.fit_image_scale:
-            h_meas = h_prev / m.scale
-            height_sigma_mm = h_prev * m.scale_sigma / m.scale**2
+            if self._height_changed(m):
+                h_meas = h_prev / m.scale
+                height_sigma_mm = h_prev * m.scale_sigma / m.scale**2
+            else:
+                h_meas = h_prev
         gross = self._gross_problem(m)
         problem = gross or self._precision_problem(m, height_sigma_mm) or self._spread_problem(cur, m)
         if problem:
@@ -591,6 +600,16 @@ class PhaseCorr:
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
         return frame_height_mm(frame, self.config.use_height_signal)
+
+    def _height_changed(self, m: _Measured) -> bool:
+        """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height:
+        it differs from 1 by more than ``image_scale_min_sigmas`` of its standard errors. A
+        scale within them is no measured change, and the height is kept: on a level run the
+        four blocks' scale, fitted each frame, read changes that were not there (each then
+        held for the rest of the run), and their standard error, added to the step's, lost
+        steps whose translation was precise (BENCHMARKS.md, "phase-corr: the camera height
+        only where the image scale shows it")."""
+        return not abs(m.scale - 1.0) <= self.config.image_scale_min_sigmas * m.scale_sigma
 
     def _failed(self, m: _Measured) -> bool:
         """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
