@@ -203,14 +203,16 @@ def test_phase_corr_without_the_image_scale_reports_the_bounce_wrong(full_size_b
     assert flat["wrong_ok_steps"] == 5
 
 
-def test_phase_corr_keeps_the_height_where_the_image_scale_shows_no_change(tmp_path):
+@pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
+def test_keeps_the_height_where_the_image_scale_shows_no_change(tmp_path, name):
     """``fit_image_scale`` on a level run (100 mm throughout, straight then turning 2 degrees
-    a frame, sensor noise of 4 DN): the four blocks' scale differs from 1 by its noise only,
-    within ``image_scale_min_sigmas`` (3) of its standard error on every step, so the height
-    stays the rig's and the trajectory is the one at the rig's height, to the bit. Followed
-    wherever it differs (``image_scale_min_sigmas = 0``), the noise walks the height away
-    from 100 mm. (The bounce above is followed with the default: its 0.8 % scale steps stand
-    far beyond their standard errors.)"""
+    a frame, sensor noise of 4 DN): the image scale (phase-corr's four blocks', akaze's
+    similarity fit's) differs from 1 by its noise only, within ``image_scale_min_sigmas`` (3)
+    of its standard error on every step, so the height stays the rig's and the trajectory is
+    the one at the rig's height, to the bit. Followed wherever it differs
+    (``image_scale_min_sigmas = 0``), the noise walks the height away from 100 mm. (The
+    bounce above is followed with the default: its 0.8 % scale steps stand far beyond their
+    standard errors.)"""
     poses, x, y, yaw = [], 0.0, 0.0, 0.0
     for i in range(10):
         poses.append(T_world_cam_down(x, y, 100.0, yaw))
@@ -218,8 +220,8 @@ def test_phase_corr_keeps_the_height_where_the_image_scale_shows_no_change(tmp_p
         x, y = x + 4.0 * np.cos(yaw), y + 4.0 * np.sin(yaw)
     seq = write_synthetic_sequence(tmp_path / "seq", FULL, np.stack(poses), noise_dn=4.0)
 
-    def track(name: str, overrides: dict[str, str]) -> np.ndarray:
-        res = run_estimator(seq, "phase-corr", tmp_path / name, overrides)
+    def track(run: str, overrides: dict[str, str]) -> np.ndarray:
+        res = run_estimator(seq, name, tmp_path / run, overrides)
         assert score_run(res.run_dir, seq).flat()["wrong_ok_steps"] == 0
         return np.loadtxt(Path(res.run_dir) / "trajectory.txt")[:, 1:]  # TUM: x y z, quaternion (m)
 

@@ -192,6 +192,12 @@ class AkazeConfig(StepBoundConfig):
         doc="a frame without a measured height: fit the image scale too (a similarity) and follow the camera "
         "height from it, h_cur = h_prev / scale, from the rig's (paper 000: a rigid fit at the rig's height)",
     )
+    image_scale_min_sigmas: float = param(
+        3.0,
+        min=0.0,
+        doc="fit_image_scale: the height changes only where the fitted image scale differs from 1 by more than this "
+        "many of its standard errors (elsewhere the rigid fit, the height kept); 0: wherever it differs",
+    )
 
 
 @dataclass
@@ -390,6 +396,8 @@ class _AkazeBase:
                     consensus=float(inl.mean()),
                     problem=f"too few matches agree with the fit ({len(s)} < {cfg.min_inliers})",
                 )
+        if scale is None and not self._scale_changed(M, s, d):
+            return self._fit(src, dst, pred_M, 1.0)  # no change of height measured: the rigid fit, the height kept
         rms = float(np.sqrt(np.mean(np.sum((self._predict(M, s) - d) ** 2, axis=1))))
         consensus = float(inl.mean())
         problem = ""
@@ -431,6 +439,20 @@ class _AkazeBase:
             return ""
         sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2], M[:2, 2])
         return self._bound_problem(M, sig_px, sig_rad)
+
+    def _scale_changed(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> bool:
+        """The image scale of the similarity ``M`` (``M[:2, :2]`` = scale R) fitted to the pairs
+        ``s -> d`` (K, 2) px tells a change of the camera height: it differs from 1 by more than
+        ``image_scale_min_sigmas`` of its standard errors (the scale's relative error is the
+        rotation's, :func:`floorvo.geometry.rigid_fit_precision`). Within them no change is
+        measured: following such a scale made the height a random walk on level runs
+        (BENCHMARKS.md, "A fitted image scale"; phase-corr's blocks likewise: "phase-corr: the
+        camera height only where the image scale shows it")."""
+        k = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
+        if len(s) < 4:
+            return True
+        _, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
+        return not abs(k - 1.0) <= self.config.image_scale_min_sigmas * k * sig_rad
 
     def _similarity_precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
         """:meth:`_precision_problem` of a fit whose image scale was fitted too (``M[:2, :2]`` =
@@ -483,6 +505,8 @@ class _AkazeBase:
         if h is None and fit.M is not None and fit.scale_fitted:
             h_prev = state.height_mm or self.height_mm
             h = h_prev / float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
+        elif h is None and self.config.fit_image_scale and not self.fits_own_scale:
+            h = state.height_mm  # the scale showed no change (:meth:`_scale_changed`): the height kept
         return h
 
     def _scale_ratio(self, state: _State, frame: Frame) -> float | None:
