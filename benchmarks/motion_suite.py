@@ -33,6 +33,20 @@ then run again with it (:func:`floorsim.bench.run_bench`'s ``scale_calibrations`
 table gains the calibrated end drift, the scale fitted and the calibrated wrong-ok count. A
 straight run along x observes the x scale only (the y scale stays 1); an estimator that
 loses its calibration run (the featureless floor) runs uncalibrated, and the table says so.
+
+``--calibrate --spins DIR`` calibrates the yaw too: each estimator's calibration is fitted
+per material on the straight run **and** a spin in place over the same floor together
+(:func:`floorsim.bench.material_calibration.fit_material_calibration`, on
+:func:`floorvo.calibration.calibrate_runs`): the suite's own spin over that material where it
+has one (concrete, polished), else the suite's ``motion_turn_spin_concrete`` scene with
+``floor.material`` set, rendered into ``DIR/MATERIAL`` at the straight run's frame size when it
+is not there (:func:`floorsim.bench.material_calibration.render_spin`; a finished render is
+reused). The material's scenes run a third time with it
+(``OUT/calibration/ESTIMATOR--MATERIAL--yaw.json``), and the table gains the yaw's scale, the
+end drift, turn error and wrong-ok count of that run. Where the spin cannot give the yaw (its
+run lost, its ok steps turned less than 10 degrees, or a yaw scale out of range) the straight
+run's calibration stands: the yaw-scale cell says why and the yaw-calibrated cells repeat the
+x, y calibrated figures, marked "(x, y only)".
 """
 
 from __future__ import annotations
@@ -48,11 +62,15 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
+from floorsim.bench.material_calibration import (  # noqa: E402
+    MaterialCalibration,
+    fit_material_calibration,
+    render_spin,
+)
 from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
 from floorsim.scene import load_scene, resolve_scene_path  # noqa: E402
-from floorvo.calibration import SCALE_RANGE, calibrate_run, save_scale_calibration  # noqa: E402
-from floorvo.errors import FloorbenchError  # noqa: E402
+from floorvo.calibration import save_scale_calibration  # noqa: E402
 
 
 def _fmt(v, digits: int = 3) -> str:
@@ -62,7 +80,8 @@ def _fmt(v, digits: int = 3) -> str:
         return "-"
     if f != f:  # NaN: no path (a spin in place) or nothing tracked
         return "-"
-    return f"{f:.{digits}f}".rstrip("0").rstrip(".") if digits else f"{f:.0f}"
+    text = f"{f:.{digits}f}".rstrip("0").rstrip(".") if digits else f"{f:.0f}"
+    return "0" if text == "-0" else text  # -0.0003 rounded
 
 
 def main() -> None:
@@ -78,10 +97,19 @@ def main() -> None:
         "--calibrate", action="store_true", help="also run each scene with a per-material scale calibration"
     )
     ap.add_argument(
+        "--spins",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="with --calibrate: fit the yaw too, on a spin in place per material (rendered into DIR/MATERIAL if missing)",
+    )
+    ap.add_argument(
         "--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key (repeatable)"
     )
     ap.add_argument("-o", "--output", type=Path, required=True)
     args = ap.parse_args()
+    if args.spins is not None and not args.calibrate:
+        ap.error("--spins goes with --calibrate (it calibrates the yaw too)")
     est_sets = parse_estimator_sets(args.est_set)
     cv2.setNumThreads(1)
     estimators: list[str] | None = [e.strip() for e in args.estimators.split(",") if e.strip()] or None
@@ -101,13 +129,25 @@ def main() -> None:
         estimator_overrides=est_sets,
     )
     calibrated: dict[tuple[str, str], dict] = {}
-    scales: dict[tuple[str, str], str] = {}
+    with_yaw: dict[tuple[str, str], dict] = {}
+    fits: dict[tuple[str, str], MaterialCalibration] = {}
+    spins: dict[str, Path] = {}
     if args.calibrate:
-        calibrated, scales = _calibrated_rows(args, scenes, names, material_of, estimators, est_sets)
+        sequence_of = {_scene_name(r): Path(r["sequence"]) for r in res.rows}
+        suite_spins: dict[str, Path] = {}  # material -> the suite's own spin over it (the first)
+        for n, sc in zip(names, loaded):
+            if sc.to_dict()["trajectory"]["type"] == "spin" and n in sequence_of:
+                suite_spins.setdefault(material_of[n], sequence_of[n])
+        calibrated, with_yaw, fits, spins = _calibrated_rows(
+            args, scenes, names, material_of, estimators, est_sets, suite_spins
+        )
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %"]
     cols += ["turn error %", "frames/s"]
     if args.calibrate:
         cols += ["scale x (material)", "calibrated end drift %", "calibrated wrong ok, footprint"]
+    if args.spins is not None:
+        cols += ["scale yaw (spin)", "x, y, yaw calibrated end drift %", "x, y, yaw calibrated turn error %"]
+        cols += ["x, y, yaw calibrated wrong ok, footprint"]
     cols.append("lost frames by reason")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
@@ -129,13 +169,28 @@ def main() -> None:
         ]
         if args.calibrate:
             c = calibrated.get((scene, r["estimator"]), {})
+            fit = fits.get((material_of[scene], r["estimator"]))
             cells += [
-                scales.get((material_of[scene], r["estimator"]), "-"),
+                fit.scale_x_cell() if fit is not None else "-",
                 _fmt(c.get("end_drift_pct")),
                 _fmt(c.get("wrong_ok_steps_footprint"), 0),
             ]
+        if args.spins is not None:
+            y = with_yaw.get((scene, r["estimator"]))
+            mark = ""
+            if y is None and c:  # the spin gave no yaw: the x, y calibrated run stands
+                y, mark = c, " (x, y only)"
+            y = y or {}
+            cells += [
+                fit.scale_yaw_cell() if fit is not None else "-",
+                _fmt(y.get("end_drift_pct")) + mark if y else "-",
+                _fmt(y.get("turn_error_pct")) + mark if y else "-",
+                _fmt(y.get("wrong_ok_steps_footprint"), 0),
+            ]
         cells.append(str(r.get("lost_reasons") or "") if str(r.get("status")) == "ok" else str(r.get("status")))
         print("| " + " | ".join(cells) + " |")
+    for m, seq in sorted(spins.items()):
+        print(f"spin over {m}: {seq}")
     print(f"\nmachine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     print(f"results: {res.results_csv}; report: {res.report_html}")
 
@@ -155,9 +210,12 @@ def _scene_name(row) -> str:
     return re.sub(r"-[0-9a-f]{12}$", "", str(row["scene"]))  # a cached sequence's folder: NAME-HASH
 
 
-def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets):
-    """Fit each estimator's scale per material on the material's straight run, then run the
-    suite's scenes again with it. Returns ``({(scene, estimator): row}, {(material, estimator): 'scale (material)'})``."""
+def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, suite_spins):
+    """Fit each estimator's scale per material on the material's straight run (with ``--spins``,
+    and on the straight run with a spin over the material: the suite's own in ``suite_spins``,
+    ``{material: sequence}``, else :func:`render_spin` into ``--spins``), then run the suite's
+    scenes again with each. Returns ``({(scene, estimator): row}`` x, y calibrated, the same with
+    the yaw, ``{(material, estimator): MaterialCalibration}``, ``{material: spin sequence})``."""
     out = args.output / "calibration"
     materials = sorted(set(material_of.values()))
     cal_scenes = []
@@ -174,43 +232,59 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets):
         report=False,
         estimator_overrides=est_sets,
     )
+    straight = {
+        (_scene_name(r).removeprefix("material_"), r["estimator"]): (r["run_dir"], r["sequence"]) for r in cal.rows
+    }
+    fits = {key: fit_material_calibration(pair, None) for key, pair in straight.items()}
+    spins: dict[str, Path] = {}
+    if args.spins is not None:
+        # A spin only for the floors some estimator could be calibrated on (not the featureless one).
+        for m in sorted({m for (m, _), f in fits.items() if f.straight is not None}):
+            like = next(seq for (mat, _), (_, seq) in straight.items() if mat == m)
+            spins[m] = suite_spins.get(m) or render_spin(m, args.spins / m, like)
+        spin_runs: dict[tuple[str, str], tuple[str, str]] = {}
+        if spins:
+            material_of_spin = {str(seq): m for m, seq in spins.items()}
+            ran = run_bench(
+                list(spins.values()),
+                sorted({e for (_, e), f in fits.items() if f.straight is not None}),
+                out / "spin-runs",
+                report=False,
+                estimator_overrides=est_sets,
+            )
+            for r in ran.rows:
+                spin_runs[(material_of_spin[str(r["sequence"])], r["estimator"])] = (r["run_dir"], r["sequence"])
+        fits = {key: fit_material_calibration(pair, spin_runs.get(key)) for key, pair in straight.items()}
     files: dict[tuple[str, str], Path] = {}
-    scales: dict[tuple[str, str], str] = {}
-    for r in cal.rows:
-        m = _scene_name(r).removeprefix("material_")
-        key = (m, r["estimator"])
-        try:
-            c = calibrate_run(r["run_dir"], r["sequence"])
-        except FloorbenchError:  # the run tracked too little (a featureless floor)
-            scales[key] = "none (calibration run lost)"
-            continue
-        if not all(SCALE_RANGE[0] <= v <= SCALE_RANGE[1] for v in (c.scale_x, c.scale_y)):
-            # floorvo refuses such a file: a scale that far from 1 is a broken run, not a rig's scale
-            scales[key] = f"none (fitted {c.scale_x:.3f}: a broken run)"
-            continue
-        f = out / f"{r['estimator']}--{m}.json"
-        save_scale_calibration(c, f)
-        files[key] = f
-        scales[key] = f"{c.scale_x:.4f}"
+    yaw_files: dict[tuple[str, str], Path] = {}
+    for (m, e), fit in fits.items():
+        if fit.straight is not None:
+            files[(m, e)] = out / f"{e}--{m}.json"
+            save_scale_calibration(fit.straight, files[(m, e)])
+        if fit.with_yaw is not None:
+            yaw_files[(m, e)] = out / f"{e}--{m}--yaw.json"
+            save_scale_calibration(fit.with_yaw, yaw_files[(m, e)])
     rows: dict[tuple[str, str], dict] = {}
+    rows_yaw: dict[tuple[str, str], dict] = {}
     for m in materials:
         group = [p for p, n in zip(scenes, names) if material_of[n] == m]
-        with_cal = sorted(e for (mat, e) in files if mat == m)
-        if not group or not with_cal:
-            continue
-        res = run_bench(
-            group,
-            with_cal,
-            out / f"suite-{m}",
-            scale=args.scale,
-            cache_dir=args.cache,
-            report=False,
-            scale_calibrations={e: files[(m, e)] for e in with_cal},
-            estimator_overrides=est_sets,
-        )
-        for r in res.rows:
-            rows[(_scene_name(r), r["estimator"])] = r
-    return rows, scales
+        for tag, found, into in (("", files, rows), ("yaw-", yaw_files, rows_yaw)):
+            with_cal = sorted(e for (mat, e) in found if mat == m)
+            if not group or not with_cal:
+                continue
+            res = run_bench(
+                group,
+                with_cal,
+                out / f"suite-{tag}{m}",
+                scale=args.scale,
+                cache_dir=args.cache,
+                report=False,
+                scale_calibrations={e: found[(m, e)] for e in with_cal},
+                estimator_overrides=est_sets,
+            )
+            for r in res.rows:
+                into[(_scene_name(r), r["estimator"])] = r
+    return rows, rows_yaw, fits, spins
 
 
 def _steps(row) -> int:

@@ -12,6 +12,9 @@ Modules, lowest layer first (none imports one above it):
   ``[bench]`` table;
 * :mod:`floorsim.bench.bench`: :func:`run_bench` (``floorsim bench``), the render cache,
   the estimator runner;
+* :mod:`floorsim.bench.material_calibration`: the motion suite's per-material scale
+  calibration: the spin in place over a material, and the straight run's calibration against
+  the one with the yaw (straight run and spin), with why the yaw's is missing;
 * :mod:`floorsim.bench.search`: the pure core of studies: failure criteria, breaking-point
   brackets by bisection, confidence intervals;
 * :mod:`floorsim.bench.study`: the study (sweep) file format and the record of a study;

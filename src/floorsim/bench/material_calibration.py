@@ -1,0 +1,112 @@
+"""The per-material scale calibration of the motion suite (issue 14): a straight run, and a spin in place for the yaw.
+
+Each estimator's calibration is fitted per floor material on the material's straight run
+(``scenes/material_MATERIAL.toml``: x and y, :func:`floorvo.calibration.calibrate_run`) and,
+for the yaw's scale, on that run together with a spin in place over the same floor
+(:func:`floorvo.calibration.calibrate_runs`). :func:`render_spin` renders the spin (the
+suite's ``motion_turn_spin_concrete`` scene with ``floor.material`` set: 2 rad at 5.7 degrees
+a frame, 21 frames) at the frame size of the straight run; :func:`fit_material_calibration`
+fits both calibrations and says, in one short line, why one of them is missing: the straight
+run lost (a featureless floor) or its scale out of range (no calibration at all), or the spin
+lost, turned too little in the steps it kept, or its yaw scale out of range (the straight
+run's calibration alone: x and y, the yaw's scale 1).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from floorsim.scene import load_scene, scenes_dir
+from floorsim.simulate import render_sequence
+from floorvo.calibration import SCALE_RANGE, ScaleCalibration, calibrate_run, calibrate_runs
+from floorvo.errors import FloorbenchError
+from floorvo.sequence import Sequence
+
+__all__ = ["SPIN_SCENE", "MaterialCalibration", "fit_material_calibration", "render_spin"]
+
+#: The shipped scene a spin over another material is rendered from (``floor.material`` set).
+SPIN_SCENE = "motion/motion_turn_spin_concrete.toml"
+
+RunPair = tuple[str | os.PathLike, str | os.PathLike]  # (run folder, sequence folder)
+
+
+def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike) -> Path:
+    """The spin in place over ``material`` in the sequence folder ``out``, at the frame size of
+    the sequence ``like`` (the material's straight run). A finished render of the same scene
+    there is reused and an interrupted one resumed (:func:`floorsim.simulate.render_sequence`);
+    one of another scene or size is refused in one line."""
+    width = Sequence.open(like).camera.width_px
+    scene = load_scene(scenes_dir() / SPIN_SCENE, {"floor.material": json.dumps(material)})
+    full = scene.camera_model().width_px
+    return render_sequence(scene, out, scale=None if width == full else width / full)
+
+
+@dataclass(frozen=True)
+class MaterialCalibration:
+    """One estimator's calibrations on one material.
+
+    ``straight``: fitted on the straight run alone (x and y; None where that run is lost or its
+    scale out of range); ``with_yaw``: on the straight run and the spin together (None where the
+    spin cannot give the yaw); ``why``: why the first missing one is missing ("" when neither is).
+    """
+
+    straight: ScaleCalibration | None
+    with_yaw: ScaleCalibration | None
+    why: str = ""
+
+    def scale_x_cell(self) -> str:
+        return f"{self.straight.scale_x:.4f}" if self.straight is not None else f"none ({self.why})"
+
+    def scale_yaw_cell(self) -> str:
+        if self.with_yaw is not None:
+            return f"{self.with_yaw.scale_yaw:.4f}"
+        if self.straight is None:
+            return "-"
+        return f"x, y only ({self.why})"
+
+
+def _out_of_range(cal: ScaleCalibration, axes: tuple[str, ...]) -> str:
+    for axis in axes:
+        v = getattr(cal, f"scale_{axis}")
+        if not SCALE_RANGE[0] <= v <= SCALE_RANGE[1]:
+            return f"scale {axis} {v:.3f} fitted: a broken run"
+    return ""
+
+
+def fit_material_calibration(
+    straight: RunPair, spin: RunPair | None, min_turn_deg: float = 10.0
+) -> MaterialCalibration:
+    """Fit ``straight`` alone and, with ``spin`` (None: no spin over this floor), both together.
+
+    The straight run's calibration is kept either way (the x, y column of the suite); the one
+    with the yaw only where the spin's steps reported ok turned ``min_turn_deg`` or more and the
+    yaw's scale is in :data:`floorvo.calibration.SCALE_RANGE`, else the straight run's stands
+    (x and y, the yaw's scale 1) and ``why`` says why.
+    """
+    try:
+        cal = calibrate_run(*straight)
+    except FloorbenchError:  # the run tracked too little (a featureless floor)
+        return MaterialCalibration(None, None, "calibration run lost")
+    bad = _out_of_range(cal, ("x", "y"))
+    if bad:  # floorvo refuses such a file: a scale that far from 1 is a broken run, not a rig's scale
+        return MaterialCalibration(None, None, bad)
+    if spin is None:
+        return MaterialCalibration(cal, None, "no spin over this floor")
+    try:
+        both = calibrate_runs([straight, spin], min_turn_deg=min_turn_deg)
+    except FloorbenchError as exc:
+        # The message names the run and sequence folders: the cell needs the reason only.
+        text = str(exc).replace(f"{Path(spin[0])}/", "").replace(str(Path(spin[0])), "the run")
+        text = text.replace(str(Path(spin[1])), "the spin")
+        return MaterialCalibration(cal, None, f"spin lost: {text}")
+    if not both.observed_yaw:
+        return MaterialCalibration(
+            cal, None, f"the spin's ok steps turned {both.turn_deg:.1f} deg, under {min_turn_deg:g}"
+        )
+    bad = _out_of_range(both, ("yaw",))
+    if bad:
+        return MaterialCalibration(cal, None, f"spin: {bad}")
+    return MaterialCalibration(cal, both)
