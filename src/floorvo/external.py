@@ -6,7 +6,7 @@ TOML file passed with ``--estimator-file FILE``::
 
     name = "my-vo"
     command = ["my_vo", "{sequence}", "{output}", "--camera", "{camera}"]
-    timeout_s = 600            # optional: killed after this long (a failed run)
+    timeout_s = 600            # optional: killed after this long (a failed run); 0: no limit
     needs = ["depth"]          # optional: what the sequence must have (depth, stereo)
     [env]                      # optional: added to the program's environment
     OMP_NUM_THREADS = "1"
@@ -33,6 +33,14 @@ not increase, or a pose at no frame time of the sequence: not within
 the sequence or the trajectory (:func:`_timing_problem`) is an
 :class:`~floorvo.errors.ExternalEstimatorError` whose ``reason`` and ``stderr_tail`` the bench
 writes into a ``failed`` row.
+
+A program without ``timeout_s`` gets a default limit (:func:`default_timeout_s`):
+:data:`DEFAULT_TIMEOUT_START_S` for its start-up plus :data:`DEFAULT_TIMEOUT_PER_FRAME_S` per
+frame of the sequence, generous for a compiled program (tens of milliseconds a frame) and for a
+slow one with bundle adjustment (about a second a frame), so that a program that hangs fails its
+run instead of blocking a bench for ever. ``timeout_s = 0`` runs it without a limit. At the limit
+its process group gets SIGTERM, then SIGKILL 2 s later; the run folder gets no ``trajectory.txt``
+or ``result.json`` (what the program had written stays in ``RUN/program/``).
 """
 
 from __future__ import annotations
@@ -70,6 +78,7 @@ __all__ = [
     "ExternalEstimator",
     "ExternalRun",
     "command_hash",
+    "default_timeout_s",
     "load_estimator_file",
     "parse_external",
     "run_external",
@@ -89,6 +98,10 @@ PLACEHOLDERS: dict[str, str] = {
     "here": "the folder of the --estimator-file (for --external: the folder the command was given in)",
     "python": "the Python interpreter floorbench runs in (sys.executable)",
 }
+#: The default time limit of a program without ``timeout_s``: this much for its start-up ...
+DEFAULT_TIMEOUT_START_S = 120.0
+#: ... plus this much per frame of the sequence (see the module doc).
+DEFAULT_TIMEOUT_PER_FRAME_S = 2.0
 #: Lines of the program's standard error kept for a failed row.
 STDERR_TAIL_LINES = 5
 _NAME_CHARS = set(string.ascii_letters + string.digits + "-_.+")
@@ -108,7 +121,13 @@ class ExternalEstimator(Config):
     command: tuple[str, ...] = param(
         (), doc="program and arguments; placeholders: " + ", ".join("{" + k + "}" for k in PLACEHOLDERS)
     )
-    timeout_s: float | None = param(None, unit="s", gt=0, doc="kill the program after this long (a failed run)")
+    timeout_s: float | None = param(
+        None,
+        unit="s",
+        min=0,
+        doc=f"kill the program after this long (a failed run); default {DEFAULT_TIMEOUT_START_S:g} s + "
+        f"{DEFAULT_TIMEOUT_PER_FRAME_S:g} s per frame; 0: no limit",
+    )
     env: dict[str, str] = param(default_factory=dict, doc="environment variables added for the program")
     needs: tuple[str, ...] = param((), doc="what the sequence must have besides mono frames: depth, stereo")
     here: str = param("", doc="the folder {here} stands for (default: the estimator file's folder)")
@@ -137,6 +156,13 @@ class ExternalEstimator(Config):
             if n not in NEEDS:
                 raise ConfigFieldError("needs", f" = {list(self.needs)!r}: {n!r} must be one of {', '.join(NEEDS)}")
 
+    def timeout_for(self, frames: int) -> float | None:
+        """The time limit of a run over ``frames`` frames, s: ``timeout_s``, else
+        :func:`default_timeout_s`; None for ``timeout_s = 0`` (no limit)."""
+        if self.timeout_s is None:
+            return default_timeout_s(frames)
+        return None if self.timeout_s == 0 else float(self.timeout_s)
+
     @property
     def requires(self) -> frozenset[str]:
         """What the sequence must have besides mono frames (as an estimator's ``requires``)."""
@@ -146,6 +172,11 @@ class ExternalEstimator(Config):
     def source(self) -> EstimatorSource:
         """``external`` with the command line and its hash (:func:`command_hash`)."""
         return EstimatorSource("external", shlex.join(self.command), command_sha256=command_hash(self.command))
+
+
+def default_timeout_s(frames: int) -> float:
+    """The time limit of a program without ``timeout_s`` on a sequence of ``frames`` frames, s."""
+    return DEFAULT_TIMEOUT_START_S + DEFAULT_TIMEOUT_PER_FRAME_S * max(int(frames), 0)
 
 
 def command_hash(command: tuple[str, ...] | list[str]) -> str:
@@ -376,9 +407,14 @@ def run_external(
             )
         except OSError as exc:  # not found, not executable
             raise fail(f"cannot start {argv[0]!r}: {exc.strerror or exc}") from None
-        status, wall_s, peak_mb = _wait(proc, spec.timeout_s)
+        timeout_s = spec.timeout_for(seq.frame_count)
+        status, wall_s, peak_mb = _wait(proc, timeout_s)
     if status is None:
-        raise fail(f"timed out after {spec.timeout_s:g} s (killed)")
+        how = "its timeout_s" if spec.timeout_s is not None else "the default limit for this sequence"
+        raise fail(
+            f"{Path(argv[0]).name} timed out after {timeout_s:g} s ({how}; set timeout_s in an estimator file, "
+            "0 for no limit) and was killed"
+        )
     code = os.waitstatus_to_exitcode(status)
     if code < 0:
         raise fail(f"killed by signal {signal.Signals(-code).name}")
@@ -414,7 +450,7 @@ def run_external(
         "external": {
             "command": argv,
             "returncode": code,
-            "timeout_s": spec.timeout_s,
+            "timeout_s": spec.timeout_for(seq.frame_count),
             "env": dict(spec.env),
             "program_result": dict(written.result),
         },

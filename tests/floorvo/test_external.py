@@ -179,9 +179,60 @@ def test_what_a_program_leaves_running_ends_with_it(line_sequence, tmp_path):
 
 def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
     spec = _failing("import time; time.sleep(30)", timeout_s=0.5)
-    with pytest.raises(ExternalEstimatorError, match=r"timed out after 0\.5 s \(killed\)") as info:
+    program = Path(sys.executable).name
+    with pytest.raises(ExternalEstimatorError, match=rf"{program} timed out after 0\.5 s \(its timeout_s;") as info:
         run_external(line_sequence, spec, tmp_path / "run")
-    assert info.value.reason == "timed out after 0.5 s (killed)"
+    assert info.value.reason.endswith("and was killed")
+
+
+def test_a_hanging_program_without_timeout_s_is_killed_at_the_default_limit(line_sequence, tmp_path, monkeypatch):
+    """A program given no ``timeout_s`` that never ends blocked the run (and a bench) for ever; it
+    gets a limit scaled by the frame count, named in the error, and its children die with it."""
+    import os
+    import signal
+    import time
+
+    import floorvo.external as external
+
+    monkeypatch.setattr(external, "DEFAULT_TIMEOUT_START_S", 0.5)
+    monkeypatch.setattr(external, "DEFAULT_TIMEOUT_PER_FRAME_S", 0.05)
+    assert external.default_timeout_s(14) == pytest.approx(1.2)
+    code = (
+        "import sys, pathlib, subprocess, time; out = pathlib.Path(sys.argv[1]); "
+        "p = subprocess.Popen(['sleep', '60']); (out / 'child.pid').write_text(str(p.pid)); "
+        "(out / 'trajectory.txt').write_text('0.0 0 0'); time.sleep(60)"
+    )
+    spec = _failing(code)
+    assert spec.timeout_s is None and spec.timeout_for(14) == pytest.approx(1.2)
+    t0 = time.monotonic()
+    with pytest.raises(ExternalEstimatorError) as info:
+        run_external(line_sequence, spec, tmp_path / "run")
+    assert time.monotonic() - t0 < 20
+    program = Path(sys.executable).name
+    assert info.value.reason == (
+        f"{program} timed out after 1.2 s (the default limit for this sequence; set timeout_s in an estimator file, "
+        "0 for no limit) and was killed"
+    )
+    assert len(str(info.value).splitlines()) == 1
+    run = tmp_path / "run"
+    assert not (run / "trajectory.txt").exists() and not (run / "result.json").exists()  # no run is claimed
+    pid = int((run / "program" / "child.pid").read_text())
+    deadline = time.monotonic() + 5.0
+    while Path(f"/proc/{pid}").exists() and time.monotonic() < deadline:
+        with open(f"/proc/{pid}/stat") as f:
+            if f.read().split(")")[-1].split()[0] == "Z":
+                break
+        time.sleep(0.05)
+    else:
+        if Path(f"/proc/{pid}").exists():
+            os.kill(pid, signal.SIGKILL)
+            pytest.fail("the program's child outlived its timeout")
+
+
+def test_timeout_s_zero_is_no_limit_and_a_given_one_is_kept():
+    assert _failing("pass", timeout_s=0).timeout_for(10_000) is None
+    assert _failing("pass", timeout_s=7.5).timeout_for(10_000) == 7.5
+    assert _failing("pass").timeout_for(100) == 120.0 + 2.0 * 100
 
 
 def test_needs_are_checked_before_the_program_runs(line_sequence, tmp_path):
@@ -195,7 +246,7 @@ def test_needs_are_checked_before_the_program_runs(line_sequence, tmp_path):
     [
         ('name = "x"\ncommand = []\n', r"x\.toml\.command = \[\]: must name a program"),
         ('name = "x"\ncommand = ["vo", "{seq}"]\n', r"unknown placeholder \{seq\} \(known: sequence, output"),
-        ('name = "x"\ncommand = ["vo"]\ntimeout_s = -1\n', r"x\.toml\.timeout_s = -1\.0 s: must be > 0 s"),
+        ('name = "x"\ncommand = ["vo"]\ntimeout_s = -1\n', r"x\.toml\.timeout_s = -1\.0 s: must be >= 0 s"),
         ('name = "x"\ncommand = ["vo"]\nneeds = ["lidar"]\n', r"'lidar' must be one of depth, stereo"),
         ('name = "x"\ncommand = ["vo"]\nwhen = 3\n', r"x\.toml\.when: unknown key \(known: command, env"),
         ('name = "a b"\ncommand = ["vo"]\n', r"x\.toml\.name = 'a b': must be a non-empty name"),
