@@ -78,3 +78,50 @@ def test_distortion_survives_the_round_trip(tmp_path, fmt, k3):
     got = Sequence.open(tmp_path / "imported").camera
     assert got.distortion == pytest.approx(cam.distortion, abs=1e-12)
     assert (got.fx_px, got.fy_px, got.cx_px, got.cy_px) == (50.0, 51.0, 19.5, 14.5)
+
+
+def _drop_csv_row(csv_path, k: int) -> int:
+    """Remove the ``k``-th data row of a EuRoC ``data.csv``; returns its stamp (ns)."""
+    lines = csv_path.read_text().splitlines(keepends=True)
+    rows = [i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
+    stamp = int(lines[rows[k]].split(",")[0])
+    del lines[rows[k]]
+    csv_path.write_text("".join(lines))
+    return stamp
+
+
+def test_a_euroc_cam1_missing_a_row_is_refused_unless_left_only_is_given(tmp_path, original, capsys):
+    """One cam1 row missing made the import drop the whole right camera with a warning: a stereo
+    recording came out mono, exit code 0. It is refused in one line naming the stamp and the
+    rule; --left-only imports cam0 alone on purpose."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    stamp = _drop_csv_row(exported / "mav0" / "cam1" / "data.csv", 3)
+    out = tmp_path / "imported"
+    assert main(["import", str(exported), "-o", str(out), "--height-mm", "100"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert f"cam1/data.csv: no row at {stamp} ns, the stamp of cam0's frame 3 (1 of 8 cam0 stamps have none)" in err[0]
+    assert "give --left-only to import cam0 alone" in err[0]
+    assert not out.exists()
+    assert main(["import", str(exported), "-o", str(out), "--height-mm", "100", "--left-only"]) == 0
+    assert "8 frames 162x124 8-bit," in capsys.readouterr().out
+    imp = Sequence.open(out)
+    assert not imp.has_stereo and imp.frame_count == 8
+
+
+def test_a_euroc_cam1_row_without_a_cam0_frame_is_refused(tmp_path, original, capsys):
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    stamp = _drop_csv_row(exported / "mav0" / "cam0" / "data.csv", 5)
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"cam1/data.csv: the row at {stamp} ns has no cam0 frame (1 cam1 row(s)" in err[0]
+
+
+def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
+    seq, _ = original
+    exported = export_sequence(seq.root, "rosbag2", tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0
+    imp = Sequence.open(tmp_path / "imported")
+    assert not imp.has_stereo and imp.frame_count == 8

@@ -59,6 +59,11 @@ def add_parser(sub) -> None:
         default=None,
         help=f"ROS 2 bag topic of a role ({', '.join(ROLES)}); repeatable",
     )
+    p.add_argument(
+        "--left-only",
+        action="store_true",
+        help="import the left camera alone, leaving out a right one (EuRoC cam1, a bag's right topic)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace a different sequence already at --output")
     p.set_defaults(func=run)
 
@@ -98,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
         flatfield=None if args.flatfield is None else Path(args.flatfield),
         height_signal_mm=None if args.height_file is None else read_height_csv(args.height_file),
         topics=parse_topics(args.topic),
+        left_only=args.left_only,
         overwrite=args.overwrite,
     )
     res = import_sequence(args.source, args.output, args.format, options)

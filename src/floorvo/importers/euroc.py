@@ -12,6 +12,9 @@
 image stamps (ns -> s). The ground truth is the body's pose; it becomes the camera's,
 ``T_world_cam0 = T_world_body @ T_BS(cam0)``. The right camera's pose in cam0 is
 ``T_BS(cam0)^-1 @ T_BS(cam1)``; cam1 frames pair with cam0 frames of the same stamp.
+A cam1 whose stamps are not cam0's (a row missing or extra) is refused, naming the first
+stamp without its partner: the stereo recording is not made a mono one behind the user's
+back. ``ImportOptions.left_only`` (``--left-only``) imports cam0 alone.
 """
 
 from __future__ import annotations
@@ -82,6 +85,27 @@ def _T_BS_mm(cam_dir: Path) -> np.ndarray:
     return transform_m_to_mm(d["T_BS"], f"{sensor} T_BS")
 
 
+def _unpaired_stamp(mav: Path, st0: np.ndarray, st1: np.ndarray) -> str:
+    """Why cam1's stamps ``st1`` (ns) do not pair one to one with cam0's ``st0``: the first cam0
+    stamp without a cam1 row, else the first cam1 row without a cam0 frame; "" when they pair."""
+    if np.array_equal(st0, st1):
+        return ""
+    rule = (
+        "a stereo recording needs a cam1 frame at each cam0 stamp and no other; give --left-only to import cam0 alone"
+    )
+    missing, extra = np.setdiff1d(st0, st1), np.setdiff1d(st1, st0)
+    if len(missing):
+        k = int(np.searchsorted(st0, missing[0]))
+        return (
+            f"{mav / 'cam1' / 'data.csv'}: no row at {int(missing[0])} ns, the stamp of cam0's frame {k} "
+            f"({len(missing)} of {len(st0)} cam0 stamps have none): {rule}"
+        )
+    return (
+        f"{mav / 'cam1' / 'data.csv'}: the row at {int(extra[0])} ns has no cam0 frame "
+        f"({len(extra)} cam1 row(s) without one): {rule}"
+    )
+
+
 def read(source: Path, options=None) -> Recording:
     mav = mav0_of(source)
     if mav is None:
@@ -91,15 +115,18 @@ def read(source: Path, options=None) -> Recording:
     T_B0 = _T_BS_mm(mav / "cam0")
     files1: list[Path] | None = None
     cal = cal0
-    if (mav / "cam1" / "data.csv").is_file():
+    left_only = bool(getattr(options, "left_only", False))
+    if (mav / "cam1" / "data.csv").is_file() and left_only:
+        log.info("%s: cam1 left out (left_only)", mav)
+    elif (mav / "cam1" / "data.csv").is_file():
         st1, f1 = _camera_stream(mav / "cam1")
-        if len(st1) == len(st0) and np.array_equal(st1, st0):
-            files1 = f1
-            if cal0 is not None and (mav / "cam1" / "sensor.yaml").is_file():
-                cam1 = read_camera_file(mav / "cam1" / "sensor.yaml").cam0
-                cal = CameraCalibration(cal0.cam0, cam1, invert_T(T_B0) @ _T_BS_mm(mav / "cam1"))
-        else:
-            log.warning("%s: cam1 frames do not share cam0's timestamps; cam1 left out", mav)
+        unpaired = _unpaired_stamp(mav, st0, st1)
+        if unpaired:
+            raise SequenceError(unpaired)
+        files1 = f1
+        if cal0 is not None and (mav / "cam1" / "sensor.yaml").is_file():
+            cam1 = read_camera_file(mav / "cam1" / "sensor.yaml").cam0
+            cal = CameraCalibration(cal0.cam0, cam1, invert_T(T_B0) @ _T_BS_mm(mav / "cam1"))
     first = read_image_file(files0[0])
     gt = None
     gt_csv = mav / "state_groundtruth_estimate0" / "data.csv"

@@ -132,6 +132,10 @@ class ImportOptions:
     topics:
         ROS 2 bag topics by role (``image``, ``right``, ``depth``, ``camera_info``,
         ``right_camera_info``, ``groundtruth``); roles not given are found by type and name.
+    left_only:
+        Import the left camera alone: leave out a right camera the source has (EuRoC ``cam1``,
+        a bag's ``right`` topic). Without it a right camera whose frames do not pair with the
+        left's is refused.
     overwrite:
         Replace an existing, different sequence at the output path.
     """
@@ -146,6 +150,7 @@ class ImportOptions:
     flatfield: Path | None = None
     height_signal_mm: np.ndarray | None = None
     topics: dict[str, str] = field(default_factory=dict)
+    left_only: bool = False
     overwrite: bool = False
 
 

@@ -19,7 +19,8 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
 Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
 some zero and some not is refused: two clocks).
 A right or depth image belongs to the left image whose stamp is within 1 ms of its own;
-left images without their partner are left out (with a warning). The bag is read twice
+left images without their partner are left out (with a warning); ``ImportOptions.left_only``
+(``--left-only``) leaves the right topic out. The bag is read twice
 (stamps and calibration first, images when written), so it is never held in memory.
 """
 
@@ -266,6 +267,9 @@ def read(source: Path, options=None) -> Recording:
     try:
         types = {c.topic: c.msgtype for c in reader.connections}
         topics = choose_topics(types, topics_given)
+        if getattr(options, "left_only", False):
+            topics.pop("right", None)
+            topics.pop("right_camera_info", None)
         by_topic: dict[str, list] = {}
         for c in reader.connections:
             by_topic.setdefault(c.topic, []).append(c)
