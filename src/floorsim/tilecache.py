@@ -18,6 +18,11 @@ settings renders the same floor at every point. The cache keeps those arrays:
   renders that miss the same tile at once both write the same bytes; a tile evicted or
   damaged under a reader is a miss (rebuilt, with a warning when damaged).
 - ``floorsim cache clear`` empties it; ``floorsim cache info`` prints where it is and its size.
+- **Safety**: clearing and eviction delete only the cache's own entries
+  (``tiles/XX/<64 hex digits>.npz`` whose ``XX`` is the key's first two digits, and their
+  temporaries), never another file under the folder. ``$FLOORSIM_CACHE`` must be an absolute
+  path to a folder (or one to be made) that is not the file-system root, the home folder or a
+  folder holding it (:func:`cache_root_problem`); another value is refused in one line.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import io
 import json
 import logging
 import os
+import re
 import sys
 import time
 from collections.abc import Callable, Mapping
@@ -42,7 +48,7 @@ from floorsim import materials, render
 from floorvo.errors import ConfigError, shown
 from floorvo.io import atomic_write_bytes, plain
 
-__all__ = ["TileCache", "default_cache", "cache_root", "CACHE_FORMAT", "DEFAULT_MAX_MB"]
+__all__ = ["TileCache", "default_cache", "cache_root", "cache_root_problem", "CACHE_FORMAT", "DEFAULT_MAX_MB"]
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +58,10 @@ CACHE_FORMAT = 1
 DEFAULT_MAX_MB = 4096.0
 #: A temporary older than this (s) was left by a killed writer; eviction removes it.
 _STALE_TEMP_S = 3600.0
+
+#: A cache entry's file name (its key, SHA-256 hex) and an atomic write's temporary of one.
+_ENTRY_NAME = re.compile(r"([0-9a-f]{64})\.npz")
+_TEMP_NAME = re.compile(r"\.([0-9a-f]{64})\.npz\.[0-9a-f]{8}\.tmp")
 
 TileArrays = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -65,6 +75,27 @@ def cache_root() -> Path | None:
         return Path(env).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "floorsim"
+
+
+def cache_root_problem(root: Path) -> str:
+    """Why ``root`` is no folder for the tile cache; "" when it is one. Refused: a relative path
+    (a cache in whatever folder a command runs in), an existing file, the file-system root, the
+    home folder and the folders holding it (a ``floorsim cache clear`` there would reach into
+    every user file beneath)."""
+    if not root.is_absolute():
+        return "must be an absolute path (a folder for the tile cache, or 'off')"
+    if root.exists() and not root.is_dir():
+        return "not a folder (a folder for the tile cache, or 'off')"
+    real = Path(os.path.realpath(root))
+    if real == Path(real.anchor):
+        return "is the file-system root: give a folder of its own for the tile cache (e.g. ~/.cache/floorsim)"
+    try:
+        home = Path(os.path.realpath(Path.home()))
+    except (KeyError, RuntimeError):  # no home folder known
+        return ""
+    if real == home or real in home.parents:
+        return "is the home folder or holds it: give a folder of its own for the tile cache (e.g. ~/.cache/floorsim)"
+    return ""
 
 
 def _max_bytes() -> int:
@@ -172,8 +203,28 @@ class TileCache:
 
     # ------------------------------------------------------------------ housekeeping
     def _files(self) -> list[Path]:
+        """The cache's entries (see the module doc: key-named files in their key's folder), nothing else."""
         d = self.tiles_dir
-        return sorted(d.glob("*/*.npz")) if d.is_dir() else []
+        if not d.is_dir():
+            return []
+        out = []
+        for p in d.glob("*/*.npz"):
+            m = _ENTRY_NAME.fullmatch(p.name)
+            if m and p.parent.name == m.group(1)[:2]:
+                out.append(p)
+        return sorted(out)
+
+    def _temporaries(self) -> list[Path]:
+        """Temporaries of the cache's entries (an atomic write's, perhaps left by a killed writer)."""
+        d = self.tiles_dir
+        if not d.is_dir():
+            return []
+        out = []
+        for p in d.glob("*/.*.tmp"):
+            m = _TEMP_NAME.fullmatch(p.name)
+            if m and p.parent.name == m.group(1)[:2]:
+                out.append(p)
+        return sorted(out)
 
     def size_bytes(self) -> tuple[int, int]:
         """(number of tiles, their total bytes)."""
@@ -191,13 +242,12 @@ class TileCache:
         ``keep``, the tile just written), and temporaries older than an hour. Returns the tiles deleted."""
         entries = []
         now = time.time()
-        if self.tiles_dir.is_dir():
-            for p in self.tiles_dir.glob("*/.*.tmp"):
-                try:
-                    if now - p.stat().st_mtime > _STALE_TEMP_S:
-                        p.unlink()
-                except FileNotFoundError:
-                    pass
+        for p in self._temporaries():
+            try:
+                if now - p.stat().st_mtime > _STALE_TEMP_S:
+                    p.unlink()
+            except FileNotFoundError:
+                pass
         for p in self._files():
             try:
                 st = p.stat()
@@ -221,13 +271,13 @@ class TileCache:
         n, total = self.size_bytes()
         for p in self._files():
             p.unlink(missing_ok=True)
+        for p in self._temporaries():
+            p.unlink(missing_ok=True)
         if self.tiles_dir.is_dir():
-            for p in self.tiles_dir.glob("*/.*.tmp"):
-                p.unlink(missing_ok=True)
             for d in self.tiles_dir.iterdir():
-                if d.is_dir():
+                if d.is_dir() and re.fullmatch(r"[0-9a-f]{2}", d.name):
                     try:
-                        d.rmdir()
+                        d.rmdir()  # only when empty
                     except OSError:
                         pass
         return n, total
@@ -236,10 +286,13 @@ class TileCache:
 def default_cache() -> TileCache | None:
     """The cache the environment names (:func:`cache_root`, ``$FLOORSIM_CACHE_MAX_MB``), or None when off.
 
-    A ``FLOORSIM_CACHE`` that names a file is refused in one line."""
+    A ``FLOORSIM_CACHE`` that is no folder for a cache (:func:`cache_root_problem`: a file, the
+    file-system root, the home folder, a relative path) is refused in one line."""
     root = cache_root()
     if root is None:
         return None
-    if root.exists() and not root.is_dir():
-        raise ConfigError(f"FLOORSIM_CACHE = {shown(str(root))}: not a folder (a folder for the tile cache, or 'off')")
+    problem = cache_root_problem(root)
+    if problem:
+        source = "FLOORSIM_CACHE" if os.environ.get("FLOORSIM_CACHE") else "the tile cache folder"
+        raise ConfigError(f"{source} = {shown(str(root))}: {problem}")
     return TileCache(root, _max_bytes())

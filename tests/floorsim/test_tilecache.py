@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -13,6 +15,7 @@ import floorsim.simulate
 from floorsim.cli import main
 from floorsim.simulate import render_sequence
 from floorsim.tilecache import TileCache, default_cache
+from floorvo.errors import ConfigError
 from floorvo.sequence import Sequence
 
 
@@ -143,3 +146,53 @@ def test_cache_cli_info_clear_and_bad_settings(tmp_path, monkeypatch, capsys):
     assert "FLOORSIM_CACHE_MAX_MB = 'lots'" in capsys.readouterr().err
     monkeypatch.setenv("FLOORSIM_CACHE", "off")
     assert default_cache() is None
+
+
+@pytest.mark.parametrize("which", ["/", "home", "home_parent", "relative"])
+def test_a_cache_folder_that_is_root_or_home_is_refused_before_anything_is_deleted(
+    tmp_path, monkeypatch, capsys, which
+):
+    """FLOORSIM_CACHE=/ (or ~) was accepted, and ``floorsim cache clear`` then deleted every
+    ``tiles/*/*.npz`` beneath it; such a folder is refused in one line naming the rule."""
+    home = tmp_path / "home" / "me"
+    home.mkdir(parents=True)
+    monkeypatch.setenv("HOME", str(home))
+    value = {"/": "/", "home": str(home), "home_parent": str(home.parent), "relative": "cache"}[which]
+    monkeypatch.setenv("FLOORSIM_CACHE", value)
+    mine = home / "tiles" / "aa" / ("a" * 64 + ".npz")  # a user's file that looks like a tile
+    mine.parent.mkdir(parents=True)
+    mine.write_bytes(b"mine")
+    assert main(["cache", "clear"]) == 1
+    err = capsys.readouterr().err.strip()
+    rule = {"/": "file-system root", "home": "home folder", "home_parent": "holds it", "relative": "absolute path"}
+    assert err.startswith("floorsim: error: FLOORSIM_CACHE = ") and rule[which] in err and "\n" not in err
+    assert mine.read_bytes() == b"mine"
+    with pytest.raises(ConfigError, match="FLOORSIM_CACHE"):
+        default_cache()
+
+
+def test_clear_and_evict_delete_only_the_caches_own_entries(tmp_path):
+    """A cache folder shared with other files: clear and eviction touch only key-named tiles in
+    their key's folder (and their temporaries), never another ``.npz`` or ``.tmp``."""
+    cache = TileCache(tmp_path / "c", max_bytes=0)
+    cache.put("d" * 64, _arrays(0))  # evicted at once by max_bytes=0 except the one just written
+    others = [
+        cache.tiles_dir / "notes" / "data.npz",
+        cache.tiles_dir / "dd" / "results.npz",
+        cache.tiles_dir / "ee" / ("d" * 64 + ".npz"),  # a key-like name in the wrong folder
+        cache.tiles_dir / "dd" / ".x.tmp",
+    ]
+    for p in others:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(b"not ours")
+        os.utime(p, (time.time() - 7200, time.time() - 7200))
+    stale = cache.tiles_dir / "dd" / f".{'d' * 64}.npz.0123abcd.tmp"
+    stale.write_bytes(b"half")
+    os.utime(stale, (time.time() - 7200, time.time() - 7200))
+    cache.put("e" * 64, _arrays(1))
+    assert not cache.path("d" * 64).exists() and not stale.exists()  # evicted: ours
+    size = cache.path("e" * 64).stat().st_size
+    assert cache.clear() == (1, size)
+    assert not cache.path("e" * 64).exists()
+    for p in others:
+        assert p.read_bytes() == b"not ours", p
