@@ -14,19 +14,29 @@ import numpy as np
 
 from floorvo.errors import ConfigError, shown
 
-__all__ = ["CameraModel", "K_RULE", "K_problem", "intrinsics_from_K"]
+__all__ = ["CameraModel", "K_RULE", "PRINCIPAL_POINT_RULE", "K_problem", "intrinsics_from_K"]
 
 
 #: The rule a pinhole camera matrix ``K`` follows (:func:`K_problem`).
 K_RULE = "must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
+#: The rule the principal point follows in an image of known size (:func:`K_problem`).
+PRINCIPAL_POINT_RULE = "must lie in the image: 0 <= cx <= width_px and 0 <= cy <= height_px"
 
 
-def K_problem(K: np.ndarray) -> str | None:
-    """:data:`K_RULE` when the 3x3 matrix ``K`` (finite numbers) is not a pinhole camera matrix
-    ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` with ``fx, fy > 0`` (a skew, a bottom row other than
-    ``[0, 0, 1]``), else None. The one rule for ``sequence.json``, camera files and ``camera_info``."""
+def K_problem(K: np.ndarray, size_px: tuple[int, int] | None = None) -> str | None:
+    """Why the 3x3 matrix ``K`` (finite numbers) is no pinhole camera matrix, else None: :data:`K_RULE`
+    when it is not ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` with ``fx, fy > 0`` (a skew, a bottom
+    row other than ``[0, 0, 1]``); with the image size ``size_px = (width_px, height_px)``, the
+    principal point's :data:`PRINCIPAL_POINT_RULE` when ``(cx, cy)`` is outside the image (a cx
+    given in another unit, or from the calibration of another resolution). The one rule for
+    ``sequence.json``, camera files, ``camera_info`` and :class:`CameraModel`."""
     if K[0, 0] <= 0 or K[1, 1] <= 0 or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
         return K_RULE
+    if size_px is not None:
+        w, h = size_px
+        cx, cy = float(K[0, 2]), float(K[1, 2])
+        if not (0.0 <= cx <= w and 0.0 <= cy <= h):
+            return f"principal point (cx, cy) = ({cx:g}, {cy:g}) px {PRINCIPAL_POINT_RULE} ({w}x{h} px)"
     return None
 
 
@@ -85,6 +95,9 @@ class CameraModel:
             raise ConfigError(f"camera: intrinsics and distortion must be finite, got {shown(values)}")
         if self.fx_px <= 0 or self.fy_px <= 0:
             raise ConfigError(f"camera: focal lengths must be positive, got fx={self.fx_px}, fy={self.fy_px}")
+        problem = K_problem(self.K, self.size)
+        if problem:
+            raise ConfigError(f"camera: {problem}")
         object.__setattr__(self, "distortion", tuple(float(d) for d in self.distortion))
 
     # ------------------------------------------------------------------ constructors

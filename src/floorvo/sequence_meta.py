@@ -75,7 +75,10 @@ class CameraBlock(Config):
 
     width_px: int = param(unit="px", min=1, doc="image width")
     height_px: int = param(unit="px", min=1, doc="image height")
-    K: Matrix = param(doc="3x3 intrinsic matrix in pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
+    K: Matrix = param(
+        doc="3x3 intrinsic matrix in pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], fx, fy > 0, "
+        "0 <= cx <= width_px, 0 <= cy <= height_px"
+    )
     distortion: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0), doc="OpenCV k1, k2, p1, p2[, k3]")
     model: str = param("pinhole", choices=("pinhole", "pinhole-brown-conrady"), doc="camera model")
     distortion_model: str = param(
@@ -84,7 +87,7 @@ class CameraBlock(Config):
 
     def validate(self) -> None:
         K = _matrix(self.K, (3, 3), "K")
-        problem = K_problem(K)
+        problem = K_problem(K, (self.width_px, self.height_px))
         if problem:
             raise ConfigFieldError("K", f" = {K.tolist()}: {problem}")
         if len(self.distortion) not in (4, 5) or not np.isfinite(self.distortion).all():

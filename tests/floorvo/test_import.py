@@ -496,6 +496,15 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     )
     err = _one_line_error(capsys, base + ["--camera", str(tmp_path / "cam.yaml"), "--fps", "10"])
     assert "calibrated for 640x480 px, the frames of" in err and "are 162x124 px" in err
+    # a principal point far outside the frames (a camera file's, the flags') was taken as it was
+    (tmp_path / "far.yaml").write_text(
+        "image_width: 162\nimage_height: 124\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 8100, 0, 500, 62, 0, 0, 1]}\n"
+    )
+    err = _one_line_error(capsys, base + ["--camera", str(tmp_path / "far.yaml"), "--fps", "10"])
+    assert "far.yaml" in err and "principal point (cx, cy) = (8100, 62) px must lie in the image" in err
+    flags = ["--fx", "200", "--fy", "200", "--cx", "80", "--cy", "-500", "--fps", "10"]
+    err = _one_line_error(capsys, base + flags)
+    assert err.startswith("floorvo: error: camera flags: principal point (cx, cy) = (80, -500) px must lie"), err
     (tmp_path / "t2.txt").write_text("0.0\n0.1\n")
     err = _one_line_error(capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t2.txt")])
     assert "2 timestamp(s) for the 3 frame(s)" in err

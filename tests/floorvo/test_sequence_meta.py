@@ -64,6 +64,14 @@ def _with(path: str, value):
         ("camera.K", [[40.0, 0.0], [0.0, 40.0]], "camera.K = [[40.0, 0.0], [0.0, 40.0]]: must be a 3x3 matrix"),
         ("camera.K", [[40.0, 0, 15.5], [0, -40.0, 11.5], [0, 0, 1]], "camera.K = [[40.0, 0.0, 15.5], [0.0, -40.0"),
         ("camera.distortion", [0.1, 0.2], "camera.distortion = [0.1, 0.2]: must be 4 or 5 finite numbers"),
+        # a principal point far outside the 32x24 image (cx in another unit, or of another resolution) was taken
+        (
+            "camera.K",
+            [[40.0, 0.0, 1550.0], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]],
+            "camera.K = [[40.0, 0.0, 1550.0], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]]: principal point (cx, cy) = "
+            "(1550, 11.5) px must lie in the image: 0 <= cx <= width_px and 0 <= cy <= height_px (32x24 px)",
+        ),
+        ("camera.K", [[40.0, 0.0, 15.5], [0.0, 40.0, -3.0], [0.0, 0.0, 1.0]], "(cx, cy) = (15.5, -3) px must lie"),
         ("camera.width_px", "32", "camera.width_px = '32': must be integer"),
         ("stereo", True, "stereo = true: needs cameras.cam1 and rig.T_cam0_cam1"),
         ("stereo", "no", "stereo = 'no': must be true or false"),

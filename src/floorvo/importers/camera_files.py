@@ -139,7 +139,10 @@ def camera_from_parts(
             f"{what}: image size {shown(width_px)} x {shown(height_px)} is not a pair of whole numbers"
         ) from None
     f = _numbers([fx, fy, cx, cy], f"{what} intrinsics", 4)
-    return CameraModel(w, h, f[0], f[1], f[2], f[3], tuple(distortion))
+    try:
+        return CameraModel(w, h, f[0], f[1], f[2], f[3], tuple(distortion))
+    except ConfigError as exc:  # name the file (or flags) the camera came from
+        raise ConfigError(f"{what}: {str(exc).removeprefix('camera: ')}") from None
 
 
 def _get(d: dict, keys: SequenceT[str]) -> Any:
