@@ -21,9 +21,13 @@ frames, to the nanosecond (``groundtruth.txt`` holds microseconds). ``sensor.yam
 k3 when the camera has one (OpenCV's order): a reader that takes only four would model
 another lens.
 
-Neither format carries the flat field, a range sensor's ``height.csv`` or the rig height:
-every export names what it left out (:func:`left_out`) and the ``floorvo import`` flag that
-gives it back.
+The EuRoC export carries what the layout has no file of its own for in sidecars that
+``floorvo import`` reads back (other readers ignore them): each camera's flat-field frame as
+``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
+and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height0/data.csv``
+(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading). What
+an export cannot carry it names (:func:`left_out`) with the ``floorvo import`` flag that gives it
+back.
 """
 
 from __future__ import annotations
@@ -36,10 +40,18 @@ import numpy as np
 
 from floorvo.errors import FloorbenchError
 from floorvo.geometry import xyz_quat_from_T
+from floorvo.importers.euroc import CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
 from floorvo.io import atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
 
-__all__ = ["export_rosbag2", "export_euroc", "FORMATS", "export_sequence", "euroc_distortion", "left_out"]
+__all__ = [
+    "FORMATS",
+    "euroc_distortion",
+    "export_euroc",
+    "export_rosbag2",
+    "export_sequence",
+    "left_out",
+]
 
 log = logging.getLogger(__name__)
 
@@ -48,11 +60,14 @@ def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
 
 
-def left_out(seq: Sequence) -> list[str]:
-    """What of ``seq`` neither format carries, each with the ``floorvo import`` flag that gives it
-    back (logged as a warning by every export: a round trip lost them without a word, and
-    phase-corr's flat-field correction and a range sensor's heights with them)."""
-    missing = []
+def left_out(seq: Sequence, fmt: str = "rosbag2") -> list[str]:
+    """What of ``seq`` format ``fmt`` does not carry, each with the ``floorvo import`` flag that
+    gives it back (logged as a warning by the export: a round trip lost them without a word, and
+    phase-corr's flat-field correction and a range sensor's heights with them). EuRoC carries
+    them all (sidecars, see the module doc)."""
+    missing: list[str] = []
+    if fmt == "euroc":
+        return missing
     if seq.flatfield() is not None:
         missing.append("calib/cam0_flatfield.png (give it back with floorvo import --flatfield FILE)")
     if seq.height_signal_mm is not None:
@@ -62,9 +77,9 @@ def left_out(seq: Sequence) -> list[str]:
     return missing
 
 
-def _warn_left_out(seq: Sequence, fmt: str) -> None:
-    for what in left_out(seq):
-        log.warning("%s: not exported to %s: %s", seq.root, fmt, what)
+def _warn_left_out(seq: Sequence, fmt: str, fmt_name: str) -> None:
+    for what in left_out(seq, fmt):
+        log.warning("%s: not exported to %s: %s", seq.root, fmt_name, what)
 
 
 def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
@@ -84,7 +99,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
     out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
-    _warn_left_out(seq, "a ROS 2 bag")
+    _warn_left_out(seq, "rosbag2", "a ROS 2 bag")
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
@@ -242,7 +257,7 @@ def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
     """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
     out = _check_out(out)
-    _warn_left_out(seq, "EuRoC")
+    _warn_left_out(seq, "euroc", "EuRoC")
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
@@ -257,6 +272,8 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
             atomic_write_bytes(d / f"{ns}.png", src.read_bytes())
             rows.append((ns, f"{ns}.png"))
         atomic_write_csv(mav / c / "data.csv", ["#timestamp [ns]", "filename"], rows)
+        if seq.flatfield(c) is not None:  # validated, then copied as it is
+            atomic_write_bytes(mav / c / FLATFIELD_FILE, (seq.root / "calib" / f"{c}_flatfield.png").read_bytes())
         cam = seq.camera_model(c)
         T_BS = np.eye(4) if c == "cam0" else np.asarray(seq.T_cam0_cam1, dtype=float).copy()
         T_BS[:3, 3] /= 1000.0
@@ -276,6 +293,24 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
                 "intrinsics": [cam.fx_px, cam.fy_px, cam.cx_px, cam.cy_px],
                 "distortion_model": "radial-tangential",
                 "distortion_coefficients": distortion,
+                **({CAMERA_HEIGHT_KEY: float(seq.height_mm)} if c == "cam0" and seq.height_mm is not None else {}),
+            },
+        )
+    heights = seq.height_signal_mm
+    if heights is not None:
+        h_dir = mav / HEIGHT_SENSOR
+        h_dir.mkdir(parents=True, exist_ok=True)
+        atomic_write_csv(
+            h_dir / "data.csv",
+            ["#timestamp [ns]", "height [mm]"],  # as EuRoC's other sensors: a stamp, then values
+            [(_ns(float(stamps[i])), None if np.isnan(v) else float(v)) for i, v in enumerate(heights)],
+        )
+        _yaml_dump(
+            h_dir / "sensor.yaml",
+            {
+                "sensor_type": "range",
+                "comment": "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
+                "rate_hz": float(seq.fps),
             },
         )
     gt = seq.groundtruth()

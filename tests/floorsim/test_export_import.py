@@ -37,7 +37,7 @@ def test_export_then_import_gives_the_same_sequence_and_trajectory(tmp_path, ori
     exported = export_sequence(seq.root, fmt, tmp_path / "exported")
     out = tmp_path / "imported"
     argv = ["import", str(exported), "-o", str(out), "--height-mm", "100"]
-    argv += ["--flatfield", str(seq.root / "calib" / "cam0_flatfield.png")]  # exports carry no flat field
+    argv += ["--flatfield", str(seq.root / "calib" / "cam0_flatfield.png")]  # a bag carries no flat field
     assert main(argv) == 0
     assert f"{fmt}: 8 frames 162x124 8-bit stereo" in capsys.readouterr().out
     imp = Sequence.open(out)
@@ -125,3 +125,50 @@ def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0
     imp = Sequence.open(tmp_path / "imported")
     assert not imp.has_stereo and imp.frame_count == 8
+
+
+def test_euroc_carries_the_flat_fields_heights_and_rig_height_back(tmp_path, capsys):
+    """The EuRoC export named the flat field, height.csv and the rig height as left out, and an
+    import without three flags lost them: sidecars (``camN/flatfield.png``, ``height0/``,
+    ``camera_height_mm`` in cam0's sensor.yaml) carry them, and the import reads them back."""
+    from floorsim.export import left_out
+
+    T = line_poses(12.0, 4.0, 87.5)
+    root = write_synthetic_sequence(
+        tmp_path / "seq", CAM, T, height_mm=87.5, stereo_baseline_mm=10.0, height_noise_mm=0.2, seed=2
+    )
+    h = Sequence.open(root).height_signal_mm
+    h[1] = np.nan  # a frame without a reading
+    from floorvo.sequence import SequenceWriter
+
+    with SequenceWriter(root, Sequence.open(root).meta, overwrite=True) as w:
+        w.write_heights(h)
+    seq = Sequence.open(root)
+    assert left_out(seq, "euroc") == [] and len(left_out(seq, "rosbag2")) == 3
+    exported = export_sequence(root, "euroc", tmp_path / "exported")
+    capsys.readouterr()
+    out = tmp_path / "imported"
+    assert main(["import", str(exported), "-o", str(out)]) == 0
+    assert "no --height-mm" not in capsys.readouterr().out
+    imp = Sequence.open(out)
+    assert imp.height_mm == 87.5 and imp.has_stereo
+    np.testing.assert_array_equal(imp.flatfield("cam0"), seq.flatfield("cam0"))
+    np.testing.assert_array_equal(imp.flatfield("cam1"), seq.flatfield("cam1"))
+    np.testing.assert_array_equal(imp.height_signal_mm, seq.height_signal_mm)  # NaN where no reading
+    assert np.isnan(imp.height_signal_mm[1])
+    # a flag still wins over the sidecar
+    assert main(["import", str(exported), "-o", str(tmp_path / "flagged"), "--height-mm", "90"]) == 0
+    assert Sequence.open(tmp_path / "flagged").height_mm == 90.0
+    # a sidecar row at no frame's stamp is refused in one line, before anything is written
+    csv_path = exported / "mav0" / "height0" / "data.csv"
+    csv_path.write_text(csv_path.read_text() + "17,88.0\n")
+    assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "height0/data.csv:6: 17 ns is the stamp of no cam0 frame" in err[0], err
+    assert not (tmp_path / "bad").exists()
+    csv_path.unlink()
+    sensor = exported / "mav0" / "cam0" / "sensor.yaml"
+    sensor.write_text(sensor.read_text().replace("camera_height_mm: 87.5", "camera_height_mm: -87.5"))
+    assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("cam0/sensor.yaml: camera_height_mm = -87.5: must be a finite number of mm > 0"), err

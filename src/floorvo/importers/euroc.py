@@ -15,6 +15,13 @@ image stamps (ns -> s). The ground truth is the body's pose; it becomes the came
 A cam1 whose stamps are not cam0's (a row missing or extra) is refused, naming the first
 stamp without its partner: the stereo recording is not made a mono one behind the user's
 back. ``ImportOptions.left_only`` (``--left-only``) imports cam0 alone.
+
+What ``floorsim export --format euroc`` adds beside the layout is read back when present (a
+flag of ``floorvo import`` wins over it): ``mav0/camN/flatfield.png`` (:data:`FLATFIELD_FILE`,
+the camera's flat-field frame), ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
+(:data:`CAMERA_HEIGHT_KEY`, the rig height) and ``mav0/height0/data.csv``
+(:data:`HEIGHT_SENSOR`: ``timestamp_ns,height_mm`` rows at cam0 stamps, an empty value for no
+reading; a frame without a row has none either).
 """
 
 from __future__ import annotations
@@ -32,9 +39,16 @@ from floorvo.importers.recording import FrameImages, Recording, read_image_file
 from floorvo.importers.times import read_euroc_groundtruth
 from floorvo.io import read_text
 
-__all__ = ["detect", "read", "mav0_of"]
+__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_FILE", "HEIGHT_SENSOR", "detect", "read", "mav0_of"]
 
 log = logging.getLogger(__name__)
+
+#: A camera's flat-field frame, beside its ``data.csv``.
+FLATFIELD_FILE = "flatfield.png"
+#: The key of cam0's ``sensor.yaml`` holding the camera height above the floor, mm.
+CAMERA_HEIGHT_KEY = "camera_height_mm"
+#: The sensor folder of a range sensor's camera heights (mm) at cam0's frames.
+HEIGHT_SENSOR = "height0"
 
 
 def mav0_of(source: Path) -> Path | None:
@@ -106,6 +120,49 @@ def _unpaired_stamp(mav: Path, st0: np.ndarray, st1: np.ndarray) -> str:
     )
 
 
+def _camera_height_mm(sensor: Path) -> float | None:
+    """cam0's :data:`CAMERA_HEIGHT_KEY` from its ``sensor.yaml`` (mm), None when absent;
+    a value that is not a number > 0 is a one-line error."""
+    if not sensor.is_file():
+        return None
+    d = load_yaml(sensor, "EuRoC sensor.yaml")
+    if not isinstance(d, dict) or CAMERA_HEIGHT_KEY not in d:
+        return None
+    v = d[CAMERA_HEIGHT_KEY]
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0
+    if not ok:
+        raise SequenceError(f"{sensor}: {CAMERA_HEIGHT_KEY} = {shown(v)}: must be a finite number of mm > 0")
+    return float(v)
+
+
+def _heights_mm(csv_path: Path, st0: np.ndarray) -> np.ndarray:
+    """(len(st0),) heights (mm, NaN where none) of ``HEIGHT_SENSOR/data.csv``: rows
+    ``timestamp_ns,height_mm`` each at a cam0 stamp (one-line error otherwise); values are
+    checked as ``height.csv``'s are when the sequence is written."""
+    out = np.full(len(st0), np.nan)
+    index = {int(t): k for k, t in enumerate(st0)}
+    seen: set[int] = set()
+    for lineno, line in enumerate(read_text(csv_path, SequenceError, what="a CSV text file").splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) != 2:
+            raise SequenceError(f"{csv_path}:{lineno}: a row is 'timestamp_ns,height_mm' (empty: no reading)")
+        try:
+            t = int(parts[0])
+            v = float(parts[1]) if parts[1] else np.nan
+        except ValueError:
+            raise SequenceError(f"{csv_path}:{lineno}: {shown(line)} is not 'timestamp_ns,height_mm'") from None
+        if t not in index:
+            raise SequenceError(f"{csv_path}:{lineno}: {t} ns is the stamp of no cam0 frame: a height is a frame's")
+        if t in seen:
+            raise SequenceError(f"{csv_path}:{lineno}: a second row at {t} ns")
+        seen.add(t)
+        out[index[t]] = v
+    return out
+
+
 def read(source: Path, options=None) -> Recording:
     mav = mav0_of(source)
     if mav is None:
@@ -134,6 +191,14 @@ def read(source: Path, options=None) -> Recording:
         t_gt, T_world_body = read_euroc_groundtruth(gt_csv)
         gt = (t_gt, T_world_body @ T_B0)
 
+    flatfields = {
+        c: read_image_file(mav / c / FLATFIELD_FILE)
+        for c in ("cam0", "cam1")
+        if (c == "cam0" or files1 is not None) and (mav / c / FLATFIELD_FILE).is_file()
+    }
+    height_csv = mav / HEIGHT_SENSOR / "data.csv"
+    heights = _heights_mm(height_csv, st0) if height_csv.is_file() else None
+
     def frames() -> Iterator[FrameImages]:
         for i, f in enumerate(files0):
             yield FrameImages(read_image_file(f), None if files1 is None else read_image_file(files1[i]))
@@ -156,4 +221,7 @@ def read(source: Path, options=None) -> Recording:
         has_right=files1 is not None,
         groundtruth=gt,
         details={"first_stamp_ns": int(st0[0])},
+        height_mm=_camera_height_mm(mav / "cam0" / "sensor.yaml"),
+        flatfields=flatfields,
+        height_signal_mm=heights,
     )

@@ -88,6 +88,12 @@ class Recording:
         ``(timestamps_s (M,), T_world_cam0 (M, 4, 4) mm)`` the source carries, or None.
     details:
         Provenance written under ``source`` in ``sequence.json`` (topics, files).
+    height_mm:
+        The camera height above the floor (mm) the source states, or None.
+    flatfields:
+        Flat-field frames the source carries, by camera (``cam0``, ``cam1``).
+    height_signal_mm:
+        (frame_count,) measured camera heights (mm, NaN where none) the source carries, or None.
     """
 
     format: str
@@ -103,6 +109,9 @@ class Recording:
     has_depth: bool = False
     groundtruth: tuple[np.ndarray, np.ndarray] | None = None
     details: dict = field(default_factory=dict)
+    height_mm: float | None = None
+    flatfields: dict[str, np.ndarray] = field(default_factory=dict)
+    height_signal_mm: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -232,8 +241,9 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     """Write ``rec`` as a sequence folder at ``out`` (``sequence.json``, frames, ``timestamps.txt``, ground truth).
 
     The user's ``options`` override what the source states: calibration, timestamps,
-    ground truth; ``options.fps`` is the rate of a source without times. Frame times come
-    from ``options.timestamps_s``, else the source, else ``i / fps``.
+    ground truth, camera height, cam0's flat field, measured heights; ``options.fps`` is the
+    rate of a source without times. Frame times come from ``options.timestamps_s``, else the
+    source, else ``i / fps``.
     """
     opts = options or ImportOptions()
     what = str(rec.source)
@@ -246,6 +256,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         given = CameraCalibration(camera_from_flags(rec.size_px, *opts.intrinsics, opts.distortion))
     cal = _camera_for(given or rec.calibration, rec.size_px, what)
     height_mm = _positive(opts.height_mm, "--height-mm")
+    if height_mm is None:
+        height_mm = _positive(rec.height_mm, f"{what}: camera height (mm)")
     fps_given = _positive(opts.fps, "--fps")
     n = rec.frame_count
     if n < 1:
@@ -296,15 +308,27 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         rig["T_cam0_cam1"] = np.asarray(cal.T_cam0_cam1, dtype=float).tolist()
     if rec.has_depth:
         meta["depth"] = {"format": "npy_float32_mm", "content": "depth along the optical axis, mm"}
-    flat = None
+    flats: dict[str, tuple[np.ndarray, str]] = {}
     if opts.flatfield is not None:
-        flat = read_image_file(opts.flatfield)
-        if flat.shape != (cal.cam0.height_px, cal.cam0.width_px):
+        flats["cam0"] = (read_image_file(opts.flatfield), f"--flatfield {opts.flatfield}")
+    for cam_name, image in rec.flatfields.items():
+        if cam_name not in flats and (cam_name == "cam0" or stereo):
+            flats[cam_name] = (image, f"{what}: {cam_name} flat field")
+    if "cam0" not in flats:  # sequence.json's calib block names cam0's: a cam1 flat field alone has no place
+        flats.clear()
+    for cam_name, (image, flat_what) in flats.items():
+        model = cal.cam0 if cam_name == "cam0" else cal.cam1
+        assert model is not None  # a cam1 flat field is kept only for a stereo import
+        if image.shape != (model.height_px, model.width_px):
             raise ConfigError(
-                f"--flatfield {opts.flatfield}: image is {flat.shape[1]}x{flat.shape[0]} px, "
-                f"the frames are {cal.cam0.width_px}x{cal.cam0.height_px} px"
+                f"{flat_what}: image is {image.shape[1]}x{image.shape[0]} px, "
+                f"the frames are {model.width_px}x{model.height_px} px"
             )
-        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flat.itemsize}
+    if flats:
+        depths = {8 * image.itemsize for image, _ in flats.values()}
+        if len(depths) > 1:
+            raise ConfigError(f"{what}: the flat fields of cam0 and cam1 differ in bit depth (8 and 16)")
+        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": depths.pop()}
     check_timestamps(ts, n, f"timestamps ({time_source})")
     if gt is not None:  # checked as the sequence's reader will check it: refused now, not after writing
         gt_what = "--groundtruth" if opts.groundtruth is not None else f"{what}: ground truth"
@@ -315,8 +339,10 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
                 f"{gt[0][-1]:.6f} s, frames at {ts[0]:.6f}-{ts[-1]:.6f} s, timestamps ({time_source})): "
                 "the ground truth and the frames are on different clocks"
             )
-    if opts.height_signal_mm is not None:
-        check_heights(np.asarray(opts.height_signal_mm, dtype=float), n, "--height-file")
+    heights = opts.height_signal_mm if opts.height_signal_mm is not None else rec.height_signal_mm
+    if heights is not None:
+        heights_what = "--height-file" if opts.height_signal_mm is not None else f"{what}: measured heights"
+        check_heights(np.asarray(heights, dtype=float), n, heights_what)
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
         writer.write_timestamps(ts)
         count = 0
@@ -345,12 +371,12 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
                 writer.write_depth(i, fr.depth_mm)
         if count != n:
             raise SequenceError(f"{what}: yielded {count} frame(s), announced {n}")
-        if flat is not None:
-            writer.write_calib("cam0_flatfield", flat)
+        for cam_name, (image, _) in flats.items():
+            writer.write_calib(f"{cam_name}_flatfield", image)
         if gt is not None:
             writer.write_groundtruth(gt[0], gt[1])
-        if opts.height_signal_mm is not None:
-            writer.write_heights(opts.height_signal_mm)
+        if heights is not None:
+            writer.write_heights(heights)
     log.info("imported %d frames of %s (%s) -> %s", n, what, rec.format, writer.root)
     return ImportResult(
         sequence=writer.root,
