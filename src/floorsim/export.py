@@ -12,6 +12,12 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
 * ``/cam0/depth`` (sensor_msgs/Image, 32FC1, metres) when the sequence has depth
 * ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0)
 * ``/tf`` (world -> cam0 per frame), ``/tf_static`` (cam0 -> cam1 for stereo)
+* ``/cam0/flatfield``, ``/cam1/flatfield`` (sensor_msgs/Image, one message at the first frame's
+  stamp): the flat-field frames, when the sequence has them
+* ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
+  (``height.csv``)
+* the rig height in the bag's ``custom_data`` (``metadata.yaml``), key
+  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY`, mm
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
@@ -25,9 +31,9 @@ The EuRoC export carries what the layout has no file of its own for in sidecars 
 ``floorvo import`` reads back (other readers ignore them): each camera's flat-field frame as
 ``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
 and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height0/data.csv``
-(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading). What
-an export cannot carry it names (:func:`left_out`) with the ``floorvo import`` flag that gives it
-back.
+(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading). So
+both formats carry the whole sequence (``calib/`` beyond the flat fields aside: a render's
+``sensor.json`` and ``exposure.csv``), and ``floorvo import`` gives it back.
 """
 
 from __future__ import annotations
@@ -40,6 +46,7 @@ import numpy as np
 
 from floorvo.errors import FloorbenchError
 from floorvo.geometry import xyz_quat_from_T
+from floorvo.importers import rosbag2 as bag_reader
 from floorvo.importers.euroc import CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
 from floorvo.io import atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
@@ -50,7 +57,6 @@ __all__ = [
     "export_euroc",
     "export_rosbag2",
     "export_sequence",
-    "left_out",
 ]
 
 log = logging.getLogger(__name__)
@@ -58,28 +64,6 @@ log = logging.getLogger(__name__)
 
 def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
-
-
-def left_out(seq: Sequence, fmt: str = "rosbag2") -> list[str]:
-    """What of ``seq`` format ``fmt`` does not carry, each with the ``floorvo import`` flag that
-    gives it back (logged as a warning by the export: a round trip lost them without a word, and
-    phase-corr's flat-field correction and a range sensor's heights with them). EuRoC carries
-    them all (sidecars, see the module doc)."""
-    missing: list[str] = []
-    if fmt == "euroc":
-        return missing
-    if seq.flatfield() is not None:
-        missing.append("calib/cam0_flatfield.png (give it back with floorvo import --flatfield FILE)")
-    if seq.height_signal_mm is not None:
-        missing.append("height.csv, the range sensor's heights (floorvo import --height-file FILE)")
-    if seq.height_mm is not None:
-        missing.append(f"rig.height_mm = {seq.height_mm:g} (floorvo import --height-mm {seq.height_mm:g})")
-    return missing
-
-
-def _warn_left_out(seq: Sequence, fmt: str, fmt_name: str) -> None:
-    for what in left_out(seq, fmt):
-        log.warning("%s: not exported to %s: %s", seq.root, fmt_name, what)
 
 
 def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
@@ -99,7 +83,6 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
     out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
-    _warn_left_out(seq, "rosbag2", "a ROS 2 bag")
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
@@ -114,6 +97,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         T["geometry_msgs/msg/Quaternion"],
         T["geometry_msgs/msg/Vector3"],
     )
+    Range = T["sensor_msgs/msg/Range"]
     Transform, TransformStamped, TFMessage = (
         T["geometry_msgs/msg/Transform"],
         T["geometry_msgs/msg/TransformStamped"],
@@ -177,6 +161,16 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
             conns[f"/{c}/camera_info"] = w.add_connection(f"/{c}/camera_info", CameraInfo.__msgtype__, typestore=ts)
         if seq.has_depth:
             conns["/cam0/depth"] = w.add_connection("/cam0/depth", Image.__msgtype__, typestore=ts)
+        flats = {c: seq.flatfield(c) for c in cams}
+        for c, flat in flats.items():
+            if flat is not None:
+                topic = f"/{c}/{bag_reader.FLATFIELD_TOPIC_NAME}"
+                conns[topic] = w.add_connection(topic, Image.__msgtype__, typestore=ts)
+        heights = seq.height_signal_mm
+        if heights is not None:
+            conns["/cam0/height"] = w.add_connection("/cam0/height", Range.__msgtype__, typestore=ts)
+        if seq.height_mm is not None:
+            w.set_custom_data(bag_reader.CAMERA_HEIGHT_KEY, repr(float(seq.height_mm)))
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
@@ -195,8 +189,22 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         def put(topic: str, t_s: float, msg) -> None:
             w.write(conns[topic], _ns(t_s), ts.serialize_cdr(msg, msg.__msgtype__))
 
+        for c, flat in flats.items():
+            if flat is not None:
+                topic = f"/{c}/{bag_reader.FLATFIELD_TOPIC_NAME}"
+                put(topic, float(stamps[0]), image_msg(flat, float(stamps[0]), c))
         for i in range(seq.frame_count):
             t_s = float(stamps[i])
+            if heights is not None and np.isfinite(heights[i]):
+                reading = Range(
+                    header=header(t_s, "cam0"),
+                    radiation_type=1,  # INFRARED: a range sensor's kind is not recorded; a reading is a reading
+                    field_of_view=0.0,
+                    min_range=0.0,
+                    max_range=float("inf"),
+                    range=float(heights[i]) / 1000.0,
+                )
+                put("/cam0/height", t_s, reading)
             for c in cams:
                 cam = seq.camera_model(c)
                 tx = 0.0 if c == "cam0" or T_cam0_cam1 is None else float(T_cam0_cam1[0, 3]) / 1000.0
@@ -257,7 +265,6 @@ def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
     """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
     out = _check_out(out)
-    _warn_left_out(seq, "euroc", "EuRoC")
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])

@@ -7,6 +7,7 @@ truth, and an estimator run over it must give the same trajectory (to 1e-6 m) as
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -127,11 +128,13 @@ def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     assert not imp.has_stereo and imp.frame_count == 8
 
 
-def test_euroc_carries_the_flat_fields_heights_and_rig_height_back(tmp_path, capsys):
-    """The EuRoC export named the flat field, height.csv and the rig height as left out, and an
-    import without three flags lost them: sidecars (``camN/flatfield.png``, ``height0/``,
-    ``camera_height_mm`` in cam0's sensor.yaml) carry them, and the import reads them back."""
-    from floorsim.export import left_out
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path, capsys, fmt):
+    """Both exports named the flat field, height.csv and the rig height as left out, and an import
+    without three flags lost them. EuRoC carries them in sidecars (``camN/flatfield.png``,
+    ``height0/``, ``camera_height_mm`` in cam0's sensor.yaml), the bag in topics
+    (``/camN/flatfield``, ``/cam0/height`` Range) and its custom data; the import reads them back."""
+    from floorvo.sequence import SequenceWriter
 
     T = line_poses(12.0, 4.0, 87.5)
     root = write_synthetic_sequence(
@@ -139,26 +142,42 @@ def test_euroc_carries_the_flat_fields_heights_and_rig_height_back(tmp_path, cap
     )
     h = Sequence.open(root).height_signal_mm
     h[1] = np.nan  # a frame without a reading
-    from floorvo.sequence import SequenceWriter
-
     with SequenceWriter(root, Sequence.open(root).meta, overwrite=True) as w:
         w.write_heights(h)
     seq = Sequence.open(root)
-    assert left_out(seq, "euroc") == [] and len(left_out(seq, "rosbag2")) == 3
-    exported = export_sequence(root, "euroc", tmp_path / "exported")
+    exported = export_sequence(root, fmt, tmp_path / "exported")
     capsys.readouterr()
     out = tmp_path / "imported"
     assert main(["import", str(exported), "-o", str(out)]) == 0
     assert "no --height-mm" not in capsys.readouterr().out
     imp = Sequence.open(out)
-    assert imp.height_mm == 87.5 and imp.has_stereo
+    assert imp.height_mm == 87.5 and imp.has_stereo and imp.frame_count == 4
     np.testing.assert_array_equal(imp.flatfield("cam0"), seq.flatfield("cam0"))
     np.testing.assert_array_equal(imp.flatfield("cam1"), seq.flatfield("cam1"))
-    np.testing.assert_array_equal(imp.height_signal_mm, seq.height_signal_mm)  # NaN where no reading
     assert np.isnan(imp.height_signal_mm[1])
-    # a flag still wins over the sidecar
-    assert main(["import", str(exported), "-o", str(tmp_path / "flagged"), "--height-mm", "90"]) == 0
-    assert Sequence.open(tmp_path / "flagged").height_mm == 90.0
+    # EuRoC's CSV holds the file's decimals; a bag's Range holds float32 metres (1e-5 mm)
+    np.testing.assert_allclose(imp.height_signal_mm, seq.height_signal_mm, rtol=0, atol=0 if fmt == "euroc" else 1e-4)
+    for i in range(seq.frame_count):
+        np.testing.assert_array_equal(imp.image(i), seq.image(i))
+    # a flag still wins over what the export carried
+    flat_given = tmp_path / "flat.png"
+    cv2.imwrite(str(flat_given), np.full((CAM.height_px, CAM.width_px), 77, np.uint8))
+    argv = [
+        "import",
+        str(exported),
+        "-o",
+        str(tmp_path / "flagged"),
+        "--height-mm",
+        "90",
+        "--flatfield",
+        str(flat_given),
+    ]
+    assert main(argv) == 0
+    flagged = Sequence.open(tmp_path / "flagged")
+    assert flagged.height_mm == 90.0 and int(flagged.flatfield("cam0").max()) == 77
+    assert flagged.flatfield("cam1") is None  # the source's is 16-bit: sequence.json states one bit depth
+    if fmt != "euroc":
+        return
     # a sidecar row at no frame's stamp is refused in one line, before anything is written
     csv_path = exported / "mav0" / "height0" / "data.csv"
     csv_path.write_text(csv_path.read_text() + "17,88.0\n")

@@ -324,11 +324,17 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
                 f"{flat_what}: image is {image.shape[1]}x{image.shape[0]} px, "
                 f"the frames are {model.width_px}x{model.height_px} px"
             )
+    if "cam1" in flats and flats["cam1"][0].dtype != flats["cam0"][0].dtype:  # calib states one bit depth
+        log.warning(
+            "%s: cam1's flat field left out: it is %d-bit, cam0's (%s) %d-bit",
+            what,
+            8 * flats["cam1"][0].itemsize,
+            flats["cam0"][1],
+            8 * flats["cam0"][0].itemsize,
+        )
+        del flats["cam1"]
     if flats:
-        depths = {8 * image.itemsize for image, _ in flats.values()}
-        if len(depths) > 1:
-            raise ConfigError(f"{what}: the flat fields of cam0 and cam1 differ in bit depth (8 and 16)")
-        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": depths.pop()}
+        meta["calib"] = {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 8 * flats["cam0"][0].itemsize}
     check_timestamps(ts, n, f"timestamps ({time_source})")
     if gt is not None:  # checked as the sequence's reader will check it: refused now, not after writing
         gt_what = "--groundtruth" if opts.groundtruth is not None else f"{what}: ground truth"

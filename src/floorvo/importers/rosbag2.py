@@ -14,7 +14,17 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   (left frame -> right frame) or else from the right projection matrix (``P[0,3] = -fx B``);
 * ``groundtruth``: ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
   ``TransformStamped`` or ``nav_msgs/Odometry`` (its pose is taken as the camera's,
-  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame).
+  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame);
+* ``flatfield``, ``right_flatfield``: an image topic named ``flatfield`` in the image's (the
+  right image's) namespace (``/cam0/flatfield``): its first message is the camera's flat-field
+  frame (never taken for a camera's images);
+* ``height``: a ``sensor_msgs/Range`` topic with ``height`` in its name (another Range topic
+  only when given: a robot's other range sensors measure something else): the camera height
+  above the floor, each reading (m) belonging to the frame within 1 ms of its stamp (frames
+  without one have none; a reading that is not finite and > 0 is none).
+
+The rig height is the bag's ``custom_data`` entry :data:`CAMERA_HEIGHT_KEY` (mm) in
+``metadata.yaml``, as ``floorsim export --format rosbag2`` writes it.
 
 Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
 some zero and some not is refused: two clocks).
@@ -35,19 +45,34 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel, intrinsics_from_K
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, invert_T
-from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from
+from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
 from floorvo.importers.recording import FrameImages, Recording, to_mono
 
-__all__ = ["ROLES", "detect", "read", "decode_image"]
+__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_TOPIC_NAME", "ROLES", "detect", "read", "decode_image"]
 
 log = logging.getLogger(__name__)
 
 #: Topic roles of ``--topic ROLE=NAME``.
-ROLES = ("image", "right", "depth", "camera_info", "right_camera_info", "groundtruth")
+ROLES = (
+    "image",
+    "right",
+    "depth",
+    "camera_info",
+    "right_camera_info",
+    "groundtruth",
+    "flatfield",
+    "right_flatfield",
+    "height",
+)
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+RANGE_TYPE = "sensor_msgs/msg/Range"
+#: The last part of a flat-field image topic's name (``/cam0/flatfield``).
+FLATFIELD_TOPIC_NAME = "flatfield"
+#: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the camera height above the floor, mm.
+CAMERA_HEIGHT_KEY = "floorbench.camera_height_mm"
 POSE_TYPES = (
     "geometry_msgs/msg/PoseStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -183,11 +208,14 @@ def choose_topics(types: dict[str, str], given: dict[str, str]) -> dict[str, str
             "camera_info": (INFO_TYPE,),
             "right_camera_info": (INFO_TYPE,),
             "groundtruth": POSE_TYPES + (TF_TYPE,),
+            "height": (RANGE_TYPE,),
         }.get(role, IMAGE_TYPES)
         if types[topic] not in want:
             raise ConfigError(f"--topic {role}={topic}: is {types[topic]}, a {role} topic is one of {', '.join(want)}")
     out = dict(given)
     images = sorted(t for t, ty in types.items() if ty in IMAGE_TYPES)
+    flat_like = [t for t in images if t.rsplit("/", 1)[-1].lower() == FLATFIELD_TOPIC_NAME]
+    images = [t for t in images if t not in flat_like]
     depth_like = _pick(images, ("depth",))
     plain = [t for t in images if t not in depth_like and t not in out.values()]
     if "image" not in out:
@@ -213,6 +241,16 @@ def choose_topics(types: dict[str, str], given: dict[str, str]) -> dict[str, str
             out[role] = same_ns[0]
         elif role == "camera_info" and len(infos) == 1:
             out[role] = infos[0]
+    for role, img_role in (("flatfield", "image"), ("right_flatfield", "right")):
+        if role in out or img_role not in out:
+            continue
+        same_ns = [t for t in flat_like if _namespace(t) == _namespace(out[img_role])]
+        if len(same_ns) == 1:
+            out[role] = same_ns[0]
+    if "height" not in out:
+        named = _pick(sorted(t for t, ty in types.items() if ty == RANGE_TYPE), ("height",))
+        if len(named) == 1:
+            out["height"] = named[0]
     if "groundtruth" not in out:
         poses = sorted(t for t, ty in types.items() if ty in POSE_TYPES)
         named = _pick(poses, ("groundtruth", "ground_truth", "gt"))
@@ -268,8 +306,8 @@ def read(source: Path, options=None) -> Recording:
         types = {c.topic: c.msgtype for c in reader.connections}
         topics = choose_topics(types, topics_given)
         if getattr(options, "left_only", False):
-            topics.pop("right", None)
-            topics.pop("right_camera_info", None)
+            for role in ("right", "right_camera_info", "right_flatfield"):
+                topics.pop(role, None)
         by_topic: dict[str, list] = {}
         for c in reader.connections:
             by_topic.setdefault(c.topic, []).append(c)
@@ -287,6 +325,8 @@ def read(source: Path, options=None) -> Recording:
         size: tuple[int, int] | None = None
         dtype = None
         tf_pending: list[tuple[int, str, str, np.ndarray]] = []
+        flats: dict[str, np.ndarray] = {}
+        height_readings: list[tuple[int, float]] = []  # (stamp ns, range m)
         for conn, bag_ns, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, conn.msgtype)
             roles = roles_of.get(conn.topic, [])
@@ -301,6 +341,11 @@ def read(source: Path, options=None) -> Recording:
                         size, dtype, frame_id = (img.shape[1], img.shape[0]), img.dtype, str(msg.header.frame_id)
                 elif role in ("camera_info", "right_camera_info") and role not in infos:
                     infos[role] = msg
+                elif role in ("flatfield", "right_flatfield") and role not in flats:
+                    label = f"{source} {conn.topic}"
+                    flats[role] = to_mono(decode_image(msg, conn.msgtype, label), label)
+                elif role == "height":
+                    height_readings.append((_stamp_ns(msg, bag_ns), float(msg.range)))
                 elif role == "groundtruth" and conn.msgtype in POSE_TYPES:
                     gt_t.append(_stamp_ns(msg, bag_ns))
                     gt_T.append(_pose_of(msg, conn.msgtype))
@@ -384,6 +429,17 @@ def read(source: Path, options=None) -> Recording:
         gt = (t_sorted[first] * 1e-9, np.stack(gt_T)[order][first])
     has_right = "right" in topics
     has_depth = "depth" in topics
+    heights = None
+    if "height" in topics:
+        heights = np.full(len(frames_ns), np.nan)
+        value_of = dict(height_readings)
+        for t_reading, t_frame in _pair(frames_ns, np.asarray(list(value_of), dtype=np.int64)).items():
+            r_m = value_of[t_reading]
+            if np.isfinite(r_m) and r_m > 0:  # REP 117: +-inf is out of range, no reading
+                heights[index_of[t_frame]] = r_m * 1000.0
+    flatfields = {"cam0": flats["flatfield"]} if "flatfield" in flats else {}
+    if "right_flatfield" in flats:
+        flatfields["cam1"] = flats["right_flatfield"]
     img_topics = {topics[r]: r for r in ("image", "right", "depth") if r in topics}
 
     def frames() -> Iterator[FrameImages]:
@@ -425,4 +481,28 @@ def read(source: Path, options=None) -> Recording:
         has_depth=has_depth,
         groundtruth=gt,
         details={"topics": dict(sorted(topics.items())), "camera_frame": frame_id},
+        height_mm=_camera_height_mm(source),
+        flatfields=flatfields,
+        height_signal_mm=heights,
     )
+
+
+def _camera_height_mm(source: Path) -> float | None:
+    """The bag's :data:`CAMERA_HEIGHT_KEY` (mm) from its ``metadata.yaml``'s ``custom_data``; None
+    when absent; a value that is not a number > 0 is a one-line error."""
+    path = (source.parent if source.is_file() else source) / "metadata.yaml"
+    if not path.is_file():
+        return None
+    d = load_yaml(path, "ROS 2 bag metadata")
+    info = d.get("rosbag2_bagfile_information") if isinstance(d, dict) else None
+    custom = info.get("custom_data") if isinstance(info, dict) else None
+    if not isinstance(custom, dict) or CAMERA_HEIGHT_KEY not in custom:
+        return None
+    raw = custom[CAMERA_HEIGHT_KEY]
+    try:
+        v = float(raw)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not np.isfinite(v) or v <= 0:
+        raise SequenceError(f"{path}: custom_data {CAMERA_HEIGHT_KEY} = {shown(raw)}: must be a number of mm > 0")
+    return v
