@@ -70,6 +70,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.io import read_toml
+from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
 __all__ = [
     "SCENE_SCHEMA_VERSION",
@@ -346,7 +347,7 @@ class Scene(Config):
     schema_version: int = param(SCENE_SCHEMA_VERSION, doc="scene file format version")
     description: str = param("", doc="one line shown by floorsim list")
     seed: int = param(0, min=0, doc="floor, sensor noise and pixel jitter derive from it")
-    fps: float = param(30.0, unit="Hz", gt=0, doc="frame rate")
+    fps: float = param(30.0, unit="Hz", min=MIN_FPS_HZ, max=MAX_FPS_HZ, doc="frame rate (sequence.json's rule)")
     camera: CameraSpec = param(default_factory=CameraSpec)
     floor: FloorSpec = param(default_factory=FloorSpec)
     lights: LightsSpec = param(default_factory=LightsSpec)

@@ -24,6 +24,8 @@ from floorvo.geometry import rigid_problem
 
 __all__ = [
     "SCHEMA_VERSION",
+    "MAX_FPS_HZ",
+    "MIN_FPS_HZ",
     "READABLE_SCHEMA_VERSIONS",
     "CameraBlock",
     "RigBlock",
@@ -54,6 +56,12 @@ def stable_meta(meta: dict) -> dict:
 
 #: The most frames a sequence may have (its frame times are held in memory: 80 MB).
 MAX_FRAME_COUNT = 10_000_000
+#: The frame rates a sequence may have, Hz: ground truth is written to the microsecond (TUM), so
+#: frames closer than 1 us could not be told apart (a render at 1e7 Hz wrote poses that all had
+#: one time); exports stamp frames in nanoseconds (EuRoC, int64) and whole seconds (ROS 2,
+#: int32), which 10 M frames at 0.01 Hz (1e9 s) still fit (1e-300 Hz ended in an OverflowError).
+MIN_FPS_HZ = 0.01
+MAX_FPS_HZ = 1_000_000.0
 #: Formats of ``depth/`` frames.
 DEPTH_FORMATS = ("png16", "npy_float32_mm")
 
@@ -168,7 +176,12 @@ class SequenceMeta(Config):
 
     schema_version: int = param(choices=READABLE_SCHEMA_VERSIONS, doc="on-disk format version")
     camera: CameraBlock = param(doc="intrinsics of cam0")
-    fps: float = param(unit="Hz", gt=0, doc="frame rate; frame i at i / fps unless timestamps.txt gives times")
+    fps: float = param(
+        unit="Hz",
+        min=MIN_FPS_HZ,
+        max=MAX_FPS_HZ,
+        doc="frame rate; frame i at i / fps unless timestamps.txt gives times",
+    )
     frame_count: int = param(min=1, max=MAX_FRAME_COUNT, doc="number of frames in cam0/")
     format: str = param("floorbench-sequence", choices=("floorbench-sequence",), doc="format name")
     name: str = param("", doc="sequence name")

@@ -48,6 +48,10 @@ def test_set_overrides():
         ({"camera.pixel_pitch_um": "0.0001"}, r"floor: a floor tile .* mesh vertices; at most 8e\+07"),
         ({"floor.spacing_mm": "1e-6"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-06 mm holds"),
         ({"trajectory.step_mm": "1e-9"}, r"trajectory: these parameters give 4e\+09 frames; at most 1000000"),
+        # a frame rate whose frame times the files cannot hold: 1e7 Hz wrote ground-truth poses that all had
+        # one time (TUM holds microseconds) and its reader refused them; 1e-300 Hz made both exports overflow
+        ({"fps": "1e7"}, r"fps = 10000000.0 Hz: must be <= 1000000.0 Hz"),
+        ({"fps": "1e-300"}, r"fps = 1e-300 Hz: must be >= 0.01 Hz"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):

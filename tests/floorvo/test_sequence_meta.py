@@ -54,7 +54,8 @@ def _with(path: str, value):
         ("rig.height_mm", float("nan"), "rig.height_mm = nan mm: must be a finite number"),
         ("rig.height_mm", -5.0, "rig.height_mm = -5.0 mm: must be > 0 mm"),
         ("rig", "none", "rig = 'none': must be a table"),
-        ("fps", 0, "fps = 0.0 Hz: must be > 0 Hz"),
+        ("fps", 0, "fps = 0.0 Hz: must be >= 0.01 Hz"),
+        ("fps", 1e7, "fps = 10000000.0 Hz: must be <= 1000000.0 Hz"),
         ("frame_count", 0, "frame_count = 0: must be >= 1"),
         ("frame_count", 2.5, "frame_count = 2.5: must be integer"),
         ("frame_count", KeyError, "frame_count: missing (a required key)"),
@@ -113,7 +114,7 @@ def test_good_sequence_loads_and_the_writer_refuses_what_would_not(tmp_path):
     seq = Sequence.open(root)
     assert seq.height_mm == 100.0 and seq.fps == 30.0 and seq.camera.size == (32, 24)
     bad = {k: v for k, v in _with("fps", -1.0).items() if k != "schema_version"}
-    with pytest.raises(SequenceError, match="fps = -1.0 Hz: must be > 0 Hz"):
+    with pytest.raises(SequenceError, match="fps = -1.0 Hz: must be >= 0.01 Hz"):
         SequenceWriter(tmp_path / "other", bad)
     assert not (tmp_path / "other" / "sequence.json").exists()
 
