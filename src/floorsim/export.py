@@ -66,6 +66,29 @@ def _ns(t_s: float) -> int:
     return int(round(t_s * 1e9))
 
 
+#: The times (s) each format can stamp: a ROS 2 ``builtin_interfaces/Time`` holds int32 seconds
+#: (and ROS refuses a negative time); EuRoC's stamps are int64 nanoseconds from 0.
+_STAMP_RANGE_S = {"rosbag2": (0.0, float(2**31 - 1)), "euroc": (0.0, (2**63 - 1) / 1e9)}
+
+
+def _check_stamps(seq: Sequence, fmt: str) -> None:
+    """Refuse, in one line and before anything is written, a sequence with a frame or ground-truth
+    time the format cannot stamp (:data:`_STAMP_RANGE_S`): a frame at 3e9 s ended the bag export
+    in a ``struct.error`` traceback; a EuRoC export wrote nanosecond stamps past int64."""
+    lo, hi = _STAMP_RANGE_S[fmt]
+    gt = seq.groundtruth()
+    for what, times in (("frame", seq.timestamps_s), ("ground-truth pose", None if gt is None else gt[0])):
+        if times is None:
+            continue
+        bad = np.nonzero(~((times >= lo) & (times <= hi)))[0]
+        if len(bad):
+            k = int(bad[0])
+            raise FloorbenchError(
+                f"{seq.root}: {what} {k} at {times[k]:.9g} s cannot be stamped in {fmt} (times from {lo:g} to "
+                f"{hi:.4g} s); shift the sequence's times (timestamps.txt, groundtruth.txt) into that range"
+            )
+
+
 def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
     """The output path, refused in one line if empty, a file-system root, or taken (an empty folder may do)."""
     path = checked_output_path(out, FloorbenchError)
@@ -82,6 +105,7 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
+    _check_stamps(seq, "rosbag2")
     out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
@@ -264,6 +288,7 @@ def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
 
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
     """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
+    _check_stamps(seq, "euroc")
     out = _check_out(out)
     mav = out / "mav0"
     stamps = seq.timestamps_s

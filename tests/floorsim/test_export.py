@@ -1,6 +1,7 @@
 """Exports read back with the libraries that wrote them; poses compared with groundtruth.txt."""
 
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -168,3 +169,27 @@ def test_an_export_leaves_nothing_out(tmp_path, caplog, fmt):
     with caplog.at_level(logging.WARNING, logger="floorsim.export"):
         export_sequence(seq, fmt, tmp_path / "out")
     assert not caplog.records, [r.getMessage() for r in caplog.records]
+
+
+@pytest.mark.parametrize(
+    "fmt, times_s, words",
+    [
+        ("rosbag2", [3e9, 3e9 + 1, 3e9 + 2, 3e9 + 3], "frame 0 at 3e+09 s cannot be stamped in rosbag2"),
+        ("rosbag2", [-2.0, -1.0, 0.0, 1.0], "frame 0 at -2 s cannot be stamped in rosbag2"),
+        ("euroc", [1e10, 2e10, 3e10, 4e10], "frame 0 at 1e+10 s cannot be stamped in euroc"),
+    ],
+)
+def test_times_a_format_cannot_stamp_are_refused_before_writing(tmp_path, fmt, times_s, words):
+    """A frame at 3e9 s ended the bag export in a struct.error traceback (ROS time holds int32
+    seconds), and EuRoC wrote nanosecond stamps past int64; refused in one line, nothing written."""
+    from floorvo.errors import FloorbenchError
+
+    cam = CameraModel(40, 30, 50.0, 50.0, 19.5, 14.5)
+    w = SequenceWriter(tmp_path / "seq", {"camera": cam.to_dict(), "fps": 10.0, "frame_count": 4})
+    for i in range(4):
+        w.write_frame(i, np.full((30, 40), 10 * i, np.uint8))
+    w.write_timestamps(np.array(times_s))
+    with pytest.raises(FloorbenchError, match=re.escape(words)) as info:
+        export_sequence(tmp_path / "seq", fmt, tmp_path / "out")
+    assert "\n" not in str(info.value) and "shift the sequence's times" in str(info.value)
+    assert not (tmp_path / "out").exists()
