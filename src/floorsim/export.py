@@ -38,8 +38,13 @@ both formats carry the whole sequence (``calib/`` beyond the flat fields aside: 
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
+import secrets
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +53,7 @@ from floorvo.errors import FloorbenchError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
 from floorvo.importers.euroc import CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
-from floorvo.io import atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
+from floorvo.io import TEMP_SUFFIX, atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.sequence import Sequence
 
 __all__ = [
@@ -98,15 +103,47 @@ def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
     return path
 
 
+@contextmanager
+def _staged(final: Path) -> Iterator[Path]:
+    """The path an export writes to, renamed to ``final`` when it is complete: ``final``'s name
+    inside a hidden temporary folder ``.NAME.XXXXXXXX.tmp`` beside it, removed with what it holds
+    when the export fails. A frame that failed to decode half-way left half an export under the
+    final name, which the next export refused as 'output exists'; a killed export leaves only the
+    hidden folder. Of two exports to one path the second to finish is refused (output exists)."""
+    final.parent.mkdir(parents=True, exist_ok=True)
+    stage = final.parent / f".{final.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"
+    stage.mkdir()
+    try:
+        yield stage / final.name
+        try:
+            os.rename(stage / final.name, final)  # onto a missing path or an empty folder
+        except OSError as exc:
+            if exc.errno in (errno.EEXIST, errno.ENOTEMPTY):
+                raise FloorbenchError(
+                    f"{final}: output exists (written while this export ran); choose a new path"
+                ) from None
+            raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
 def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
-    """Write ``seq`` as a ROS 2 bag (sqlite3) folder at ``out``; returns its path."""
+    """Write ``seq`` as a ROS 2 bag (sqlite3) folder at ``out`` (all or nothing: :func:`_staged`);
+    returns its path."""
+    _check_stamps(seq, "rosbag2")
+    final = _check_out(out, may_exist_empty=False)
+    with _staged(final) as dest:
+        _write_rosbag2(seq, dest)
+    return final
+
+
+def _write_rosbag2(seq: Sequence, out: Path) -> None:
+    """The bag of :func:`export_rosbag2` at ``out`` (a path that does not exist: the writer makes it)."""
     try:
         from rosbags.rosbag2 import Writer
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
         raise FloorbenchError("ROS 2 export needs the 'rosbags' package: pip install rosbags") from None
-    _check_stamps(seq, "rosbag2")
-    out = _check_out(out, may_exist_empty=False)  # the bag writer creates the folder itself
     ts = get_typestore(Stores.ROS2_HUMBLE)
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
@@ -257,7 +294,6 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
                         transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]
                     ),
                 )
-    return out
 
 
 def _yaml_dump(path: Path, data: dict) -> None:
@@ -287,9 +323,17 @@ def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
 
 
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
-    """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0``; returns ``out``."""
+    """Write ``seq`` in the EuRoC/ASL layout under ``out/mav0`` (all or nothing: :func:`_staged`;
+    ``out`` may be an empty folder); returns ``out``."""
     _check_stamps(seq, "euroc")
-    out = _check_out(out)
+    final = _check_out(out)
+    with _staged(final) as dest:
+        _write_euroc(seq, dest)
+    return final
+
+
+def _write_euroc(seq: Sequence, out: Path) -> None:
+    """The folders of :func:`export_euroc` under ``out``."""
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
@@ -391,7 +435,6 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
             )
         ]
         atomic_write_csv(g / "data.csv", header, gt_rows)
-    return out
 
 
 FORMATS = {"rosbag2": export_rosbag2, "euroc": export_euroc}

@@ -193,3 +193,22 @@ def test_times_a_format_cannot_stamp_are_refused_before_writing(tmp_path, fmt, t
         export_sequence(tmp_path / "seq", fmt, tmp_path / "out")
     assert "\n" not in str(info.value) and "shift the sequence's times" in str(info.value)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_an_export_that_fails_half_way_leaves_nothing_behind(stereo_depth_seq, tmp_path, fmt):
+    """A frame that did not decode stopped the export with half of it under the output's name,
+    which the next export refused as 'output exists'; an export is all or nothing now."""
+    from floorvo.errors import SequenceError
+
+    seq_dir, _ = stereo_depth_seq
+    good = (seq_dir / "cam0" / "000002.png").read_bytes()
+    (seq_dir / "cam0" / "000002.png").write_bytes(good[:60])
+    with pytest.raises(SequenceError, match="000002.png: not a readable PNG"):
+        export_sequence(seq_dir, fmt, tmp_path / "out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["seq"]  # no output, no hidden temporary
+    (seq_dir / "cam0" / "000002.png").write_bytes(good)
+    assert export_sequence(seq_dir, fmt, tmp_path / "out") == tmp_path / "out"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "seq"]
+    if fmt == "rosbag2":  # the bag's file is named after the folder it was written as
+        assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metadata.yaml", "out.db3"]
