@@ -68,8 +68,8 @@ from floorsim.sensor import FixedPattern, SensorModel
 from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
 from floorvo.config import Config, apply_overrides, build, param, to_plain
-from floorvo.errors import ConfigError, ConfigFieldError
-from floorvo.io import read_toml
+from floorvo.errors import ConfigError, ConfigFieldError, shown
+from floorvo.io import file_name_problem, read_toml
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
 __all__ = [
@@ -343,7 +343,7 @@ class BenchSpec(Config):
 class Scene(Config):
     """A resolved scene. ``trajectory`` holds ``type``, its parameters and ``disturbance``."""
 
-    name: str = param(doc="the scene's name (default: the file name)")
+    name: str = param(doc="the scene's name (default: the file name); a file name: the bench names folders after it")
     schema_version: int = param(SCENE_SCHEMA_VERSION, doc="scene file format version")
     description: str = param("", doc="one line shown by floorsim list")
     seed: int = param(0, min=0, doc="floor, sensor noise and pixel jitter derive from it")
@@ -362,6 +362,9 @@ class Scene(Config):
     bench: BenchSpec = param(default_factory=BenchSpec)
 
     def validate(self) -> None:
+        problem = file_name_problem(self.name)
+        if problem:
+            raise ConfigFieldError("name", f" = {shown(self.name)}: {problem} (the bench names folders after it)")
         if self.schema_version != SCENE_SCHEMA_VERSION:
             raise ConfigFieldError(
                 "schema_version",

@@ -45,6 +45,7 @@ __all__ = [
     "ensure_writable_dir",
     "remove_stale_temporaries",
     "checked_output_path",
+    "file_name_problem",
     "TEMP_SUFFIX",
 ]
 
@@ -288,6 +289,18 @@ def checked_output_path(path: str | os.PathLike, error: type[Exception] = Sequen
     if resolved == Path(resolved.anchor):
         raise error(f"{raw}: is the root of a file system; name a folder below it")
     return p
+
+
+def file_name_problem(name: str) -> str:
+    """Why ``name`` cannot name a file or folder inside another (the rule, for an error message);
+    "" when it can: not empty, not ``.`` or ``..``, no ``/`` or ``\\``, no control character.
+    A name the project makes a path of (a scene's, a map's arrays file) is checked with it: a
+    scene named ``../../x`` made the bench write its sequence and runs outside its output folder."""
+    if not isinstance(name, str) or name.strip() == "":
+        return "must be a name (not empty)"
+    if name in (".", "..") or "/" in name or "\\" in name or any(ord(c) < 32 or ord(c) == 127 for c in name):
+        return "must be a file name: not . or .., no / or \\, no control characters"
+    return ""
 
 
 def ensure_writable_dir(path: str | os.PathLike) -> Path:

@@ -52,6 +52,10 @@ def test_set_overrides():
         # one time (TUM holds microseconds) and its reader refused them; 1e-300 Hz made both exports overflow
         ({"fps": "1e7"}, r"fps = 10000000.0 Hz: must be <= 1000000.0 Hz"),
         ({"fps": "1e-300"}, r"fps = 1e-300 Hz: must be >= 0.01 Hz"),
+        # a name the bench makes folders of: '../../x' wrote the sequence and runs outside the output folder
+        ({"name": "../../x"}, r"name = '../../x': must be a file name: not \. or \.\., no / or \\"),
+        ({"name": ".."}, r"name = '\.\.': must be a file name"),
+        ({"name": ""}, r"name = '': must be a name \(not empty\)"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):

@@ -37,7 +37,14 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, build, from_overrides, param, to_plain
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
 from floorvo.geometry import T_world_cam_down
-from floorvo.io import atomic_write_bytes, atomic_write_json, ensure_writable_dir, json_sha256, read_json
+from floorvo.io import (
+    atomic_write_bytes,
+    atomic_write_json,
+    ensure_writable_dir,
+    file_name_problem,
+    json_sha256,
+    read_json,
+)
 from floorvo.locking import locks_folder
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
@@ -416,7 +423,7 @@ def _read_map_json(mj: Path) -> tuple[MapFile, CameraModel, MapConfig, list[MapK
     if f.n_keyframes != len(kfs):
         raise FloorbenchError(f"{mj}: n_keyframes = {f.n_keyframes}, but {len(kfs)} keyframes are listed")
     name = f.arrays.file
-    if name in ("", ".", "..") or "/" in name or "\\" in name:
+    if file_name_problem(name):
         raise FloorbenchError(f"{mj}: arrays.file = {shown(name)}: must be a file name in the map folder")
     return f, camera, cfg, kfs, T
 
