@@ -45,6 +45,8 @@ __all__ = [
     "invert_T",
     "rigid_problem",
     "RIGID_TOLERANCE",
+    "MAX_POSITION_MM",
+    "position_problem",
     "rot_z",
     "T_world_cam_down",
     "T_from_xyz_quat",
@@ -100,6 +102,25 @@ def invert_T(T: np.ndarray) -> np.ndarray:
     out[..., :3, 3] = -(Rt @ T[..., :3, 3:4])[..., 0]
     out[..., 3, 3] = 1.0
     return out
+
+
+#: The farthest a position may lie from the world origin along any axis, mm: 1e8 m holds any place
+#: on Earth in metric map coordinates (UTM northings of 1e7 m included), where float64 still
+#: resolves 2e-5 mm. A pose 1e308 m out made every step vanish in rounding, with exit code 0.
+MAX_POSITION_MM = 1e11
+
+
+def position_problem(xyz_mm: Any) -> str | None:
+    """Why ``xyz_mm`` (3,) is no position a pose file or flag may give (:data:`MAX_POSITION_MM`), or
+    None. The one rule of every reader of poses: TUM files, EuRoC and ROS 2 ground truth,
+    ``--initial-pose``."""
+    xyz = np.asarray(xyz_mm, dtype=float)
+    if not np.isfinite(xyz).all():
+        return "a non-finite position"
+    far = float(np.max(np.abs(xyz)))
+    if far > MAX_POSITION_MM:
+        return f"a position {far / 1000.0:.3g} m from the origin (at most {MAX_POSITION_MM / 1000.0:g} m along an axis)"
+    return None
 
 
 #: How far ``R^T R`` may be from the identity, and the bottom row from ``[0, 0, 0, 1]``, in a

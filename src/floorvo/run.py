@@ -22,7 +22,7 @@ import numpy as np
 from floorvo.calibration import ScaleCalibration
 from floorvo.errors import ConfigError, FloorbenchError, shorten
 from floorvo.estimators import estimator_source, get_estimator, make_config
-from floorvo.geometry import T_from_se2, T_from_xyz_quat
+from floorvo.geometry import MAX_POSITION_MM, T_from_se2, T_from_xyz_quat, position_problem
 from floorvo.io import ensure_writable_dir
 from floorvo.locking import locks_folder
 from floorvo.runfolder import SEQUENCE_SHA256, sequence_sha256
@@ -157,13 +157,14 @@ class InitialPose:
             with np.errstate(over="ignore"):  # metres beyond 1.8e305 overflow in mm: refused below
                 xyz_mm = xyz_m * 1000.0
             norm = float(np.linalg.norm(quat))
-            if np.isfinite(xyz_mm).all() and 0 < norm < np.inf:  # an inf pose ended in 'SVD did not converge'
+            if not position_problem(xyz_mm) and 0 < norm < np.inf:  # an inf pose ended in 'SVD did not converge'
                 return cls(T_full=T_from_xyz_quat(xyz_mm, quat / norm))
-        if len(values) == 3 and "," in text and all(np.isfinite(values)):
+        if len(values) == 3 and "," in text and all(np.isfinite(values)) and not position_problem(values[:2] + [0.0]):
             return cls(se2=(values[0], values[1], values[2]))
         raise ConfigError(
             f"--initial-pose {text!r}: expected x_mm,y_mm,yaw_rad (e.g. 0,0,0) or a TUM line "
-            "'[t] tx ty tz qx qy qz qw' (finite metres, a non-zero quaternion)"
+            f"'[t] tx ty tz qx qy qz qw' (finite metres, at most {MAX_POSITION_MM / 1000.0:g} m from the origin along "
+            "an axis, a non-zero quaternion)"
         )
 
     def T_world_cam(self, height_mm: float | None) -> np.ndarray:

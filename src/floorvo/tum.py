@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from floorvo.errors import SequenceError, shown
-from floorvo.geometry import T_from_xyz_quat, xyz_quat_from_T
+from floorvo.geometry import T_from_xyz_quat, position_problem, xyz_quat_from_T
 from floorvo.io import atomic_write_text, read_text
 
 __all__ = ["write_tum", "read_tum", "format_tum", "check_increasing"]
@@ -88,6 +88,9 @@ def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.
             xyz_mm = np.array(vals[1:4]) * 1000.0
         if not (np.isfinite(vals).all() and np.isfinite(xyz_mm).all() and np.isfinite(n)) or n < 1e-9:
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
+        far = position_problem(xyz_mm)
+        if far:
+            raise SequenceError(f"{path}:{lineno}: {far}")
         ts.append(vals[0])
         Ts.append(T_from_xyz_quat(xyz_mm, q / n))
         linenos.append(lineno)

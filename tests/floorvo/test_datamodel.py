@@ -117,6 +117,12 @@ def test_tum_errors(tmp_path):
     (tmp_path / "bad.txt").write_text("0 1 2 3\n")
     with pytest.raises(SequenceError, match=r"bad.txt:1: a TUM line has 8 numbers"):
         read_tum(tmp_path / "bad.txt")
+    # finite, but so far out that a step vanishes in rounding: every reader of poses refuses it
+    (tmp_path / "far.txt").write_text("0 0 0 0.1 0 0 0 1\n0.1 1e200 0 0.1 0 0 0 1\n")
+    with pytest.raises(SequenceError, match=r"far.txt:2: a position 1e\+200 m from the origin \(at most 1e\+08 m"):
+        read_tum(tmp_path / "far.txt")
+    (tmp_path / "utm.txt").write_text("0 512345.25 5412345.5 0.1 0 0 0 1\n")
+    assert read_tum(tmp_path / "utm.txt")[1][0, 1, 3] == 5412345500.0  # UTM northing, mm
 
 
 def _meta(n=3):

@@ -354,11 +354,13 @@ def test_initial_pose_is_a_floor_pose_or_a_tum_line():
     from floorvo.run import InitialPose
 
     np.testing.assert_allclose(InitialPose.parse("12.5,-3,0.25").T_world_cam(80.0), T_from_se2(12.5, -3.0, 0.25, 80.0))
+    assert InitialPose.parse("0 500000 5e6 0 0 0 0 1").T_full is not None  # UTM easting and northing, metres
     # a TUM line, with or without its timestamp (metres; qx qy qz qw): the downward camera at (0.1 m, 0, 0.08 m)
     for text in ("0.1 0 0.08 1 0 0 0", "42.0 0.1 0 0.08 1 0 0 0"):
         T = InitialPose.parse(text).T_world_cam(None)
         np.testing.assert_allclose(T, T_from_se2(100.0, 0.0, 0.0, 80.0), atol=1e-12)
     # "0 1e306 ...": metres that overflow to inf in mm (a run ended in 'SVD did not converge')
-    for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan", "0 1e306 0 0 0 0 0 1"):
+    # 1e308 mm / 1.1e8 m: finite, but every step vanished in rounding and the TUM lines held 300 digits
+    for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan", "0 1e306 0 0 0 0 0 1", "1e308,0,0", "0 0 1.1e8 0 0 0 0 1"):
         with pytest.raises(ConfigError, match=r"^--initial-pose .*: expected x_mm,y_mm,yaw_rad"):
             InitialPose.parse(bad)

@@ -46,7 +46,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel, intrinsics_from_K
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
-from floorvo.geometry import T_from_xyz_quat, invert_T
+from floorvo.geometry import T_from_xyz_quat, invert_T, position_problem
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
 from floorvo.importers.recording import FrameImages, Recording, to_mono
 
@@ -178,6 +178,9 @@ def _T_of(position: Any, orientation: Any) -> np.ndarray:
     n = float(np.linalg.norm(q))
     if not np.isfinite(xyz).all() or not np.isfinite(q).all() or n < 1e-9:
         raise SequenceError("ground-truth pose with a non-finite value or a zero quaternion")
+    far = position_problem(xyz)
+    if far:
+        raise SequenceError(f"ground-truth pose at {far}")
     return T_from_xyz_quat(xyz, q / n)
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from floorvo.errors import ConfigError, SequenceError, shown
-from floorvo.geometry import T_from_xyz_quat
+from floorvo.geometry import T_from_xyz_quat, position_problem
 from floorvo.io import read_text
 from floorvo.tum import check_increasing, read_tum
 
@@ -83,6 +83,9 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
         n = float(np.linalg.norm(q))
         if not np.isfinite(v).all() or n < 1e-9:
             raise SequenceError(f"{path}:{lineno}: non-finite value or zero quaternion")
+        far = position_problem(v[:3] * 1000.0)
+        if far:
+            raise SequenceError(f"{path}:{lineno}: {far}")
         ts.append(t_ns * 1e-9)
         Ts.append(T_from_xyz_quat(v[:3] * 1000.0, q / n))
         linenos.append(lineno)
