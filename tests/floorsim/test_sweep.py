@@ -137,3 +137,25 @@ def test_a_sweep_file_of_sequence_folders_needs_no_grid_and_refuses_a_grid_witho
     p.write_text("estimators = []\n")
     with pytest.raises(ConfigError, match=r"base = None: must name the base scene file"):
         load_sweep(p)
+
+
+def test_a_sweep_into_the_folder_of_another_study_is_refused_and_a_grown_grid_resumes(tmp_path, capsys):
+    """Another base scene into the same folder kept the first study's rows for every job name the
+    two shared ('lights.height_mm=1.0 lights.power=0.5', ...), ran nothing and reported them as its
+    own. It is refused in one line naming what differs; the same study with a larger grid resumes."""
+    D.reset()
+    sweep = _sweep_file(tmp_path)
+    out = tmp_path / "out"
+    assert run_sweep(sweep, out, workers=2, processes=False).ran == 4
+    rows_before = (out / "results.csv").read_bytes()
+    D.write_scene(tmp_path / "base.toml", height=3.0, seed=9)  # another floor
+    with pytest.raises(ConfigError, match=r"out: holds the results of another study \(its study.json differs in "):
+        run_sweep(sweep, out, workers=2, processes=False)
+    D.write_scene(tmp_path / "base.toml", height=3.0)  # the study as it was
+    sweep.write_text(sweep.read_text().replace('"lights.power" = [0.5, 1.0]', '"lights.power" = [0.5, 1.0, 2.0]'))
+    with_more = run_sweep(sweep, out, workers=2, processes=False)
+    assert with_more.ran == 2 and with_more.skipped == 4  # only the new grid points ran
+    assert (out / "results.csv").read_bytes().startswith(rows_before.split(b"\n")[0])
+    sweep.write_text(sweep.read_text().replace('estimators = ["scaled", "lossy"]', 'estimators = ["scaled"]'))
+    with pytest.raises(ConfigError, match=r"differs in estimators"):
+        run_sweep(sweep, out, workers=2, processes=False)

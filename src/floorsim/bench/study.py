@@ -84,6 +84,9 @@ __all__ = [
     "parse_criterion",
     "scene_key_unit",
     "write_study_record",
+    "study_record",
+    "resume_problem",
+    "RESULT_KEYS",
 ]
 
 
@@ -377,15 +380,50 @@ def package_versions() -> dict[str, str]:
     return v
 
 
-def write_study_record(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None = None) -> Path:
-    """Write ``DIR/study.toml`` (the study file as it was) and ``DIR/study.json`` (the
-    resolved study, ``base_scene``: the base scene as resolved, the package versions, the
-    command line); returns the JSON's path. A re-run of the study overwrites both, so two
-    results folders of one study can be diffed."""
-    out = Path(out_dir)
-    if spec.path is not None:
-        atomic_write_bytes(out / "study.toml", spec.path.read_bytes())
-    record = {
+#: The parts of a study's record (``study.json``) its rows depend on, beside the job itself: a
+#: sweep resumes into a results folder only when these are the same (:func:`resume_problem`).
+#: The grid and the search (``vary``, ``search``, ``repetitions``) may grow: they only add jobs.
+RESULT_KEYS = ("base_scene", "set", "render", "estimators", "estimator_config", "seeds", "sequences", "externals")
+
+
+def _result_parts(record: dict) -> dict:
+    study = record.get("study") or {}
+    parts = {k: study.get(k) for k in RESULT_KEYS if k != "base_scene"}
+    parts["base_scene"] = record.get("base_scene")
+    return json.loads(json.dumps(parts, default=str))  # as it reads back from study.json
+
+
+def resume_problem(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None, externals: dict) -> str:
+    """Why the results folder ``out_dir`` holds another study's rows (its ``study.json`` differs
+    from this one in :data:`RESULT_KEYS`), "" when it holds none or this study's. A sweep into
+    the folder of another study (another base scene, fixed keys, render settings, estimators)
+    kept that study's rows for every job name the two shared, and reported them as its own."""
+    path = Path(out_dir) / "study.json"
+    if not path.is_file():
+        return ""
+    try:
+        old = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        old = None
+    if not isinstance(old, dict):
+        return f"{path}: not a readable study record; a sweep resumes only a folder of its own study"
+    new = _result_parts(study_record(spec, base_scene, externals))
+    before = _result_parts(old)
+    if "externals" not in (old.get("study") or {}):  # written before externals were recorded
+        before["externals"] = new["externals"]
+    differ = [k for k in RESULT_KEYS if before.get(k) != new.get(k)]
+    if not differ:
+        return ""
+    return (
+        f"{Path(out_dir)}: holds the results of another study (its study.json differs in {', '.join(differ)}); "
+        "a sweep resumes only its own study: choose another output folder"
+    )
+
+
+def study_record(spec: SweepSpec, base_scene: dict | None = None, externals: dict | None = None) -> dict:
+    """What ``study.json`` holds (see :func:`write_study_record`); ``externals``: the external
+    programs run in every job, name -> SHA-256 of the command line."""
+    return {
         "study": {
             "name": spec.name,
             "description": spec.description,
@@ -403,11 +441,25 @@ def write_study_record(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: 
             "criterion": {b.metric: b.limit for b in spec.criterion.bounds} if spec.criterion else None,
             "operating_point": spec.operating_point,
             "sequences": [str(q) for q in spec.sequences],
+            "externals": dict(sorted((externals or {}).items())),
         },
         "base_scene": base_scene,
         "versions": package_versions(),
         "command": [Path(sys.argv[0]).name, *sys.argv[1:]],
     }
+
+
+def write_study_record(
+    spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None = None, externals: dict | None = None
+) -> Path:
+    """Write ``DIR/study.toml`` (the study file as it was) and ``DIR/study.json`` (the
+    resolved study, ``base_scene``: the base scene as resolved, the external programs, the
+    package versions, the command line); returns the JSON's path. A re-run of the study
+    overwrites both, so two results folders of one study can be diffed."""
+    out = Path(out_dir)
+    if spec.path is not None:
+        atomic_write_bytes(out / "study.toml", spec.path.read_bytes())
+    record = study_record(spec, base_scene, externals)
     path = out / "study.json"
     atomic_write_json(path, record)
     return path

@@ -66,7 +66,14 @@ from floorsim.bench.search import (
     combine_brackets,
     search_grid,
 )
-from floorsim.bench.study import SweepSpec, as_override, load_sweep, scene_key_unit, write_study_record
+from floorsim.bench.study import (
+    SweepSpec,
+    as_override,
+    load_sweep,
+    resume_problem,
+    scene_key_unit,
+    write_study_record,
+)
 from floorsim.bench.sweep_report import write_sweep_report
 from floorsim.scene import load_scene as load_scene_file
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shown
@@ -583,7 +590,12 @@ def run_sweep(
     base = _check_study(spec, load_scene, runner)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    record = write_study_record(spec, out_dir, base.to_dict() if base is not None else None)
+    base_scene = base.to_dict() if base is not None else None
+    programs = {x.name: x.source.command_sha256 for x in externals}
+    problem = resume_problem(spec, out_dir, base_scene, programs)
+    if problem:
+        raise ConfigError(problem)
+    record = write_study_record(spec, out_dir, base_scene, programs)
     # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
     cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
     results_csv = out_dir / "results.csv"
