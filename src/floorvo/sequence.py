@@ -59,7 +59,7 @@ from floorvo.io import (
 from floorvo.locking import LOCK_FILE, lock_folder
 from floorvo.metrics import associate
 from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta, stable_meta
-from floorvo.tum import read_tum, write_tum
+from floorvo.tum import MAX_TIME_S, read_tum, time_problem, write_tum
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -373,6 +373,9 @@ def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
         raise SequenceError(f"{what}: {len(ts)} timestamp(s) for {frame_count} frame(s); need one per frame")
     if not np.isfinite(ts).all():
         raise SequenceError(f"{what}: timestamp of frame {int(np.argmin(np.isfinite(ts)))} is not a finite number")
+    far = np.nonzero(np.abs(ts) > MAX_TIME_S)[0]
+    if len(far):
+        raise SequenceError(f"{what}: timestamp of frame {int(far[0])} {time_problem(float(ts[far[0]]))}")
     bad = np.nonzero(np.diff(np.round(ts, 9)) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1

@@ -16,7 +16,7 @@ from floorvo.errors import SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, position_problem, xyz_quat_from_T
 from floorvo.io import atomic_write_text, read_text
 
-__all__ = ["write_tum", "read_tum", "format_tum", "check_increasing"]
+__all__ = ["MAX_TIME_S", "write_tum", "read_tum", "format_tum", "check_increasing", "time_problem"]
 
 
 def format_tum(timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> str:
@@ -44,12 +44,33 @@ def write_tum(
     atomic_write_text(path, format_tum(timestamps_s, T_world_cam, header))
 
 
+#: The largest time (s, either sign) a frame or a pose may have: a Unix time in seconds until the
+#: year 2286. A larger one is a time in another unit (a recording's nanoseconds or milliseconds
+#: given as seconds); 1e300 s was taken and printed as a 300-digit number.
+MAX_TIME_S = 1e10
+
+
+def time_problem(t_s: float) -> str | None:
+    """Why ``t_s`` is no time a frame or a pose may have (:data:`MAX_TIME_S`), or None."""
+    if not np.isfinite(t_s):
+        return "is not a finite number"
+    if abs(t_s) > MAX_TIME_S:
+        return (
+            f"= {t_s:.6g} s is beyond {MAX_TIME_S:g} s (a time in seconds; this one looks like another unit, ns or ms)"
+        )
+    return None
+
+
 def check_increasing(path: str | os.PathLike, timestamps_s: list[float], linenos: list[int]) -> None:
     """One-line :class:`SequenceError` unless the pose times read from ``path`` (line ``linenos[i]``
     holds ``timestamps_s[i]``) strictly increase: a trajectory is in time order, one pose per
     time. Poses out of order or repeated were scored as they stood (a path length of poses
     visited back and forth, a drift against the wrong pose)."""
     t = np.asarray(timestamps_s, dtype=float)
+    for k, tk in enumerate(t):
+        problem = time_problem(float(tk))
+        if problem:
+            raise SequenceError(f"{path}:{linenos[k]}: timestamp {problem}")
     bad = np.nonzero(np.diff(t) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1

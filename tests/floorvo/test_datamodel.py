@@ -121,6 +121,9 @@ def test_tum_errors(tmp_path):
     (tmp_path / "far.txt").write_text("0 0 0 0.1 0 0 0 1\n0.1 1e200 0 0.1 0 0 0 1\n")
     with pytest.raises(SequenceError, match=r"far.txt:2: a position 1e\+200 m from the origin \(at most 1e\+08 m"):
         read_tum(tmp_path / "far.txt")
+    (tmp_path / "ns.txt").write_text("1403636579758555392 0 0 0.1 0 0 0 1\n")
+    with pytest.raises(SequenceError, match=r"ns.txt:1: timestamp = 1.40364e\+18 s is beyond 1e\+10 s"):
+        read_tum(tmp_path / "ns.txt")
     (tmp_path / "utm.txt").write_text("0 512345.25 5412345.5 0.1 0 0 0 1\n")
     assert read_tum(tmp_path / "utm.txt")[1][0, 1, 3] == 5412345500.0  # UTM northing, mm
 

@@ -515,6 +515,10 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     assert "'0.1s' is not a timestamp in s" in _one_line_error(
         capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t4.txt")]
     )
+    # nanoseconds given as seconds: taken, and a 1e300 s time printed as a 300-digit number in an error
+    (tmp_path / "t5.txt").write_text("1403636579758555392\n1403636579808555520\n1403636579858555392\n")
+    err = _one_line_error(capsys, base + FLAGS + ["--timestamps", str(tmp_path / "t5.txt")])
+    assert "timestamp of frame 0 = 1.40364e+18 s is beyond 1e+10 s (a time in seconds; this one looks like" in err
     (tmp_path / "gt.txt").write_text("0.0 1 2 3 0 0 0 1\n0.1 1 2\n")
     assert "a TUM line has 8 numbers" in _one_line_error(
         capsys, base + FLAGS + ["--fps", "10", "--groundtruth", str(tmp_path / "gt.txt")]
