@@ -67,7 +67,7 @@ from floorsim.materials import get_material
 from floorsim.sensor import FixedPattern, SensorModel
 from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
-from floorvo.config import Config, apply_overrides, build, param, to_plain
+from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.io import file_name_problem, read_toml
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
@@ -134,7 +134,7 @@ class FloorSpec(Config):
     densities: fraction of cells holding a speck or grain), and how finely it is meshed."""
 
     material: str = param("vinyl", doc="a registered material (floorsim list)")
-    seed: int | None = param(None, min=0, doc="the floor's seed (none: the scene's)")
+    seed: int | None = param(None, min=0, max=MAX_SEED, doc="the floor's seed (none: the scene's)")
     relief_scale: float = param(1.0, min=0, max=100.0, doc="multiplies the material's relief")
     spacing_mm: float | None = param(
         None, unit="mm", gt=0, doc="mesh vertex spacing (none: half the ground sample distance)"
@@ -346,7 +346,7 @@ class Scene(Config):
     name: str = param(doc="the scene's name (default: the file name); a file name: the bench names folders after it")
     schema_version: int = param(SCENE_SCHEMA_VERSION, doc="scene file format version")
     description: str = param("", doc="one line shown by floorsim list")
-    seed: int = param(0, min=0, doc="floor, sensor noise and pixel jitter derive from it")
+    seed: int = param(0, min=0, max=MAX_SEED, doc="floor, sensor noise and pixel jitter derive from it")
     fps: float = param(30.0, unit="Hz", min=MIN_FPS_HZ, max=MAX_FPS_HZ, doc="frame rate (sequence.json's rule)")
     camera: CameraSpec = param(default_factory=CameraSpec)
     floor: FloorSpec = param(default_factory=FloorSpec)

@@ -56,7 +56,13 @@ __all__ = [
     "format_fields",
     "to_plain",
     "with_defaults",
+    "MAX_SEED",
 ]
+
+#: The largest seed any configuration takes (``param(..., max=MAX_SEED)``): OpenCV's RNG, which
+#: the estimators and the map seed, takes a C int (a larger seed ended in a ValueError or
+#: OverflowError traceback), and Mitsuba's sampler 32 bits (seeds 2^32 apart rendered alike).
+MAX_SEED = 2**31 - 1
 
 _MISSING: Any = dataclasses.MISSING
 _C = typing.TypeVar("_C")

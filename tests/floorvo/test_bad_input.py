@@ -438,3 +438,31 @@ def test_a_flat_field_of_another_size_is_refused_in_one_line(tmp_path, capsys, s
     assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
     err = _one_line(capsys, "floorvo")
     assert "cam0_flatfield.png: image is" in err and "sequence.json says a mono 16x12" in err
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        # OpenCV's RNG takes a C int: a larger seed ended in a ValueError or OverflowError traceback
+        (["run", "SEQ", "-e", "homography-6dof", "--set", "seed=2147483648", "-o", "OUT"], "seed = 2147483648"),
+        (["run", "SEQ", "-e", "orb-icp", "--set", "seed=99999999999999999999", "-o", "OUT"], "seed = 9999999999"),
+        (["map", "SEQ", "--set", "seed=4294967296", "-o", "OUT"], "map.seed = 4294967296"),
+    ],
+)
+def test_a_seed_beyond_31_bits_is_refused_in_one_line(small_seq, tmp_path, capsys, argv, words):
+    argv = [str(small_seq) if a == "SEQ" else str(tmp_path / "out") if a == "OUT" else a for a in argv]
+    assert floorvo_main(argv) == 1
+    err = _one_line(capsys, "floorvo")
+    assert words in err and "must be <= 2147483647" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_scene_or_study_seed_beyond_31_bits_is_refused(tmp_path, capsys):
+    """Mitsuba's sampler took the seed's low 32 bits: seeds 2^32 apart rendered the same pixel jitter."""
+    assert floorsim_main(["render", "demo", "--seed", str(2**32), "-o", str(tmp_path / "out")]) == 1
+    assert "seed = 4294967296: must be <= 2147483647" in _one_line(capsys, "floorsim")
+    from floorsim.bench.study import StudyFile
+    from floorvo.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"seeds = \[1, 4294967297\]: must be distinct integers from 0 to 2147483647"):
+        StudyFile(base="b.toml", seeds=(1, 2**32 + 1), vary={"lights.height_mm": [1.0]})

@@ -68,7 +68,7 @@ from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
 from floorsim.simulate import package_versions as render_versions
 from floorvo import metric_defs as md
-from floorvo.config import Config, build, describe_fields, param, to_plain
+from floorvo.config import MAX_SEED, Config, build, describe_fields, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
 from floorvo.io import atomic_write_bytes, atomic_write_json, read_toml
 
@@ -194,8 +194,15 @@ class StudyFile(Config):
         if self.estimators is not None and len(set(self.estimators)) != len(self.estimators):
             raise ConfigFieldError("estimators", f" = {list(self.estimators)!r}: must name each estimator once")
         if self.seeds is not None:
-            if not self.seeds or len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
-                raise ConfigFieldError("seeds", f" = {list(self.seeds)}: must be distinct integers >= 0")
+            if (
+                not self.seeds
+                or len(set(self.seeds)) != len(self.seeds)
+                or min(self.seeds) < 0
+                or max(self.seeds) > MAX_SEED
+            ):
+                raise ConfigFieldError(
+                    "seeds", f" = {shorten(str(list(self.seeds)))}: must be distinct integers from 0 to {MAX_SEED}"
+                )
         for name, cfg in self.estimator_config.items():
             if not isinstance(cfg, dict):
                 raise ConfigFieldError(

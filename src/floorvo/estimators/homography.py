@@ -70,7 +70,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import param
+from floorvo.config import MAX_SEED, param
 from floorvo.estimators.akaze import AkazeConfig, _AkazeBase, _Fit, _State
 from floorvo.estimators.base import Frame
 from floorvo.geometry import plane_homography_motion
@@ -92,7 +92,7 @@ class HomographySixDofConfig(AkazeConfig):
     )
     max_tilt_rad: float = param(0.2, unit="rad", gt=0.0, doc="a floor plane tilted more than this: lost")
     max_height_step_mm: float = param(5.0, unit="mm", gt=0.0, doc="a larger height change in one frame: lost")
-    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each RANSAC")
+    seed: int = param(0, min=0, max=MAX_SEED, doc="seeds OpenCV's RNG before each RANSAC")
     rig_lights: str = param(
         "auto",
         choices=("auto", "yes", "no"),

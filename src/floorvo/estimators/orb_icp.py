@@ -40,7 +40,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, param, with_defaults
+from floorvo.config import MAX_SEED, Config, param, with_defaults
 from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem, stage_timing_ms
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
@@ -85,7 +85,7 @@ class OrbIcpConfig(Config):
         15, unit="px", min=0, max=63, doc="window of the sub-pixel (Lucas-Kanade) refinement; 0 = off"
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
-    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each FLANN-LSH match")
+    seed: int = param(0, min=0, max=MAX_SEED, doc="seeds OpenCV's RNG before each FLANN-LSH match")
     update: str = param(
         "plane",
         choices=("plane", "icp"),

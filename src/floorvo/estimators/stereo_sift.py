@@ -56,7 +56,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import param, with_defaults
+from floorvo.config import MAX_SEED, param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import (
     RESTART_NOTE,
@@ -120,7 +120,7 @@ class StereoSiftConfig(StepBoundConfig):
         gt=0.0,
         doc="a second homography of the other matches backed by more than this fraction of the inliers: lost",
     )
-    seed: int = param(0, min=0, doc="seeds OpenCV's RNG before each RANSAC")
+    seed: int = param(0, min=0, max=MAX_SEED, doc="seeds OpenCV's RNG before each RANSAC")
     update: str = param(
         "plane",
         choices=("planar", "rigid", "mean", "plane"),

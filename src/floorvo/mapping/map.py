@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import Config, build, from_overrides, param, to_plain
+from floorvo.config import MAX_SEED, Config, build, from_overrides, param, to_plain
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import (
@@ -86,7 +86,7 @@ class MapConfig(Config):
     similarity: SimilarityConfig = param(default_factory=SimilarityConfig)
     keyframes: KeyframeConfig = param(default_factory=KeyframeConfig)
     vocab_words: int = param(512, min=2, doc="words of the binary bag-of-words vocabulary")
-    seed: int = param(0, min=0, doc="seeds the vocabulary and the LSH tables")
+    seed: int = param(0, min=0, max=MAX_SEED, doc="seeds the vocabulary and the LSH tables")
     poses: str = param("groundtruth", choices=POSE_SOURCES, doc="keyframe poses: surveyed, or chained by eq. (24)")
 
     @classmethod
