@@ -242,3 +242,14 @@ def test_an_estimator_listed_twice_is_refused_before_it_renders(tmp_path, double
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--estimators: 'scaled' given twice; give each estimator once" in err
     assert not D.RENDER_CALLS and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("repeat", ["0", "1001", "1000000000"])
+def test_a_repeat_count_out_of_range_is_refused_before_it_renders(tmp_path, doubles, capsys, repeat):
+    """--repeat 1000000000 started on a billion renders (a study allows 1000 repetitions)."""
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    argv = ["bench", str(scene), "--repeat", repeat, "--estimators", "scaled", "--no-report", "-o", str(tmp_path / "o")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--repeat {repeat}: must be from 1 to 1000 (renders per scene)" in err
+    assert not D.RENDER_CALLS and not (tmp_path / "o").exists()

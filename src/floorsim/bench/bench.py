@@ -89,6 +89,7 @@ __all__ = [
     "run_one",
     "scene_cache_key",
     "scene_seed",
+    "MAX_REPETITIONS",
     "source_columns",
     "supported_estimators",
     "write_match_samples",
@@ -102,6 +103,11 @@ SceneLoader = Callable[..., Any]
 
 
 # ----------------------------------------------------------------------------- rendering with a cache
+#: The most repetitions (renders of a scene, seeds scene seed + k) a bench or a study asks for:
+#: ``--repeat 1000000000`` started on a billion renders.
+MAX_REPETITIONS = 1000
+
+
 def scene_seed(scene: Any) -> int:
     """The scene's seed (``scene.seed``, else ``seed`` of its dict, else 0)."""
     seed = getattr(scene, "seed", None)
@@ -407,8 +413,8 @@ def run_bench(
     sequence and run folder while it is written.
     """
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
-    if repetitions < 1:
-        raise ConfigError(f"--repeat {repetitions}: must be >= 1")
+    if not 1 <= repetitions <= MAX_REPETITIONS:
+        raise ConfigError(f"--repeat {repetitions}: must be from 1 to {MAX_REPETITIONS} (renders per scene)")
     if frames is not None and frames < 2:  # one frame: no step to estimate, every row 'ok' and empty
         raise ConfigError(f"--frames {frames}: a bench needs at least 2 frames (a step to estimate)")
     if not scene_paths:

@@ -63,7 +63,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from floorsim.bench.bench import is_sequence_folder
+from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder
 from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
 from floorsim.simulate import package_versions as render_versions
@@ -155,7 +155,7 @@ class StudyFile(Config):
     description: str = param("", doc="one line for the report")
     estimators: tuple[str, ...] | None = param(None, doc="estimator names (none: every one the sequence supports)")
     estimator_config: dict = param(default_factory=dict, doc="per estimator: a table of its config keys")
-    repetitions: int = param(1, min=1, max=1000, doc="renders per point, seeds scene seed + k")
+    repetitions: int = param(1, min=1, max=MAX_REPETITIONS, doc="renders per point, seeds scene seed + k")
     seeds: tuple[int, ...] | None = param(None, doc="the seeds of the repetitions (replaces repetitions)")
     confidence: float = param(0.95, gt=0, lt=1, doc="confidence of the stated intervals")
     render: StudyRender = param(default_factory=StudyRender)
