@@ -466,3 +466,19 @@ def test_a_scene_or_study_seed_beyond_31_bits_is_refused(tmp_path, capsys):
 
     with pytest.raises(ConfigError, match=r"seeds = \[1, 4294967297\]: must be distinct integers from 0 to 2147483647"):
         StudyFile(base="b.toml", seeds=(1, 2**32 + 1), vary={"lights.height_mm": [1.0]})
+
+
+@pytest.mark.parametrize(
+    "main, prog, argv, words",
+    [
+        (floorsim_main, "floorsim", ["render", "demo", "--frames", "abc", "-o", "x"], "argument --frames: invalid int"),
+        (floorsim_main, "floorsim", ["rendr"], "argument COMMAND: invalid choice: 'rendr'"),
+        (floorvo_main, "floorvo", ["run"], "the following arguments are required: sequence"),
+    ],
+)
+def test_a_command_line_argparse_refuses_is_one_line_and_exit_code_1(tmp_path, capsys, main, prog, argv, words):
+    """argparse printed its usage block and exited 2 (SystemExit out of main()); it is one line,
+    naming the argument and where the help is, exit code 1, as every other refusal."""
+    assert main(argv) == 1
+    err = _one_line(capsys, prog)
+    assert words in err and "--help)" in err

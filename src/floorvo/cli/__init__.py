@@ -26,10 +26,10 @@ import importlib
 import logging
 import sys
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NoReturn
 
 from floorvo import __version__
-from floorvo.errors import FloorbenchError, shorten
+from floorvo.errors import ConfigError, FloorbenchError, shorten
 
 __all__ = ["COMMANDS", "build_parser", "run_cli", "describe_os_error", "main"]
 
@@ -53,12 +53,23 @@ class _HelpFormatter(argparse.HelpFormatter):
         return super()._format_action_invocation(action)
 
 
+class UsageError(ConfigError):
+    """A command line argparse refuses (an unknown flag, ``--frames abc``): one line, exit code 1."""
+
+
 class CommandParser(argparse.ArgumentParser):
-    """The parser of both CLIs and of each subcommand (help without hidden aliases)."""
+    """The parser of both CLIs and of each subcommand (help without hidden aliases).
+
+    A command line it refuses is a :class:`UsageError` (one line naming the argument and the
+    rule, with where the help is; :func:`run_cli` prints it, exit code 1), as every other
+    refusal is; argparse printed its usage block and exited 2."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("formatter_class", _HelpFormatter)
         super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{message} (see {self.prog} --help)")
 
 
 def _add_verbosity(parser: argparse.ArgumentParser, suffix: str = "") -> None:
@@ -115,7 +126,11 @@ def run_cli(
     pass them to their library function: a renderer, a scene loader, an estimator runner)
     as ``args.collaborators``; tests use it to run the CLI on doubles.
     """
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as exc:
+        print(f"{prog}: error: {shorten(str(exc), 2000)}", file=sys.stderr)
+        return 1
     args.collaborators = dict(collaborators or {})
     level = _log_level(args)
     logging.basicConfig(level=max(level, logging.INFO), format="%(levelname)s %(name)s: %(message)s")
