@@ -58,6 +58,10 @@ log = logging.getLogger(__name__)
 LED_INTENSITY_UNIT = 1000.0
 
 
+#: The fewest pixels a side of a camera scaled by ``--scale`` may have.
+MIN_SCALED_SIDE_PX = 8
+
+
 def prepare_scene(
     scene: Scene,
     *,
@@ -81,7 +85,13 @@ def prepare_scene(
         raise ConfigError(f"--seed = {seed}: must be >= 0")
     cam = scene.camera
     if scale is not None and scale != 1.0:
-        w, h = max(8, int(round(cam.width_px * scale))), max(8, int(round(cam.height_px * scale)))
+        w, h = int(round(cam.width_px * scale)), int(round(cam.height_px * scale))
+        if min(w, h) < MIN_SCALED_SIDE_PX:  # was raised to 8 px each: another aspect and field of view, silently
+            raise ConfigError(
+                f"--scale = {scale:g}: makes the {cam.width_px}x{cam.height_px} px camera {w}x{h} px; "
+                f"a side must keep at least {MIN_SCALED_SIDE_PX} px (--scale >= "
+                f"{MIN_SCALED_SIDE_PX / min(cam.width_px, cam.height_px):.3g})"
+            )
         # Keep the field of view: the pixel pitch grows as the resolution shrinks.
         cam = dataclasses.replace(cam, width_px=w, height_px=h, pixel_pitch_um=cam.pixel_pitch_um * cam.width_px / w)
     render = scene.render if spp is None else dataclasses.replace(scene.render, spp=spp)

@@ -482,3 +482,12 @@ def test_a_command_line_argparse_refuses_is_one_line_and_exit_code_1(tmp_path, c
     assert main(argv) == 1
     err = _one_line(capsys, prog)
     assert words in err and "--help)" in err
+
+
+def test_a_scale_that_leaves_a_side_under_8_px_is_refused_not_raised_to_8(tmp_path, capsys):
+    """--scale 1e-9 rendered the 324x247 demo camera as 8x8 px (each side raised to 8: another
+    aspect and field of view than the scene's), exit code 0."""
+    assert floorsim_main(["render", "demo", "--scale", "1e-9", "-o", str(tmp_path / "out")]) == 1
+    err = _one_line(capsys, "floorsim")
+    assert "--scale = 1e-09: makes the 324x247 px camera 0x0 px; a side must keep at least 8 px" in err
+    assert "(--scale >= 0.0324)" in err and not (tmp_path / "out").exists()
