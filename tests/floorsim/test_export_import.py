@@ -111,6 +111,17 @@ def test_a_euroc_cam1_missing_a_row_is_refused_unless_left_only_is_given(tmp_pat
     assert not imp.has_stereo and imp.frame_count == 8
 
 
+def test_a_euroc_cam1_folder_without_its_data_csv_is_refused_unless_left_only(tmp_path, original, capsys):
+    """A cam1 folder without data.csv was passed over: a stereo recording imported mono, exit 0."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    (exported / "mav0" / "cam1" / "data.csv").unlink()
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cam1: no data.csv (a EuRoC camera lists its frames there)" in err[0], err
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0
+
+
 def test_a_euroc_cam1_row_without_a_cam0_frame_is_refused(tmp_path, original, capsys):
     seq, _ = original
     exported = export_sequence(seq.root, "euroc", tmp_path / "exported")

@@ -173,6 +173,11 @@ def read(source: Path, options=None) -> Recording:
     files1: list[Path] | None = None
     cal = cal0
     left_only = bool(getattr(options, "left_only", False))
+    if (mav / "cam1").is_dir() and not (mav / "cam1" / "data.csv").is_file() and not left_only:
+        raise SequenceError(
+            f"{mav / 'cam1'}: no data.csv (a EuRoC camera lists its frames there): the right camera cannot be "
+            "read; give --left-only to import cam0 alone"
+        )
     if (mav / "cam1" / "data.csv").is_file() and left_only:
         log.info("%s: cam1 left out (left_only)", mav)
     elif (mav / "cam1" / "data.csv").is_file():
