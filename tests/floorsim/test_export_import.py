@@ -122,6 +122,20 @@ def test_a_euroc_cam1_folder_without_its_data_csv_is_refused_unless_left_only(tm
     assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0
 
 
+def test_right_images_without_a_right_camera_are_refused_unless_left_only(tmp_path, original, capsys):
+    """Right images without the right camera's calibration were left out with a warning: the
+    stereo recording came out mono, exit code 0."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    (exported / "mav0" / "cam1" / "sensor.yaml").unlink()
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "right images found but no right camera calibration and pose" in err[0], err
+    assert not (tmp_path / "imported").exists()
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0
+    assert not Sequence.open(tmp_path / "imported").has_stereo
+
+
 def test_a_euroc_cam1_row_without_a_cam0_frame_is_refused(tmp_path, original, capsys):
     seq, _ = original
     exported = export_sequence(seq.root, "euroc", tmp_path / "exported")

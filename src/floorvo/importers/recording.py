@@ -277,8 +277,12 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     if not np.isfinite(fps) or fps <= 0:
         fps = median_rate_hz(ts) or 1.0
     stereo = rec.has_right and cal.cam1 is not None and cal.T_cam0_cam1 is not None
-    if rec.has_right and not stereo:
-        log.warning("%s: right images found but no right camera calibration and pose; imported mono", what)
+    if rec.has_right and not stereo:  # a warning, and the stereo recording came out mono with exit code 0
+        raise ConfigError(
+            f"{what}: right images found but no right camera calibration and pose (EuRoC cam1/sensor.yaml with "
+            "T_BS, a bag's right camera_info): give --camera with both cameras (a Kalibr camchain), or --left-only "
+            "to import the left camera alone"
+        )
     gt = opts.groundtruth if opts.groundtruth is not None else rec.groundtruth
     gt_source = "groundtruth file" if opts.groundtruth is not None else rec.format
     rig: dict = {}
