@@ -37,7 +37,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import Config, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown
-from floorvo.geometry import T_world_cam_down
+from floorvo.geometry import T_world_cam_down, position_problem
 
 __all__ = [
     "Trajectory",
@@ -587,6 +587,10 @@ def build_trajectory(
             f"{'' if n == 1 else 's'}: must give at least 2 (a shorter step, a lower speed or a longer path)"
         )
     _frame_count(n)
+    xy = np.asarray(path(np.arange(int(n)) / float(fps)), dtype=float)[:, :2]
+    far = position_problem(np.append(xy[np.argmax(np.max(np.abs(xy), axis=1))], 0.0)) if len(xy) else None
+    if far:  # x_mm = 1e300 ended in a ValueError from the floor's mesh; 1e15 mm rendered a floor float64 quantised
+        raise ConfigError(f"trajectory: type {type_name!r} with these parameters reaches {far}")
     return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
 
 

@@ -179,3 +179,15 @@ def test_a_trajectory_of_one_frame_is_refused():
     with pytest.raises(ConfigError, match=r"type 'arc' with these parameters \(at fps = 30\) gives 1 frame: must give"):
         build_trajectory("arc", {**arc, "speed_mm_s": 5000.0}, height_mm=100.0, fps=30.0)
     assert build_trajectory("arc", {**arc, "speed_mm_s": 4000.0}, height_mm=100.0, fps=30.0).frame_count == 2
+
+
+@pytest.mark.parametrize("x_mm", [1e300, 1e15])
+def test_a_path_that_leaves_the_range_of_positions_is_refused(x_mm):
+    """spin at x_mm = 1e300 ended in a ValueError from the floor's mesh ('load_heightfield: height
+    (33, 1)'); at 1e15 mm the floor was rendered from coordinates float64 holds to 0.125 mm."""
+
+    with pytest.raises(
+        ConfigError, match=r"^trajectory: type 'spin' with these parameters reaches a position .* m from"
+    ):
+        build_trajectory("spin", {"x_mm": x_mm}, height_mm=100.0, fps=30.0)
+    assert build_trajectory("spin", {"x_mm": 1e9}, height_mm=100.0, fps=30.0).frame_count > 1
