@@ -46,6 +46,7 @@ __all__ = [
     "remove_stale_temporaries",
     "checked_output_path",
     "file_name_problem",
+    "png_size",
     "TEMP_SUFFIX",
 ]
 
@@ -178,6 +179,23 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
     if not ok:
         raise OSError(f"{path}: PNG encoding failed")
     atomic_write_bytes(path, buf.tobytes())
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(path: str | os.PathLike) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` a PNG file's header (IHDR) states, read without decoding; None when
+    the file cannot be read or does not start like a PNG. A reader that knows the size it expects
+    refuses another before decoding: a small file can state a picture of gigabytes."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(24)
+    except OSError:
+        return None
+    if len(head) < 24 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
 def read_png(path: str | os.PathLike) -> np.ndarray:

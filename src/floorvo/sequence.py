@@ -50,6 +50,7 @@ from floorvo.io import (
     checked_output_path,
     ensure_writable_dir,
     plain,
+    png_size,
     read_json,
     read_png,
     read_text,
@@ -536,12 +537,18 @@ class Sequence:
     def image(self, index: int, cam: str = "cam0") -> np.ndarray:
         """Frame ``index`` of ``cam`` as stored (uint8 or uint16, (H, W))."""
         self._check_index(index)
+        cam_model = self.camera_model(cam)
+        stated = png_size(self.image_path(index, cam))
+        if stated is not None and stated != cam_model.size:  # refused before decoding (a PNG bomb)
+            raise SequenceError(
+                f"{self.image_path(index, cam)}: image is {stated[0]}x{stated[1]}, "
+                f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
+            )
         img = read_png(self.image_path(index, cam))
         if img.ndim == 3:
             import cv2
 
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        cam_model = self.camera_model(cam)
         if img.shape != (cam_model.height_px, cam_model.width_px):
             raise SequenceError(
                 f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}, "
@@ -574,6 +581,12 @@ class Sequence:
                 raise SequenceError(f"{npy}: not a readable .npy depth map") from None
         else:
             path = self.root / "depth" / frame_name(index)
+            stated = png_size(path)
+            if stated is not None and stated != self.camera.size:  # refused before decoding (a PNG bomb)
+                raise SequenceError(
+                    f"{path}: depth map is {stated[0]}x{stated[1]}, sequence.json says "
+                    f"{self.camera.width_px}x{self.camera.height_px}"
+                )
             depth = read_png(path).astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
         cam = self.camera
         if depth.shape != (cam.height_px, cam.width_px):  # as a frame of another size is refused (image)
@@ -586,9 +599,14 @@ class Sequence:
         p = self.root / "calib" / f"{cam}_flatfield.png"
         if not p.is_file():
             return None
+        model = self.camera_model(cam)
+        stated = png_size(p)
+        if stated is not None and stated != model.size:  # refused before decoding (a PNG bomb)
+            raise SequenceError(
+                f"{p}: image is {stated[0]}x{stated[1]}, sequence.json says a mono {model.width_px}x{model.height_px}"
+            )
         img = read_png(p)
         _check_bit_depth(img, (self.meta.get("calib") or {}).get("flatfield_bit_depth"), p, "calib.flatfield_bit_depth")
-        model = self.camera_model(cam)
         if img.shape != (model.height_px, model.width_px):  # estimators ended in a ValueError from inside
             channels = f" with {img.shape[2]} channels" if img.ndim == 3 else ""
             raise SequenceError(

@@ -491,3 +491,45 @@ def test_a_scale_that_leaves_a_side_under_8_px_is_refused_not_raised_to_8(tmp_pa
     err = _one_line(capsys, "floorsim")
     assert "--scale = 1e-09: makes the 324x247 px camera 0x0 px; a side must keep at least 8 px" in err
     assert "(--scale >= 0.0324)" in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("which", ["frame", "flatfield", "depth"])
+def test_a_png_stating_another_size_is_refused_before_it_is_decoded(tmp_path, capsys, monkeypatch, which):
+    """A PNG's header states its size: a frame, flat field or depth map of 60000x60000 px (a few
+    kilobytes of file, 3.6 GB of pixels) was decoded in full before its size was compared."""
+    import struct
+    import zlib
+
+    import cv2
+
+    from floorvo.sequence import Sequence
+
+    cam = CameraModel.from_sensor().scaled(0.025)  # 16x12
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0, depth=True)
+    if which == "depth":  # png16 depth maps
+        meta = json.loads((seq / "sequence.json").read_text())
+        meta["depth"]["format"] = "png16"
+        (seq / "sequence.json").write_text(json.dumps(meta))
+        for p in (seq / "depth").glob("*.npy"):
+            p.unlink()
+    ihdr = struct.pack(">IIBBBBB", 60000, 60000, 8, 0, 0, 0, 0)
+    chunk = struct.pack(">I", len(ihdr)) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    bomb = b"\x89PNG\r\n\x1a\n" + chunk
+    path = {
+        "frame": seq / "cam0" / "000001.png",
+        "flatfield": seq / "calib" / "cam0_flatfield.png",
+        "depth": seq / "depth" / "000001.png",
+    }[which]
+    path.write_bytes(bomb)
+
+    def no_decoding(*args, **kwargs):
+        raise AssertionError("the PNG was decoded")
+
+    monkeypatch.setattr(cv2, "imdecode", no_decoding)
+    s = Sequence.open(seq)
+    read = {"frame": lambda: s.image(1), "flatfield": lambda: s.flatfield(), "depth": lambda: s.depth_mm(1)}[which]
+    from floorvo.errors import SequenceError
+
+    noun = "depth map" if which == "depth" else "image"
+    with pytest.raises(SequenceError, match=f"{noun} is 60000x60000, sequence.json says (a mono )?16x12"):
+        read()
