@@ -492,9 +492,14 @@ def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:
 
 
 def scenes_dir() -> Path:
-    """The folder of shipped scenes (``$FLOORSIM_SCENES`` or the repository's ``scenes/``)."""
+    """The folder of shipped scenes (``$FLOORSIM_SCENES`` or the repository's ``scenes/``).
+
+    A ``FLOORSIM_SCENES`` that is no folder is refused in one line (every shipped scene was
+    'no such scene file or shipped scene', the variable unnamed, and ``floorsim list`` showed none)."""
     env = os.environ.get("FLOORSIM_SCENES")
     if env:
+        if not Path(env).is_dir():
+            raise ConfigError(f"FLOORSIM_SCENES = {shown(env)}: not a folder (the folder of the shipped scenes)")
         return Path(env)
     return Path(__file__).resolve().parents[2] / "scenes"
 
