@@ -533,3 +533,29 @@ def test_a_png_stating_another_size_is_refused_before_it_is_decoded(tmp_path, ca
     noun = "depth map" if which == "depth" else "image"
     with pytest.raises(SequenceError, match=f"{noun} is 60000x60000, sequence.json says (a mono )?16x12"):
         read()
+
+
+def test_a_shipped_scenes_folder_that_is_not_one_is_named(tmp_path, monkeypatch, capsys):
+    """FLOORSIM_SCENES naming no folder made every shipped scene 'no such scene file or shipped
+    scene', the variable unnamed, and floorsim list showed none."""
+    monkeypatch.setenv("FLOORSIM_SCENES", str(tmp_path / "nope"))
+    assert floorsim_main(["render", "demo", "-o", str(tmp_path / "out")]) == 1
+    assert f"FLOORSIM_SCENES = '{tmp_path / 'nope'}': not a folder" in _one_line(capsys, "floorsim")
+    assert floorsim_main(["list"]) == 1
+
+
+def test_a_reader_that_closes_the_pipe_ends_the_command_quietly(tmp_path):
+    """`floorsim list | head -1` printed 'floorsim: error: Broken pipe (errno 32)' and exited 1."""
+    import subprocess
+    import sys
+
+    from _procs import child_env
+
+    code = "import sys; from floorsim.cli import main; sys.exit(main(['list']))"
+    p = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=child_env(), cwd=tmp_path
+    )
+    assert p.stdout is not None and p.stderr is not None
+    p.stdout.close()  # before the child has written a line: it is still importing
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 141 and "error" not in err and "Traceback" not in err, err

@@ -24,6 +24,7 @@ import argparse
 import copy
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Mapping
 from typing import Any, NoReturn
@@ -145,6 +146,17 @@ def run_cli(
         # errors.shown; this keeps the contract for a path or a name read from a file too).
         print(f"{prog}: error: {shorten(str(exc), 2000)}", file=sys.stderr)
         return 1
+    except BrokenPipeError as exc:
+        if exc.filename is not None:  # a file's pipe, not ours: as any other OSError
+            print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
+            return 1
+        # our standard output was closed by its reader (`floorsim list | head`): end quietly, as
+        # a command killed by SIGPIPE does ('Broken pipe (errno 32)' was printed as an error)
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # Python's flush at exit fails otherwise
+        except (OSError, ValueError, AttributeError):  # no real file behind sys.stdout (a test's capture)
+            pass
+        return 141
     except OSError as exc:  # a full disk, a read-only folder, a file that vanished: one line with the path
         print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
         return 1
