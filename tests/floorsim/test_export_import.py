@@ -216,3 +216,5 @@ def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path,
     assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
     err = capsys.readouterr().err.strip()
     assert err.endswith("cam0/sensor.yaml: camera_height_mm = -87.5: must be a finite number of mm > 0"), err
+    # the flag that replaces a damaged sidecar is enough
+    assert main(["import", str(exported), "-o", str(tmp_path / "fixed"), "--height-mm", "87.5"]) == 0

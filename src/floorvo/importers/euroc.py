@@ -196,13 +196,17 @@ def read(source: Path, options=None) -> Recording:
         t_gt, T_world_body = read_euroc_groundtruth(gt_csv)
         gt = (t_gt, T_world_body @ T_B0)
 
+    # the sidecars a flag replaces are not read: a damaged one must not stop the import that replaces it
     flatfields = {
         c: read_image_file(mav / c / FLATFIELD_FILE)
         for c in ("cam0", "cam1")
-        if (c == "cam0" or files1 is not None) and (mav / c / FLATFIELD_FILE).is_file()
+        if (c == "cam0" or files1 is not None)
+        and (mav / c / FLATFIELD_FILE).is_file()
+        and not (c == "cam0" and getattr(options, "flatfield", None) is not None)
     }
     height_csv = mav / HEIGHT_SENSOR / "data.csv"
-    heights = _heights_mm(height_csv, st0) if height_csv.is_file() else None
+    height_given = getattr(options, "height_signal_mm", None) is not None
+    heights = _heights_mm(height_csv, st0) if height_csv.is_file() and not height_given else None
 
     def frames() -> Iterator[FrameImages]:
         for i, f in enumerate(files0):
@@ -226,7 +230,9 @@ def read(source: Path, options=None) -> Recording:
         has_right=files1 is not None,
         groundtruth=gt,
         details={"first_stamp_ns": int(st0[0])},
-        height_mm=_camera_height_mm(mav / "cam0" / "sensor.yaml"),
+        height_mm=None
+        if getattr(options, "height_mm", None) is not None
+        else _camera_height_mm(mav / "cam0" / "sensor.yaml"),
         flatfields=flatfields,
         height_signal_mm=heights,
     )

@@ -311,6 +311,8 @@ def read(source: Path, options=None) -> Recording:
         if getattr(options, "left_only", False):
             for role in ("right", "right_camera_info", "right_flatfield"):
                 topics.pop(role, None)
+        if getattr(options, "flatfield", None) is not None:  # replaced by the flag: not read
+            topics.pop("flatfield", None)
         by_topic: dict[str, list] = {}
         for c in reader.connections:
             by_topic.setdefault(c.topic, []).append(c)
@@ -484,7 +486,7 @@ def read(source: Path, options=None) -> Recording:
         has_depth=has_depth,
         groundtruth=gt,
         details={"topics": dict(sorted(topics.items())), "camera_frame": frame_id},
-        height_mm=_camera_height_mm(source),
+        height_mm=None if getattr(options, "height_mm", None) is not None else _camera_height_mm(source),
         flatfields=flatfields,
         height_signal_mm=heights,
     )
