@@ -110,13 +110,13 @@ def test_a_mono_estimator_corrects_its_scale_with_the_height_signal(bounce_seqs,
     """On a 2 mm bounce the rig height is up to 2 % off: with the measured height (a range
     sensor with 0.02 mm noise, or the depth image's floor plane) no step is wrong by the
     issue's bound and the drift and per-frame error against ground truth are lower; without
-    it (the old behaviour, use_height_signal = false) most steps are wrong."""
+    it, at the rig's height (use_height_signal = false; phase-corr with fit_image_scale =
+    false too: by default it follows the image scale, below) most steps are wrong."""
     seq = bounce_seqs[0] if source == "range" else bounce_seqs[1]
     use = {} if source == "range" else {"height_from_depth": "true"}  # depth: asked for (a depth camera may be off)
     with_h = score_run(run_estimator(seq, name, tmp_path / "with", use).run_dir, seq).flat()
-    without = score_run(
-        run_estimator(seq, name, tmp_path / "without", {"use_height_signal": "false"}).run_dir, seq
-    ).flat()
+    rig = {"use_height_signal": "false", "fit_image_scale": "false"}
+    without = score_run(run_estimator(seq, name, tmp_path / "without", rig).run_dir, seq).flat()
     assert with_h["wrong_ok_steps"] == 0
     assert without["wrong_ok_steps"] > 20
     assert with_h["end_drift_pct"] < 0.5 * without["end_drift_pct"]
@@ -178,7 +178,7 @@ def test_fits_the_image_scale_and_follows_the_height_without_a_signal(full_size_
     a frame) akaze's rigid fit lost all 5 steps and phase-corr reported them at the rig's
     height (0.8 mm off along z, wrong); with the fitted scale each step is within the issue's
     bound, height change included, and the track's height ends within 0.05 mm of the truth
-    (99.2 mm)."""
+    (99.2 mm). (phase-corr's default; akaze's option.)"""
     seq = full_size_bounce
     res = run_estimator(seq, name, tmp_path / "fit", {"use_height_signal": "false", "fit_image_scale": "true"})
     flat = score_run(res.run_dir, seq).flat()
@@ -193,14 +193,22 @@ def test_fits_the_image_scale_and_follows_the_height_without_a_signal(full_size_
 
 
 def test_phase_corr_without_the_image_scale_reports_the_bounce_wrong(full_size_bounce, tmp_path):
-    """The control of the test above: phase-corr at the rig's height (its default) reports the
-    bounce's steps ok with no height change, each 0.8 mm off along z: wrong against the
-    camera's step (a planar estimator's steps are right only against the footprint)."""
+    """The control of the test above: phase-corr at the rig's height (``fit_image_scale =
+    false``, its default until 2026-11-25) reports the bounce's steps ok with no height change,
+    each 0.8 mm off along z: wrong against the camera's step (a planar estimator's steps are
+    right only against the footprint). Its default follows the bounce: none wrong."""
     seq = full_size_bounce
-    res = run_estimator(seq, "phase-corr", tmp_path / "rigid", {"use_height_signal": "false"})
+    res = run_estimator(
+        seq, "phase-corr", tmp_path / "rigid", {"use_height_signal": "false", "fit_image_scale": "false"}
+    )
     flat = score_run(res.run_dir, seq).flat()
     assert flat["lost_frames"] == 0
     assert flat["wrong_ok_steps"] == 5
+    default = score_run(
+        run_estimator(seq, "phase-corr", tmp_path / "default", {"use_height_signal": "false"}).run_dir, seq
+    )
+    assert default.flat()["lost_frames"] == 0
+    assert default.flat()["wrong_ok_steps"] == 0
 
 
 @pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
@@ -225,7 +233,7 @@ def test_keeps_the_height_where_the_image_scale_shows_no_change(tmp_path, name):
         assert score_run(res.run_dir, seq).flat()["wrong_ok_steps"] == 0
         return np.loadtxt(Path(res.run_dir) / "trajectory.txt")[:, 1:]  # TUM: x y z, quaternion (m)
 
-    rig = track("rig", {})
+    rig = track("rig", {"fit_image_scale": "false"})
     np.testing.assert_array_equal(track("gated", {"fit_image_scale": "true"}), rig)
     followed = track("followed", {"fit_image_scale": "true", "image_scale_min_sigmas": "0"})
     assert np.abs(followed[:, 2] - rig[:, 2]).max() > 0.002e-3  # its camera's z moved by more than 2 um

@@ -177,9 +177,10 @@ class PhaseCorrConfig(StepBoundConfig):
         "it, or two estimates further apart than issue 14's bound (max_step_error_*): lost",
     )
     fit_image_scale: bool = param(
-        False,
+        True,
         doc="a frame without a measured height: follow the camera height from the blocks' image scale, "
-        "h_cur = h_prev / scale, from the rig's (else the rig's height throughout)",
+        "h_cur = h_prev / scale, from the rig's, where it shows a change (image_scale_min_sigmas); false: the "
+        "rig's height throughout",
     )
     image_scale_axis: str = param(
         "y",
