@@ -3,57 +3,20 @@ with the yaw from a spin, and the fall-back to the first where the spin gives no
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
+from tests.floorvo._synth import chain_scaled, hand_run
 
 from floorsim.bench.material_calibration import fit_material_calibration
-from floorvo.geometry import T_world_cam_down, invert_T, rot_z
-from floorvo.tum import write_tum
-
-
-def _scaled(T_true: np.ndarray, sx: float, s_yaw: float = 1.0) -> np.ndarray:
-    """Poses whose steps are the true ones with x times ``sx`` and the yaw times ``s_yaw``."""
-    out = [T_true[0].copy()]
-    for i in range(len(T_true) - 1):
-        d = invert_T(T_true[i]) @ T_true[i + 1]
-        d[0, 3] *= sx
-        yaw = np.arctan2(d[1, 0], d[0, 0])
-        d[:3, :3] = rot_z(yaw * s_yaw - yaw) @ d[:3, :3]
-        out.append(out[-1] @ d)
-    return np.stack(out)
-
-
-def _run(root, T_true: np.ndarray, T_est: np.ndarray, lost_after: int | None = None) -> tuple[str, str]:
-    """A sequence folder (ground truth only) and a phase-corr run folder of poses ``T_est``, 10 Hz;
-    from frame ``lost_after`` on every frame is lost (not in the trajectory)."""
-    seq, run = root / "seq", root / "run"
-    seq.mkdir(parents=True)
-    run.mkdir()
-    ts = np.arange(len(T_true)) / 10.0
-    write_tum(seq / "groundtruth.txt", ts, T_true)
-    camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
-    meta = {"schema_version": 2, "camera": camera, "fps": 10.0, "frame_count": len(ts), "rig": {"height_mm": 100.0}}
-    (seq / "sequence.json").write_text(json.dumps(meta))
-    kept = len(ts) if lost_after is None else lost_after
-    write_tum(run / "trajectory.txt", ts[:kept], T_est[:kept])
-    rows = ["frame,total_ms,status,reason"]
-    for i in range(len(ts)):
-        status = "init" if i == 0 else ("ok" if i < kept else "lost")
-        rows.append(f"{i},1.0,{status},{'weak peak' if status == 'lost' else ''}")
-    (run / "timing.csv").write_text("\n".join(rows) + "\n")
-    (run / "result.json").write_text(json.dumps({"estimator": "phase-corr"}))
-    return str(run), str(seq)
-
+from floorvo.geometry import T_world_cam_down
 
 STRAIGHT = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])  # 100 mm along x
 SPIN = np.stack([T_world_cam_down(0.0, 0.0, 100.0, 0.1 * i) for i in range(21)])  # 115 degrees in place
 
 
 def test_the_yaw_comes_from_the_spin_and_the_straight_calibration_stays(tmp_path):
-    straight = _run(tmp_path / "a", STRAIGHT, _scaled(STRAIGHT, 1.003))
-    spin = _run(tmp_path / "b", SPIN, _scaled(SPIN, 1.0, 1.0035))
+    straight = hand_run(tmp_path / "a", STRAIGHT, chain_scaled(STRAIGHT, 1.003))
+    spin = hand_run(tmp_path / "b", SPIN, chain_scaled(SPIN, 1.0, s_yaw=1.0035))
     fit = fit_material_calibration(straight, spin)
     assert fit.straight is not None and fit.with_yaw is not None and fit.why == ""
     assert fit.straight.scale_x == pytest.approx(1.003) and fit.straight.scale_yaw == 1.0
@@ -74,8 +37,8 @@ def test_the_yaw_comes_from_the_spin_and_the_straight_calibration_stays(tmp_path
     ],
 )
 def test_a_spin_that_cannot_give_the_yaw_leaves_the_straight_calibration(tmp_path, spin_poses, lost_after, why):
-    straight = _run(tmp_path / "a", STRAIGHT, _scaled(STRAIGHT, 1.003))
-    spin = _run(tmp_path / "b", spin_poses, _scaled(spin_poses, 1.0, 1.0035), lost_after)
+    straight = hand_run(tmp_path / "a", STRAIGHT, chain_scaled(STRAIGHT, 1.003))
+    spin = hand_run(tmp_path / "b", spin_poses, chain_scaled(spin_poses, 1.0, s_yaw=1.0035), lost_after=lost_after)
     fit = fit_material_calibration(straight, spin)
     assert fit.straight is not None and fit.straight.scale_x == pytest.approx(1.003)
     if why is None:
@@ -87,8 +50,8 @@ def test_a_spin_that_cannot_give_the_yaw_leaves_the_straight_calibration(tmp_pat
 
 
 def test_a_yaw_scale_out_of_range_or_no_spin_leaves_the_straight_calibration(tmp_path):
-    straight = _run(tmp_path / "a", STRAIGHT, _scaled(STRAIGHT, 1.003))
-    spin = _run(tmp_path / "b", SPIN, _scaled(SPIN, 1.0, 1.2))
+    straight = hand_run(tmp_path / "a", STRAIGHT, chain_scaled(STRAIGHT, 1.003))
+    spin = hand_run(tmp_path / "b", SPIN, chain_scaled(SPIN, 1.0, s_yaw=1.2))
     fit = fit_material_calibration(straight, spin)
     assert fit.with_yaw is None and fit.why == "spin: scale yaw 1.200 fitted: a broken run"
     fit = fit_material_calibration(straight, None)
@@ -96,11 +59,11 @@ def test_a_yaw_scale_out_of_range_or_no_spin_leaves_the_straight_calibration(tmp
 
 
 def test_a_lost_or_broken_straight_run_gives_no_calibration(tmp_path):
-    spin = _run(tmp_path / "b", SPIN, _scaled(SPIN, 1.0, 1.0035))
-    lost = _run(tmp_path / "a", STRAIGHT, STRAIGHT, lost_after=1)
+    spin = hand_run(tmp_path / "b", SPIN, chain_scaled(SPIN, 1.0, s_yaw=1.0035))
+    lost = hand_run(tmp_path / "a", STRAIGHT, STRAIGHT, lost_after=1)
     fit = fit_material_calibration(lost, spin)
     assert fit.straight is None and fit.with_yaw is None and fit.why == "calibration run lost"
     assert fit.scale_x_cell() == "none (calibration run lost)" and fit.scale_yaw_cell() == "-"
-    broken = _run(tmp_path / "c", STRAIGHT, _scaled(STRAIGHT, 1.5))
+    broken = hand_run(tmp_path / "c", STRAIGHT, chain_scaled(STRAIGHT, 1.5))
     fit = fit_material_calibration(broken, spin)
     assert fit.straight is None and fit.scale_x_cell() == "none (scale x 1.500 fitted: a broken run)"

@@ -8,11 +8,14 @@ sensor noise are applied to both, as in a real grazing-light frame.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.geometry import T_world_cam_down, invert_T
+from floorvo.geometry import T_world_cam_down, invert_T, rot_z
 from floorvo.synthetic import floor_texture as _floor_texture
 from floorvo.synthetic import led_falloff as falloff  # rig-fixed: bright at the left and right edges
 
@@ -110,3 +113,44 @@ def disturbed_poses(n: int = 10) -> np.ndarray:
             for i in range(n)
         ]
     )
+
+
+def chain_scaled(T_true: np.ndarray, sx: float, sy: float = 1.0, s_yaw: float = 1.0) -> np.ndarray:
+    """Poses (N, 4, 4) whose camera-frame steps are the true ones' with the x, y translation times
+    (``sx``, ``sy``) and the yaw times ``s_yaw``: what an estimator with those scales reports."""
+    out = [T_true[0].copy()]
+    for i in range(len(T_true) - 1):
+        d = invert_T(T_true[i]) @ T_true[i + 1]
+        d[0, 3] *= sx
+        d[1, 3] *= sy
+        yaw = np.arctan2(d[1, 0], d[0, 0])
+        d[:3, :3] = rot_z(yaw * s_yaw - yaw) @ d[:3, :3]
+        out.append(out[-1] @ d)
+    return np.stack(out)
+
+
+def hand_run(
+    root: Path, T_true: np.ndarray, T_est: np.ndarray, estimator: str = "phase-corr", lost_after: int | None = None
+) -> tuple[Path, Path]:
+    """A sequence folder (ground truth only, 64x48 px, 10 Hz) of the poses ``T_true`` and a run
+    folder of ``estimator`` that reported ``T_est`` (N, 4, 4) mm; from frame ``lost_after`` on every
+    frame is lost (not in the trajectory). Returns ``(run, sequence)``."""
+    from floorvo.tum import write_tum
+
+    seq, run = root / "seq", root / "run"
+    seq.mkdir(parents=True)
+    run.mkdir()
+    ts = np.arange(len(T_true)) / 10.0
+    write_tum(seq / "groundtruth.txt", ts, T_true)
+    camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
+    meta = {"schema_version": 2, "camera": camera, "fps": 10.0, "frame_count": len(ts), "rig": {"height_mm": 100.0}}
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    kept = len(ts) if lost_after is None else lost_after
+    write_tum(run / "trajectory.txt", ts[:kept], T_est[:kept])
+    rows = ["frame,total_ms,status,reason"]
+    for i in range(len(ts)):
+        status = "init" if i == 0 else ("ok" if i < kept else "lost")
+        rows.append(f"{i},1.0,{status},{'weak peak' if status == 'lost' else ''}")
+    (run / "timing.csv").write_text("\n".join(rows) + "\n")
+    (run / "result.json").write_text(json.dumps({"estimator": estimator}))
+    return run, seq

@@ -7,36 +7,23 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from tests.floorvo._synth import chain_scaled, hand_run
 
 from floorvo.calibration import ScaleCalibration, apply_scale, fit_scale_calibration, load_scale_calibration
 from floorvo.camera import CameraModel
 from floorvo.cli import main as floorvo_main
 from floorvo.errors import ConfigError
-from floorvo.geometry import T_world_cam_down, invert_T, rot_z
+from floorvo.geometry import T_world_cam_down, invert_T
 from floorvo.synthetic import write_synthetic_sequence
 from floorvo.tum import read_tum
 
 CAM = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)  # GSD 0.4933 mm at 100 mm
 
 
-def _chain_scaled(T_true: np.ndarray, sx: float, sy: float, s_yaw: float = 1.0) -> np.ndarray:
-    """Poses whose camera-frame steps are the true ones with x, y translation times (sx, sy) and
-    yaw times ``s_yaw``."""
-    out = [T_true[0].copy()]
-    for i in range(len(T_true) - 1):
-        d = invert_T(T_true[i]) @ T_true[i + 1]
-        d[0, 3] *= sx
-        d[1, 3] *= sy
-        yaw = np.arctan2(d[1, 0], d[0, 0])
-        d[:3, :3] = rot_z(yaw * s_yaw - yaw) @ d[:3, :3]
-        out.append(out[-1] @ d)
-    return np.stack(out)
-
-
 def test_fit_recovers_per_axis_scales_of_a_turning_path():
     k = np.arange(40)
     T_true = np.stack([T_world_cam_down(3.0 * i, 1.5 * i + 0.02 * i**2, 100.0, 0.03 * i) for i in k])
-    T_est = _chain_scaled(T_true, 1.0025, 0.9990)
+    T_est = chain_scaled(T_true, 1.0025, 0.9990)
     cal = fit_scale_calibration(T_true, T_est)
     assert cal.observed_x and cal.observed_y and cal.steps == 39
     assert cal.scale_x == pytest.approx(1.0025, abs=1e-9)
@@ -54,7 +41,7 @@ def test_fit_recovers_the_yaw_scale_and_dividing_it_out_gives_back_the_path():
     steps with both divided out chain to the true end pose; a straight run observes no yaw."""
     k = np.arange(40)
     T_true = np.stack([T_world_cam_down(3.0 * i, 1.5 * i + 0.02 * i**2, 100.0, 0.03 * i) for i in k])
-    T_est = _chain_scaled(T_true, 1.0025, 1.0, 0.996)
+    T_est = chain_scaled(T_true, 1.0025, 1.0, 0.996)
     cal = fit_scale_calibration(T_true, T_est)
     assert cal.observed_yaw and cal.turn_deg == pytest.approx(np.degrees(0.03 * 39), rel=1e-9)
     assert cal.scale_yaw == pytest.approx(0.996, abs=1e-9) and cal.scale_x == pytest.approx(1.0025, abs=1e-9)
@@ -67,13 +54,13 @@ def test_fit_recovers_the_yaw_scale_and_dividing_it_out_gives_back_the_path():
         unfixed.append(unfixed[-1] @ apply_scale(invert_T(T_est[i]) @ T_est[i + 1], replace(cal, scale_yaw=1.0)))
     assert np.linalg.norm(unfixed[-1][:3, 3] - T_true[-1][:3, 3]) > 0.1  # mm: the yaw is what was left
     straight = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])
-    cal = fit_scale_calibration(straight, _chain_scaled(straight, 1.0, 1.0, 0.9))
+    cal = fit_scale_calibration(straight, chain_scaled(straight, 1.0, 1.0, 0.9))
     assert not cal.observed_yaw and cal.scale_yaw == 1.0
 
 
 def test_axis_without_travel_keeps_scale_one():
     T_true = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])
-    cal = fit_scale_calibration(T_true, _chain_scaled(T_true, 1.01, 1.0))
+    cal = fit_scale_calibration(T_true, chain_scaled(T_true, 1.01, 1.0))
     assert cal.observed_x and cal.scale_x == pytest.approx(1.01)
     assert not cal.observed_y and cal.scale_y == 1.0 and cal.travel_y_mm == pytest.approx(0.0, abs=1e-9)
 
@@ -216,33 +203,14 @@ def test_calibration_leaves_out_the_motion_a_restart_dropped(tmp_path):
     assert fit_scale_calibration(truth[placed], np.stack(est)).scale_x == pytest.approx(404.0 / 496.0, abs=1e-9)
 
 
-def _hand_run(root, T_true: np.ndarray, T_est: np.ndarray, estimator: str):
-    """A sequence folder (ground truth only) and a run folder of ``estimator`` with poses ``T_est``, 10 Hz."""
-    from floorvo.tum import write_tum
-
-    seq, run = root / "seq", root / "run"
-    seq.mkdir(parents=True)
-    run.mkdir()
-    ts = np.arange(len(T_true)) / 10.0
-    write_tum(seq / "groundtruth.txt", ts, T_true)
-    camera = {"width_px": 64, "height_px": 48, "K": [[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]]}
-    meta = {"schema_version": 2, "camera": camera, "fps": 10.0, "frame_count": len(ts), "rig": {"height_mm": 100.0}}
-    (seq / "sequence.json").write_text(json.dumps(meta))
-    write_tum(run / "trajectory.txt", ts, T_est)
-    rows = ["frame,total_ms,status"] + [f"{i},1.0,{'init' if i == 0 else 'ok'}" for i in range(len(ts))]
-    (run / "timing.csv").write_text("\n".join(rows) + "\n")
-    (run / "result.json").write_text(json.dumps({"estimator": estimator}))
-    return run, seq
-
-
 def test_one_calibration_from_a_straight_run_and_a_spin(tmp_path, capsys):
     """x from a straight run (100 mm, read 0.3 % long), the yaw from a spin in place (115 degrees,
     read 0.35 % too far): `floorvo calibrate RUN1 RUN2 --gt SEQ1 --gt SEQ2` fits both into one file
     (neither run alone observes both); runs of two estimators are refused in one line."""
     straight = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])
     spin = np.stack([T_world_cam_down(0.0, 0.0, 100.0, 0.1 * i) for i in range(21)])
-    r1, s1 = _hand_run(tmp_path / "a", straight, _chain_scaled(straight, 1.003, 1.0), "phase-corr")
-    r2, s2 = _hand_run(tmp_path / "b", spin, _chain_scaled(spin, 1.0, 1.0, 1.0035), "phase-corr")
+    r1, s1 = hand_run(tmp_path / "a", straight, chain_scaled(straight, 1.003, 1.0), "phase-corr")
+    r2, s2 = hand_run(tmp_path / "b", spin, chain_scaled(spin, 1.0, 1.0, 1.0035), "phase-corr")
     out = tmp_path / "cal.json"
     assert floorvo_main(["calibrate", str(r1), str(r2), "--gt", str(s1), "--gt", str(s2), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -250,7 +218,7 @@ def test_one_calibration_from_a_straight_run_and_a_spin(tmp_path, capsys):
     cal = load_scale_calibration(out)
     assert cal.scale_x == pytest.approx(1.003) and cal.scale_yaw == pytest.approx(1.0035) and cal.steps == 45
     assert not cal.observed_y and cal.estimator == "phase-corr" and cal.run == f"{r1}; {r2}"
-    r3, s3 = _hand_run(tmp_path / "c", spin, spin, "akaze-guided")
+    r3, s3 = hand_run(tmp_path / "c", spin, spin, "akaze-guided")
     assert floorvo_main(["calibrate", str(r1), str(r3), "--gt", str(s1), "--gt", str(s3), "-o", str(out)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "the runs are of different estimators (akaze-guided, phase-corr)" in err
