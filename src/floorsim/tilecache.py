@@ -204,24 +204,21 @@ class TileCache:
     # ------------------------------------------------------------------ housekeeping
     def _files(self) -> list[Path]:
         """The cache's entries (see the module doc: key-named files in their key's folder), nothing else."""
-        d = self.tiles_dir
-        if not d.is_dir():
-            return []
-        out = []
-        for p in d.glob("*/*.npz"):
-            m = _ENTRY_NAME.fullmatch(p.name)
-            if m and p.parent.name == m.group(1)[:2]:
-                out.append(p)
-        return sorted(out)
+        return self._keyed("*/*.npz", _ENTRY_NAME)
 
     def _temporaries(self) -> list[Path]:
         """Temporaries of the cache's entries (an atomic write's, perhaps left by a killed writer)."""
+        return self._keyed("*/.*.tmp", _TEMP_NAME)
+
+    def _keyed(self, pattern: str, name: re.Pattern[str]) -> list[Path]:
+        """The files under the tiles folder matching the glob ``pattern`` whose name is ``name``
+        (its first group the key) and whose folder is the key's first two characters, sorted."""
         d = self.tiles_dir
         if not d.is_dir():
             return []
         out = []
-        for p in d.glob("*/.*.tmp"):
-            m = _TEMP_NAME.fullmatch(p.name)
+        for p in d.glob(pattern):
+            m = name.fullmatch(p.name)
             if m and p.parent.name == m.group(1)[:2]:
                 out.append(p)
         return sorted(out)
