@@ -435,3 +435,19 @@ def test_rival_search_draws_the_samples_that_find_a_rival_of_half_the_others(mon
     # consensus_problem (the check every feature estimator runs) reports it.
     why = consensus_problem(src, dst, inliers, 2.0, min_fraction=0.2, min_count=8, max_rival_fraction=0.1)
     assert why.startswith("two motions: ")
+
+
+def test_t_sigmas_keeps_the_normal_tail_for_an_estimated_standard_error():
+    """Student's t: the two-sided tail beyond t_sigmas(k, dof) estimated standard errors is the
+    normal one beyond k (0.27 % for 3), by the t distribution's CDF; the figures the docstring
+    gives (9.2 at 3 degrees of freedom, 6.6 at 4) and the normal limit for many."""
+    from scipy import stats
+
+    from floorvo.geometry import t_sigmas
+
+    for dof in (1, 3, 4, 12, 200):
+        assert 2 * stats.t.sf(t_sigmas(3.0, dof), dof) == pytest.approx(2 * stats.norm.sf(3.0), rel=1e-9)
+    assert t_sigmas(3.0, 3) == pytest.approx(9.219, abs=1e-3)
+    assert t_sigmas(3.0, 4) == pytest.approx(6.620, abs=1e-3)
+    assert t_sigmas(3.0, 100000) == pytest.approx(3.0, abs=1e-3)
+    assert t_sigmas(0.0, 4) == 0.0 and t_sigmas(3.0, 0) == float("inf")

@@ -70,6 +70,7 @@ from floorvo.geometry import (
     pixels_to_floor_mm,
     rigid_fit,
     rigid_fit_precision,
+    t_sigmas,
     umeyama,
     yaw_of_R,
 )
@@ -196,7 +197,8 @@ class AkazeConfig(StepBoundConfig):
         3.0,
         min=0.0,
         doc="fit_image_scale: the height changes only where the fitted image scale differs from 1 by more than this "
-        "many of its standard errors (elsewhere the rigid fit, the height kept); 0: wherever it differs",
+        "many of its standard errors, at this many normal standard errors' confidence for the pairs' degrees of "
+        "freedom (Student's t); elsewhere the rigid fit, the height kept; 0: wherever it differs",
     )
 
 
@@ -452,7 +454,8 @@ class _AkazeBase:
         if len(s) < 4:
             return True
         _, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
-        return not abs(k - 1.0) <= self.config.image_scale_min_sigmas * k * sig_rad
+        limit = t_sigmas(self.config.image_scale_min_sigmas, 2 * len(s) - 4)  # the similarity's 4 parameters
+        return not abs(k - 1.0) <= limit * k * sig_rad
 
     def _similarity_precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
         """:meth:`_precision_problem` of a fit whose image scale was fitted too (``M[:2, :2]`` =

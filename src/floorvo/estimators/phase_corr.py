@@ -71,6 +71,7 @@ from floorvo.geometry import (
     pixel_rigid_to_floor,
     rigid_fit,
     rigid_fit_precision,
+    t_sigmas,
     umeyama,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, impulses_replaced
@@ -192,7 +193,8 @@ class PhaseCorrConfig(StepBoundConfig):
         3.0,
         min=0.0,
         doc="fit_image_scale: the height changes only where the image scale differs from 1 by more than this many "
-        "of its standard errors (elsewhere it is kept: no change measured); 0: wherever it differs",
+        "of its standard errors, at this many normal standard errors' confidence for the blocks' few degrees of "
+        "freedom (Student's t: 9.2 for four blocks); elsewhere it is kept (no change measured); 0: wherever it differs",
     )
 
 
@@ -604,13 +606,17 @@ class PhaseCorr:
 
     def _height_changed(self, m: _Measured) -> bool:
         """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height:
-        it differs from 1 by more than ``image_scale_min_sigmas`` of its standard errors. A
-        scale within them is no measured change, and the height is kept: on a level run the
-        four blocks' scale, fitted each frame, read changes that were not there (each then
-        held for the rest of the run), and their standard error, added to the step's, lost
-        steps whose translation was precise (BENCHMARKS.md, "phase-corr: the camera height
-        only where the image scale shows it")."""
-        return not abs(m.scale - 1.0) <= self.config.image_scale_min_sigmas * m.scale_sigma
+        it differs from 1 by more than ``image_scale_min_sigmas`` of its standard errors, at
+        that many standard errors' confidence for the few blocks they are estimated from
+        (:func:`floorvo.geometry.t_sigmas`: 9.2 of them for four blocks along one axis, whose
+        fit leaves 3 degrees of freedom). A scale within them is no measured change, and the
+        height is kept: on a level run the four blocks' scale, fitted each frame, read changes
+        that were not there (each then held for the rest of the run), and their standard
+        error, added to the step's, lost steps whose translation was precise (BENCHMARKS.md,
+        "phase-corr: the camera height only where the image scale shows it")."""
+        n = self.config.grid**2
+        dof = 2 * n - (4 if self.config.image_scale_axis == "both" else 5)  # similarity, or axis_scales_fit
+        return not abs(m.scale - 1.0) <= t_sigmas(self.config.image_scale_min_sigmas, dof) * m.scale_sigma
 
     def _failed(self, m: _Measured) -> bool:
         """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
