@@ -320,7 +320,7 @@ def t_sigmas(n_sigmas: float, dof: int) -> float:
     """How many standard errors *estimated from residuals* with ``dof`` degrees of freedom make
     the same two-sided tail as ``n_sigmas`` standard errors of a known normal error (Student's
     t): 3 -> 9.2 with 3 degrees of freedom (four points' 8 coordinates, 5 parameters), 6.6 with
-    4, 3.1 with 200. A standard error from a handful of residuals is itself uncertain, and a
+    4, 3.04 with 200. A standard error from a handful of residuals is itself uncertain, and a
     deviation of "3 of them" happens far more often than 0.27 % of the time; this keeps the
     test's confidence. ``inf`` for ``dof < 1`` (no residual to estimate it from); 0 for
     ``n_sigmas <= 0``."""
