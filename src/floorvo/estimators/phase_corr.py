@@ -423,6 +423,11 @@ class PhaseCorr:
         spread_px = k * np.sqrt(np.sum((self.block_centres - self.block_centres.mean(axis=0)) ** 2))
         self.yaw_floor_deg = float(np.degrees(config.block_precision_px / spread_px))
         self.layout_bounds_yaw = self.yaw_floor_deg <= config.max_yaw_sigma_deg
+        # The image-scale gate (fit_image_scale, :meth:`_height_changed`) in the scale's standard
+        # errors: the blocks' 2 g^2 coordinates less the fit's parameters (a similarity's 4, or
+        # axis_scales_fit's 5) leave its degrees of freedom; fixed by the layout.
+        dof = 2 * config.grid**2 - (4 if config.image_scale_axis == "both" else 5)
+        self.image_scale_gate_sigmas = t_sigmas(config.image_scale_min_sigmas, dof)
         # The crop's top-left corner from the principal point, and the principal point in the
         # region (grid px): what a warp into the crop adds around the centred motion.
         self.crop_from_centre = np.array([self.x0 - gc.cx_px, self.y0 - gc.cy_px])
@@ -614,9 +619,7 @@ class PhaseCorr:
         that were not there (each then held for the rest of the run), and their standard
         error, added to the step's, lost steps whose translation was precise (BENCHMARKS.md,
         "phase-corr: the camera height only where the image scale shows it")."""
-        n = self.config.grid**2
-        dof = 2 * n - (4 if self.config.image_scale_axis == "both" else 5)  # similarity, or axis_scales_fit
-        return not abs(m.scale - 1.0) <= t_sigmas(self.config.image_scale_min_sigmas, dof) * m.scale_sigma
+        return not abs(m.scale - 1.0) <= self.image_scale_gate_sigmas * m.scale_sigma
 
     def _failed(self, m: _Measured) -> bool:
         """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
