@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy.spatial.transform import Rotation
-from scipy.special import ndtr, stdtrit
+from scipy.special import fdtri, ndtr, stdtrit
 
 from floorvo.camera import CameraModel
 
@@ -61,6 +61,8 @@ __all__ = [
     "rigid_fit",
     "rigid_fit_robust",
     "rigid_fit_precision",
+    "t_sigmas",
+    "f_sigmas",
     "axis_scales_fit",
     "rival_homography_support",
     "consensus_problem",
@@ -329,6 +331,22 @@ def t_sigmas(n_sigmas: float, dof: int) -> float:
     if dof < 1:
         return float("inf")
     return float(stdtrit(dof, 1.0 - ndtr(-n_sigmas)))
+
+
+def f_sigmas(n_sigmas: float, dfn: int, dfd: int) -> float:
+    """The ratio of two variance estimates, of ``dfn`` and ``dfd`` degrees of freedom, that
+    makes the same tail as ``n_sigmas`` standard errors of a normal error on both sides (the
+    F distribution): where ``sum_i (x_i - 1)^2 / sum_i sigma_i^2`` over n measurements ``x_i``
+    of 1, each with a standard error ``sigma_i`` estimated from ``dof`` residuals, exceeds
+    ``f_sigmas(n_sigmas, n, n dof)``, the measurements do not scatter about 1 by their errors
+    alone. ``f_sigmas(s, 1, dof) == t_sigmas(s, dof) ** 2`` (one measurement); 3 sigmas for
+    eight measurements of 3 degrees of freedom each: 4.26. ``inf`` for ``dfd < 1``; 0 for
+    ``n_sigmas <= 0``."""
+    if n_sigmas <= 0.0:
+        return 0.0
+    if dfd < 1 or dfn < 1:
+        return float("inf")
+    return float(fdtri(dfn, dfd, 1.0 - 2.0 * ndtr(-n_sigmas)))
 
 
 def rigid_fit_precision(

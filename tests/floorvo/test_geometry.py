@@ -451,3 +451,19 @@ def test_t_sigmas_keeps_the_normal_tail_for_an_estimated_standard_error():
     assert t_sigmas(3.0, 4) == pytest.approx(6.620, abs=1e-3)
     assert t_sigmas(3.0, 100000) == pytest.approx(3.0, abs=1e-3)
     assert t_sigmas(0.0, 4) == 0.0 and t_sigmas(3.0, 0) == float("inf")
+
+
+def test_f_sigmas_keeps_the_normal_tail_for_a_ratio_of_variance_estimates():
+    """F distribution: the tail beyond f_sigmas(k, n, m) is the normal two-sided one beyond k
+    (0.27 % for 3), by the F distribution's survival function; for one measurement it is t_sigmas
+    squared (the same test on one frame), and for many degrees of freedom both ways it tends to 1."""
+    from scipy import stats
+
+    from floorvo.geometry import f_sigmas, t_sigmas
+
+    for n, m in ((1, 3), (8, 24), (3, 600), (40, 120)):
+        assert stats.f.sf(f_sigmas(3.0, n, m), n, m) == pytest.approx(2 * stats.norm.sf(3.0), rel=1e-9)
+    assert f_sigmas(3.0, 1, 3) == pytest.approx(t_sigmas(3.0, 3) ** 2, rel=1e-9)
+    assert f_sigmas(3.0, 8, 24) == pytest.approx(4.257, abs=1e-3)
+    assert f_sigmas(3.0, 100000, 100000) == pytest.approx(1.0, abs=0.05)
+    assert f_sigmas(0.0, 8, 24) == 0.0 and f_sigmas(3.0, 8, 0) == float("inf")

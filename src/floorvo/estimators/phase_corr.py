@@ -46,6 +46,7 @@ floor pulls the blocks' shifts toward the warp, which the blocks' agreement does
 from __future__ import annotations
 
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import cv2
@@ -67,11 +68,11 @@ from floorvo.estimators.base import (
 )
 from floorvo.geometry import (
     axis_scales_fit,
+    f_sigmas,
     floor_rigid_to_T,
     pixel_rigid_to_floor,
     rigid_fit,
     rigid_fit_precision,
-    t_sigmas,
     umeyama,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, impulses_replaced
@@ -195,6 +196,16 @@ class PhaseCorrConfig(StepBoundConfig):
         doc="fit_image_scale: the height changes only where the image scale differs from 1 by more than this many "
         "of its standard errors, at this many normal standard errors' confidence for the blocks' few degrees of "
         "freedom (Student's t: 9.2 for four blocks); elsewhere it is kept (no change measured); 0: wherever it differs",
+    )
+    image_scale_window: int = param(
+        8,
+        min=0,
+        max=1000,
+        unit="frames",
+        doc="fit_image_scale: the height also follows the scale of every frame while the scales of the last this "
+        "many measured frames, together, differ from 1 by more than their standard errors allow (an F test at "
+        "image_scale_min_sigmas' confidence): a bouncing rig, whose height changes by less than one frame's scale "
+        "shows; 0 or 1: each frame on its own",
     )
 
 
@@ -334,6 +345,8 @@ class _State:
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
+    # (scale - 1)^2 and the scale's variance of the last image_scale_window measured frames (fit_image_scale)
+    scale_window: deque[tuple[float, float]] = field(default_factory=deque)
 
 
 class PhaseCorr:
@@ -423,11 +436,16 @@ class PhaseCorr:
         spread_px = k * np.sqrt(np.sum((self.block_centres - self.block_centres.mean(axis=0)) ** 2))
         self.yaw_floor_deg = float(np.degrees(config.block_precision_px / spread_px))
         self.layout_bounds_yaw = self.yaw_floor_deg <= config.max_yaw_sigma_deg
-        # The image-scale gate (fit_image_scale, :meth:`_height_changed`) in the scale's standard
-        # errors: the blocks' 2 g^2 coordinates less the fit's parameters (a similarity's 4, or
-        # axis_scales_fit's 5) leave its degrees of freedom; fixed by the layout.
+        # The image-scale tests (fit_image_scale, :meth:`_height_changed`): the blocks' 2 g^2
+        # coordinates less the fit's parameters (a similarity's 4, or axis_scales_fit's 5) leave
+        # the scale's standard error its degrees of freedom, fixed by the layout. Over n frames
+        # sum (s_i - 1)^2 / sum sigma_i^2 is F(n, n dof)-distributed where the height does not
+        # change: its limit for each n at the two-sided tail of image_scale_min_sigmas normal
+        # standard errors (n = 1: one frame's, Student's t squared: 9.2^2 for four blocks).
         dof = 2 * config.grid**2 - (4 if config.image_scale_axis == "both" else 5)
-        self.image_scale_gate_sigmas = t_sigmas(config.image_scale_min_sigmas, dof)
+        self.image_scale_window_limits = [
+            f_sigmas(config.image_scale_min_sigmas, n, n * dof) for n in range(1, max(config.image_scale_window, 1) + 1)
+        ]
         # The crop's top-left corner from the principal point, and the principal point in the
         # region (grid px): what a warp into the crop adds around the centred motion.
         self.crop_from_centre = np.array([self.x0 - gc.cx_px, self.y0 - gc.cy_px])
@@ -559,13 +577,13 @@ class PhaseCorr:
         h_prev = state.height_mm or self.height_mm
         h_meas = self._frame_height(frame)
         height_sigma_mm = 0.0
+        gross = self._gross_problem(m)
         if h_meas is None and self.config.fit_image_scale:
-            if self._height_changed(m):
+            if self._height_changed(state, m, measured=not gross):
                 h_meas = h_prev / m.scale
                 height_sigma_mm = h_prev * m.scale_sigma / m.scale**2
             else:
                 h_meas = h_prev
-        gross = self._gross_problem(m)
         problem = gross or self._precision_problem(m, height_sigma_mm) or self._spread_problem(cur, m)
         if problem:
             # Lost: the next frame is measured against the last good one; after
@@ -609,17 +627,41 @@ class PhaseCorr:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
         return frame_height_mm(frame, self.config.use_height_signal)
 
-    def _height_changed(self, m: _Measured) -> bool:
-        """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height:
-        it differs from 1 by more than ``image_scale_min_sigmas`` of its standard errors, at
-        that many standard errors' confidence for the few blocks they are estimated from
-        (:func:`floorvo.geometry.t_sigmas`: 9.2 of them for four blocks along one axis, whose
+    def _height_changed(self, state: _State, m: _Measured, *, measured: bool = True) -> bool:
+        """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height.
+
+        On its own: it differs from 1 by more than ``image_scale_min_sigmas`` of its standard
+        errors, at that many standard errors' confidence for the few blocks they are estimated
+        from (:func:`floorvo.geometry.t_sigmas`: 9.2 of them for four blocks along one axis, whose
         fit leaves 3 degrees of freedom). A scale within them is no measured change, and the
         height is kept: on a level run the four blocks' scale, fitted each frame, read changes
         that were not there (each then held for the rest of the run), and their standard
         error, added to the step's, lost steps whose translation was precise (BENCHMARKS.md,
-        "phase-corr: the camera height only where the image scale shows it")."""
-        return not abs(m.scale - 1.0) <= self.image_scale_gate_sigmas * m.scale_sigma
+        "phase-corr: the camera height only where the image scale shows it").
+
+        Or with the frames before it: the scales of the last ``image_scale_window`` measured
+        frames (this one included; ``measured``: the step passed the gross checks, else it
+        joins no window) scatter about 1 by more than their standard errors allow,
+        ``sum (s_i - 1)^2 / sum sigma_i^2`` beyond :func:`floorvo.geometry.f_sigmas` at the same
+        confidence (4.26 for eight frames of four blocks, where one frame needs 85): the rig is
+        bouncing, and each frame's scale is the height change, most of them too small to show
+        on their own (the full-size bounces: the gate above followed 7-12 of 40 frames; the
+        scales of level runs scatter by 0.2-1.4 of their standard errors, of bounces by 9-45).
+        """
+        dev2, var = (m.scale - 1.0) ** 2, m.scale_sigma**2
+        if not measured:
+            return not dev2 <= self.image_scale_window_limits[0] * var
+        window = state.scale_window
+        window.append((dev2, var))
+        while len(window) > len(self.image_scale_window_limits):
+            window.popleft()
+        if not dev2 <= self.image_scale_window_limits[0] * var:
+            return True
+        n = len(window)
+        if n < 2:
+            return False
+        sum_dev2, sum_var = (float(np.sum(a)) for a in zip(*window))
+        return not sum_dev2 <= self.image_scale_window_limits[n - 1] * sum_var
 
     def _failed(self, m: _Measured) -> bool:
         """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
