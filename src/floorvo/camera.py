@@ -14,7 +14,37 @@ import numpy as np
 
 from floorvo.errors import ConfigError, shown
 
-__all__ = ["CameraModel", "K_RULE", "PRINCIPAL_POINT_RULE", "K_problem", "intrinsics_from_K"]
+__all__ = [
+    "CameraModel",
+    "CAMERA_HEIGHT_RANGE_MM",
+    "K_RULE",
+    "PRINCIPAL_POINT_RULE",
+    "K_problem",
+    "height_problem",
+    "intrinsics_from_K",
+]
+
+#: The camera heights above the floor (mm) that any reader or flag accepts, ends included: every
+#: floor camera lies between them, from an optical mouse sensor (its lens 2-3 mm above the
+#: surface) to a camera under a warehouse roof or on a drone's optical-flow sensor (a few metres).
+#: Outside them a height is a unit mistake (0.1 for 100 mm given in metres, 1e5 for 100 mm in
+#: micrometres) or garbage (1e9 and 1e-9 mm were taken, and every step came out scaled by them).
+CAMERA_HEIGHT_RANGE_MM = (1.0, 20_000.0)
+
+
+def height_problem(height_mm: Any) -> str | None:
+    """Why ``height_mm`` is no camera height above the floor (:data:`CAMERA_HEIGHT_RANGE_MM`), or
+    None. The one rule of every height: ``rig.height_mm``, ``height.csv`` readings, a scene's
+    ``camera.height_mm``, ``floorvo import --height-mm`` and ``--height-file``, a bag's or
+    EuRoC sidecar's height."""
+    lo, hi = CAMERA_HEIGHT_RANGE_MM
+    try:
+        h = float(height_mm)
+    except (TypeError, ValueError):
+        return "must be a number of mm"
+    if not (lo <= h <= hi):  # NaN included
+        return f"must be a finite number from {lo:g} to {hi:g} mm (a floor camera's height)"
+    return None
 
 
 #: The rule a pinhole camera matrix ``K`` follows (:func:`K_problem`).

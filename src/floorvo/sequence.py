@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.camera import CameraModel
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel, height_problem
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.io import (
     atomic_write_bytes,
@@ -405,14 +405,15 @@ def check_groundtruth_times(ts_gt: np.ndarray, frame_ts: np.ndarray, what: str, 
 
 
 def check_heights(h: np.ndarray, frame_count: int, what: str) -> np.ndarray:
-    """``h`` if it holds ``frame_count`` heights (mm), each finite and > 0 or NaN (no reading);
-    else a one-line SequenceError."""
+    """``h`` if it holds ``frame_count`` heights (mm), each a camera height
+    (:func:`floorvo.camera.height_problem`) or NaN (no reading); else a one-line SequenceError."""
     if h.ndim != 1 or len(h) != frame_count:
         raise SequenceError(f"{what}: {len(h)} height(s) for {frame_count} frame(s); need one per frame")
-    bad = np.nonzero(~np.isnan(h) & ~((h > 0) & np.isfinite(h)))[0]
+    lo, hi = CAMERA_HEIGHT_RANGE_MM
+    bad = np.nonzero(~np.isnan(h) & ~((h >= lo) & (h <= hi)))[0]
     if len(bad):
         k = int(bad[0])
-        raise SequenceError(f"{what}: height of frame {k} = {h[k]} mm: must be a finite number > 0 (or empty)")
+        raise SequenceError(f"{what}: height of frame {k} = {h[k]:g} mm: {height_problem(h[k])} (or empty)")
     return h
 
 

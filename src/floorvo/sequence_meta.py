@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.camera import K_problem
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, K_problem
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.geometry import rigid_problem
@@ -106,7 +106,13 @@ class CameraBlock(Config):
 class RigBlock(Config):
     """The rig: camera height, stereo extrinsics, and what a render records about its LEDs."""
 
-    height_mm: float | None = param(None, unit="mm", gt=0, doc="camera height above the floor")
+    height_mm: float | None = param(
+        None,
+        unit="mm",
+        min=CAMERA_HEIGHT_RANGE_MM[0],
+        max=CAMERA_HEIGHT_RANGE_MM[1],
+        doc="camera height above the floor",
+    )
     T_cam0_cam1: Matrix | None = param(None, doc="4x4 pose of cam1 in cam0's frame, mm")
     gsd_mm_per_px: float | None = param(None, unit="mm/px", gt=0, doc="ground sample distance at height_mm")
     led_height_mm: float | None = param(None, unit="mm", gt=0, doc="LED emitters above the floor")

@@ -64,7 +64,16 @@ def test_frames_carry_the_depth_images_height_only_when_asked(tmp_path):
             "frame,height_mm\n0,100\n2,100\n1,100\n",
             r"height.csv:3: frame '2': rows must be frames 0, 1, \.\.\. in order",
         ),
-        ("frame,height_mm\n0,100\n1,-3\n2,100\n", r"height of frame 1 = -3.0 mm: must be a finite number > 0"),
+        (
+            "frame,height_mm\n0,100\n1,-3\n2,100\n",
+            r"height of frame 1 = -3 mm: must be a finite number from 1 to 20000 mm",
+        ),
+        # no floor camera is 1e9 or 1e-9 mm above the floor (both were taken)
+        ("frame,height_mm\n0,100\n1,1e9\n2,100\n", r"height of frame 1 = 1e\+09 mm: must be a finite number from 1 to"),
+        (
+            "frame,height_mm\n0,1e-9\n1,100\n2,100\n",
+            r"height of frame 0 = 1e-09 mm: must be .*\(a floor camera's height\)",
+        ),
         ("frame,height_mm\n0,100\n1,100mm\n2,100\n", r"height.csv:3: height_mm '100mm' of frame 1: not a number"),
         ("frame,height_mm\n0,100\n1,100\n", r"2 height\(s\) for 3 frame\(s\); need one per frame"),
         ("frame,height_mm\n0,100\n1,100,3\n2,100\n", r"height.csv:3: '1,100,3': need two cells"),
@@ -264,3 +273,32 @@ def test_phase_corr_follows_a_bounce_too_small_for_one_frames_scale(tmp_path):
     z_frame, wrong_frame = heights("frame", {"image_scale_window": "1"})
     assert np.abs(z_frame - heights_mm).max() > 0.1
     assert wrong_frame >= 1
+
+
+def test_every_reader_of_a_camera_height_takes_the_one_range(tmp_path, capsys):
+    """A camera height of 1e9 or 1e-9 mm in sequence.json's rig.height_mm (taken before, and
+    every step came out scaled by it) is refused in one line naming the field and the rule;
+    the scene's own (the renderer's) bounds lie inside the range."""
+    import dataclasses
+    import json
+
+    from floorsim.scene import CameraSpec
+    from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, height_problem
+    from floorvo.cli import main
+    from floorvo.config import rule_of
+
+    lo, hi = CAMERA_HEIGHT_RANGE_MM
+    assert height_problem(100.0) is None and height_problem(lo) is None and height_problem(hi) is None
+    for bad in (1e9, 1e-9, float("nan"), float("inf"), -100.0, "high"):
+        assert height_problem(bad), bad
+    scene = rule_of({f.name: f for f in dataclasses.fields(CameraSpec)}["height_mm"])
+    assert scene.min is not None and scene.max is not None and lo <= scene.min and scene.max <= hi
+    root = _write(tmp_path)
+    meta = json.loads((root / "sequence.json").read_text())
+    for height, rule in ((1e9, f"must be <= {hi}"), (1e-9, f"must be >= {lo}")):
+        meta["rig"]["height_mm"] = height
+        (root / "sequence.json").write_text(json.dumps(meta))
+        rc = main(["run", str(root), "-e", "phase-corr", "-o", str(tmp_path / "run")])
+        err = capsys.readouterr().err
+        assert rc == 1 and err.count("\n") == 1 and "Traceback" not in err, err
+        assert f"rig.height_mm = {height} mm: {rule} mm" in err, err

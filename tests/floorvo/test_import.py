@@ -483,9 +483,9 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     base = ["import", str(src), "-o", out]
     assert "holds no camera calibration; give --camera FILE" in _one_line_error(capsys, base + ["--fps", "10"])
     assert "states no frame times; give --timestamps FILE or --fps" in _one_line_error(capsys, base + FLAGS)
-    assert "--height-mm nan: must be a finite number > 0" in _one_line_error(
-        capsys, base + FLAGS + ["--fps", "10", "--height-mm", "nan"]
-    )
+    for height in ("nan", "1e9", "1e-9", "0.1"):  # 0.1: 100 mm given in metres
+        err = _one_line_error(capsys, base + FLAGS + ["--fps", "10", "--height-mm", height])
+        assert f"--height-mm {float(height)} mm: must be a finite number from 1 to 20000 mm" in err
     assert "--fps -3.0: must be a finite number > 0" in _one_line_error(capsys, base + FLAGS + ["--fps", "-3"])
     assert "--fx, --cy missing" in _one_line_error(capsys, base + ["--fy", "200", "--cx", "80", "--fps", "10"])
     assert "--distortion '0.1,x': expected numbers" in _one_line_error(

@@ -52,7 +52,7 @@ def _with(path: str, value):
         ("rig.height_mm", "80mm", "rig.height_mm = '80mm': must be a number or none"),
         ("fps", "30fps", "fps = '30fps': must be a number"),
         ("rig.height_mm", float("nan"), "rig.height_mm = nan mm: must be a finite number"),
-        ("rig.height_mm", -5.0, "rig.height_mm = -5.0 mm: must be > 0 mm"),
+        ("rig.height_mm", -5.0, "rig.height_mm = -5.0 mm: must be >= 1.0 mm"),
         ("rig", "none", "rig = 'none': must be a table"),
         ("fps", 0, "fps = 0.0 Hz: must be >= 0.01 Hz"),
         ("fps", 1e7, "fps = 10000000.0 Hz: must be <= 1000000.0 Hz"),
@@ -127,7 +127,7 @@ def test_list_config_sequence_prints_every_key(capsys):
     rows = {line.split()[0]: line for line in out.splitlines()[2:]}
     assert set(rows) >= {f for f in SequenceMeta.__dataclass_fields__ if f not in ("camera", "rig")}
     assert "camera.K" in rows and "(required)" in rows["camera.K"]
-    assert "mm" in rows["rig.height_mm"].split() and "> 0" in rows["rig.height_mm"]
+    assert "mm" in rows["rig.height_mm"].split() and "[1.0, 20000.0]" in rows["rig.height_mm"]
 
 
 def test_the_optional_sensor_block_states_the_row_times_and_is_checked(tmp_path):

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from floorvo import __version__
+from floorvo.camera import height_problem
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import read_image
@@ -222,6 +223,16 @@ def _positive(value: float | None, what: str) -> float | None:
     return v
 
 
+def _height(value: float | None, what: str) -> float | None:
+    """``value`` (mm) when it is a camera height (:func:`floorvo.camera.height_problem`); None stays None."""
+    if value is None:
+        return None
+    problem = height_problem(value)
+    if problem:
+        raise ConfigError(f"{what} {shown(value)} mm: {problem}")
+    return float(value)
+
+
 def _camera_for(cal: CameraCalibration | None, size_px: tuple[int, int], what: str) -> CameraCalibration:
     if cal is None:
         raise ConfigError(
@@ -255,9 +266,9 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     if opts.intrinsics is not None:
         given = CameraCalibration(camera_from_flags(rec.size_px, *opts.intrinsics, opts.distortion))
     cal = _camera_for(given or rec.calibration, rec.size_px, what)
-    height_mm = _positive(opts.height_mm, "--height-mm")
+    height_mm = _height(opts.height_mm, "--height-mm")
     if height_mm is None:
-        height_mm = _positive(rec.height_mm, f"{what}: camera height (mm)")
+        height_mm = _height(rec.height_mm, f"{what}: camera height")
     fps_given = _positive(opts.fps, "--fps")
     n = rec.frame_count
     if n < 1:

@@ -21,7 +21,8 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
 * ``height``: a ``sensor_msgs/Range`` topic with ``height`` in its name (another Range topic
   only when given: a robot's other range sensors measure something else): the camera height
   above the floor, each reading (m) belonging to the frame within 1 ms of its stamp (frames
-  without one have none; a reading that is not finite and > 0 is none).
+  without one have none; a reading that is not finite and > 0 is none, and so is one outside
+  :data:`floorvo.camera.CAMERA_HEIGHT_RANGE_MM`, counted in one warning line).
 
 The rig height is the bag's ``custom_data`` entry :data:`CAMERA_HEIGHT_KEY` (mm) in
 ``metadata.yaml``, as ``floorsim export --format rosbag2`` writes it.
@@ -44,7 +45,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from floorvo.camera import CameraModel, intrinsics_from_K
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel, height_problem, intrinsics_from_K
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, invert_T, position_problem
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
@@ -438,10 +439,26 @@ def read(source: Path, options=None) -> Recording:
     if "height" in topics:
         heights = np.full(len(frames_ns), np.nan)
         value_of = dict(height_readings)
+        implausible = []
         for t_reading, t_frame in _pair(frames_ns, np.asarray(list(value_of), dtype=np.int64)).items():
             r_m = value_of[t_reading]
-            if np.isfinite(r_m) and r_m > 0:  # REP 117: +-inf is out of range, no reading
+            if not (np.isfinite(r_m) and r_m > 0):  # REP 117: +-inf is out of range, no reading
+                continue
+            if height_problem(r_m * 1000.0):
+                implausible.append(r_m)
+            else:
                 heights[index_of[t_frame]] = r_m * 1000.0
+        if implausible:
+            lo, hi = CAMERA_HEIGHT_RANGE_MM
+            log.warning(
+                "%s %s: %d reading(s) outside %g-%g mm (the first %.6g m) taken as no reading",
+                source,
+                topics["height"],
+                len(implausible),
+                lo,
+                hi,
+                implausible[0],
+            )
     flatfields = {"cam0": flats["flatfield"]} if "flatfield" in flats else {}
     if "right_flatfield" in flats:
         flatfields["cam1"] = flats["right_flatfield"]

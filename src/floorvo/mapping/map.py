@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.camera import CameraModel
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel
 from floorvo.config import MAX_SEED, Config, build, from_overrides, param, to_plain
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
 from floorvo.geometry import T_world_cam_down
@@ -376,7 +376,9 @@ class MapFile(Config):
     schema_version: int = param(choices=(MAP_SCHEMA_VERSION,), doc="map folder format version")
     format: str = param(choices=(MAP_FORMAT,), doc="format name")
     camera: dict = param(doc="intrinsics (CameraModel.to_dict)")
-    height_mm: float = param(unit="mm", gt=0, doc="camera height above the floor")
+    height_mm: float = param(
+        unit="mm", min=CAMERA_HEIGHT_RANGE_MM[0], max=CAMERA_HEIGHT_RANGE_MM[1], doc="camera height above the floor"
+    )
     parameters: dict = param(doc="the MapConfig used")
     keyframes: tuple[dict, ...] = param(doc="frame, timestamp_s, T_world_kf of each keyframe")
     arrays: MapArraysEntry = param(doc="the arrays file and its checksum")
