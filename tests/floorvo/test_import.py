@@ -189,6 +189,53 @@ def test_a_truncated_video_is_one_line_not_a_shorter_sequence(tmp_path, synth, c
     assert main(["import", str(path), "-o", str(tmp_path / "whole"), *FLAGS]) == 0  # the whole file imports
 
 
+def test_a_video_whose_times_do_not_increase_is_refused_unless_fps_is_given(
+    tmp_path, synth, capsys, caplog, monkeypatch
+):
+    """A container whose frame 3 is stamped at frame 2's time was imported with i / (stated fps)
+    in place of every time and exit code 0; now it is one line naming the frame and both times,
+    and --fps (or --timestamps) is the explicit way to import it."""
+    _, frames, _ = synth
+    path = tmp_path / "clip.avi"
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), 10.0, (CAM.width_px, CAM.height_px), isColor=False)
+    for f in frames:
+        w.write(f)
+    w.release()
+    real = cv2.VideoCapture
+
+    class RepeatedStamp:
+        """The real capture, but frame 3 reports frame 2's presentation time."""
+
+        def __init__(self, *args):
+            self._cap, self._read = real(*args), 0
+
+        def read(self):
+            out = self._cap.read()
+            self._read += out[0]
+            return out
+
+        def get(self, prop):
+            if prop == cv2.CAP_PROP_POS_MSEC:
+                return 100.0 * (self._read - 1 - (self._read == 4))
+            return self._cap.get(prop)
+
+        def __getattr__(self, name):
+            return getattr(self._cap, name)
+
+    monkeypatch.setattr(cv2, "VideoCapture", RepeatedStamp)
+    out = tmp_path / "s"
+    err = _one_line_error(capsys, ["import", str(path), "-o", str(out), *FLAGS])
+    assert "frame times must increase, but frame 3 at 0.200000 s follows frame 2 at 0.200000 s" in err
+    assert "give --fps HZ to take i / HZ instead (the container states 10 fps) or --timestamps FILE" in err
+    assert not out.exists()
+    assert main(["import", str(path), "-o", str(out), *FLAGS, "--fps", "20"]) == 0
+    assert "frame 3 at 0.200000 s follows frame 2 at 0.200000 s); taking i / 20.0 fps (--fps)" in caplog.text
+    np.testing.assert_allclose(Sequence.open(out).timestamps_s, np.arange(7) / 20.0, atol=1e-9)
+    (tmp_path / "t.txt").write_text("".join(f"{0.5 * i}\n" for i in range(7)))
+    assert main(["import", str(path), "-o", str(tmp_path / "s2"), *FLAGS, "--timestamps", str(tmp_path / "t.txt")]) == 0
+    np.testing.assert_allclose(Sequence.open(tmp_path / "s2").timestamps_s, np.arange(7) * 0.5, atol=1e-9)
+
+
 # ----------------------------------------------------------------------------- camera files
 def test_camera_files_ros_opencv_kalibr(tmp_path):
     (tmp_path / "ros.yaml").write_text(

@@ -41,7 +41,12 @@ def add_parser(sub) -> None:
         help="frame times, one line per frame (first number of each line); overrides the source's",
     )
     p.add_argument("--time-unit", choices=list(TIME_UNITS_S), default="s", help="unit of --timestamps (default s)")
-    p.add_argument("--fps", type=float, default=None, help="frame rate (Hz) of a source without frame times")
+    p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate (Hz) of a source without frame times, or of a video whose times do not increase (i / FPS)",
+    )
     p.add_argument(
         "--groundtruth", metavar="FILE", default=None, help="T_world_cam0 as TUM (s, m) or EuRoC CSV (ns, m)"
     )

@@ -1,7 +1,12 @@
 """A video file as a recording (OpenCV ``VideoCapture``: whatever its FFmpeg build decodes).
 
-Frame times are the decoder's presentation times (``CAP_PROP_POS_MSEC`` of each frame);
-when a container gives none that increase, ``i / fps`` of its stated rate. Frames are
+Frame times are the decoder's presentation times (``CAP_PROP_POS_MSEC`` of each frame). Times
+that do not increase (a damaged or variable-rate container; a frame at the time of the one
+before it) are refused in one line naming the first such frame and both times, unless the
+user gives the times: ``--fps HZ`` (``ImportOptions.fps``) takes ``i / HZ`` instead, said in one
+warning line, and ``--timestamps FILE`` replaces them. Taking ``i / fps`` of the container's
+stated rate without being asked put every frame after a duplicate at a time it was not
+recorded at, with exit code 0. Frames are
 converted to mono (8-bit). The file is decoded twice (counting, then writing), so a long
 video is never held in memory.
 """
@@ -66,11 +71,21 @@ def read(source: Path, options=None) -> Recording:
         )
     fps_ok = np.isfinite(fps) and fps > 0
     ts = np.round(np.array(times_ms) * 1000.0) / 1e6  # to the microsecond: decoders add float noise
+    by_fps = False  # the container's times replaced by i / --fps
     if n > 1 and np.any(np.diff(ts) <= 0):
-        if not fps_ok:
-            raise SequenceError(f"{source}: states neither frame times nor a frame rate; give --fps or --timestamps")
-        log.warning("%s: frame times do not increase; taking i / %.6g fps", source, fps)
-        ts = np.arange(n) / fps
+        k = int(np.argmax(np.diff(ts) <= 0)) + 1
+        where = f"frame {k} at {ts[k]:.6f} s follows frame {k - 1} at {ts[k - 1]:.6f} s"
+        if getattr(options, "timestamps_s", None) is not None:
+            pass  # --timestamps replaces them
+        elif getattr(options, "fps", None) is not None:
+            log.warning("%s: frame times do not increase (%s); taking i / %s fps (--fps)", source, where, options.fps)
+            by_fps = True
+        else:
+            rate = f"the container states {fps:.6g} fps" if fps_ok else "the container states no rate"
+            raise SequenceError(
+                f"{source}: frame times must increase, but {where}; give --fps HZ to take i / HZ instead "
+                f"({rate}) or --timestamps FILE"
+            )
 
     def frames() -> Iterator[FrameImages]:
         cap2 = _open(source)
@@ -90,7 +105,7 @@ def read(source: Path, options=None) -> Recording:
         size_px=size,
         bit_depth=8,
         frames=frames,
-        timestamps_s=ts,
+        timestamps_s=None if by_fps else ts,
         fps=fps if fps_ok else None,
         details={"stated_fps": fps if fps_ok else None},
     )
