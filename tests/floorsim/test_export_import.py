@@ -153,6 +153,48 @@ def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     assert not imp.has_stereo and imp.frame_count == 8
 
 
+def _bag_without(src, dst, topic: str, k: int) -> None:
+    """Copy the ROS 2 bag ``src`` to ``dst`` leaving out the ``k``-th message of ``topic``."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Reader(src) as r, Writer(dst, version=9) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=ts) for c in r.connections}
+        seen = 0
+        for c, t, raw in r.messages():
+            if c.topic == topic:
+                seen += 1
+                if seen - 1 == k:
+                    continue
+            w.write(conns[c.id], t, raw)
+
+
+def test_a_bags_left_image_without_a_right_one_is_refused_unless_left_only(tmp_path, original, capsys, caplog):
+    """A left image without its right partner was left out under a warning: a stereo sequence
+    with a gap, exit code 0. It is refused in one line, as EuRoC's cam1 rows are; --left-only
+    imports the left camera alone. A left image without its depth partner is left out, said
+    in one line."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "rosbag2", tmp_path / "exported")
+    _bag_without(exported, tmp_path / "no_right", "/cam1/image_raw", 3)
+    out = tmp_path / "imported"
+    assert main(["import", str(tmp_path / "no_right"), "-o", str(out), "--height-mm", "100"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    stamp = int(round(seq.timestamps_s[3] * 1e9))
+    assert "1 of 8 images have no /cam1/image_raw message within 1 ms (the first: image 3 at" in err[0]
+    assert f"at {stamp} ns): a stereo recording needs a right image at each left image's stamp" in err[0]
+    assert "give --left-only to import the left camera alone" in err[0]
+    assert not out.exists()
+    assert main(["import", str(tmp_path / "no_right"), "-o", str(out), "--height-mm", "100", "--left-only"]) == 0
+    assert Sequence.open(out).frame_count == 8 and not Sequence.open(out).has_stereo
+    _bag_without(exported, tmp_path / "no_depth", "/cam0/depth", 5)
+    assert main(["import", str(tmp_path / "no_depth"), "-o", str(tmp_path / "d"), "--height-mm", "100"]) == 0
+    assert Sequence.open(tmp_path / "d").frame_count == 7
+    assert "1 of 8 images have no /cam0/depth message within 1 ms (the first: image 5 at" in caplog.text
+
+
 @pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
 def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path, capsys, fmt):
     """Both exports named the flat field, height.csv and the rig height as left out, and an import

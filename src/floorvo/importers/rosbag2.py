@@ -29,9 +29,12 @@ The rig height is the bag's ``custom_data`` entry :data:`CAMERA_HEIGHT_KEY` (mm)
 
 Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
 some zero and some not is refused: two clocks).
-A right or depth image belongs to the left image whose stamp is within 1 ms of its own;
-left images without their partner are left out (with a warning); ``ImportOptions.left_only``
-(``--left-only``) leaves the right topic out. The bag is read twice
+A right or depth image belongs to the left image whose stamp is within 1 ms of its own. A left
+image without a right partner is refused in one line giving their number and the first, as
+EuRoC's cam1 rows are (leaving them out made a stereo sequence with gaps, under one warning);
+``ImportOptions.left_only`` (``--left-only``) leaves the right topic out. Left images without a
+depth partner are left out, their number and the first in one warning line. A right or depth
+image without a left one is not read. The bag is read twice
 (stamps and calibration first, images when written), so it is never held in memory.
 """
 
@@ -384,14 +387,24 @@ def read(source: Path, options=None) -> Recording:
             raise SequenceError(f"{what}: two images share the stamp {int(left[np.argmin(np.diff(left))])} ns")
     keep = np.ones(len(left), bool)
     partners: dict[str, dict[int, int]] = {}
+    within = f"within {PAIR_TOLERANCE_NS / 1e6:g} ms"
     for role in ("right", "depth"):
         if role in topics:
             partners[role] = _pair(left, np.asarray(stamps[role], dtype=np.int64))
-            keep &= np.isin(left, list(partners[role].values()))
+            paired = np.isin(left, list(partners[role].values()))
+            if not paired.all():
+                k = int(np.argmin(paired))
+                missing = f"{int((~paired).sum())} of {len(left)} images have no {topics[role]} message {within}"
+                first_one = f"the first: image {k} at {int(left[k])} ns"
+                if role == "right":  # as EuRoC's cam1 rows (euroc._unpaired_stamp)
+                    raise SequenceError(
+                        f"{what}: {missing} ({first_one}): a stereo recording needs a right image at each left image's "
+                        "stamp; give --left-only to import the left camera alone"
+                    )
+                log.warning("%s: %s (%s); they are left out", what, missing, first_one)
+            keep &= paired
     if not keep.any():
-        raise SequenceError(f"{what}: no image has a right/depth partner within {PAIR_TOLERANCE_NS / 1e6:g} ms")
-    if not keep.all():
-        log.warning("%s: %d image(s) without their right/depth partner left out", what, int((~keep).sum()))
+        raise SequenceError(f"{what}: no image has a right/depth partner {within}")
     frames_ns = left[keep]
     index_of = {int(t): k for k, t in enumerate(frames_ns)}
 
