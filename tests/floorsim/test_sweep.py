@@ -159,3 +159,20 @@ def test_a_sweep_into_the_folder_of_another_study_is_refused_and_a_grown_grid_re
     sweep.write_text(sweep.read_text().replace('estimators = ["scaled", "lossy"]', 'estimators = ["scaled"]'))
     with pytest.raises(ConfigError, match=r"differs in estimators"):
         run_sweep(sweep, out, workers=2, processes=False)
+
+
+def test_a_worker_count_beyond_the_machine_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    """--jobs 1000000 tried to start a million processes; --workers as many Dask workers."""
+    import floorsim.bench.sweep as sweep_module
+    from floorsim.cli import main
+
+    monkeypatch.setattr(sweep_module, "usable_cpus", lambda: 2)
+    sweep = _sweep_file(tmp_path)
+    for flag, n in (("--jobs", 10**6), ("--workers", 9), ("--jobs", 0), ("--workers", -1)):
+        out = tmp_path / f"out{flag}{n}"
+        assert main(["sweep", str(sweep), "-o", str(out), flag, str(n)]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err, err
+        assert f"{flag} {n}: must be from 1 to 8 (4 per CPU of the 2 this process may use)" in err, err
+        assert not out.exists()
+    assert sweep_module.local_workers_problem(8) is None

@@ -215,6 +215,29 @@ def _exit_with_parent(parent_alive) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
+#: How many local workers (``--jobs``, ``--workers``) a study may start per CPU this process may
+#: use: each holds a scene of up to 1.8 GB and renders on every CPU it gets, so more than a few
+#: per CPU only wait and fill the memory; ``--jobs 1000000`` tried to start a million processes.
+MAX_WORKERS_PER_CPU = 4
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity where the system has one, else all)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - no sched_getaffinity (macOS, Windows)
+        return max(1, os.cpu_count() or 1)
+
+
+def local_workers_problem(n: int) -> str | None:
+    """Why ``n`` local worker processes is no count a study may start (1 to
+    :data:`MAX_WORKERS_PER_CPU` per usable CPU), or None."""
+    most = MAX_WORKERS_PER_CPU * usable_cpus()
+    if not 1 <= n <= most:
+        return f"must be from 1 to {most} ({MAX_WORKERS_PER_CPU} per CPU of the {usable_cpus()} this process may use)"
+    return None
+
+
 @contextlib.contextmanager
 def job_pool(
     scheduler: str | None = None, workers: int | None = None, jobs: int = 1, processes: bool = True
@@ -582,10 +605,10 @@ def run_sweep(
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if scheduler is not None and workers is not None:
         raise ConfigError("--scheduler and --workers: give one of them (a cluster to join, or a local one to start)")
-    if workers is not None and workers < 1:
-        raise ConfigError(f"--workers {workers}: must be >= 1")
-    if jobs < 1:
-        raise ConfigError(f"--jobs {jobs}: must be >= 1")
+    for flag, n in (("--workers", workers), ("--jobs", jobs)):
+        problem = None if n is None else local_workers_problem(n)
+        if problem:
+            raise ConfigError(f"{flag} {n}: {problem}")
     spec = load_sweep(sweep_path)
     base = _check_study(spec, load_scene, runner)
     out_dir = Path(out_dir)

@@ -32,9 +32,15 @@ def add_parser(subparsers) -> None:
     where.add_argument(
         "--scheduler", metavar="tcp://HOST:PORT", default=None, help="send the jobs to this Dask scheduler"
     )
-    where.add_argument("--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N workers")
     where.add_argument(
-        "--jobs", type=int, default=1, metavar="N", help="local worker processes when not on Dask (default 1)"
+        "--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N workers (<= 4 per CPU)"
+    )
+    where.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="local worker processes when not on Dask (default 1, <= 4 per CPU)",
     )
     p.add_argument(
         "--cache", type=Path, default=None, help="folder of rendered sequences to reuse (default DIR/sequences)"
