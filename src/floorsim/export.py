@@ -41,6 +41,7 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import re
 import secrets
 import shutil
 from collections.abc import Iterator
@@ -49,11 +50,12 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import FloorbenchError
+from floorvo.errors import FloorbenchError, FolderLockedError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
 from floorvo.importers.euroc import CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
 from floorvo.io import TEMP_SUFFIX, atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
+from floorvo.locking import lock_folder
 from floorvo.sequence import Sequence
 
 __all__ = [
@@ -103,16 +105,58 @@ def _check_out(out: str | os.PathLike, *, may_exist_empty: bool = True) -> Path:
     return path
 
 
+def _stage_names(final: Path) -> re.Pattern[str]:
+    """The names of the temporary folders :func:`_staged` makes for ``final``: ``.NAME.XXXXXXXX.tmp``."""
+    return re.compile(re.escape(f".{final.name}.") + r"[0-9a-f]{8}" + re.escape(TEMP_SUFFIX))
+
+
+def _remove_stale_stages(final: Path) -> list[Path]:
+    """Delete the temporary folders of exports to ``final`` that were killed (:func:`_staged`):
+    only folders named as they are, beside ``final``, that no running export holds (each
+    holds its folder's lock, :func:`floorvo.locking.lock_folder`, for as long as it writes;
+    a killed process's lock is gone with it). A symbolic link is never followed. Returns the
+    folders removed."""
+    removed: list[Path] = []
+    if not final.parent.is_dir():
+        return removed
+    names = _stage_names(final)
+    for p in sorted(final.parent.iterdir()):
+        if not names.fullmatch(p.name) or p.is_symlink() or not p.is_dir():
+            continue
+        try:
+            lock = lock_folder(p, "export")
+        except FolderLockedError:
+            continue  # a running export's
+        try:
+            shutil.rmtree(p)
+        finally:
+            lock.release()
+        log.info("%s: removed the temporary folder of an export that was killed", p)
+        removed.append(p)
+    return removed
+
+
 @contextmanager
 def _staged(final: Path) -> Iterator[Path]:
     """The path an export writes to, renamed to ``final`` when it is complete: ``final``'s name
     inside a hidden temporary folder ``.NAME.XXXXXXXX.tmp`` beside it, removed with what it holds
     when the export fails. A frame that failed to decode half-way left half an export under the
-    final name, which the next export refused as 'output exists'; a killed export leaves only the
-    hidden folder. Of two exports to one path the second to finish is refused (output exists)."""
+    final name, which the next export refused as 'output exists'. The folder is locked while the
+    export writes, so that a killed export's (it stayed behind, hidden, for good) is removed by
+    the next export to the same path (:func:`_remove_stale_stages`) and a running one's is not.
+    Of two exports to one path the second to finish is refused (output exists)."""
     final.parent.mkdir(parents=True, exist_ok=True)
-    stage = final.parent / f".{final.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"
-    stage.mkdir()
+    _remove_stale_stages(final)
+    while True:
+        stage = final.parent / f".{final.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"
+        try:
+            stage.mkdir()
+            break
+        except FileExistsError:
+            continue
+    # waits (briefly) only for another export's clean-up that took this new folder for a stale one;
+    # the folder is made again if it removed it
+    lock = lock_folder(stage, "export", wait=True)
     try:
         yield stage / final.name
         try:
@@ -125,6 +169,7 @@ def _staged(final: Path) -> Iterator[Path]:
             raise
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+        lock.release()
 
 
 def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:

@@ -212,3 +212,36 @@ def test_an_export_that_fails_half_way_leaves_nothing_behind(stereo_depth_seq, t
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "seq"]
     if fmt == "rosbag2":  # the bag's file is named after the folder it was written as
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metadata.yaml", "out.db3"]
+
+
+def test_a_killed_exports_hidden_folder_is_removed_by_the_next_export(stereo_depth_seq, tmp_path):
+    """A killed export left its hidden temporary folder beside the output for good. The next
+    export to the same path removes it; a running export's (locked), a link named like one and
+    other hidden folders stay."""
+    import subprocess
+    import sys
+
+    from _procs import child_env, held_by_another_process
+
+    seq_dir, _ = stereo_depth_seq
+    killed = (
+        "import os, signal, sys\nimport floorsim.export as E\n"
+        "def die(seq, out):\n    (out / 'mav0').mkdir(parents=True)\n    os.kill(os.getpid(), signal.SIGKILL)\n"
+        "E._write_euroc = die\nE.export_sequence(sys.argv[1], 'euroc', sys.argv[2])\n"
+    )
+    r = subprocess.run([sys.executable, "-c", killed, str(seq_dir), str(tmp_path / "out")], env=child_env())
+    assert r.returncode == -9
+    (stale,) = [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]
+    assert re.fullmatch(r"\.out\.[0-9a-f]{8}\.tmp", stale.name) and (stale / "out" / "mav0").is_dir()
+    running = tmp_path / ".out.0123abcd.tmp"
+    others = [tmp_path / ".out.notours.tmp", tmp_path / ".other.0123abcd.tmp"]
+    for p in others:
+        p.mkdir()
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / ".out.89abcdef.tmp").symlink_to(tmp_path / "elsewhere")
+    with held_by_another_process(running):
+        assert export_sequence(seq_dir, "euroc", tmp_path / "out") == tmp_path / "out"
+        assert not stale.exists() and running.is_dir()
+    assert all(p.is_dir() for p in others) and (tmp_path / "elsewhere").is_dir()
+    assert (tmp_path / ".out.89abcdef.tmp").is_symlink()
+    assert Sequence.open(seq_dir).frame_count == len(list((tmp_path / "out" / "mav0" / "cam0" / "data").iterdir()))
