@@ -47,6 +47,9 @@ __all__ = [
     "checked_output_path",
     "file_name_problem",
     "png_size",
+    "png_header_size",
+    "image_size_problem",
+    "MAX_IMAGE_PIXELS",
     "TEMP_SUFFIX",
 ]
 
@@ -184,6 +187,20 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
+#: The most pixels an image file may state (a PNG's header), checked before it is decoded:
+#: 8192 x 8192, 8 times a 12-megapixel camera's frame, 400 MB decoded as 16-bit colour. A PNG of
+#: 389 kB stating 20000 x 20000 pixels decoded to 400 MB (or 2.4 GB as 16-bit colour).
+MAX_IMAGE_PIXELS = 8192 * 8192
+
+
+def png_header_size(head: bytes) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` the PNG header (IHDR) at the start of ``head`` states; None when
+    ``head`` does not start like a PNG."""
+    if len(head) < 24 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
 def png_size(path: str | os.PathLike) -> tuple[int, int] | None:
     """``(width_px, height_px)`` a PNG file's header (IHDR) states, read without decoding; None when
     the file cannot be read or does not start like a PNG. A reader that knows the size it expects
@@ -193,29 +210,52 @@ def png_size(path: str | os.PathLike) -> tuple[int, int] | None:
             head = fh.read(24)
     except OSError:
         return None
-    if len(head) < 24 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+    return png_header_size(head)
+
+
+def image_size_problem(stated: tuple[int, int] | None) -> str | None:
+    """Why an image whose header states ``stated`` = ``(width_px, height_px)`` (:func:`png_size`;
+    None: not known) must not be decoded, or None: more than :data:`MAX_IMAGE_PIXELS`."""
+    if stated is None or stated[0] * stated[1] <= MAX_IMAGE_PIXELS:
         return None
-    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    return f"states {stated[0]}x{stated[1]} px in its header, more than the {MAX_IMAGE_PIXELS} px (8192 x 8192) an image may have"
 
 
-def read_png(path: str | os.PathLike) -> np.ndarray:
+def read_png(path: str | os.PathLike, size_px: tuple[int, int] | None = None, size_source: str = "") -> np.ndarray:
     """Read a PNG unchanged (8- or 16-bit, mono or colour).
 
-    Raises :class:`SequenceError` with a one-line message if the file is missing or is
-    not a readable PNG.
+    Raises :class:`SequenceError` with a one-line message if the file is missing, is not a
+    readable PNG, or states in its header another size than ``size_px`` or too many pixels
+    (:func:`read_image`).
     """
-    return read_image(path, "frame file", "PNG")
+    return read_image(path, "frame file", "PNG", size_px, size_source)
 
 
-def read_image(path: str | os.PathLike, noun: str = "image file", kind: str = "image") -> np.ndarray:
+def read_image(
+    path: str | os.PathLike,
+    noun: str = "image file",
+    kind: str = "image",
+    size_px: tuple[int, int] | None = None,
+    size_source: str = "",
+) -> np.ndarray:
     """Read an image file unchanged (whatever OpenCV decodes: PNG, JPEG, TIFF, BMP; 8- or 16-bit).
 
     A missing file raises :class:`SequenceError` "PATH: NOUN is missing", an undecodable
-    one "PATH: not a readable KIND (corrupt or truncated)".
+    one "PATH: not a readable KIND (corrupt or truncated)". A PNG whose header states another
+    size than ``size_px`` (``(width_px, height_px)``, when given; ``size_source`` says where
+    it comes from: ``frame 0 is 648x494 px``) or more than :data:`MAX_IMAGE_PIXELS` is refused
+    before it is decoded (:func:`image_size_problem`): a small file can state gigabytes.
     """
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"{path}: {noun} is missing")
+    stated = png_size(path)
+    if stated is not None and size_px is not None and stated != tuple(size_px):
+        expected = size_source or f"need {size_px[0]}x{size_px[1]} px"
+        raise SequenceError(f"{path}: image is {stated[0]}x{stated[1]}, {expected}")
+    problem = image_size_problem(stated)
+    if problem:
+        raise SequenceError(f"{path}: {kind} {problem}")
     data = np.fromfile(path, dtype=np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:

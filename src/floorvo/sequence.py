@@ -539,13 +539,8 @@ class Sequence:
         """Frame ``index`` of ``cam`` as stored (uint8 or uint16, (H, W))."""
         self._check_index(index)
         cam_model = self.camera_model(cam)
-        stated = png_size(self.image_path(index, cam))
-        if stated is not None and stated != cam_model.size:  # refused before decoding (a PNG bomb)
-            raise SequenceError(
-                f"{self.image_path(index, cam)}: image is {stated[0]}x{stated[1]}, "
-                f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
-            )
-        img = read_png(self.image_path(index, cam))
+        size = f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
+        img = read_png(self.image_path(index, cam), cam_model.size, size)  # another size: refused before decoding
         if img.ndim == 3:
             import cv2
 
@@ -601,12 +596,7 @@ class Sequence:
         if not p.is_file():
             return None
         model = self.camera_model(cam)
-        stated = png_size(p)
-        if stated is not None and stated != model.size:  # refused before decoding (a PNG bomb)
-            raise SequenceError(
-                f"{p}: image is {stated[0]}x{stated[1]}, sequence.json says a mono {model.width_px}x{model.height_px}"
-            )
-        img = read_png(p)
+        img = read_png(p, model.size, f"sequence.json says a mono {model.width_px}x{model.height_px}")
         _check_bit_depth(img, (self.meta.get("calib") or {}).get("flatfield_bit_depth"), p, "calib.flatfield_bit_depth")
         if img.shape != (model.height_px, model.width_px):  # estimators ended in a ValueError from inside
             channels = f" with {img.shape[2]} channels" if img.ndim == 3 else ""

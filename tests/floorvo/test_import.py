@@ -579,7 +579,51 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     )
     cv2.imwrite(str(src / "3.png"), frames[0][:100])
     err = _one_line_error(capsys, base + FLAGS + ["--fps", "10"])
-    assert "image of frame 3 is 162x100 px, frame 0 is 162x124 px" in err
+    assert f"{src / '3.png'}: image is 162x100, frame 0 is 162x124 px" in err  # from its header
+    assert not (tmp_path / "out" / "cam0" / "000003.png").exists()
+
+
+def _png_header_only(path, width: int, height: int) -> None:
+    """A PNG of 57 bytes whose header states ``width`` x ``height`` 8-bit grey pixels."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"")) + chunk(b"IEND", b"")
+    )
+
+
+def test_a_png_bomb_is_refused_from_its_header_before_decoding(tmp_path, synth, capsys, monkeypatch):
+    """A PNG of 389 kB stating 20000 x 20000 pixels was decoded in full (400 MB) as an image-folder
+    frame or a --flatfield; its header is read first now: more than 8192 x 8192 pixels, or (after
+    the first frame, and for a flat field) another size than the frames', is refused in one line."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    bomb = tmp_path / "bomb.png"
+    _png_header_only(bomb, 100_000, 100_000)
+    real_imdecode = cv2.imdecode
+
+    def imdecode(data, flags):
+        assert data.size != bomb.stat().st_size, "the bomb was decoded"
+        return real_imdecode(data, flags)
+
+    monkeypatch.setattr(cv2, "imdecode", imdecode)
+    base = ["import", str(src), "-o", str(tmp_path / "out"), *FLAGS, "--fps", "10"]
+    err = _one_line_error(capsys, [*base, "--flatfield", str(bomb)])
+    assert f"{bomb}: image is 100000x100000, the frames are 162x124 px" in err
+    (src / "3.png").write_bytes(bomb.read_bytes())
+    err = _one_line_error(capsys, base)
+    assert f"{src / '3.png'}: image is 100000x100000, frame 0 is 162x124 px" in err
+    (src / "0.png").write_bytes(bomb.read_bytes())  # the first frame: no size to expect yet
+    err = _one_line_error(capsys, base)
+    assert f"{src / '0.png'}: image (PNG, JPEG, TIFF or BMP) states 100000x100000 px in its header, more than" in err
     assert not (tmp_path / "out" / "cam0" / "000003.png").exists()
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from floorvo.errors import SequenceError, shown
 from floorvo.geometry import invert_T
 from floorvo.importers.camera_files import CameraCalibration, load_yaml, read_camera_file, transform_m_to_mm
-from floorvo.importers.recording import FrameImages, Recording, read_image_file
+from floorvo.importers.recording import FrameImages, Recording, read_image_file, size_of
 from floorvo.importers.times import read_euroc_groundtruth
 from floorvo.io import read_text
 
@@ -190,6 +190,8 @@ def read(source: Path, options=None) -> Recording:
             cam1 = read_camera_file(mav / "cam1" / "sensor.yaml").cam0
             cal = CameraCalibration(cal0.cam0, cam1, invert_T(T_B0) @ _T_BS_mm(mav / "cam1"))
     first = read_image_file(files0[0])
+    size = size_of(first)
+    frame0 = f"cam0's first frame is {size[0]}x{size[1]} px"
     gt = None
     gt_csv = mav / "state_groundtruth_estimate0" / "data.csv"
     if gt_csv.is_file():
@@ -198,7 +200,7 @@ def read(source: Path, options=None) -> Recording:
 
     # the sidecars a flag replaces are not read: a damaged one must not stop the import that replaces it
     flatfields = {
-        c: read_image_file(mav / c / FLATFIELD_FILE)
+        c: read_image_file(mav / c / FLATFIELD_FILE, size, frame0)
         for c in ("cam0", "cam1")
         if (c == "cam0" or files1 is not None)
         and (mav / c / FLATFIELD_FILE).is_file()
@@ -210,7 +212,8 @@ def read(source: Path, options=None) -> Recording:
 
     def frames() -> Iterator[FrameImages]:
         for i, f in enumerate(files0):
-            yield FrameImages(read_image_file(f), None if files1 is None else read_image_file(files1[i]))
+            right = None if files1 is None else read_image_file(files1[i], size, frame0)
+            yield FrameImages(read_image_file(f, size, frame0), right)  # another size: refused before decoding
 
     rate = None
     if cal0 is not None:

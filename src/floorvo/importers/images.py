@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from floorvo.errors import SequenceError, shown
-from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file
+from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file, size_of
 from floorvo.io import read_text
 
 __all__ = ["IMAGE_SUFFIXES", "detect", "read", "list_images"]
@@ -81,10 +81,12 @@ def read(source: Path, options=None) -> Recording:
     """The frames of ``source`` (a folder or a list file), read lazily."""
     files, times = list_images(source)
     first = read_image_file(files[0])
+    size = size_of(first)
+    frame0 = f"frame 0 is {size[0]}x{size[1]} px"
 
     def frames() -> Iterator[FrameImages]:
         for f in files:
-            yield FrameImages(read_image_file(f))
+            yield FrameImages(read_image_file(f, size, frame0))  # another size: refused before decoding
 
     log.info("%s: %d image files", source, len(files))
     return Recording(

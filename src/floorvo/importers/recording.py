@@ -42,6 +42,7 @@ __all__ = [
     "ImportResult",
     "to_mono",
     "read_image_file",
+    "size_of",
     "natural_key",
     "median_rate_hz",
     "write_recording",
@@ -203,9 +204,19 @@ def to_mono(image: np.ndarray, what: str) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
-def read_image_file(path: str | os.PathLike) -> np.ndarray:
-    """Read a PNG/JPEG/TIFF/BMP file unchanged (8- or 16-bit) and make it mono; one-line error if unreadable."""
-    return to_mono(read_image(path, "image file", "image (PNG, JPEG, TIFF or BMP)"), str(path))
+def read_image_file(
+    path: str | os.PathLike, size_px: tuple[int, int] | None = None, size_source: str = ""
+) -> np.ndarray:
+    """Read a PNG/JPEG/TIFF/BMP file unchanged (8- or 16-bit) and make it mono; one-line error if
+    unreadable. A PNG whose header states another size than ``size_px`` (``size_source``: where
+    that size comes from) or too many pixels is refused before it is decoded
+    (:func:`floorvo.io.read_image`)."""
+    return to_mono(read_image(path, "image file", "image (PNG, JPEG, TIFF or BMP)", size_px, size_source), str(path))
+
+
+def size_of(image: np.ndarray) -> tuple[int, int]:
+    """``(width_px, height_px)`` of an image array."""
+    return image.shape[1], image.shape[0]
 
 
 def median_rate_hz(timestamps_s: np.ndarray) -> float | None:
@@ -325,7 +336,9 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         meta["depth"] = {"format": "npy_float32_mm", "content": "depth along the optical axis, mm"}
     flats: dict[str, tuple[np.ndarray, str]] = {}
     if opts.flatfield is not None:
-        flats["cam0"] = (read_image_file(opts.flatfield), f"--flatfield {opts.flatfield}")
+        w0, h0 = cal.cam0.width_px, cal.cam0.height_px
+        flat = read_image_file(opts.flatfield, (w0, h0), f"the frames are {w0}x{h0} px")
+        flats["cam0"] = (flat, f"--flatfield {opts.flatfield}")
     for cam_name, image in rec.flatfields.items():
         if cam_name not in flats and (cam_name == "cam0" or stereo):
             flats[cam_name] = (image, f"{what}: {cam_name} flat field")
