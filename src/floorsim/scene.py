@@ -137,10 +137,10 @@ class FloorSpec(Config):
     seed: int | None = param(None, min=0, max=MAX_SEED, doc="the floor's seed (none: the scene's)")
     relief_scale: float = param(1.0, min=0, max=100.0, doc="multiplies the material's relief")
     spacing_mm: float | None = param(
-        None, unit="mm", gt=0, doc="mesh vertex spacing (none: half the ground sample distance)"
+        None, unit="mm", gt=0, max=10.0, doc="mesh vertex spacing (none: half the ground sample distance)"
     )
     tile_length_mm: float = param(
-        240.0, unit="mm", min=20.0, doc="length of the floor tile built per stretch of trajectory"
+        240.0, unit="mm", min=20.0, max=100_000.0, doc="length of the floor tile built per stretch of trajectory"
     )
     dirt_density: float = param(0.0, min=0, max=1, doc="fraction of 1 mm cells holding a dark speck")
     dust_density: float = param(0.0, min=0, max=1, doc="fraction of 0.25 mm cells holding a dust grain")
@@ -175,8 +175,8 @@ class LightsSpec(Config):
         70.0, unit="mm", gt=0, max=1000.0, doc="bar from the image centre, along the camera's x axis"
     )
     count: int = param(8, unit="LEDs", min=1, max=256, doc="LEDs per bar")
-    bar_length_mm: float = param(40.0, unit="mm", min=0, doc="length of a bar (along the camera's y axis)")
-    power: float = param(1.0, min=0, doc="radiant intensity of each bar (relative; 0 = off)")
+    bar_length_mm: float = param(40.0, unit="mm", min=0, max=1000.0, doc="length of a bar (along the camera's y axis)")
+    power: float = param(1.0, min=0, max=1e6, doc="radiant intensity of each bar (relative; 0 = off)")
     side: str = param("both", choices=("both", "left", "right"), doc="which bars are lit")
     lobe_exponent: float = param(1.0, gt=0, doc="cos^n emission lobe of an LED")
     flicker: float = param(0.0, min=0, max=1.0, doc="per-frame relative standard deviation of the LED power")
@@ -246,7 +246,7 @@ class SensorSpec(Config):
     )
     target_percentile: float = param(99.0, unit="%", gt=0, max=100.0, doc="auto-exposure puts this percentile ...")
     target_level: float = param(0.8, min=0, max=1, doc="... at this fraction of full scale")
-    full_well_e: float = param(10000.0, unit="e-", gt=0, doc="full-well capacity")
+    full_well_e: float = param(10000.0, unit="e-", gt=0, max=1e7, doc="full-well capacity")
     read_noise_e: float = param(5.0, unit="e-", min=0, doc="read noise")
     shot_noise: bool = param(True, doc="Poisson photon noise")
     noise: bool = param(True, doc="false: a noiseless sensor")

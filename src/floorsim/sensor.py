@@ -39,6 +39,10 @@ __all__ = ["SensorModel", "FixedPattern", "AutoExposure", "exposure_gain", "imag
 
 #: Seed tag of the fixed-pattern maps (P, D, hot, dead) of a sensor.
 _FPN_TAG = 0xF1C5ED
+#: The most electrons a pixel's expected count is taken as before shot noise is drawn: 1e8
+#: times the largest full well a scene may state (sensor.full_well_e <= 1e7), so every pixel
+#: above it is saturated either way.
+_POISSON_MAX_E = 1e15
 
 
 def exposure_gain(radiance: np.ndarray, full_well_e: float, target_percentile: float, target_level: float) -> float:
@@ -121,7 +125,9 @@ class SensorModel:
         if noise:
             rng = np.random.default_rng([int(seed), int(frame_index), 0x5E50])
             if self.shot_noise:
-                e = rng.poisson(e).astype(np.float64)
+                # above _POISSON_MAX_E a pixel saturates whatever its noise; numpy's Poisson refuses
+                # lam > ~9e18 ('lam value too large' ended a render of exposure_gain = 1e308)
+                e = rng.poisson(np.minimum(e, _POISSON_MAX_E)).astype(np.float64)
             if self.read_noise_e > 0:
                 e = e + rng.normal(0.0, self.read_noise_e, size=e.shape)
         v = np.clip(e / self.full_well_e, 0.0, 1.0)

@@ -56,6 +56,13 @@ def test_set_overrides():
         ({"name": "../../x"}, r"name = '../../x': must be a file name: not \. or \.\., no / or \\"),
         ({"name": ".."}, r"name = '\.\.': must be a file name"),
         ({"name": ""}, r"name = '': must be a name \(not empty\)"),
+        # 1e308 (a TOML float) ended in an OverflowError or numpy ValueError traceback, or a wrong
+        # 'the first frame is black' after overflow warnings
+        ({"floor.spacing_mm": "1e308"}, r"floor.spacing_mm = 1e\+308 mm: must be <= 10.0 mm"),
+        ({"floor.tile_length_mm": "1e308"}, r"floor.tile_length_mm = 1e\+308 mm: must be <= 100000.0 mm"),
+        ({"lights.power": "1e308"}, r"lights.power = 1e\+308: must be <= 1000000.0"),
+        ({"lights.bar_length_mm": "1e308"}, r"lights.bar_length_mm = 1e\+308 mm: must be <= 1000.0 mm"),
+        ({"sensor.full_well_e": "1e308"}, r"sensor.full_well_e = 1e\+308 e-: must be <= 10000000.0 e-"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):

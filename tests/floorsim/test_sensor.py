@@ -45,6 +45,14 @@ def test_shot_and_read_noise_statistics():
     assert e_read.std() == pytest.approx(20.0, rel=0.03)
 
 
+def test_a_count_beyond_what_numpy_draws_saturates():
+    """sensor.exposure_gain = 1e308 ended a render in numpy's 'lam value too large' traceback;
+    a pixel far above the full well saturates whatever its shot noise."""
+    s = SensorModel(gain_e_per_unit=1e20, full_well_e=10000.0, read_noise_e=5.0, shot_noise=True, bit_depth=8)
+    dn = s.capture(np.array([[0.0, 1.0, 1e10, np.inf]]), 0, 0)
+    np.testing.assert_array_equal(dn[0, 1:], [255, 255, 255])
+
+
 def test_noise_seeded_per_frame():
     s = SensorModel(1.0, 10000.0, 5.0, True, 8)
     rad = np.full((50, 50), 3000.0)
