@@ -11,6 +11,12 @@ Conventions
 * Camera frame: OpenCV's (x right, y down, z along the optical axis).
 * A camera looking straight down with yaw 0 has its x axis along world +x, its y axis
   along world -y and its optical axis along world -z (:func:`T_world_cam_down`).
+* A tilted downward camera (:func:`T_world_cam_down` with ``roll_rad``, ``pitch_rad``) has
+  ``R_world_cam = Rz(yaw) Ry(pitch) Rx(roll) R_down``, rotations about the world's axes;
+  roll and pitch are read back from the direction of gravity in the camera frame,
+  ``R_world_cam^T (0, 0, -1) = (sin pitch, sin roll cos pitch, cos roll cos pitch)``
+  (:func:`attitude_of_T`; the convention of a sequence's ``attitude.csv``), and the yaw is
+  the heading of the camera's x axis (:func:`yaw_of_R`), which the tilt leaves unchanged.
 * Quaternions are (x, y, z, w), as in TUM files.
 * Floor coordinates of a downward camera: a floor point's camera-frame (x, y) in mm at
   depth ``height_mm`` (:func:`pixels_to_floor_mm`). A rigid map of floor points between two
@@ -55,6 +61,9 @@ __all__ = [
     "se2_from_T",
     "T_from_se2",
     "footprint_T",
+    "tilted_camera_T",
+    "attitude_of_T",
+    "tilt_twist_rad",
     "yaw_of_R",
     "yaws_of_T",
     "umeyama",
@@ -171,8 +180,9 @@ def T_world_cam_down(
 ) -> np.ndarray:
     """Pose of a downward-looking camera at (x, y, height) with yaw about world z.
 
-    ``roll_rad`` and ``pitch_rad`` tilt the rig about its own forward (x) and lateral (y)
-    axes (R = Rz(yaw) Rx(roll) Ry(pitch) R_down), for disturbance models.
+    ``roll_rad`` and ``pitch_rad`` tilt the rig about its forward (x) and lateral (y) axes
+    (R = Rz(yaw) Ry(pitch) Rx(roll) R_down, rotations about the world's axes), for
+    disturbance models and an attitude signal (:func:`attitude_of_T` reads them back).
     """
     R_tilt = Rotation.from_euler("xy", [roll_rad, pitch_rad]).as_matrix()
     R = rot_z(yaw_rad) @ R_tilt @ R_WORLD_CAM_DOWN
@@ -237,6 +247,62 @@ def footprint_T(T_world_cam: np.ndarray, height_mm: float) -> np.ndarray:
     xy = c[:, :2] + d[:, None] * z_axis[:, :2]
     yaw = np.arctan2(T[:, 1, 0], T[:, 0, 0])
     return np.stack([T_world_cam_down(x, y, height_mm, a) for (x, y), a in zip(xy, yaw)])
+
+
+def tilted_camera_T(
+    T_world_footprint: np.ndarray, roll_rad: float, pitch_rad: float, height_mm: float | None = None
+) -> np.ndarray:
+    """The tilted camera (4, 4) whose floor footprint is ``T_world_footprint``: the inverse of
+    :func:`footprint_T` given the camera's attitude.
+
+    ``T_world_footprint`` (4, 4) mm: a level downward camera pose over the floor point on the
+    tilted camera's optical axis, with its yaw (what a planar mono estimator measures of a
+    tilted camera, issue 14); only its x, y, z and yaw are used. ``roll_rad``, ``pitch_rad``:
+    the camera's attitude against gravity (:func:`attitude_of_T`'s convention, a sequence's
+    ``attitude.csv``); ``height_mm``: the camera's height above the floor (default: the
+    footprint pose's z). The camera has the rotation ``Rz(yaw) Ry(pitch) Rx(roll) R_down``
+    (:func:`T_world_cam_down`), whose x axis has the footprint's heading, and sits at that
+    height on the line through the footprint point along its optical axis ``a``: ``c_xy =
+    f_xy + height * a_xy / a_z``. So ``footprint_T(tilted_camera_T(F, r, p, h), F_z) == F`` and
+    ``tilted_camera_T(footprint_T(T, h), *attitude_of_T(T), T_z) == T`` (to rounding).
+    """
+    F = np.asarray(T_world_footprint, dtype=float)
+    h = float(F[2, 3]) if height_mm is None else float(height_mm)
+    T = T_world_cam_down(0.0, 0.0, h, yaw_of_R(F[:3, :3]), float(roll_rad), float(pitch_rad))
+    a = T[:3, 2]
+    T[:2, 3] = F[:2, 3] + h * a[:2] / a[2]
+    return T
+
+
+def attitude_of_T(T_world_cam: np.ndarray) -> np.ndarray:
+    """(roll_rad, pitch_rad) of a camera pose (4, 4), or (N, 2) of a stack (N, 4, 4): the
+    direction of gravity (world -z) in the camera frame, ``g = R_world_cam^T (0, 0, -1) = (sin
+    pitch, sin roll cos pitch, cos roll cos pitch)``, as ``roll = atan2(g_y, g_z)`` and ``pitch
+    = asin(g_x)``. (0, 0) for a camera looking straight down, whatever its yaw; the ``roll_rad``
+    and ``pitch_rad`` of :func:`T_world_cam_down` (for tilts under 90 degrees); what an IMU's
+    attitude filter gives (a sequence's ``attitude.csv``)."""
+    T = np.asarray(T_world_cam, dtype=float)
+    g = -T[..., 2, :3]  # the third row of R: R^T (0, 0, 1)
+    return np.stack([np.arctan2(g[..., 1], g[..., 2]), np.arcsin(np.clip(g[..., 0], -1.0, 1.0))], axis=-1)
+
+
+def tilt_twist_rad(attitude_prev_rad: npt.ArrayLike, attitude_cur_rad: npt.ArrayLike) -> float:
+    """The rotation (rad) about the optical axis, camera z, between two tilts of a camera whose
+    yaw is unchanged: the z component of the rotation vector of ``R_prev^T R_cur`` for the
+    rotations ``Ry(pitch) Rx(roll) R_down`` of the two (roll, pitch) attitudes
+    (:func:`attitude_of_T`).
+
+    A planar mono estimator reads the rotation of the picture about its centre as the yaw
+    step; a tilted camera whose roll and pitch change out of phase (a coning motion) turns
+    about its optical axis while its heading stays: about ``(roll dpitch - pitch droll) / 2``
+    a frame, 0.14 mrad on the motion suite's tilt (0.03 rad of each at 1.5 Hz, 30 fps), which
+    summed over the steps turns the whole run (0.5 mm across 116 mm of a synthetic run). The
+    runner takes it out of the step with an attitude signal (:func:`floorvo.runner.run_frames`).
+    """
+    (r0, p0), (r1, p1) = np.asarray(attitude_prev_rad, dtype=float), np.asarray(attitude_cur_rad, dtype=float)
+    R0 = Rotation.from_euler("xy", [r0, p0]).as_matrix() @ R_WORLD_CAM_DOWN
+    R1 = Rotation.from_euler("xy", [r1, p1]).as_matrix() @ R_WORLD_CAM_DOWN
+    return float(Rotation.from_matrix(R0.T @ R1).as_rotvec()[2])
 
 
 # ----------------------------------------------------------------------------- rigid fits

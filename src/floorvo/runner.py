@@ -30,13 +30,32 @@ import numpy as np
 
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import FloorbenchError, SequenceError
-from floorvo.estimators.base import Frame, StepResult
-from floorvo.geometry import depth_floor_plane, rigid_problem
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
+from floorvo.geometry import (
+    T_world_cam_down,
+    depth_floor_plane,
+    footprint_T,
+    make_T,
+    rigid_problem,
+    rot_z,
+    tilt_twist_rad,
+    tilted_camera_T,
+    yaw_of_R,
+)
 from floorvo.metrics import lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
-__all__ = ["RunResult", "OnStep", "run_frames", "run_sequence", "sequence_frames", "camera_height_mm"]
+__all__ = [
+    "RunResult",
+    "OnStep",
+    "run_frames",
+    "run_sequence",
+    "sequence_frames",
+    "camera_height_mm",
+    "uses_attitude_signal",
+    "NO_ATTITUDE",
+]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +64,9 @@ OnStep = Callable[[int, Frame, StepResult], None]
 
 _STAGES = tuple(c[: -len("_ms")] for c in TIMING_MS_COLUMNS)  # detect, match, estimate, total
 _PLACED = ("init", "ok")
+#: The reason of a frame whose step was measured but that has no attitude reading (a dropout
+#: of ``attitude.csv``) in a run whose poses the attitude signal makes 6-DoF.
+NO_ATTITUDE = "no attitude reading (attitude.csv): no 6-DoF pose; the motion is chained through this frame"
 
 
 @dataclass(frozen=True)
@@ -58,6 +80,9 @@ class RunResult:
     pose after each frame (a frame not placed holds the pose before it); ``fixed`` (F,)
     bool: the step reported an absolute pose (a map fix); ``wall_s``: wall-clock seconds
     of the loop, frame reading included. ``run_dir``: where it was written, "" if not.
+    ``attitude_signal``: the poses are the tilted camera's, made 6-DoF with the frames'
+    attitude (module docstring); a run folder records it (``result.json``) and scoring then
+    holds its steps to the camera's 6-DoF step only.
     """
 
     estimator: str
@@ -71,6 +96,7 @@ class RunResult:
     fixed: np.ndarray
     wall_s: float
     run_dir: str = ""
+    attitude_signal: bool = False
 
     @property
     def frames(self) -> int:
@@ -151,6 +177,7 @@ class RunResult:
             "median_total_ms": self.median_total_ms,
             "status_counts": self.status_counts,
             "map_fixes": self.fixes,
+            "attitude_signal": self.attitude_signal,
             "first_frame": int(self.frame_index[0]) if self.frames else None,
             "last_frame": int(self.frame_index[-1]) if self.frames else None,
         }
@@ -191,33 +218,62 @@ def run_frames(
     T_world = np.array(T_world_start, dtype=float)
     if T_world.shape != (4, 4):
         raise ValueError(f"run_frames: T_world_start must be (4, 4), got {T_world.shape}")
+    # The chained pose: the camera's, or with an attitude signal its footprint's (module docstring).
+    T_chain = T_world
+    attitude = False
+    measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
     state = estimator.start()
     index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
     nan = float("nan")
     t0 = time.perf_counter()
     for k, frame in enumerate(frames):
+        if k == 0 and frame.attitude_rad is not None and uses_attitude_signal(estimator):
+            start = _start_footprint(T_world, frame.attitude_rad)
+            if start is None:
+                log.warning(
+                    "%s: the run starts at a pose whose optical axis does not meet the floor (no ground truth?): "
+                    "its attitude signal is not used (give a start pose over the floor, --initial-pose)",
+                    name,
+                )
+            else:
+                T_chain, attitude = start, True
         res = estimator.step(state, frame)
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
         st = res.status
+        why = res.reason
         fix = False
         if st not in _PLACED:
             if st != "lost":
                 raise ValueError(f"{name}: frame {frame.index}: status {st!r} (an estimator returns init, ok or lost)")
         elif res.T_world_cam is not None:
             _check_rigid(res.T_world_cam, name, frame.index, "T_world_cam")
-            T_world = np.array(res.T_world_cam, dtype=float)
+            T_chain = np.array(res.T_world_cam, dtype=float)
             fix = True
         elif st == "ok":
             if res.T_prev_cur is None:
                 raise ValueError(f"{name}: frame {frame.index}: status 'ok' without T_prev_cur")
             _check_rigid(res.T_prev_cur, name, frame.index, "T_prev_cur")
             step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
-            T_world = T_world @ step
+            if attitude:
+                step = _untwisted(step, measured_from, frame.attitude_rad)
+            T_chain = T_chain @ step
+        if not attitude:
+            T_world = T_chain
+        else:
+            roll, pitch = frame.attitude_rad or (nan, nan)
+            known = bool(np.isfinite(roll) and np.isfinite(pitch))
+            if known and (st in _PLACED or RESTART_NOTE in res.reason):
+                measured_from = (roll, pitch)  # the next step is measured from this frame
+            if st in _PLACED:
+                if known:
+                    T_world = tilted_camera_T(T_chain, roll, pitch)
+                else:  # a dropout: measured and chained, not placed
+                    st, why, fix = "lost", NO_ATTITUDE, False
         index.append(frame.index)
         stamp.append(frame.timestamp_s)
         status.append(st)
-        reason.append(res.reason)
+        reason.append(why)
         tm = res.timing_ms
         timing.append([tm.get(s, nan) for s in _STAGES])
         counts.append((res.n_keypoints, res.n_matches, res.n_inliers))
@@ -238,7 +294,43 @@ def run_frames(
         T_world_cam=np.array(poses, dtype=float).reshape(n, 4, 4),
         fixed=np.array(fixed, dtype=bool),
         wall_s=wall,
+        attitude_signal=attitude,
     )
+
+
+def uses_attitude_signal(estimator: Any) -> bool:
+    """True when the runner turns ``estimator``'s poses into the tilted camera's with the frames'
+    attitude: a planar mono estimator (its class's ``measures_footprint``) whose config's
+    ``use_attitude_signal`` is on (module docstring)."""
+    if not getattr(estimator, "measures_footprint", False):
+        return False
+    return bool(getattr(getattr(estimator, "config", None), "use_attitude_signal", True))
+
+
+def _untwisted(
+    step: np.ndarray, attitude_prev: tuple[float, float] | None, attitude_cur: tuple[float, float] | None
+) -> np.ndarray:
+    """A planar estimator's step ``T_prev_cur`` (4, 4) with the turn about the optical axis that
+    the tilt change between the two frames gives the picture taken out
+    (:func:`floorvo.geometry.tilt_twist_rad`): what is left is the footprint's yaw step.
+    ``attitude_prev``: the attitude of the frame the step was measured from, or where that
+    frame had no reading the last reading before it (the step into that frame kept its twist,
+    so this takes out both); the step as it is when the current frame has no reading."""
+    if attitude_prev is None or attitude_cur is None or not np.isfinite(attitude_cur).all():
+        return step
+    return step @ make_T(rot_z(-tilt_twist_rad(attitude_prev, attitude_cur)), np.zeros(3))
+
+
+def _start_footprint(T_world_start: np.ndarray, attitude_rad: tuple[float, float]) -> np.ndarray | None:
+    """The footprint (4, 4) a footprint chain starts at: that of a camera at ``T_world_start``'s
+    position and yaw with the first frame's measured attitude (its own tilt where the frame
+    has no reading); None when its optical axis does not meet the floor (a start at the identity)."""
+    T = np.asarray(T_world_start, dtype=float)
+    roll, pitch = attitude_rad
+    if np.isfinite(roll) and np.isfinite(pitch):
+        T = T_world_cam_down(T[0, 3], T[1, 3], T[2, 3], yaw_of_R(T[:3, :3]), roll, pitch)
+    F = footprint_T(T, float(T[2, 3]))[0]
+    return F if np.isfinite(F).all() and T[2, 3] > 0 else None
 
 
 def camera_height_mm(seq: Sequence) -> float:
@@ -260,11 +352,14 @@ def sequence_frames(
     Each frame carries the camera's measured height (``Frame.height_mm``, issue 14 item 4):
     the sequence's ``height.csv`` (a range sensor) when it has one, else, with
     ``depth_height`` in a sequence with depth, the floor plane of the frame's depth image
-    (:func:`floorvo.geometry.depth_floor_plane`); None otherwise.
+    (:func:`floorvo.geometry.depth_floor_plane`); None otherwise. And its measured attitude
+    (``Frame.attitude_rad``): the row of the sequence's ``attitude.csv`` (NaN where no
+    reading), None without one.
     """
     req = set(requires)
     ts_all = seq.timestamps_s
     heights = seq.height_signal_mm
+    attitudes = seq.attitude_signal_rad
     camera = seq.camera
     for i in indices:
         depth = seq.depth_mm(i) if "depth" in req or (depth_height and heights is None and seq.has_depth) else None
@@ -281,6 +376,7 @@ def sequence_frames(
             image_right=seq.image(i, "cam1") if "stereo" in req else None,
             depth_mm=depth if "depth" in req else None,
             height_mm=height,
+            attitude_rad=None if attitudes is None else (float(attitudes[i, 0]), float(attitudes[i, 1])),
         )
 
 

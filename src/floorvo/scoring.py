@@ -272,6 +272,13 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
 
     When the run covered a sub-range of the sequence (``result.json`` ``frames``), the
     reference is cut to the frames the estimator saw, so a lost tail still counts as lost.
+
+    Steps reported ok are scored against the camera's true 6-DoF step (``wrong_ok_steps``)
+    and, for a planar estimator's poses, against the planar step of the camera's footprint
+    (``wrong_ok_steps_footprint``, :func:`~floorvo.geometry.footprint_T`: what a planar mono
+    estimator can see of a tilted camera). A run whose poses an attitude signal made 6-DoF
+    (``result.json``'s ``attitude_signal``, :mod:`floorvo.runner`) has no footprint count:
+    it is held to the camera's step.
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
@@ -321,11 +328,16 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         score.tracking["ok_steps_scored"] = len(steps["trans_mm"])
         score.tracking["wrong_ok_steps"] = int(wrong_steps(steps).sum())
         # The same against the footprint's planar step: issue 14's bound for a planar mono
-        # estimator on a tilted (or bouncing) run, the footprint shift taken out.
-        height = float(np.median(T_ref[:, 2, 3]))
-        planar = _ok_steps_of_run(run, seq_dir, t_ref, footprint_T(T_ref, height), max_diff_s, planar=True)
-        if planar is not None:
-            score.tracking["wrong_ok_steps_footprint"] = int(wrong_steps(planar).sum())
+        # estimator on a tilted (or bouncing) run, the footprint shift taken out. Not for a run
+        # whose poses an attitude signal made 6-DoF (result.json's attitude_signal): it
+        # claims the camera's tilted pose, and is held to the camera's 6-DoF step only.
+        if (result or {}).get("attitude_signal"):
+            score.tracking["attitude_signal"] = True
+        else:
+            height = float(np.median(T_ref[:, 2, 3]))
+            planar = _ok_steps_of_run(run, seq_dir, t_ref, footprint_T(T_ref, height), max_diff_s, planar=True)
+            if planar is not None:
+                score.tracking["wrong_ok_steps_footprint"] = int(wrong_steps(planar).sum())
         if poses is not None:
             A, A_from, B = poses
             turn = turn_error(A, B, T_ref_from=A_from)

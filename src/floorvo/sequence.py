@@ -13,6 +13,9 @@
       timestamps.txt    per-frame times (s), one line per frame in frame order; optional
       height.csv        per-frame camera height above the floor (mm) from a range sensor:
                         ``frame,height_mm`` rows, an empty height = no reading; optional
+      attitude.csv      per-frame roll and pitch of the camera against gravity (rad), from
+                        an IMU's attitude filter: ``frame,roll_rad,pitch_rad`` rows, both
+                        empty = no reading; optional
       groundtruth.txt   TUM: timestamp tx ty tz qx qy qz qw, T_world_cam0, metres
 
 Frame ``i`` was taken at line ``i`` of ``timestamps.txt`` when the folder has one (a
@@ -21,6 +24,24 @@ version 2 added ``timestamps.txt``; version 1 folders (no such file) still load.
 ``height.csv`` (issue 14 item 4) is optional in every version: a folder without it loads
 as before, and a reader that does not know it ignores it (the estimators then use the
 rig's constant height, as before); :attr:`Sequence.height_signal_mm` reads it.
+
+``attitude.csv`` (issue 14, "6-DoF where the sensors allow it") is optional in the same
+way; :attr:`Sequence.attitude_signal_rad` reads it. Its angles say where gravity (the
+world's -z: the floor normal of a level floor) points in the camera frame (OpenCV's: x
+right, y down, z along the optical axis, :mod:`floorvo.geometry`)::
+
+    g_cam = R_world_cam^T (0, 0, -1) = (sin pitch, sin roll cos pitch, cos roll cos pitch)
+    roll = atan2(g_y, g_z),  pitch = asin(g_x)
+
+so a camera looking straight down reads (0, 0), and the camera's rotation is
+``R_world_cam = Rz(yaw) Ry(pitch) Rx(roll) R_down`` (rotations about the world's axes,
+``R_down`` = :data:`floorvo.geometry.R_WORLD_CAM_DOWN`; :func:`floorvo.geometry.T_world_cam_down`
+with ``roll_rad``, ``pitch_rad``): roll turns the camera about the rig's forward axis (world
+x at yaw 0: the image's x axis), pitch about its lateral axis. The yaw is not in the file: a
+gravity sensor does not see it. A reading's angles are at most :data:`MAX_ATTITUDE_RAD` (0.5
+rad) each: a downward floor camera tilted further sees no floor under its optical axis worth
+the name, and a larger value is a unit or sign mistake (degrees). A planar mono estimator's
+poses are turned into the tilted camera's 6-DoF poses with it (:func:`floorvo.runner.run_frames`).
 
 Every file is written atomically, so a frame file that exists is complete; a render that
 is interrupted and restarted skips the frames already on disk and readable
@@ -67,6 +88,8 @@ __all__ = [
     "READABLE_SCHEMA_VERSIONS",
     "TIMESTAMPS_FILE",
     "HEIGHT_FILE",
+    "ATTITUDE_FILE",
+    "MAX_ATTITUDE_RAD",
     "GROUNDTRUTH_MAX_DIFF_S",
     "Sequence",
     "SequenceWriter",
@@ -75,8 +98,11 @@ __all__ = [
     "SEQUENCE_FORMAT",
     "check_timestamps",
     "check_heights",
+    "check_attitude",
     "check_groundtruth_times",
     "read_height_csv",
+    "read_attitude_csv",
+    "read_frame_csv",
     "DEPTH_PNG_SCALE_PER_MM",
 ]
 
@@ -88,8 +114,15 @@ SEQUENCE_FORMAT = "floorbench-sequence"
 TIMESTAMPS_FILE = "timestamps.txt"
 #: Per-frame measured camera height (mm), ``frame,height_mm`` rows; absent: no height signal.
 HEIGHT_FILE = "height.csv"
-#: The header line of :data:`HEIGHT_FILE`.
-HEIGHT_HEADER = "frame,height_mm"
+#: The value column of :data:`HEIGHT_FILE`.
+HEIGHT_COLUMNS = ("height_mm",)
+#: Per-frame measured camera attitude against gravity (rad), ``frame,roll_rad,pitch_rad`` rows
+#: (the module's docstring defines the angles); absent: no attitude signal.
+ATTITUDE_FILE = "attitude.csv"
+#: The value columns of :data:`ATTITUDE_FILE`.
+ATTITUDE_COLUMNS = ("roll_rad", "pitch_rad")
+#: The largest roll or pitch (rad) a reading of :data:`ATTITUDE_FILE` may have (29 degrees).
+MAX_ATTITUDE_RAD = 0.5
 #: Largest gap (s) between a frame's time and the ground-truth pose taken for it; the
 #: same as the default association tolerance of ``floorvo score``.
 GROUNDTRUTH_MAX_DIFF_S = 0.01
@@ -275,9 +308,24 @@ class SequenceWriter:
         """Write ``height.csv``: the measured camera height above the floor (mm) of each of the
         ``frame_count`` frames, NaN where there is no reading (an empty cell)."""
         h = check_heights(np.asarray(height_mm, dtype=float), int(self.meta["frame_count"]), "height_mm")
-        lines = [f"# camera height above the floor (mm) per frame, from a {source}; empty = no reading", HEIGHT_HEADER]
-        lines += [f"{i},{'' if np.isnan(v) else f'{v:.6f}'}" for i, v in enumerate(h)]
-        atomic_write_text(self.root / HEIGHT_FILE, "\n".join(lines) + "\n")
+        comment = f"camera height above the floor (mm) per frame, from a {source}; empty = no reading"
+        self._write_frame_csv(HEIGHT_FILE, HEIGHT_COLUMNS, comment, h[:, None], "{:.6f}")
+
+    def write_attitude(self, attitude_rad: np.ndarray, source: str = "IMU") -> None:
+        """Write ``attitude.csv``: the measured roll and pitch (rad, the module's docstring defines
+        them) of each of the ``frame_count`` frames, ``attitude_rad`` (frame_count, 2); a row of
+        NaN where there is no reading (empty cells)."""
+        a = check_attitude(np.asarray(attitude_rad, dtype=float), int(self.meta["frame_count"]), "attitude_rad")
+        comment = f"camera roll and pitch against gravity (rad) per frame, from an {source}; empty = no reading"
+        self._write_frame_csv(ATTITUDE_FILE, ATTITUDE_COLUMNS, comment, a, "{:.9f}")
+
+    def _write_frame_csv(self, name: str, columns: tuple[str, ...], comment: str, values: np.ndarray, fmt: str) -> None:
+        """A per-frame CSV (:func:`read_frame_csv`'s format): ``# comment``, the header, a row per frame."""
+        lines = [f"# {comment}", ",".join(("frame", *columns))]
+        lines += [
+            ",".join([str(i), *("" if np.isnan(v) else fmt.format(v) for v in row)]) for i, row in enumerate(values)
+        ]
+        atomic_write_text(self.root / name, "\n".join(lines) + "\n")
 
 
 def _check_meta(meta: dict, meta_path: Path) -> None:
@@ -297,12 +345,12 @@ _CALIB_FILE = re.compile(r"cam\d+_flatfield\.png|sensor\.json|exposure\.csv")
 def sequence_files(root: str | os.PathLike) -> list[Path]:
     """The files of the sequence format present in ``root`` (except ``sequence.json``).
 
-    ``groundtruth.txt``, ``timestamps.txt``, ``height.csv``, ``cam0/``, ``cam1/`` and ``depth/`` frames
+    ``groundtruth.txt``, ``timestamps.txt``, ``height.csv``, ``attitude.csv``, ``cam0/``, ``cam1/`` and ``depth/`` frames
     (``NNNNNN.png``/``.npy``), ``calib/CAM_flatfield.png``, ``calib/sensor.json`` and ``calib/exposure.csv``. Nothing else: other files and
     folders in the sequence folder are not the format's (``--overwrite`` leaves them).
     """
     root = Path(root)
-    files = [root / "groundtruth.txt", root / TIMESTAMPS_FILE, root / HEIGHT_FILE]
+    files = [root / "groundtruth.txt", root / TIMESTAMPS_FILE, root / HEIGHT_FILE, root / ATTITUDE_FILE]
     for sub, pattern in [*((s, _FRAME_FILE) for s in _FRAME_FOLDERS), ("calib", _CALIB_FILE)]:
         d = root / sub
         if d.is_dir():
@@ -417,6 +465,30 @@ def check_heights(h: np.ndarray, frame_count: int, what: str) -> np.ndarray:
     return h
 
 
+def check_attitude(a: np.ndarray, frame_count: int, what: str) -> np.ndarray:
+    """``a`` if it holds ``frame_count`` rows of (roll, pitch) in rad, each a reading (both finite,
+    at most :data:`MAX_ATTITUDE_RAD` in size) or no reading (both NaN); else a one-line SequenceError."""
+    if a.ndim != 2 or a.shape[1] != 2 or len(a) != frame_count:
+        rows = len(a) if a.ndim == 2 and a.shape[1] == 2 else f"an array of shape {a.shape}, not"
+        raise SequenceError(f"{what}: {rows} (roll, pitch) row(s) for {frame_count} frame(s); need one per frame")
+    nan = np.isnan(a)
+    for k in range(len(a)):
+        if nan[k].all():
+            continue
+        if nan[k].any():
+            raise SequenceError(
+                f"{what}: frame {k} has roll {a[k, 0]} and pitch {a[k, 1]}: both or neither (no reading) must be given"
+            )
+        for j, col in enumerate(ATTITUDE_COLUMNS):
+            v = a[k, j]
+            if not (np.isfinite(v) and abs(v) <= MAX_ATTITUDE_RAD):
+                raise SequenceError(
+                    f"{what}: {col} of frame {k} = {v}: must be a finite number of radians within "
+                    f"+-{MAX_ATTITUDE_RAD} (or empty)"
+                )
+    return a
+
+
 @dataclass
 class Sequence:
     """A sequence folder, opened for reading.
@@ -429,6 +501,7 @@ class Sequence:
     meta: dict
     _timestamps_s: np.ndarray | None = field(default=None, repr=False, compare=False)
     _heights: tuple[np.ndarray | None] | None = field(default=None, repr=False, compare=False)
+    _attitude: tuple[np.ndarray | None] | None = field(default=None, repr=False, compare=False)
     _frame0_bits: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
@@ -453,6 +526,7 @@ class Sequence:
         seq = cls(root, meta)
         _ = seq.timestamps_s  # validate timestamps.txt now
         _ = seq.height_signal_mm  # and height.csv
+        _ = seq.attitude_signal_rad  # and attitude.csv
         return seq
 
     # ----------------------------------------------------------------- metadata
@@ -515,6 +589,18 @@ class Sequence:
             self._heights = (h,)
         h = self._heights[0]
         return None if h is None else h.copy()
+
+    @property
+    def attitude_signal_rad(self) -> np.ndarray | None:
+        """(frame_count, 2) measured roll and pitch of the camera against gravity per frame (rad,
+        the module's docstring defines them; a row of NaN where no reading) from ``attitude.csv``;
+        None when the sequence has no such file."""
+        if self._attitude is None:
+            path = self.root / ATTITUDE_FILE
+            a = check_attitude(read_attitude_csv(path), self.frame_count, str(path)) if path.is_file() else None
+            self._attitude = (a,)
+        a = self._attitude[0]
+        return None if a is None else a.copy()
 
     @property
     def has_stereo(self) -> bool:
@@ -671,34 +757,55 @@ def _read_timestamps(path: Path) -> np.ndarray:
 
 
 def read_height_csv(path: str | os.PathLike) -> np.ndarray:
-    """The heights (mm) of a ``height.csv`` (header ``frame,height_mm``, then ``i,value`` for
-    frames 0, 1, ... in order; an empty value is NaN; ``#`` comments and blank lines skipped);
-    a malformed line is a one-line SequenceError naming the file and the line."""
+    """The heights (mm) of a ``height.csv`` (header ``frame,height_mm``): :func:`read_frame_csv`'s
+    one column."""
+    return read_frame_csv(path, HEIGHT_COLUMNS)[:, 0]
+
+
+def read_attitude_csv(path: str | os.PathLike) -> np.ndarray:
+    """The (N, 2) roll and pitch (rad) of an ``attitude.csv`` (header ``frame,roll_rad,pitch_rad``):
+    :func:`read_frame_csv`'s two columns (the module's docstring defines the angles)."""
+    return read_frame_csv(path, ATTITUDE_COLUMNS)
+
+
+_CELLS = {2: "two", 3: "three"}
+
+
+def read_frame_csv(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
+    """The (N, len(columns)) values of a per-frame CSV: header ``frame,COLUMN,...``, then
+    ``i,value,...`` for frames 0, 1, ... in order; an empty value is NaN; ``#`` comments and
+    blank lines skipped. A malformed line is a one-line SequenceError naming the file and the
+    line. The reader of ``height.csv`` and ``attitude.csv``; what the values may be is checked
+    by :func:`check_heights` and :func:`check_attitude`."""
     path = Path(path)
-    out: list[float] = []
+    header_line = ",".join(("frame", *columns))
+    cells_wanted = len(columns) + 1
+    out: list[list[float]] = []
     header = False
     for lineno, line in enumerate(read_text(path, SequenceError, what="a text file").splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
         if not header:
-            if line.replace(" ", "") != HEIGHT_HEADER:
-                raise SequenceError(f"{path}:{lineno}: header {shown(line)}: must be {HEIGHT_HEADER!r}")
+            if line.replace(" ", "") != header_line:
+                raise SequenceError(f"{path}:{lineno}: header {shown(line)}: must be {header_line!r}")
             header = True
             continue
         cells = [c.strip() for c in line.split(",")]
-        if len(cells) != 2:
-            raise SequenceError(f"{path}:{lineno}: {shown(line)}: need two cells, frame,height_mm")
+        if len(cells) != cells_wanted:
+            n = _CELLS.get(cells_wanted, str(cells_wanted))
+            raise SequenceError(f"{path}:{lineno}: {shown(line)}: need {n} cells, {header_line}")
         if cells[0] != str(len(out)):
             raise SequenceError(
                 f"{path}:{lineno}: frame {shown(cells[0])}: rows must be frames 0, 1, ... in order, expected {len(out)}"
             )
-        try:
-            out.append(float(cells[1]) if cells[1] else float("nan"))
-        except ValueError:
-            raise SequenceError(
-                f"{path}:{lineno}: height_mm {shown(cells[1])} of frame {cells[0]}: not a number"
-            ) from None
+        row = []
+        for col, cell in zip(columns, cells[1:]):
+            try:
+                row.append(float(cell) if cell else float("nan"))
+            except ValueError:
+                raise SequenceError(f"{path}:{lineno}: {col} {shown(cell)} of frame {cells[0]}: not a number") from None
+        out.append(row)
     if not header:
-        raise SequenceError(f"{path}: no header line {HEIGHT_HEADER!r}")
-    return np.array(out, dtype=float)
+        raise SequenceError(f"{path}: no header line {header_line!r}")
+    return np.array(out, dtype=float).reshape(len(out), len(columns))

@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.geometry import T_world_cam_down, se2_from_T
+from floorvo.geometry import T_world_cam_down, attitude_of_T, se2_from_T
 from floorvo.sequence import SequenceWriter
 
 __all__ = [
@@ -193,6 +193,7 @@ def write_synthetic_sequence(
     depth: bool = False,
     depth_noise_mm: float = 0.0,
     height_noise_mm: float | None = None,
+    attitude_noise_rad: float | None = None,
     stereo_baseline_mm: float | None = None,
     name: str = "synthetic",
     overwrite: bool = True,
@@ -204,7 +205,10 @@ def write_synthetic_sequence(
     per frame (the flat floor, :func:`floor_depth`; poses may be tilted), with Gaussian noise
     of ``depth_noise_mm`` per pixel (seeded from ``seed``). ``height_noise_mm``: also a range
     sensor's camera height per frame (``height.csv``: the pose's height plus Gaussian noise of
-    that size, seeded from ``seed``); None: no such file. ``stereo_baseline_mm``: also a right camera ``cam1``.
+    that size, seeded from ``seed``); None: no such file. ``attitude_noise_rad``: also an IMU's
+    roll and pitch per frame (``attitude.csv``: :func:`floorvo.geometry.attitude_of_T` of the
+    pose plus Gaussian noise of that size on each angle, seeded from ``seed``); None: no such
+    file. ``stereo_baseline_mm``: also a right camera ``cam1``.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
     gsd = camera.gsd_mm_per_px(height_mm)
@@ -264,6 +268,9 @@ def write_synthetic_sequence(
         if height_noise_mm is not None:
             h = T_world_cam[:, 2, 3] + np.random.default_rng(seed + 3).normal(0.0, height_noise_mm, len(T_world_cam))
             w.write_heights(h, "synthetic range sensor")
+        if attitude_noise_rad is not None:
+            noise = np.random.default_rng(seed + 4).normal(0.0, attitude_noise_rad, (len(T_world_cam), 2))
+            w.write_attitude(attitude_of_T(T_world_cam) + noise, "synthetic IMU")
     return Path(out_dir)
 
 

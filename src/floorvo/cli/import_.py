@@ -58,6 +58,13 @@ def add_parser(sub) -> None:
         help="per-frame camera height (mm) from a range sensor: CSV frame,height_mm (written to height.csv)",
     )
     p.add_argument(
+        "--attitude-file",
+        metavar="FILE",
+        default=None,
+        help="per-frame camera roll and pitch against gravity (rad) from an IMU: CSV frame,roll_rad,pitch_rad "
+        "(written to attitude.csv; README, 'A measured attitude')",
+    )
+    p.add_argument(
         "--topic",
         action="append",
         metavar="ROLE=NAME",
@@ -94,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     from floorvo.importers import ImportOptions, import_sequence
     from floorvo.importers.camera_files import read_camera_file
     from floorvo.importers.times import read_groundtruth_file, read_timestamps_file
-    from floorvo.sequence import read_height_csv
+    from floorvo.sequence import read_attitude_csv, read_height_csv
 
     flags = (args.fx, args.fy, args.cx, args.cy)
     options = ImportOptions(
@@ -107,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         fps=args.fps,
         flatfield=None if args.flatfield is None else Path(args.flatfield),
         height_signal_mm=None if args.height_file is None else read_height_csv(args.height_file),
+        attitude_signal_rad=None if args.attitude_file is None else read_attitude_csv(args.attitude_file),
         topics=parse_topics(args.topic),
         left_only=args.left_only,
         overwrite=args.overwrite,

@@ -185,6 +185,11 @@ class AkazeConfig(StepBoundConfig):
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
     )
+    use_attitude_signal: bool = param(
+        True,
+        doc="in a sequence with attitude.csv (an IMU's roll and pitch), the run's poses are the tilted camera's: "
+        "the measured footprint turned back with the frame's attitude (floorvo.runner.run_frames)",
+    )
     height_from_depth: bool = param(
         False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
     )
@@ -236,6 +241,10 @@ class _Fit:
 class _AkazeBase:
     Config = AkazeConfig
     requires: frozenset[str] = frozenset()
+    #: A planar mono estimator: it measures the motion of the camera's floor footprint
+    #: (:func:`floorvo.geometry.footprint_T`), which the runner turns into the tilted
+    #: camera's pose with an attitude signal (``use_attitude_signal``).
+    measures_footprint: bool = True
     guided: bool = False
     #: The image motion model fits the scale itself (a homography): ``fit_image_scale`` is not used.
     fits_own_scale: bool = False

@@ -95,7 +95,11 @@ class Frame:
     range sensor (the sequence's ``height.csv``) or, when the estimator asks for it
     (``height_from_depth``), the floor plane of the depth image
     (:func:`floorvo.runner.sequence_frames`); None when the frame carries none (the
-    estimators then take the rig's constant height)."""
+    estimators then take the rig's constant height). ``attitude_rad``: the camera's
+    measured (roll, pitch) against gravity at this frame (rad, the sequence's
+    ``attitude.csv``, :mod:`floorvo.sequence` defines them), (NaN, NaN) for a frame without
+    a reading, None when the sequence has no attitude signal; the runner uses it
+    (:func:`floorvo.runner.run_frames`), not the estimators."""
 
     index: int
     timestamp_s: float
@@ -103,6 +107,7 @@ class Frame:
     image_right: np.ndarray | None = None
     depth_mm: np.ndarray | None = None
     height_mm: float | None = None
+    attitude_rad: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

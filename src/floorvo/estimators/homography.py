@@ -98,6 +98,9 @@ class HomographySixDofConfig(AkazeConfig):
         choices=("auto", "yes", "no"),
         doc="whether grazing lights ride with the camera (auto: when the sequence records the rig's LEDs)",
     )
+    use_attitude_signal: bool = param(
+        False, doc="not used: homography-6dof carries its own floor plane, tilt included (its poses are 6-DoF)"
+    )
 
 
 class HomographySixDof(_AkazeBase):
@@ -106,6 +109,7 @@ class HomographySixDof(_AkazeBase):
     Config = HomographySixDofConfig
     guided = True
     fits_own_scale = True
+    measures_footprint = False  # its poses are 6-DoF: an attitude signal must not turn them again
     config: HomographySixDofConfig
 
     def __init__(

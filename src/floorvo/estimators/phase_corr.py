@@ -160,6 +160,11 @@ class PhaseCorrConfig(StepBoundConfig):
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
     )
+    use_attitude_signal: bool = param(
+        True,
+        doc="in a sequence with attitude.csv (an IMU's roll and pitch), the run's poses are the tilted camera's: "
+        "the measured footprint turned back with the frame's attitude (floorvo.runner.run_frames)",
+    )
     height_from_depth: bool = param(
         False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
     )
@@ -356,6 +361,10 @@ class PhaseCorr:
     description = "dense: flat-field corrected, windowed phase correlation, sub-pixel phase fit, block-wise yaw (ours)"
     Config = PhaseCorrConfig
     requires: frozenset[str] = frozenset()
+    #: A planar mono estimator: it measures the motion of the camera's floor footprint
+    #: (:func:`floorvo.geometry.footprint_T`), which the runner turns into the tilted
+    #: camera's pose with an attitude signal (``use_attitude_signal``).
+    measures_footprint: bool = True
 
     def __init__(
         self,

@@ -21,7 +21,9 @@ flag of ``floorvo import`` wins over it): ``mav0/camN/flatfield.png`` (:data:`FL
 the camera's flat-field frame), ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
 (:data:`CAMERA_HEIGHT_KEY`, the rig height) and ``mav0/height0/data.csv``
 (:data:`HEIGHT_SENSOR`: ``timestamp_ns,height_mm`` rows at cam0 stamps, an empty value for no
-reading; a frame without a row has none either).
+reading; a frame without a row has none either) and ``mav0/attitude0/data.csv``
+(:data:`ATTITUDE_SENSOR`: ``timestamp_ns,roll_rad,pitch_rad`` rows likewise, the sequence's
+``attitude.csv``).
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ FLATFIELD_FILE = "flatfield.png"
 CAMERA_HEIGHT_KEY = "camera_height_mm"
 #: The sensor folder of a range sensor's camera heights (mm) at cam0's frames.
 HEIGHT_SENSOR = "height0"
+#: The sensor folder of an IMU's camera roll and pitch (rad) at cam0's frames.
+ATTITUDE_SENSOR = "attitude0"
 
 
 def mav0_of(source: Path) -> Path | None:
@@ -135,11 +139,13 @@ def _camera_height_mm(sensor: Path) -> float | None:
     return float(v)
 
 
-def _heights_mm(csv_path: Path, st0: np.ndarray) -> np.ndarray:
-    """(len(st0),) heights (mm, NaN where none) of ``HEIGHT_SENSOR/data.csv``: rows
-    ``timestamp_ns,height_mm`` each at a cam0 stamp (one-line error otherwise); values are
-    checked as ``height.csv``'s are when the sequence is written."""
-    out = np.full(len(st0), np.nan)
+def _frame_values(csv_path: Path, st0: np.ndarray, columns: tuple[str, ...], what: str) -> np.ndarray:
+    """(len(st0), len(columns)) values (NaN where none) of a sensor folder's ``data.csv`` at cam0's
+    frames: rows ``timestamp_ns,COLUMN,...`` each at a cam0 stamp (one-line error otherwise);
+    values are checked as the sequence's ``height.csv`` / ``attitude.csv`` are when written.
+    ``what``: the value a row gives ("a height")."""
+    rule = ",".join(("timestamp_ns", *columns))
+    out = np.full((len(st0), len(columns)), np.nan)
     index = {int(t): k for k, t in enumerate(st0)}
     seen: set[int] = set()
     for lineno, line in enumerate(read_text(csv_path, SequenceError, what="a CSV text file").splitlines(), 1):
@@ -147,15 +153,15 @@ def _heights_mm(csv_path: Path, st0: np.ndarray) -> np.ndarray:
         if not line or line.startswith("#"):
             continue
         parts = [p.strip() for p in line.split(",")]
-        if len(parts) != 2:
-            raise SequenceError(f"{csv_path}:{lineno}: a row is 'timestamp_ns,height_mm' (empty: no reading)")
+        if len(parts) != len(columns) + 1:
+            raise SequenceError(f"{csv_path}:{lineno}: a row is {rule!r} (empty: no reading)")
         try:
             t = int(parts[0])
-            v = float(parts[1]) if parts[1] else np.nan
+            v = [float(c) if c else np.nan for c in parts[1:]]
         except ValueError:
-            raise SequenceError(f"{csv_path}:{lineno}: {shown(line)} is not 'timestamp_ns,height_mm'") from None
+            raise SequenceError(f"{csv_path}:{lineno}: {shown(line)} is not {rule!r}") from None
         if t not in index:
-            raise SequenceError(f"{csv_path}:{lineno}: {t} ns is the stamp of no cam0 frame: a height is a frame's")
+            raise SequenceError(f"{csv_path}:{lineno}: {t} ns is the stamp of no cam0 frame: {what} is a frame's")
         if t in seen:
             raise SequenceError(f"{csv_path}:{lineno}: a second row at {t} ns")
         seen.add(t)
@@ -208,7 +214,18 @@ def read(source: Path, options=None) -> Recording:
     }
     height_csv = mav / HEIGHT_SENSOR / "data.csv"
     height_given = getattr(options, "height_signal_mm", None) is not None
-    heights = _heights_mm(height_csv, st0) if height_csv.is_file() and not height_given else None
+    heights = (
+        _frame_values(height_csv, st0, ("height_mm",), "a height")[:, 0]
+        if height_csv.is_file() and not height_given
+        else None
+    )
+    attitude_csv = mav / ATTITUDE_SENSOR / "data.csv"
+    attitude_given = getattr(options, "attitude_signal_rad", None) is not None
+    attitude = (
+        _frame_values(attitude_csv, st0, ("roll_rad", "pitch_rad"), "an attitude")
+        if attitude_csv.is_file() and not attitude_given
+        else None
+    )
 
     def frames() -> Iterator[FrameImages]:
         for i, f in enumerate(files0):
@@ -238,4 +255,5 @@ def read(source: Path, options=None) -> Recording:
         else _camera_height_mm(mav / "cam0" / "sensor.yaml"),
         flatfields=flatfields,
         height_signal_mm=heights,
+        attitude_signal_rad=attitude,
     )

@@ -30,6 +30,7 @@ from floorvo.metrics import associate
 from floorvo.sequence import (
     GROUNDTRUTH_MAX_DIFF_S,
     SequenceWriter,
+    check_attitude,
     check_groundtruth_times,
     check_heights,
     check_timestamps,
@@ -96,6 +97,9 @@ class Recording:
         Flat-field frames the source carries, by camera (``cam0``, ``cam1``).
     height_signal_mm:
         (frame_count,) measured camera heights (mm, NaN where none) the source carries, or None.
+    attitude_signal_rad:
+        (frame_count, 2) measured camera roll and pitch (rad, NaN where none) the source
+        carries, or None.
     """
 
     format: str
@@ -114,6 +118,7 @@ class Recording:
     height_mm: float | None = None
     flatfields: dict[str, np.ndarray] = field(default_factory=dict)
     height_signal_mm: np.ndarray | None = None
+    attitude_signal_rad: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +145,9 @@ class ImportOptions:
     height_signal_mm:
         Per-frame camera height above the floor (mm, NaN where none) from a range sensor,
         written to ``height.csv`` (one per frame).
+    attitude_signal_rad:
+        Per-frame camera roll and pitch against gravity (rad, a row of NaN where none) from an
+        IMU, (frame_count, 2), written to ``attitude.csv`` (:mod:`floorvo.sequence` defines the angles).
     topics:
         ROS 2 bag topics by role (``image``, ``right``, ``depth``, ``camera_info``,
         ``right_camera_info``, ``groundtruth``); roles not given are found by type and name.
@@ -160,6 +168,7 @@ class ImportOptions:
     fps: float | None = None
     flatfield: Path | None = None
     height_signal_mm: np.ndarray | None = None
+    attitude_signal_rad: np.ndarray | None = None
     topics: dict[str, str] = field(default_factory=dict)
     left_only: bool = False
     overwrite: bool = False
@@ -377,6 +386,10 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     if heights is not None:
         heights_what = "--height-file" if opts.height_signal_mm is not None else f"{what}: measured heights"
         check_heights(np.asarray(heights, dtype=float), n, heights_what)
+    attitude = opts.attitude_signal_rad if opts.attitude_signal_rad is not None else rec.attitude_signal_rad
+    if attitude is not None:
+        attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"
+        check_attitude(np.asarray(attitude, dtype=float), n, attitude_what)
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
         writer.write_timestamps(ts)
         count = 0
@@ -411,6 +424,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             writer.write_groundtruth(gt[0], gt[1])
         if heights is not None:
             writer.write_heights(heights)
+        if attitude is not None:
+            writer.write_attitude(attitude)
     log.info("imported %d frames of %s (%s) -> %s", n, what, rec.format, writer.root)
     return ImportResult(
         sequence=writer.root,

@@ -1,0 +1,234 @@
+"""A measured camera attitude per frame (issue 14, "6-DoF where the sensors allow it"): the
+sequence's ``attitude.csv``, the inverse of the footprint, and a planar mono estimator's
+poses made the tilted camera's with it, against ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from floorvo.camera import CameraModel
+from floorvo.errors import SequenceError
+from floorvo.estimators import get_estimator
+from floorvo.geometry import (
+    T_world_cam_down,
+    attitude_of_T,
+    footprint_T,
+    invert_T,
+    rot_z,
+    tilt_twist_rad,
+    tilted_camera_T,
+)
+from floorvo.run import build_estimator, run_estimator
+from floorvo.runner import NO_ATTITUDE, uses_attitude_signal
+from floorvo.scoring import score_run
+from floorvo.sequence import ATTITUDE_FILE, Sequence, SequenceWriter, sequence_files
+from floorvo.synthetic import write_synthetic_sequence
+
+CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
+
+
+def _meta(n: int) -> dict:
+    return {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+
+
+def _write(tmp_path, n: int = 3):
+    root = tmp_path / "seq"
+    with SequenceWriter(root, _meta(n)) as w:
+        for i in range(n):
+            w.write_frame(i, np.full((CAM.height_px, CAM.width_px), 100, np.uint8))
+    return root
+
+
+def _random_poses(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.stack(
+        [
+            T_world_cam_down(
+                *rng.uniform(-500, 500, 2),
+                rng.uniform(60, 140),
+                *rng.uniform(-np.pi, np.pi, 1),
+                *rng.uniform(-0.3, 0.3, 2),
+            )
+            for _ in range(n)
+        ]
+    )
+
+
+def test_tilted_camera_T_inverts_footprint_T_exactly():
+    """Both ways round, for random poses: the footprint of the tilted camera is the footprint
+    pose given, and the tilted camera of a pose's footprint, at its attitude and height, is the pose."""
+    T = _random_poses(50)
+    att = attitude_of_T(T)
+    for Ti, (r, p) in zip(T, att):
+        F = footprint_T(Ti, 80.0)[0]
+        np.testing.assert_allclose(tilted_camera_T(F, r, p, Ti[2, 3]), Ti, rtol=0, atol=1e-9)
+        G = T_world_cam_down(12.0, -3.0, 91.0, 0.7)  # any level footprint pose
+        np.testing.assert_allclose(footprint_T(tilted_camera_T(G, r, p), 91.0)[0], G, rtol=0, atol=1e-9)
+    # a level camera is its own footprint
+    L = T_world_cam_down(5.0, 6.0, 100.0, 1.2)
+    np.testing.assert_allclose(tilted_camera_T(L, 0.0, 0.0), L, rtol=0, atol=1e-12)
+
+
+def test_attitude_is_the_direction_of_gravity_in_the_camera_frame():
+    T = T_world_cam_down(1.0, 2.0, 100.0, 2.5, 0.04, -0.03)
+    np.testing.assert_allclose(attitude_of_T(T), [0.04, -0.03], atol=1e-12)  # whatever the yaw
+    g = T[:3, :3].T @ [0.0, 0.0, -1.0]
+    r, p = 0.04, -0.03
+    np.testing.assert_allclose(g, [np.sin(p), np.sin(r) * np.cos(p), np.cos(r) * np.cos(p)], atol=1e-12)
+    # the turn about the optical axis between two tilts: the rotation between the two cameras
+    a, b = T_world_cam_down(0, 0, 100, 0.0, 0.03, 0.0), T_world_cam_down(0, 0, 100, 0.0, 0.028, 0.009)
+    rel = invert_T(a)[:3, :3] @ b[:3, :3]
+    from scipy.spatial.transform import Rotation
+
+    assert tilt_twist_rad((0.03, 0.0), (0.028, 0.009)) == pytest.approx(Rotation.from_matrix(rel).as_rotvec()[2])
+    assert tilt_twist_rad((0.01, 0.02), (0.01, 0.02)) == 0.0
+    np.testing.assert_allclose(rot_z(0.0), np.eye(3))
+
+
+def test_attitude_file_round_trip_and_a_folder_without_it_loads_as_before(tmp_path):
+    root = _write(tmp_path)
+    assert Sequence.open(root).attitude_signal_rad is None
+    with SequenceWriter(root, _meta(3)) as w:
+        w.write_attitude(np.array([[0.01, -0.02], [np.nan, np.nan], [0.0, 0.5]]))
+    text = (root / ATTITUDE_FILE).read_text().splitlines()
+    assert text[1:] == ["frame,roll_rad,pitch_rad", "0,0.010000000,-0.020000000", "1,,", "2,0.000000000,0.500000000"]
+    a = Sequence.open(root).attitude_signal_rad
+    np.testing.assert_array_equal(a, [[0.01, -0.02], [np.nan, np.nan], [0.0, 0.5]])
+    assert root / ATTITUDE_FILE in sequence_files(root)  # --overwrite removes it with the sequence
+    from floorvo.runner import sequence_frames
+
+    frames = list(sequence_frames(Sequence.open(root), range(3)))
+    assert frames[0].attitude_rad == (0.01, -0.02) and frames[2].attitude_rad == (0.0, 0.5)
+    assert np.isnan(frames[1].attitude_rad).all()
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        (
+            "frame,roll,pitch\n0,0,0\n1,0,0\n2,0,0\n",
+            r"attitude.csv:1: header 'frame,roll,pitch': must be 'frame,roll_rad,pitch_rad'",
+        ),
+        (
+            "frame,roll_rad,pitch_rad\n0,0,0\n2,0,0\n1,0,0\n",
+            r"attitude.csv:3: frame '2': rows must be frames 0, 1, \.\.\. in order",
+        ),
+        (
+            "frame,roll_rad,pitch_rad\n0,0,0\n1,0.7,0\n2,0,0\n",
+            r"roll_rad of frame 1 = 0.7: must be a finite number of radians within \+-0.5",
+        ),
+        ("frame,roll_rad,pitch_rad\n0,0,0\n1,0,inf\n2,0,0\n", r"pitch_rad of frame 1 = inf: must be a finite number"),
+        ("frame,roll_rad,pitch_rad\n0,0,0\n1,0.01,\n2,0,0\n", r"frame 1 has roll 0.01 and pitch nan: both or neither"),
+        (
+            "frame,roll_rad,pitch_rad\n0,0,0\n1,2deg,0\n2,0,0\n",
+            r"attitude.csv:3: roll_rad '2deg' of frame 1: not a number",
+        ),
+        (
+            "frame,roll_rad,pitch_rad\n0,0,0\n1,0,0\n",
+            r"2 \(roll, pitch\) row\(s\) for 3 frame\(s\); need one per frame",
+        ),
+        ("frame,roll_rad,pitch_rad\n0,0,0\n1,0\n2,0,0\n", r"attitude.csv:3: '1,0': need three cells"),
+        ("# nothing\n", r"no header line 'frame,roll_rad,pitch_rad'"),
+    ],
+)
+def test_a_bad_attitude_file_is_refused_in_one_line(tmp_path, body, message):
+    root = _write(tmp_path)
+    (root / ATTITUDE_FILE).write_text(body)
+    with pytest.raises(SequenceError, match=message) as err:
+        Sequence.open(root)
+    assert "\n" not in str(err.value) and "attitude.csv" in str(err.value)
+    with SequenceWriter(root, _meta(3)) as w, pytest.raises(SequenceError, match="need one per frame"):
+        w.write_attitude(np.zeros((1, 2)))
+
+
+def _tilt_poses(n: int = 30, amp: float = 0.03) -> np.ndarray:
+    """4 mm/frame along x with roll and pitch of ``amp`` rad at 1.5 Hz, a quarter period apart
+    (the motion suite's tilt, ``floorsim.trajectories``), at 30 fps."""
+    t = np.arange(n) / 30.0
+    roll, pitch = amp * np.sin(3 * np.pi * t), amp * np.sin(3 * np.pi * t + np.pi / 2)
+    return np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.0, roll[i], pitch[i]) for i in range(n)])
+
+
+@pytest.fixture(scope="module")
+def tilt_seq(tmp_path_factory):
+    return write_synthetic_sequence(tmp_path_factory.mktemp("tilt") / "seq", CAM, _tilt_poses(), attitude_noise_rad=0.0)
+
+
+def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(tilt_seq, tmp_path):
+    """Without the signal a planar estimator's end is off by about height x tilt (the footprint
+    under the tilted optical axis, 3-4 mm here) and every 6-DoF step is wrong; with it the run
+    reports the tilted camera's poses: every step within issue 14's bound of the camera's 6-DoF
+    step, the end within 0.3 % of the path (the rest: the picture of a tilted floor, whose
+    perspective the planar fit reads as a little turn), and scoring holds it to the 6-DoF step."""
+    T = _tilt_poses()
+    seq = Sequence.open(tilt_seq)
+    off = run_estimator(seq, "phase-corr", tmp_path / "off", {"use_attitude_signal": "false"})
+    on = run_estimator(seq, "phase-corr", tmp_path / "on")
+    assert not off.attitude_signal and on.attitude_signal
+    assert off.lost == 0 and on.lost == 0
+    end_off = np.linalg.norm(off.T_world_cam[-1][:3, 3] - T[-1][:3, 3])
+    end_on = np.linalg.norm(on.T_world_cam[-1][:3, 3] - T[-1][:3, 3])
+    assert end_off > 100.0 * 0.03  # height x tilt, and more
+    assert end_on < 0.003 * 116.0
+    np.testing.assert_allclose(attitude_of_T(on.T_world_cam), attitude_of_T(T), atol=1e-12)  # the tilt is the signal's
+    s_on, s_off = score_run(tmp_path / "on", tilt_seq), score_run(tmp_path / "off", tilt_seq)
+    assert s_on.tracking["wrong_ok_steps"] == 0 and s_on.tracking["attitude_signal"] is True
+    assert "wrong_ok_steps_footprint" not in s_on.tracking  # held to the camera's step only
+    assert s_off.tracking["wrong_ok_steps"] == 29 and s_off.tracking["wrong_ok_steps_footprint"] == 0
+
+
+def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt_seq, tmp_path):
+    """A dropout (NaN row) is no 6-DoF pose: the frame is reported lost with the reason, its
+    measured motion chained, so the frame after it is placed as without the dropout (to 5 um:
+    the turn of the two tilt changes about the optical axis is taken out in one)."""
+    import shutil
+
+    root = tmp_path / "seq"
+    shutil.copytree(tilt_seq, root)
+    a = Sequence.open(root).attitude_signal_rad
+    a[7] = np.nan
+    with SequenceWriter(root, Sequence.open(root).meta) as w:
+        w.write_attitude(a)
+    full = run_estimator(Sequence.open(tilt_seq), "phase-corr", tmp_path / "full")
+    gap = run_estimator(Sequence.open(root), "phase-corr", tmp_path / "gap")
+    assert gap.status[7] == "lost" and gap.reason[7] == NO_ATTITUDE and gap.lost == 1
+    np.testing.assert_allclose(gap.T_world_cam[8:, :3, 3], full.T_world_cam[8:, :3, 3], rtol=0, atol=5e-3)
+    np.testing.assert_allclose(gap.T_world_cam[8:, :3, :3], full.T_world_cam[8:, :3, :3], rtol=0, atol=2e-5)
+    assert score_run(tmp_path / "gap", root).tracking["wrong_ok_steps"] == 0
+
+
+def test_a_level_run_with_an_attitude_of_zero_keeps_its_steps(tmp_path):
+    """Tilt 0: the signal changes nothing (to rounding) on a level run that turns."""
+    n = 12
+    T = np.stack([T_world_cam_down(3.0 * i, 0.2 * i * i, 100.0, 0.02 * i) for i in range(n)])
+    with_sig = write_synthetic_sequence(tmp_path / "a", CAM, T, attitude_noise_rad=0.0)
+    without = write_synthetic_sequence(tmp_path / "b", CAM, T)
+    a = run_estimator(Sequence.open(with_sig), "phase-corr", tmp_path / "ra")
+    b = run_estimator(Sequence.open(without), "phase-corr", tmp_path / "rb")
+    assert a.attitude_signal and not b.attitude_signal
+    np.testing.assert_allclose(a.T_world_cam, b.T_world_cam, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "name, corrected",
+    [
+        ("phase-corr", True),
+        ("phase-corr-fast", True),
+        ("akaze-guided", True),
+        ("akaze-bruteforce-fast", True),
+        ("homography-6dof", False),
+        ("orb-icp", False),
+        ("stereo-sift", False),
+    ],
+)
+def test_only_the_planar_estimators_are_turned_by_the_signal(tilt_seq, name, corrected):
+    """Estimators that measure the tilt (depth, stereo, the homography) are not corrected twice."""
+    cls = get_estimator(name)
+    if cls.requires:
+        assert not getattr(cls, "measures_footprint", False)
+        return
+    est, _ = build_estimator(Sequence.open(tilt_seq), name)
+    assert uses_attitude_signal(est) is corrected
+    est_off, _ = build_estimator(Sequence.open(tilt_seq), name, {"use_attitude_signal": "false"})
+    assert not uses_attitude_signal(est_off)
