@@ -31,7 +31,9 @@ The EuRoC export carries what the layout has no file of its own for in sidecars 
 ``floorvo import`` reads back (other readers ignore them): each camera's flat-field frame as
 ``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
 and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height0/data.csv``
-(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading). So
+(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading), an
+IMU's ``attitude.csv`` likewise as ``mav0/attitude0/data.csv`` (``#timestamp [ns],roll
+[rad],pitch [rad]``). So
 both formats carry the whole sequence (``calib/`` beyond the flat fields aside: a render's
 ``sensor.json`` and ``exposure.csv``), and ``floorvo import`` gives it back.
 """
@@ -53,7 +55,7 @@ import numpy as np
 from floorvo.errors import FloorbenchError, FolderLockedError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
-from floorvo.importers.euroc import CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
+from floorvo.importers.euroc import ATTITUDE_SENSOR, CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
 from floorvo.io import TEMP_SUFFIX, atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
 from floorvo.locking import lock_folder
 from floorvo.sequence import Sequence
@@ -260,6 +262,8 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
     gt = seq.groundtruth()
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
+    if seq.attitude_signal_rad is not None:  # no message of the bag carries it yet (the EuRoC export does)
+        log.warning("%s: attitude.csv is left out of the ROS 2 bag (export --format euroc carries it)", seq.root)
     with Writer(out, version=9) as w:
         conns = {}
         for c in cams:
@@ -431,6 +435,27 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             {
                 "sensor_type": "range",
                 "comment": "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
+                "rate_hz": float(seq.fps),
+            },
+        )
+    attitude = seq.attitude_signal_rad
+    if attitude is not None:
+        a_dir = mav / ATTITUDE_SENSOR
+        a_dir.mkdir(parents=True, exist_ok=True)
+        atomic_write_csv(
+            a_dir / "data.csv",
+            ["#timestamp [ns]", "roll [rad]", "pitch [rad]"],
+            [
+                (_ns(float(stamps[i])), *(None if np.isnan(v) else float(v) for v in row))
+                for i, row in enumerate(attitude)
+            ],
+        )
+        _yaml_dump(
+            a_dir / "sensor.yaml",
+            {
+                "sensor_type": "attitude",
+                "comment": "floorbench: cam0's roll and pitch against gravity (rad, floorvo.sequence's attitude.csv) "
+                "at each cam0 frame; empty = no reading",
                 "rate_hz": float(seq.fps),
             },
         )

@@ -325,6 +325,22 @@ class RangeSensorSpec(Config):
 
 
 @dataclass(frozen=True)
+class AttitudeSensorSpec(Config):
+    """A simulated IMU attitude filter on the rig (issue 14, "6-DoF where the sensors allow it"):
+    the camera's roll and pitch against gravity per frame (:func:`floorvo.geometry.attitude_of_T`),
+    written to the sequence's ``attitude.csv`` (the runner turns a planar mono estimator's
+    footprint poses into the tilted camera's with it). The ground truth's attitude plus seeded
+    Gaussian noise of ``noise_rad`` on each angle (from the scene seed, a stream of its own); a
+    fraction ``dropout`` of the frames has no reading. It changes no image."""
+
+    enabled: bool = param(False, doc="write attitude.csv: an IMU's camera roll and pitch per frame")
+    noise_rad: float = param(
+        0.0, unit="rad", min=0.0, max=0.1, doc="standard deviation of its Gaussian noise on roll and on pitch"
+    )
+    dropout: float = param(0.0, min=0.0, max=1.0, doc="fraction of frames without a reading")
+
+
+@dataclass(frozen=True)
 class BenchSpec(Config):
     """What ``floorsim bench`` does with the scene besides running the estimators.
 
@@ -356,6 +372,7 @@ class Scene(Config):
     stereo: StereoSpec = param(default_factory=StereoSpec)
     depth_noise: DepthNoise = param(default_factory=DepthNoise)
     range_sensor: RangeSensorSpec = param(default_factory=RangeSensorSpec)
+    attitude_sensor: AttitudeSensorSpec = param(default_factory=AttitudeSensorSpec)
     trajectory: dict = param(
         default_factory=lambda: {"type": "uniform"}, doc="type = a trajectory type, plus its parameters (see below)"
     )
@@ -469,8 +486,16 @@ class Scene(Config):
         return T
 
     def to_dict(self) -> dict:
-        """The resolved scene as plain data (written into sequence.json)."""
-        return to_plain(self)
+        """The resolved scene as plain data (written into sequence.json).
+
+        Without ``attitude_sensor`` while it is off: the sensor writes a CSV and changes no
+        image, and a scene that does not use it resolves to what it did before the key
+        existed, so the renders cached under that scene's key (:func:`floorsim.bench.bench.scene_cache_key`)
+        and a sequence being resumed stay valid."""
+        d = to_plain(self)
+        if not self.attitude_sensor.enabled:
+            d.pop("attitude_sensor", None)
+        return d
 
 
 def scene_from_dict(d: Mapping[str, Any], default_name: str = "scene") -> Scene:

@@ -28,7 +28,7 @@ import floorvo
 from floorsim.depthnoise import apply_depth_noise
 from floorsim.materials import get_material, sample_material
 from floorsim.render import FloorRenderer, LedArray, backend_info, stratified_spp
-from floorsim.scene import RangeSensorSpec, Scene, scene_T_world_leds
+from floorsim.scene import AttitudeSensorSpec, RangeSensorSpec, Scene, scene_T_world_leds
 from floorsim.sensor import AutoExposure, SensorModel, exposure_gain, image_level, rolling_row_offsets_s
 from floorsim.spectral import mono_response
 from floorsim.tilecache import TileCache, default_cache
@@ -37,6 +37,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import build as build_config
 from floorvo.config import to_plain
 from floorvo.errors import ConfigError
+from floorvo.geometry import attitude_of_T
 from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
 from floorvo.locking import locks_folder
 from floorvo.sequence import SequenceWriter
@@ -47,6 +48,7 @@ __all__ = [
     "plan_tiles",
     "package_versions",
     "range_sensor_heights",
+    "attitude_sensor_angles",
     "LED_INTENSITY_UNIT",
     "EXPOSURE_FILE",
     "read_exposure_log",
@@ -368,6 +370,8 @@ def render_sequence(
     writer.write_groundtruth(ts, T_all)
     if scene.range_sensor.enabled:
         writer.write_heights(range_sensor_heights(T_all, scene.range_sensor, scene.seed), "simulated range sensor")
+    if scene.attitude_sensor.enabled:
+        writer.write_attitude(attitude_sensor_angles(T_all, scene.attitude_sensor, scene.seed), "simulated IMU")
     missing = writer.missing_frames()
     need_flat = scene.render.flatfield and not all(
         writer.has_calib(name) for name in ("cam0_flatfield", "cam1_flatfield")[: 2 if T_01 is not None else 1]
@@ -583,3 +587,16 @@ def range_sensor_heights(T_world_cam: np.ndarray, spec: RangeSensorSpec, seed: i
     h = z + rng.normal(0.0, spec.noise_mm, z.shape)
     h[rng.random(z.shape) < spec.dropout] = np.nan
     return h
+
+
+def attitude_sensor_angles(T_world_cam: np.ndarray, spec: AttitudeSensorSpec, seed: int) -> np.ndarray:
+    """(N, 2) roll and pitch (rad) a simulated IMU's attitude filter reads: the camera's attitude
+    against gravity (:func:`floorvo.geometry.attitude_of_T` of ``T_world_cam`` (N, 4, 4)) plus
+    Gaussian noise of ``spec.noise_rad`` on each angle, a row of NaN for a fraction
+    ``spec.dropout`` of the frames; seeded by ``seed`` (a stream of its own, not the range
+    sensor's), the same in every process."""
+    rng = np.random.default_rng([int(seed), 0x41545449])  # "ATTI"
+    a = attitude_of_T(np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4))
+    a = a + rng.normal(0.0, spec.noise_rad, a.shape)
+    a[rng.random(len(a)) < spec.dropout] = np.nan
+    return a

@@ -260,3 +260,27 @@ def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path,
     assert err.endswith("cam0/sensor.yaml: camera_height_mm = -87.5: must be a finite number of mm > 0"), err
     # the flag that replaces a damaged sidecar is enough
     assert main(["import", str(exported), "-o", str(tmp_path / "fixed"), "--height-mm", "87.5"]) == 0
+
+
+def test_a_euroc_export_carries_the_attitude_back_and_a_bag_says_it_left_it_out(tmp_path, capsys, caplog):
+    """attitude.csv (an IMU's roll and pitch, a frame without a reading) goes to EuRoC's
+    ``mav0/attitude0/data.csv`` and comes back from ``floorvo import`` to the digit; a ROS 2 bag
+    has no message for it yet, and the export says so."""
+    from floorvo.geometry import T_world_cam_down, attitude_of_T
+    from floorvo.sequence import SequenceWriter
+
+    T = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.0, 0.01 * i, -0.005 * i) for i in range(4)])
+    root = write_synthetic_sequence(tmp_path / "seq", CAM, T, attitude_noise_rad=0.001, seed=2)
+    a = Sequence.open(root).attitude_signal_rad
+    a[2] = np.nan
+    with SequenceWriter(root, Sequence.open(root).meta) as w:
+        w.write_attitude(a)
+    exported = export_sequence(root, "euroc", tmp_path / "exported")
+    assert (exported / "mav0" / "attitude0" / "data.csv").is_file()
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--height-mm", "100"]) == 0
+    imp = Sequence.open(tmp_path / "imported").attitude_signal_rad
+    np.testing.assert_array_equal(imp, a)
+    assert np.abs(np.delete(imp, 2, 0) - np.delete(attitude_of_T(T), 2, 0)).max() < 0.005
+    caplog.clear()
+    export_sequence(root, "rosbag2", tmp_path / "bag")
+    assert any("attitude.csv is left out of the ROS 2 bag" in r.getMessage() for r in caplog.records)

@@ -65,3 +65,37 @@ def test_range_sensor_writes_the_true_height_plus_its_seeded_noise(tmp_path):
     np.testing.assert_array_equal(a, b)
     assert np.isnan(a).mean() == pytest.approx(0.25, abs=0.02)
     assert np.nanstd(a) == pytest.approx(0.3, rel=0.05) and np.nanmean(a) == pytest.approx(100.0, abs=0.01)
+
+
+def test_attitude_sensor_writes_the_true_roll_and_pitch_plus_its_seeded_noise(tmp_path):
+    """Issue 14 (6-DoF where the sensors allow it): a simulated IMU (scene key attitude_sensor)
+    writes attitude.csv, the ground truth's roll and pitch (here tilting) plus Gaussian noise
+    from the scene seed on a stream of its own; two renders write the same file, bit for bit;
+    the key off leaves the scene (and its render cache key) as it was."""
+    from floorsim.bench.bench import scene_cache_key
+    from floorsim.scene import AttitudeSensorSpec
+    from floorsim.simulate import attitude_sensor_angles
+    from floorvo.geometry import attitude_of_T
+
+    keys = {"trajectory.distance_mm": 8.0, "trajectory.disturbance": {"tilt_amp_rad": 0.03}}
+    scene = tiny_scene(**keys, **{"attitude_sensor.enabled": True, "attitude_sensor.noise_rad": 0.0005})
+    a_seq = Sequence.open(render_sequence(scene, tmp_path / "a", spp=2))
+    b_seq = Sequence.open(render_sequence(scene, tmp_path / "b", spp=2))
+    assert (a_seq.root / "attitude.csv").read_bytes() == (b_seq.root / "attitude.csv").read_bytes()
+    truth = attitude_of_T(a_seq.groundtruth()[1])
+    att = a_seq.attitude_signal_rad
+    assert att is not None and np.ptp(truth) > 0.01
+    assert np.all(np.abs(att - truth) < 0.003) and np.any(att != truth)
+    plain = tiny_scene(**keys)
+    assert "attitude_sensor" not in plain.to_dict() and "attitude_sensor" in scene.to_dict()
+    assert scene_cache_key(plain.to_dict(), seed=0, frames=None, scale=None, spp=None) != scene_cache_key(
+        scene.to_dict(), seed=0, frames=None, scale=None, spp=None
+    )
+    T = np.tile(np.eye(4), (20000, 1, 1))
+    T[:, :3, :3] = np.diag([1.0, -1.0, -1.0])  # looking straight down
+    spec = AttitudeSensorSpec(enabled=True, noise_rad=0.002, dropout=0.25)
+    a = attitude_sensor_angles(T, spec, seed=4)
+    np.testing.assert_array_equal(a, attitude_sensor_angles(T, spec, seed=4))
+    assert np.isnan(a[:, 0]).mean() == pytest.approx(0.25, abs=0.02)
+    assert np.array_equal(np.isnan(a[:, 0]), np.isnan(a[:, 1]))  # a dropout loses both angles
+    assert np.nanstd(a[:, 0]) == pytest.approx(0.002, rel=0.05) and abs(np.nanmean(a)) < 1e-4

@@ -688,3 +688,26 @@ def test_import_writes_a_range_sensors_height_column(tmp_path, synth, capsys):
     )
     assert "--height-file: 2 height(s) for 7 frame(s)" in err
     assert not (tmp_path / "imp2" / "height.csv").exists()
+
+
+def test_import_writes_an_imus_attitude(tmp_path, synth, capsys):
+    """--attitude-file (CSV frame,roll_rad,pitch_rad) becomes the sequence's attitude.csv; a
+    file with an angle in degrees is refused in one line before anything is written."""
+    seq, frames, T = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"f{i:02d}.png"), img)
+    rows = ["0.01,-0.02", "0.011,-0.019", ",", "0.0,0.0", "-0.01,0.02", "0.0,0.005", "0.001,0.0"]
+    (tmp_path / "a.csv").write_text("frame,roll_rad,pitch_rad\n" + "".join(f"{i},{r}\n" for i, r in enumerate(rows)))
+    out = tmp_path / "imp"
+    argv = ["import", str(src), "-o", str(out), *FLAGS, "--height-mm", "100", "--fps", "30"]
+    assert main([*argv, "--attitude-file", str(tmp_path / "a.csv")]) == 0
+    a = Sequence.open(out).attitude_signal_rad
+    assert a.shape == (7, 2) and np.isnan(a[2]).all() and a[4].tolist() == [-0.01, 0.02]
+    (tmp_path / "deg.csv").write_text("frame,roll_rad,pitch_rad\n" + "".join(f"{i},1.5,0\n" for i in range(7)))
+    err = _one_line_error(
+        capsys, [*argv[:3], str(tmp_path / "imp2"), *argv[4:], "--attitude-file", str(tmp_path / "deg.csv")]
+    )
+    assert "--attitude-file: roll_rad of frame 0 = 1.5: must be a finite number of radians within +-0.5" in err
+    assert not (tmp_path / "imp2" / "attitude.csv").exists()
