@@ -13,7 +13,8 @@ Runs ``floorsim bench --suite motion`` as a library call (:func:`floorsim.bench.
 per scene x estimator from the bench's rows: steps, ok steps, **wrong ok steps**
 (``wrong_ok_steps``: off by more than 0.05 mm + 2 % of the true step or 0.3 degrees, issue
 14's bound), the same against the planar step of the camera's footprint
-(``wrong_ok_steps_footprint``: the bound for a planar estimator on a tilted or bouncing run),
+(``wrong_ok_steps_footprint``: the bound for a planar estimator on a tilted or bouncing run;
+"-" for a run made 6-DoF by an attitude signal, held to the camera's step),
 lost frames, end drift in % of the path, the turn error (``turn_error_pct``: measured minus
 true turn over the steps reported ok, in % of the true turn; none under 10 degrees), frames
 per second (from the mean total
@@ -30,7 +31,9 @@ for each floor material of the suite, the shipped straight run over it
 and :func:`floorvo.calibration.calibrate_run` fits that estimator's scale on it
 (``OUT/calibration/ESTIMATOR--MATERIAL.json``); the suite's scenes over that material are
 then run again with it (:func:`floorsim.bench.run_bench`'s ``scale_calibrations``), and the
-table gains the calibrated end drift, the scale fitted and the calibrated wrong-ok count. A
+table gains the calibrated end drift, the scale fitted and the calibrated wrong-ok counts (against
+the camera's 6-DoF step and against the footprint's; a run whose poses an attitude signal made
+6-DoF, ``attitude.csv``, has no footprint count: "-"). A
 straight run along x observes the x scale only (the y scale stays 1); an estimator that
 loses its calibration run (the featureless floor) runs uncalibrated, and the table says so.
 
@@ -144,7 +147,12 @@ def main() -> None:
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %"]
     cols += ["turn error %", "frames/s"]
     if args.calibrate:
-        cols += ["scale x (material)", "calibrated end drift %", "calibrated wrong ok, footprint"]
+        cols += [
+            "scale x (material)",
+            "calibrated end drift %",
+            "calibrated wrong ok",
+            "calibrated wrong ok, footprint",
+        ]
     if args.spins is not None:
         cols += ["scale yaw (spin)", "x, y, yaw calibrated end drift %", "x, y, yaw calibrated turn error %"]
         cols += ["x, y, yaw calibrated wrong ok, footprint"]
@@ -173,6 +181,7 @@ def main() -> None:
             cells += [
                 fit.scale_x_cell() if fit is not None else "-",
                 _fmt(c.get("end_drift_pct")),
+                _fmt(c.get("wrong_ok_steps"), 0),
                 _fmt(c.get("wrong_ok_steps_footprint"), 0),
             ]
         if args.spins is not None:
