@@ -21,6 +21,7 @@ frame continues from the last good one.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ from floorvo.geometry import (
     tilted_camera_T,
     yaw_of_R,
 )
-from floorvo.metrics import lost_reasons
+from floorvo.metrics import WRONG_STEP_FRACTION, WRONG_STEP_MM, lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
@@ -54,6 +55,7 @@ __all__ = [
     "sequence_frames",
     "camera_height_mm",
     "uses_attitude_signal",
+    "attitude_noise_rad",
     "NO_ATTITUDE",
 ]
 
@@ -204,6 +206,7 @@ def run_frames(
     scale_calibration: ScaleCalibration | None = None,
     on_step: OnStep | None = None,
     name: str | None = None,
+    attitude_noise_rad: float = 0.0,
 ) -> RunResult:
     """Run ``estimator`` (an :class:`~floorvo.estimators.base.Estimator`) over ``frames`` from a fresh state.
 
@@ -213,6 +216,10 @@ def run_frames(
     match samples). ``name``: the run's estimator name (default ``estimator.name``).
     An estimator that breaks the protocol (an unknown status, ``ok`` without motion, a motion or
     pose that is not a rigid (4, 4) transform of finite numbers) is a bug: ``ValueError``.
+    ``attitude_noise_rad``: the standard error of each reading of the frames' attitude signal
+    (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
+    that the signal would leave uncertain beyond the estimator's bound is lost
+    (:func:`_attitude_problem`).
     """
     name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
     T_world = np.array(T_world_start, dtype=float)
@@ -265,11 +272,14 @@ def run_frames(
             known = bool(np.isfinite(roll) and np.isfinite(pitch))
             if known and (st in _PLACED or RESTART_NOTE in res.reason):
                 measured_from = (roll, pitch)  # the next step is measured from this frame
+            noisy = _attitude_problem(estimator, res, attitude_noise_rad, float(T_chain[2, 3])) if st == "ok" else ""
             if st in _PLACED:
-                if known:
-                    T_world = tilted_camera_T(T_chain, roll, pitch)
-                else:  # a dropout: measured and chained, not placed
+                if not known:  # a dropout: measured and chained, not placed
                     st, why, fix = "lost", NO_ATTITUDE, False
+                elif noisy:  # measured and chained, not placed: the signal leaves it uncertain
+                    st, why, fix = "lost", noisy, False
+                else:
+                    T_world = tilted_camera_T(T_chain, roll, pitch)
         index.append(frame.index)
         stamp.append(frame.timestamp_s)
         status.append(st)
@@ -295,6 +305,52 @@ def run_frames(
         fixed=np.array(fixed, dtype=bool),
         wall_s=wall,
         attitude_signal=attitude,
+    )
+
+
+def attitude_noise_rad(attitude_rad: np.ndarray | None) -> float:
+    """The standard error (rad) of each reading of an attitude signal ``attitude_rad`` (N, 2)
+    (roll, pitch; NaN where no reading), estimated from the signal itself: the k-th differences
+    of white noise of standard error s have variance C(2k, k) s^2 (20 s^2 for k = 3), while those
+    of a robot's tilt, smooth over a few frames, are small (0.03 rad at 1.5 Hz and 30 frames/s:
+    0.9 mrad at k = 3); the median absolute third difference (the highest order the readings
+    allow, up to 3) over both angles, as a normal standard error (x 1.4826), over sqrt(C(2k, k)).
+    An upper bound where the tilt itself changes fast. 0.0 for fewer than two consecutive readings."""
+    if attitude_rad is None:
+        return 0.0
+    a = np.asarray(attitude_rad, dtype=float).reshape(-1, 2)
+    for k in (3, 2, 1):
+        if len(a) > k:
+            d = np.diff(a, k, axis=0).ravel()
+            d = d[np.isfinite(d)]
+            if d.size:
+                return float(1.4826 * np.median(np.abs(d)) / np.sqrt(math.comb(2 * k, k)))
+    return 0.0
+
+
+def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_mm: float) -> str:
+    """Why an ``ok`` step made 6-DoF with an attitude signal whose readings each have the standard
+    error ``noise_rad`` is too uncertain to report ('' when it is not): a reading's error moves
+    the camera's pose by ``height_mm`` x the error, a step's by sqrt(2) of that, and at the
+    estimator's ``precision_sigmas`` that must stay within its bound for the step
+    (:class:`floorvo.estimators.base.StepBoundConfig`; an estimator without those keys: the
+    scoring's bound, :data:`floorvo.metrics.WRONG_STEP_MM` and its siblings, at 2.5). A signal of
+    1.5 mrad at 100 mm: 0.53 mm against the 0.13 mm of a 4 mm step; 0.2 mrad: 0.07 mm."""
+    if noise_rad <= 0.0 or res.T_prev_cur is None:
+        return ""
+    cfg = getattr(estimator, "config", None)
+    sigmas = float(getattr(cfg, "precision_sigmas", 2.5))
+    if sigmas <= 0.0:
+        return ""
+    step_mm = float(np.linalg.norm(np.asarray(res.T_prev_cur, dtype=float)[:3, 3]))
+    bound = getattr(cfg, "bound_mm", None)
+    bound_mm = float(bound(step_mm)) if callable(bound) else WRONG_STEP_MM + WRONG_STEP_FRACTION * step_mm
+    err_mm = sigmas * np.sqrt(2.0) * height_mm * noise_rad
+    if err_mm <= bound_mm:
+        return ""
+    return (
+        f"attitude signal too noisy for the step: {sigmas:g} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
+        f"x height {height_mm:.1f} mm = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; the motion is chained through this frame"
     )
 
 
@@ -426,4 +482,5 @@ def run_sequence(
         scale_calibration=scale_calibration,
         on_step=on_step,
         name=name,
+        attitude_noise_rad=attitude_noise_rad(seq.attitude_signal_rad) if uses_attitude_signal(estimator) else 0.0,
     )

@@ -232,3 +232,42 @@ def test_only_the_planar_estimators_are_turned_by_the_signal(tilt_seq, name, cor
     assert uses_attitude_signal(est) is corrected
     est_off, _ = build_estimator(Sequence.open(tilt_seq), name, {"use_attitude_signal": "false"})
     assert not uses_attitude_signal(est_off)
+
+
+def test_attitude_noise_is_estimated_from_the_signal_itself():
+    """White noise of s rad on the motion suite's smooth tilt (0.03 rad at 1.5 Hz, 30 fps): the
+    third differences give s back within 15 % for 1.5 and 0.5 mrad (the tilt's own third
+    differences, 0.9 mrad at most, add little once the noise dominates); an exact signal reads
+    about 0.2 mrad, the tilt's curvature (an upper bound, never 0); dropouts are skipped."""
+    from floorvo.geometry import attitude_of_T
+    from floorvo.runner import attitude_noise_rad
+
+    truth = attitude_of_T(_tilt_poses(300))
+    rng = np.random.default_rng(5)
+    for s in (1.5e-3, 0.5e-3):
+        noisy = truth + rng.normal(0.0, s, truth.shape)
+        noisy[[10, 50, 51]] = np.nan
+        assert attitude_noise_rad(noisy) == pytest.approx(s, rel=0.15)
+    assert 0.05e-3 < attitude_noise_rad(truth) < 0.3e-3
+    assert attitude_noise_rad(None) == 0.0 and attitude_noise_rad(truth[:1]) == 0.0
+
+
+@pytest.mark.parametrize("noise_rad, lost", [(1.5e-3, True), (0.2e-3, False)])
+def test_a_noisy_attitude_signal_loses_the_steps_it_leaves_uncertain(tmp_path, noise_rad, lost):
+    """A reading's error moves the camera's pose by height x error: 1.5 mrad of white noise at
+    100 mm makes each 6-DoF step uncertain by 0.21 mm, beyond issue 14's bound of a 4 mm step
+    (0.13 mm), and those steps, reported ok before, were wrong; now each is lost with the
+    reason, its motion chained. 0.2 mrad (an attitude filter's output) keeps every step, none
+    wrong. Scored against the camera's 6-DoF step (ground truth)."""
+    seq = write_synthetic_sequence(tmp_path / "seq", CAM, _tilt_poses(), attitude_noise_rad=noise_rad, seed=2)
+    res = run_estimator(Sequence.open(seq), "phase-corr", tmp_path / "run")
+    flat = score_run(tmp_path / "run", seq).tracking
+    assert flat["wrong_ok_steps"] == 0
+    if lost:
+        assert res.lost == 29
+        assert all(r.startswith("attitude signal too noisy for the step") for r in res.reason[1:])
+        # unchecked (no precision check at all), the same steps are reported ok and most are wrong
+        run_estimator(Sequence.open(seq), "phase-corr", tmp_path / "unchecked", {"precision_sigmas": "0"})
+        assert score_run(tmp_path / "unchecked", seq).tracking["wrong_ok_steps"] >= 20
+    else:
+        assert res.lost == 0
