@@ -48,6 +48,8 @@ __all__ = [
     "file_name_problem",
     "png_size",
     "png_header_size",
+    "image_header_size",
+    "IMAGE_FORMATS",
     "image_size_problem",
     "MAX_IMAGE_PIXELS",
     "TEMP_SUFFIX",
@@ -213,9 +215,115 @@ def png_size(path: str | os.PathLike) -> tuple[int, int] | None:
     return png_header_size(head)
 
 
+#: The image formats :func:`read_image` decodes: those whose header :func:`image_header_size` reads.
+IMAGE_FORMATS = "PNG, JPEG, TIFF or BMP"
+#: JPEG start-of-frame markers (every coding process; C4, C8 and CC are other segments).
+_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+#: JPEG markers that stand alone (no length field): TEM, RST0-7, SOI, EOI.
+_JPEG_STANDALONE = frozenset([0x01, *range(0xD0, 0xDA)])
+
+
+def _jpeg_header_size(data: bytes) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` of a JPEG's first start-of-frame segment, walking the segments
+    as libjpeg does (bytes before a marker skipped, ``FF`` fill bytes and ``FF 00`` too); None
+    when no start-of-frame comes before the first scan or the end of ``data``."""
+    if data[:2] != b"\xff\xd8":
+        return None
+    i, n = 2, len(data)
+    while i < n:
+        i = data.find(b"\xff", i)  # bytes before a marker: libjpeg skips them with a warning
+        if i < 0:
+            return None
+        while i < n and data[i] == 0xFF:  # fill bytes
+            i += 1
+        if i >= n:
+            return None
+        marker = data[i]
+        i += 1
+        if marker == 0 or marker in _JPEG_STANDALONE:  # FF 00: a stuffed byte, no marker
+            continue
+        if i + 2 > n:
+            return None
+        length = int.from_bytes(data[i : i + 2], "big")
+        if marker in _JPEG_SOF:
+            if i + 7 > n:
+                return None
+            return int.from_bytes(data[i + 5 : i + 7], "big"), int.from_bytes(data[i + 3 : i + 5], "big")
+        if marker == 0xDA or length < 2:  # a scan before any frame header, or a broken length
+            return None
+        i += length
+    return None
+
+
+def _bmp_header_size(data: bytes) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` of a BMP's info header (the 12-byte OS/2 one: 16-bit sizes;
+    the others: signed 32-bit, a negative height meaning top-down rows)."""
+    if data[:2] != b"BM" or len(data) < 26:
+        return None
+    if int.from_bytes(data[14:18], "little") == 12:
+        return int.from_bytes(data[18:20], "little"), int.from_bytes(data[20:22], "little")
+    w = int.from_bytes(data[18:22], "little", signed=True)
+    h = int.from_bytes(data[22:26], "little", signed=True)
+    return abs(w), abs(h)
+
+
+def _tiff_header_size(data: bytes) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` of a TIFF's (or BigTIFF's) first image directory: its
+    ImageWidth (256) and ImageLength (257) tags; None when either is missing or out of ``data``."""
+    if data[:2] == b"II":
+        order: Any = "little"
+    elif data[:2] == b"MM":
+        order = "big"
+    else:
+        return None
+
+    def u(at: int, size: int) -> int | None:
+        return int.from_bytes(data[at : at + size], order) if 0 <= at and at + size <= len(data) else None
+
+    magic = u(2, 2)
+    if magic == 42:  # classic TIFF: 4-byte offsets, 12-byte entries
+        ifd, count_size, entry_size, value_at, offset_size = u(4, 4), 2, 12, 8, 4
+    elif magic == 43 and u(4, 2) == 8:  # BigTIFF: 8-byte offsets, 20-byte entries
+        ifd, count_size, entry_size, value_at, offset_size = u(8, 8), 8, 20, 12, 8
+    else:
+        return None
+    entries = None if ifd is None else u(ifd, count_size)
+    if ifd is None or entries is None:
+        return None
+    tags: dict[int, int] = {}
+    for k in range(entries):
+        at = ifd + count_size + k * entry_size
+        tag, kind = u(at, 2), u(at + 2, 2)
+        if tag is None or kind is None:
+            return None
+        if tag in (256, 257):
+            size = {3: 2, 4: 4, 16: 8}.get(kind)  # SHORT, LONG, LONG8
+            value = None if size is None or size > offset_size else u(at + value_at, size)
+            if value is None:
+                return None
+            tags[tag] = value
+        if len(tags) == 2:
+            return tags[256], tags[257]
+    return None
+
+
+def image_header_size(data: bytes) -> tuple[int, int] | None:
+    """``(width_px, height_px)`` the header of the image file ``data`` (its bytes) states, read
+    without decoding: a PNG's IHDR, a JPEG's start of frame, a BMP's info header, a TIFF's first
+    image directory (the one OpenCV decodes). None for another format or a header that cannot be
+    read: :func:`read_image` decodes only an image whose size it has checked (a JPEG of 700
+    bytes can state 65535 x 65535 pixels, 4 GB decoded)."""
+    for parse in (png_header_size, _jpeg_header_size, _bmp_header_size, _tiff_header_size):
+        size = parse(data)
+        if size is not None:
+            return size
+    return None
+
+
 def image_size_problem(stated: tuple[int, int] | None) -> str | None:
-    """Why an image whose header states ``stated`` = ``(width_px, height_px)`` (:func:`png_size`;
-    None: not known) must not be decoded, or None: more than :data:`MAX_IMAGE_PIXELS`."""
+    """Why an image whose header states ``stated`` = ``(width_px, height_px)`` (:func:`png_size`,
+    :func:`image_header_size`; None: not known) must not be decoded, or None: more than
+    :data:`MAX_IMAGE_PIXELS`."""
     if stated is None or stated[0] * stated[1] <= MAX_IMAGE_PIXELS:
         return None
     return f"states {stated[0]}x{stated[1]} px in its header, more than the {MAX_IMAGE_PIXELS} px (8192 x 8192) an image may have"
@@ -238,26 +346,37 @@ def read_image(
     size_px: tuple[int, int] | None = None,
     size_source: str = "",
 ) -> np.ndarray:
-    """Read an image file unchanged (whatever OpenCV decodes: PNG, JPEG, TIFF, BMP; 8- or 16-bit).
+    """Read a PNG, JPEG, TIFF or BMP file unchanged (8- or 16-bit, mono or colour).
 
     A missing file raises :class:`SequenceError` "PATH: NOUN is missing", an undecodable
-    one "PATH: not a readable KIND (corrupt or truncated)". A PNG whose header states another
-    size than ``size_px`` (``(width_px, height_px)``, when given; ``size_source`` says where
-    it comes from: ``frame 0 is 648x494 px``) or more than :data:`MAX_IMAGE_PIXELS` is refused
-    before it is decoded (:func:`image_size_problem`): a small file can state gigabytes.
+    one "PATH: not a readable KIND (corrupt or truncated)". The size the file's header states
+    (:func:`image_header_size`) is checked before it is decoded: another size than ``size_px``
+    (``(width_px, height_px)``, when given; ``size_source`` says where it comes from:
+    ``frame 0 is 648x494 px``) or more than :data:`MAX_IMAGE_PIXELS` is refused
+    (:func:`image_size_problem`), since a small file can state gigabytes; a file whose header
+    states no size this reader can read (another format that OpenCV would decode: WebP, PPM,
+    OpenEXR, ...) is refused as well.
     """
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"{path}: {noun} is missing")
-    stated = png_size(path)
-    if stated is not None and size_px is not None and stated != tuple(size_px):
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        raise SequenceError(f"{path}: {noun} cannot be read ({exc.strerror or exc})") from None
+    stated = image_header_size(data.tobytes())
+    if stated is None:
+        raise SequenceError(
+            f"{path}: not a readable {kind} (corrupt or truncated, or not a {IMAGE_FORMATS} file: "
+            "no header stating its size)"
+        )
+    if size_px is not None and stated != tuple(size_px):
         expected = size_source or f"need {size_px[0]}x{size_px[1]} px"
         raise SequenceError(f"{path}: image is {stated[0]}x{stated[1]}, {expected}")
     problem = image_size_problem(stated)
     if problem:
         raise SequenceError(f"{path}: {kind} {problem}")
-    data = np.fromfile(path, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if img is None:
         raise SequenceError(f"{path}: not a readable {kind} (corrupt or truncated)")
     return img

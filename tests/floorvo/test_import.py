@@ -627,6 +627,141 @@ def test_a_png_bomb_is_refused_from_its_header_before_decoding(tmp_path, synth, 
     assert not (tmp_path / "out" / "cam0" / "000003.png").exists()
 
 
+def _header_only(kind: str, width: int, height: int) -> bytes:
+    """A file of a few dozen bytes whose header states ``width`` x ``height`` pixels, in format ``kind``."""
+    import struct
+
+    if kind == "jpeg":  # SOI, an APP0 segment, a baseline SOF0 of one component, EOI
+        app0 = b"\xff\xe0" + struct.pack(">H", 16) + b"JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00"
+        sof = b"\xff\xc0" + struct.pack(">HBHHB", 11, 8, height, width, 1) + b"\x01\x11\x00"
+        return b"\xff\xd8" + app0 + sof + b"\xff\xd9"
+    if kind == "bmp":  # file header and a 40-byte info header, 8 bits a pixel, rows top-down
+        info = struct.pack("<IiiHHIIiiII", 40, width, -height, 1, 8, 0, 0, 2835, 2835, 0, 0)
+        return b"BM" + struct.pack("<IHHI", 54 + len(info), 0, 0, 54) + info
+    if kind in ("tiff-le", "tiff-be"):  # the first directory: ImageWidth, ImageLength (LONG), BitsPerSample
+        e = "<" if kind == "tiff-le" else ">"
+        entries = [(256, 4, 1, width), (257, 4, 1, height)]
+        ifd = struct.pack(e + "H", 3) + b"".join(struct.pack(e + "HHII", *t) for t in entries)
+        ifd += struct.pack(e + "HHIHH", 258, 3, 1, 8, 0) + struct.pack(e + "I", 0)
+        return (b"II" if e == "<" else b"MM") + struct.pack(e + "HI", 42, 8) + ifd
+    if kind == "bigtiff":
+        entries = [(256, 16, 1, width), (257, 16, 1, height)]
+        ifd = struct.pack("<Q", 2) + b"".join(struct.pack("<HHQQ", *t) for t in entries) + struct.pack("<Q", 0)
+        return b"II" + struct.pack("<HHHQ", 43, 8, 0, 16) + ifd
+    raise ValueError(kind)
+
+
+@pytest.mark.parametrize("kind", ["jpeg", "bmp", "tiff-le", "tiff-be", "bigtiff"])
+def test_image_header_size_reads_each_format(kind):
+    """The size of a JPEG's start of frame, a BMP's info header and a TIFF's first directory,
+    read without decoding (a JPEG states at most 65535 x 65535)."""
+    from floorvo.io import image_header_size
+
+    side = 65535 if kind == "jpeg" else 100_000
+    assert image_header_size(_header_only(kind, side, side - 1)) == (side, side - 1)
+    assert image_header_size(_header_only(kind, side, side)[:12]) is None  # cut before the size
+
+
+@pytest.mark.parametrize(
+    "ext, shape, dtype, params",
+    [
+        (".jpg", (37, 53), np.uint8, []),
+        (".jpg", (37, 53, 3), np.uint8, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1]),
+        (".bmp", (37, 53), np.uint8, []),
+        (".bmp", (5, 7, 3), np.uint8, []),
+        (".tif", (37, 53), np.uint16, []),
+        (".tif", (5, 7, 4), np.uint8, []),
+        (".png", (20, 11), np.uint16, []),
+    ],
+)
+def test_image_header_size_agrees_with_opencv(ext, shape, dtype, params):
+    """The size read from the header is the size OpenCV decodes, for files OpenCV writes."""
+    from floorvo.io import image_header_size
+
+    img = np.random.default_rng(0).integers(0, 200, shape).astype(dtype)
+    ok, buf = cv2.imencode(ext, img, params)
+    decoded = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    assert image_header_size(buf.tobytes()) == (decoded.shape[1], decoded.shape[0])
+
+
+def test_image_bombs_of_every_format_are_refused_before_decoding(tmp_path, synth, capsys, monkeypatch):
+    """A JPEG, BMP or TIFF was decoded with only OpenCV's own limit (2^30 pixels) as an image-folder
+    frame, a --flatfield or a bag's compressed image: a JPEG of 60 bytes can state 65535 x 65535
+    pixels. Their headers are read first now, as a PNG's; a format whose header is not read
+    (a PGM, which OpenCV decodes too) is refused, and so is a video whose container states
+    frames beyond the limit."""
+    from types import SimpleNamespace
+
+    from floorvo.importers.rosbag2 import decode_image
+
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"f{i + 1}.png"), img)
+
+    real_imdecode = cv2.imdecode
+
+    def imdecode(data, flags):
+        assert data.size > 200, "a bomb was decoded"  # the bombs are under 100 bytes, the frames above 10 kB
+        return real_imdecode(data, flags)
+
+    monkeypatch.setattr(cv2, "imdecode", imdecode)
+    base = ["import", str(src), "-o", str(tmp_path / "out"), *FLAGS, "--fps", "10"]
+    limit = "more than the 67108864 px (8192 x 8192) an image may have"
+    for kind, ext in [
+        ("jpeg", ".jpg"),
+        ("bmp", ".bmp"),
+        ("tiff-le", ".tif"),
+        ("tiff-be", ".tiff"),
+        ("bigtiff", ".tif"),
+    ]:
+        side = 65535 if kind == "jpeg" else 100_000
+        bomb = tmp_path / f"bomb{ext}"
+        bomb.write_bytes(_header_only(kind, side, side))
+        err = _one_line_error(capsys, [*base, "--flatfield", str(bomb)])
+        assert f"{bomb}: image is {side}x{side}, the frames are 162x124 px" in err
+        first = src / f"f0{ext}"  # sorts before f1.png: the first frame, no size to expect yet
+        first.write_bytes(bomb.read_bytes())
+        err = _one_line_error(capsys, base)
+        assert f"{first}: image (PNG, JPEG, TIFF or BMP) states {side}x{side} px in its header, {limit}" in err
+        first.unlink()
+        msg = SimpleNamespace(format="mono8; jpeg compressed mono8", data=np.frombuffer(bomb.read_bytes(), np.uint8))
+        with pytest.raises(SequenceError, match=f"^frame 3: compressed image states {side}x{side} px in its header"):
+            decode_image(msg, "sensor_msgs/msg/CompressedImage", "frame 3")
+    pgm = src / "f0.png"  # a PGM under a PNG's name: OpenCV decodes it by its content
+    pgm.write_bytes(b"P5\n100000 100000\n255\n" + bytes(64))
+    err = _one_line_error(capsys, base)
+    assert f"{pgm}: not a readable image (PNG, JPEG, TIFF or BMP) (corrupt or truncated, or not a PNG," in err
+    msg = SimpleNamespace(format="pgm", data=np.frombuffer(pgm.read_bytes(), np.uint8))
+    with pytest.raises(SequenceError, match=r"^frame 3: compressed image \('pgm'\) is not a PNG, JPEG, TIFF or BMP"):
+        decode_image(msg, "sensor_msgs/msg/CompressedImage", "frame 3")
+    assert not (tmp_path / "out" / "cam0").exists()
+
+    class HugeFrames:
+        """A capture whose container states 100000 x 100000 frames; reading one fails the test."""
+
+        def __init__(self, *args):
+            pass
+
+        def isOpened(self):
+            return True
+
+        def get(self, prop):
+            return {cv2.CAP_PROP_FRAME_WIDTH: 100000.0, cv2.CAP_PROP_FRAME_HEIGHT: 100000.0}.get(prop, 0.0)
+
+        def read(self):
+            raise AssertionError("a frame was decoded")
+
+        def release(self):
+            pass
+
+    monkeypatch.setattr(cv2, "VideoCapture", HugeFrames)
+    (tmp_path / "v.mp4").write_bytes(b"\x00" * 64)
+    err = _one_line_error(capsys, ["import", str(tmp_path / "v.mp4"), "-o", str(tmp_path / "out"), *FLAGS])
+    assert f"{tmp_path / 'v.mp4'}: video states 100000x100000 px in its container, {limit}" in err
+
+
 def test_import_resumes_and_refuses_another_source(tmp_path, synth):
     """The same import again keeps the frames on disk; another source into the same folder is refused."""
     _, frames, _ = synth

@@ -25,7 +25,7 @@ from floorvo import __version__
 from floorvo.camera import height_problem
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
-from floorvo.io import read_image
+from floorvo.io import IMAGE_FORMATS, read_image
 from floorvo.metrics import associate
 from floorvo.sequence import (
     GROUNDTRUTH_MAX_DIFF_S,
@@ -217,10 +217,10 @@ def read_image_file(
     path: str | os.PathLike, size_px: tuple[int, int] | None = None, size_source: str = ""
 ) -> np.ndarray:
     """Read a PNG/JPEG/TIFF/BMP file unchanged (8- or 16-bit) and make it mono; one-line error if
-    unreadable. A PNG whose header states another size than ``size_px`` (``size_source``: where
-    that size comes from) or too many pixels is refused before it is decoded
-    (:func:`floorvo.io.read_image`)."""
-    return to_mono(read_image(path, "image file", "image (PNG, JPEG, TIFF or BMP)", size_px, size_source), str(path))
+    unreadable. A file whose header states another size than ``size_px`` (``size_source``: where
+    that size comes from) or too many pixels is refused before it is decoded, and so is another
+    format, whose header is not read (:func:`floorvo.io.read_image`)."""
+    return to_mono(read_image(path, "image file", f"image ({IMAGE_FORMATS})", size_px, size_source), str(path))
 
 
 def size_of(image: np.ndarray) -> tuple[int, int]:

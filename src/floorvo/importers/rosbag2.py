@@ -53,7 +53,7 @@ from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, invert_T, position_problem
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
 from floorvo.importers.recording import FrameImages, Recording, to_mono
-from floorvo.io import image_size_problem, png_header_size
+from floorvo.io import IMAGE_FORMATS, image_header_size, image_size_problem
 
 __all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_TOPIC_NAME", "ROLES", "detect", "read", "decode_image"]
 
@@ -133,10 +133,16 @@ def decode_image(msg: Any, msgtype: str, what: str) -> np.ndarray:
             if "32fc1" in fmt:
                 raise SequenceError(f"{what}: 32FC1 compressedDepth (inverse-depth quantised) is not supported")
             data = data[12:]  # compressed_depth_image_transport's 12-byte config header
-        problem = image_size_problem(png_header_size(data[:24].tobytes()))  # before decoding: a PNG bomb
+        stated = image_header_size(data.tobytes())  # before decoding: a small file can state gigabytes
+        if stated is None:
+            raise SequenceError(
+                f"{what}: compressed image ({shown(str(msg.format))}) is not a {IMAGE_FORMATS} image whose "
+                "header states its size (corrupt, truncated or another format)"
+            )
+        problem = image_size_problem(stated)
         if problem:
             raise SequenceError(f"{what}: compressed image {problem}")
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
         if img is None:
             raise SequenceError(f"{what}: compressed image ({msg.format!r}) could not be decoded")
         return img

@@ -6,7 +6,8 @@ before it) are refused in one line naming the first such frame and both times, u
 user gives the times: ``--fps HZ`` (``ImportOptions.fps``) takes ``i / HZ`` instead, said in one
 warning line, and ``--timestamps FILE`` replaces them. Taking ``i / fps`` of the container's
 stated rate without being asked put every frame after a duplicate at a time it was not
-recorded at, with exit code 0. Frames are
+recorded at, with exit code 0. A frame size the container states beyond
+:data:`floorvo.io.MAX_IMAGE_PIXELS` is refused before a frame is decoded. Frames are
 converted to mono (8-bit). The file is decoded twice (counting, then writing), so a long
 video is never held in memory.
 """
@@ -22,6 +23,7 @@ import numpy as np
 
 from floorvo.errors import SequenceError
 from floorvo.importers.recording import FrameImages, Recording, to_mono
+from floorvo.io import image_size_problem
 
 __all__ = ["VIDEO_SUFFIXES", "detect", "read"]
 
@@ -41,6 +43,11 @@ def _open(source: Path) -> cv2.VideoCapture:
     cap = cv2.VideoCapture(str(source))
     if not cap.isOpened():
         raise SequenceError(f"{source}: not a video OpenCV can decode")
+    w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+    problem = image_size_problem((int(w), int(h))) if np.isfinite(w) and np.isfinite(h) else None
+    if problem:  # before a frame is decoded: a small file can state frames of gigabytes
+        cap.release()
+        raise SequenceError(f"{source}: video {problem.replace('header', 'container')}")
     return cap
 
 
