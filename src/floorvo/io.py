@@ -4,7 +4,7 @@ Every output of the project goes through :func:`atomic_write_bytes` (write a tem
 file in the same folder, fsync, rename), so an interrupted render or run never leaves a
 half-written file under the final name. Every number a JSON or CSV writer writes goes
 through :func:`plain` first, so numpy scalars come out as ``100.0``, never as numpy 2's
-repr ``np.float64(100.0)``.
+repr ``np.float64(100.0)``, and text (a file name) as valid UTF-8 (:func:`path_text`).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_csv",
     "plain",
+    "path_text",
     "csv_cell",
     "write_png",
     "read_png",
@@ -125,8 +126,36 @@ def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write UTF-8 ``text`` to ``path`` atomically."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+    """Write UTF-8 ``text`` to ``path`` atomically (a file name in it that is not UTF-8
+    escaped by :func:`path_text`)."""
+    atomic_write_bytes(path, path_text(text).encode("utf-8"))
+
+
+def path_text(value: str | os.PathLike) -> str:
+    """``value`` (a path, a file name, any text) as valid UTF-8 text, as the project writes it
+    into JSON, CSV and text files.
+
+    A file name need not be UTF-8: Python holds each byte that is not as a lone surrogate
+    (``b"f\\xff0.png"`` is ``"f\\udcff0.png"``), which ``json.dumps`` writes as the escape
+    ``\\udcff``, a string that strict JSON readers refuse, and which cannot be encoded as UTF-8
+    at all. Such a byte is written as the four characters ``\\xff`` instead
+    (``os.fsencode(name).decode("utf-8", "backslashreplace")``); other lone surrogates as
+    ``\\udXXX``. Text that is valid already is returned as it is. The escaped name is for
+    people and tools to read; :func:`os.fsencode` of it does not give the original bytes back.
+    """
+    raw = os.fspath(value)
+    text = os.fsdecode(raw) if isinstance(raw, bytes) else str(raw)
+    if text.isascii():
+        return text
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a surrogate that is no escaped byte (U+D800-U+DC7F)
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def plain(obj: Any) -> Any:
@@ -134,18 +163,21 @@ def plain(obj: Any) -> Any:
 
     numpy scalars become ``int`` / ``float`` / ``bool`` / ``str`` (``np.float64(100.0)``
     -> ``100.0``), arrays and tuples become lists, paths become strings; mappings and
-    lists are converted item by item. Anything else is returned as it is.
+    lists are converted item by item; text (keys too) is made valid UTF-8 by
+    :func:`path_text` (a file name that is not). Anything else is returned as it is.
     """
+    if isinstance(obj, str):
+        return path_text(obj)
     if isinstance(obj, np.generic):
-        return obj.item()
+        return plain(obj.item())
     if isinstance(obj, np.ndarray):
         return [plain(v) for v in obj.tolist()]
     if isinstance(obj, Mapping):
-        return {k: plain(v) for k, v in obj.items()}
+        return {plain(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [plain(v) for v in obj]
     if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
+        return path_text(obj)
     return obj
 
 

@@ -8,6 +8,8 @@ written and its run against the same ground truth.
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -87,6 +89,66 @@ def test_image_folder_with_timestamps_file_imports_and_runs(tmp_path, synth, cap
     assert main(["score", str(tmp_path / "run"), "--gt", str(out)]) == 0
     score = json.loads((tmp_path / "run" / "score.json").read_text())
     assert score["n_matched"] == 7
+
+
+def _strict_json(path):
+    """The JSON file at ``path`` read as a strict reader reads it: UTF-8 text without lone surrogates."""
+    data = json.loads(path.read_bytes().decode("utf-8"))
+
+    def check(obj):
+        if isinstance(obj, str):
+            obj.encode("utf-8")  # a lone surrogate (the escape \\udcff) raises here
+        elif isinstance(obj, dict):
+            for k, v in obj.items():
+                check(k)
+                check(v)
+        elif isinstance(obj, list):
+            for v in obj:
+                check(v)
+
+    check(data)
+    return data
+
+
+def test_file_names_that_are_not_utf8_are_written_escaped(tmp_path, synth, capsys):
+    """An image named b"f\\xff0.png" (a byte that is not UTF-8, held by Python as the lone surrogate
+    U+DCFF) was written into sequence.json as the escape \\udcff, which strict JSON readers refuse;
+    so was a sequence or run folder of such a name into result.json and score.json. Such a byte is
+    written as the text \\xff now (floorvo.io.path_text), the import resumes, and the run and the
+    score read the folders they were given."""
+    _, frames, _ = synth
+    src = Path(os.fsdecode(bytes(tmp_path) + b"/fr\xfeames"))
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        ok, buf = cv2.imencode(".png", img)
+        Path(os.fsdecode(bytes(src) + f"/f\xff{i}.png".encode("latin-1"))).write_bytes(buf.tobytes())
+    out = Path(os.fsdecode(bytes(tmp_path) + b"/s\xfe"))
+    argv = ["import", str(src), "-o", str(out), *FLAGS, "--height-mm", "100", "--fps", "10"]
+    assert main(argv) == 0
+    meta = _strict_json(out / "sequence.json")
+    assert meta["source"]["first_file"] == "f\\xff0.png" and meta["source"]["last_file"] == "f\\xff2.png"
+    assert meta["source"]["path"].endswith("/fr\\xfeames")
+    assert main(argv) == 0  # the same import again resumes: what it compares is written the same way
+    capsys.readouterr()
+    run = Path(os.fsdecode(bytes(tmp_path) + b"/run\xfe"))
+    assert main(["run", str(out), "-e", "phase-corr", "-o", str(run)]) == 0
+    assert _strict_json(run / "result.json")["sequence"].endswith("/s\\xfe")
+    assert main(["score", str(run), "--gt", str(out)]) == 0
+    _strict_json(run / "score.json")
+
+
+def test_path_text_escapes_only_what_is_not_utf8(tmp_path):
+    """Valid text is kept (accents too); an undecodable byte becomes \\xHH, another lone surrogate
+    \\udXXX; every JSON and CSV writer writes text through it, keys included."""
+    from floorvo.io import atomic_write_csv, atomic_write_json, path_text
+
+    assert path_text("sol_\u00e9t\u00e9/f0.png") == "sol_\u00e9t\u00e9/f0.png"
+    assert path_text(Path("a/f\udcff0.png")) == "a/f\\xff0.png"
+    assert path_text("x\ud800") == "x\\ud800"
+    atomic_write_json(tmp_path / "a.json", {"f\udcff": ["g\udcfe", Path("h\udcfd")]})
+    assert _strict_json(tmp_path / "a.json") == {"f\\xff": ["g\\xfe", "h\\xfd"]}
+    atomic_write_csv(tmp_path / "a.csv", ["name"], [["f\udcff0.png"]])  # was a UnicodeEncodeError
+    assert (tmp_path / "a.csv").read_text(encoding="utf-8") == "name\nf\\xff0.png\n"
 
 
 def test_list_file_colour_jpeg_and_16_bit(tmp_path, synth):

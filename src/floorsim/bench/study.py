@@ -70,7 +70,7 @@ from floorsim.simulate import package_versions as render_versions
 from floorvo import metric_defs as md
 from floorvo.config import MAX_SEED, Config, build, describe_fields, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
-from floorvo.io import atomic_write_bytes, atomic_write_json, read_toml
+from floorvo.io import atomic_write_bytes, atomic_write_json, plain, read_toml
 
 __all__ = [
     "MAX_SWEEP_JOBS",
@@ -397,7 +397,7 @@ def _result_parts(record: dict) -> dict:
     study = record.get("study") or {}
     parts = {k: study.get(k) for k in RESULT_KEYS if k != "base_scene"}
     parts["base_scene"] = record.get("base_scene")
-    return json.loads(json.dumps(parts, default=str))  # as it reads back from study.json
+    return json.loads(json.dumps(plain(parts), default=str))  # as it reads back from study.json
 
 
 def resume_problem(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None, externals: dict) -> str:

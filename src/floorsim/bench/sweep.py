@@ -78,7 +78,7 @@ from floorsim.bench.sweep_report import write_sweep_report
 from floorsim.scene import load_scene as load_scene_file
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, shown
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_csv
+from floorvo.io import atomic_write_csv, path_text
 from floorvo.locking import locks_folder
 
 log = logging.getLogger(__name__)
@@ -128,7 +128,7 @@ def sweep_jobs(spec: SweepSpec) -> list[dict[str, Any]]:
     if spec.vary and spec.search is None:
         jobs = [make_job(params, rep) for params in _combinations(spec.vary) for rep in range(spec.repetitions)]
     for q in spec.sequences:
-        jobs.append({"job": f"sequence={q.name}", "params": {}, "repetition": 0, "sequence": str(q)})
+        jobs.append({"job": f"sequence={path_text(q.name)}", "params": {}, "repetition": 0, "sequence": str(q)})
     return jobs
 
 

@@ -115,6 +115,18 @@ def describe_os_error(exc: OSError) -> str:
     return shorten(f"{' -> '.join(paths)}: {what}" if paths else what, 400)
 
 
+def _printable_streams() -> None:
+    """Let standard output print a path that is not UTF-8 (a byte Python holds as a lone
+    surrogate) as standard error does, escaped (``\\udcff``): ``floorvo import`` into such a
+    folder imported it and then ended in a UnicodeEncodeError traceback printing its summary."""
+    for stream in (sys.stdout, sys.stderr):
+        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # a stream that cannot change now
+                pass
+
+
 def run_cli(
     parser: argparse.ArgumentParser,
     argv: list[str] | None,
@@ -127,6 +139,7 @@ def run_cli(
     pass them to their library function: a renderer, a scene loader, an estimator runner)
     as ``args.collaborators``; tests use it to run the CLI on doubles.
     """
+    _printable_streams()
     try:
         args = parser.parse_args(argv)
     except UsageError as exc:
