@@ -68,7 +68,7 @@ from floorsim.sensor import FixedPattern, SensorModel
 from floorsim.trajectories import Trajectory, build_trajectory
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_plain
-from floorvo.errors import ConfigError, ConfigFieldError, shown
+from floorvo.errors import ConfigError, ConfigFieldError, shown, shown_number
 from floorvo.io import file_name_problem, read_toml
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
@@ -417,7 +417,7 @@ class Scene(Config):
             raise ConfigFieldError(
                 "camera",
                 f": {c.width_px} x {c.height_px} px of {c.pixel_pitch_um:g} um behind a {c.focal_length_mm:g} mm lens "
-                f"at height_mm = {c.height_mm:g} see {fp_w:.0f} x {fp_h:.0f} mm of floor; at most {MAX_FOOTPRINT_MM:g} mm",
+                f"at height_mm = {c.height_mm:g} see {shown_number(fp_w, '.0f')} x {shown_number(fp_h, '.0f')} mm of floor; at most {MAX_FOOTPRINT_MM:g} mm",
             )
         spacing = self.floor_spacing_mm()
         margin = 2.0 + 2.0 * spacing
@@ -428,7 +428,7 @@ class Scene(Config):
             which = "floor.spacing_mm" if self.floor.spacing_mm is not None else "floor.spacing_mm (none: half the GSD)"
             raise ConfigFieldError(
                 "floor",
-                f": a floor tile of {long_mm:.0f} x {short_mm:.0f} mm at {which} = {spacing:.3g} mm holds "
+                f": a floor tile of {shown_number(long_mm, '.0f')} x {shown_number(short_mm, '.0f')} mm at {which} = {spacing:.3g} mm holds "
                 f"{vertices:.2g} mesh vertices; at most {MAX_TILE_VERTICES:.2g} (a larger spacing or a shorter "
                 "floor.tile_length_mm)",
             )

@@ -8,7 +8,11 @@ keeps its traceback.
 
 from __future__ import annotations
 
+import math
+from decimal import Decimal
 from typing import Any
+
+import numpy as np
 
 __all__ = [
     "FloorbenchError",
@@ -18,7 +22,9 @@ __all__ = [
     "FolderLockedError",
     "MAX_SHOWN_CHARS",
     "shown",
+    "shown_number",
     "shorten",
+    "MAX_FIXED_POINT",
 ]
 
 #: The most characters of a value an error message quotes; a longer value is cut with an ellipsis.
@@ -33,11 +39,45 @@ def shown(value: Any, limit: int = MAX_SHOWN_CHARS) -> str:
     value must not become a 100,000-character message line), newlines escaped (one line)."""
     if isinstance(value, str):
         text = repr(str(value))
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        text = shown_number(value)
     elif isinstance(value, (tuple, list)):
         text = repr(_as_lists(value))
     else:
         text = str(value)
     return shorten(text, limit)
+
+
+#: The largest magnitude :func:`shown_number` writes a float as its format asks; beyond it, in exponent form.
+MAX_FIXED_POINT = 1e15
+#: Integers below this magnitude (30 digits: a seed, a count as typed) are shown exactly.
+MAX_EXACT_INT = 10**30
+
+
+def shown_number(value: Any, spec: str = "") -> str:
+    """The number ``value`` as an error message shows it, in at most about 30 characters.
+
+    Formatted by ``spec`` (``".6f"``, ``".0f"``, ``"d"``; ``""``: ``str``) while its magnitude is
+    below :data:`MAX_FIXED_POINT` (an integer: :data:`MAX_EXACT_INT`), in exponent form
+    (``1e+308``, 6 significant digits) beyond:
+    ``f"{1e308:.0f}"`` is 309 digits, and an integer read from a file (``frame_count`` of
+    ``1e308``, made an int) as many. NaN and infinities as ``nan``, ``inf``; anything that is
+    not a number as :func:`shown` shows it.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return shown(value)
+    if isinstance(value, (int, np.integer)):
+        n = int(value)
+        if abs(n) < MAX_EXACT_INT:
+            return format(n, spec)
+        try:
+            return format(float(n), ".6g")
+        except OverflowError:  # beyond any float
+            return format(Decimal(n).normalize(), ".6g")
+    x = float(value)
+    if not math.isfinite(x):
+        return str(x)
+    return format(x, ".6g") if abs(x) >= MAX_FIXED_POINT else format(value, spec)
 
 
 def _as_lists(value: Any) -> Any:

@@ -63,7 +63,15 @@ from typing import Any
 import numpy as np
 
 from floorvo.config import Config, build, param
-from floorvo.errors import ConfigError, ConfigFieldError, ExternalEstimatorError, FloorbenchError, SequenceError, shown
+from floorvo.errors import (
+    ConfigError,
+    ConfigFieldError,
+    ExternalEstimatorError,
+    FloorbenchError,
+    SequenceError,
+    shown,
+    shown_number,
+)
 from floorvo.estimators.base import NEEDS
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
@@ -308,8 +316,8 @@ def _pose_at_no_frame(seq: Sequence, timestamps_s: np.ndarray) -> str:
     k = int(stray[0])
     j = int(np.argmin(np.abs(frame_ts - ts[k])))
     return (
-        f"trajectory.txt: pose {k} at {ts[k]:.6f} s is at no frame time of the sequence (nearest: frame {j} at "
-        f"{frame_ts[j]:.6f} s; {len(stray)} of {len(ts)} poses are more than {GROUNDTRUTH_MAX_DIFF_S:g} s from "
+        f"trajectory.txt: pose {k} at {shown_number(ts[k], '.6f')} s is at no frame time of the sequence (nearest: frame {j} at "
+        f"{shown_number(frame_ts[j], '.6f')} s; {len(stray)} of {len(ts)} poses are more than {GROUNDTRUTH_MAX_DIFF_S:g} s from "
         "a frame): stamp each pose with its frame's time"
     )
 

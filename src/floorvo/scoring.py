@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from floorvo import metric_defs as md
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shown_number
 from floorvo.estimators.base import RESTART_NOTE
 from floorvo.geometry import footprint_T
 from floorvo.io import atomic_write_json, read_json
@@ -197,7 +197,7 @@ def score_trajectories(
     if start_mm > FAR_START_MM + FAR_START_FRACTION * path_distances_mm(A)[-1]:
         # Not in the ground truth's frame: the unaligned figures would measure the offset, not the estimator.
         warnings.append(
-            f"the estimate starts {start_mm:.1f} mm from the ground truth at their first shared time: it is not in "
+            f"the estimate starts {shown_number(start_mm, '.1f')} mm from the ground truth at their first shared time: it is not in "
             "the ground truth's world frame, so the unaligned ATE and the end drift are left out (see the aligned ATE)"
         )
         for m in ("none", "origin"):

@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel, height_problem
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown, shown_number
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -430,7 +430,7 @@ def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
         k = int(bad[0]) + 1
         ns = " (to the nanosecond, as timestamps.txt holds them)" if ts[k] > ts[k - 1] else ""
         raise SequenceError(
-            f"{what}: timestamps must increase{ns}, frame {k} at {ts[k]:.9f} s follows {ts[k - 1]:.9f} s"
+            f"{what}: timestamps must increase{ns}, frame {k} at {shown_number(ts[k], '.9f')} s follows {shown_number(ts[k - 1], '.9f')} s"
         )
     return ts
 
@@ -447,7 +447,7 @@ def check_groundtruth_times(ts_gt: np.ndarray, frame_ts: np.ndarray, what: str, 
     if not np.all(off <= GROUNDTRUTH_MAX_DIFF_S):
         i = int(np.argmax(~(off <= GROUNDTRUTH_MAX_DIFF_S)))
         raise SequenceError(
-            f"{what}: one pose per frame, but pose {i} is at {ts_gt[i]:.6f} s and frame {i} at {frame_ts[i]:.6f} s "
+            f"{what}: one pose per frame, but pose {i} is at {shown_number(ts_gt[i], '.6f')} s and frame {i} at {shown_number(frame_ts[i], '.6f')} s "
             f"({frame_source}): the frame times and the ground truth disagree"
         )
 

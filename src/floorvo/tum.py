@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from floorvo.errors import SequenceError, shown
+from floorvo.errors import SequenceError, shown, shown_number
 from floorvo.geometry import T_from_xyz_quat, position_problem, xyz_quat_from_T
 from floorvo.io import atomic_write_text, read_text
 
@@ -75,7 +75,7 @@ def check_increasing(path: str | os.PathLike, timestamps_s: list[float], linenos
     if len(bad):
         k = int(bad[0]) + 1
         raise SequenceError(
-            f"{path}:{linenos[k]}: timestamp {t[k]:.9f} s follows {t[k - 1]:.9f} s: the poses' timestamps must increase"
+            f"{path}:{linenos[k]}: timestamp {shown_number(t[k], '.9f')} s follows {shown_number(t[k - 1], '.9f')} s: the poses' timestamps must increase"
         )
 
 

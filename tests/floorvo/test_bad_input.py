@@ -559,3 +559,45 @@ def test_a_reader_that_closes_the_pipe_ends_the_command_quietly(tmp_path):
     p.stdout.close()  # before the child has written a line: it is still importing
     err = p.stderr.read().decode()
     assert p.wait(timeout=120) == 141 and "error" not in err and "Traceback" not in err, err
+
+
+def test_a_huge_number_in_an_error_message_is_shown_short(tmp_path, small_seq, capsys):
+    """1e308 formatted with ':.0f' is 309 digits, and an integer read from a file (frame_count =
+    1e308, made an int) as many: errors of every kind of input show such a number in exponent
+    form (floorvo.errors.shown_number), each line under 200 characters."""
+    from floorvo.errors import SequenceError, shown, shown_number
+    from floorvo.sequence import check_groundtruth_times
+
+    assert shown_number(1e308, ".0f") == "1e+308" and shown_number(-1e20, ".1f") == "-1e+20"
+    assert shown_number(10**400) == "1e+400" and shown(int(1e308)) == "1e+308"
+    assert shown_number(0.2, ".6f") == "0.200000" and shown_number(float("inf"), ".0f") == "inf"
+    lines = []
+    # a sequence folder: sequence.json, a run of it
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for p in small_seq.iterdir():
+        if p.is_file():
+            (seq / p.name).write_bytes(p.read_bytes())
+    (seq / "cam0").symlink_to(small_seq / "cam0")
+    meta = json.loads((small_seq / "sequence.json").read_text())
+    for key, value in [("frame_count", 1e308), ("fps", 1e308), ("frame_count", 10**300)]:
+        (seq / "sequence.json").write_text(json.dumps({**meta, key: value}))
+        assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+        lines.append(_one_line(capsys, "floorvo"))
+    # an estimator's config
+    assert (
+        floorvo_main(["run", str(small_seq), "-e", "phase-corr", "--set", "min_peak=1e308", "-o", str(tmp_path / "r")])
+        == 1
+    )
+    lines.append(_one_line(capsys, "floorvo"))
+    # ground truth at other times than the frames
+    with pytest.raises(SequenceError) as exc:
+        check_groundtruth_times(np.array([0.0, 1e308]), np.array([0.0, 0.1]), "groundtruth.txt", "fps")
+    lines.append(str(exc.value))
+    # a scene: a footprint of 5e300 mm of floor
+    rc = floorsim_main(["render", "demo", "--set", "camera.pixel_pitch_um=1e300", "-o", str(tmp_path / "r")])
+    assert rc == 1
+    lines.append(_one_line(capsys, "floorsim"))
+    assert "see 5.4e+300 x 4.11667e+300 mm of floor" in lines[-1]
+    for line in lines:
+        assert len(line) < 200 and ("e+308" in line or "e+300" in line), line

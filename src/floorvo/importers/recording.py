@@ -23,7 +23,7 @@ import numpy as np
 
 from floorvo import __version__
 from floorvo.camera import height_problem
-from floorvo.errors import ConfigError, SequenceError, shown
+from floorvo.errors import ConfigError, SequenceError, shown, shown_number
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import IMAGE_FORMATS, read_image
 from floorvo.metrics import associate
@@ -378,8 +378,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         check_groundtruth_times(gt[0], ts, gt_what, f"timestamps ({time_source})")
         if len(associate(gt[0], ts, GROUNDTRUTH_MAX_DIFF_S)[0]) == 0:
             raise SequenceError(
-                f"{gt_what}: no pose within {GROUNDTRUTH_MAX_DIFF_S:g} s of a frame (poses at {gt[0][0]:.6f}-"
-                f"{gt[0][-1]:.6f} s, frames at {ts[0]:.6f}-{ts[-1]:.6f} s, timestamps ({time_source})): "
+                f"{gt_what}: no pose within {GROUNDTRUTH_MAX_DIFF_S:g} s of a frame (poses at {shown_number(gt[0][0], '.6f')}-"
+                f"{shown_number(gt[0][-1], '.6f')} s, frames at {shown_number(ts[0], '.6f')}-{shown_number(ts[-1], '.6f')} s, timestamps ({time_source})): "
                 "the ground truth and the frames are on different clocks"
             )
     heights = opts.height_signal_mm if opts.height_signal_mm is not None else rec.height_signal_mm

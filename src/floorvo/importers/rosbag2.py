@@ -49,7 +49,7 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel, height_problem, intrinsics_from_K
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown, shown_number
 from floorvo.geometry import T_from_xyz_quat, invert_T, position_problem
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
 from floorvo.importers.recording import FrameImages, Recording, to_mono
@@ -388,7 +388,7 @@ def read(source: Path, options=None) -> Recording:
         # sorted a frame to the end of the sequence, 4 s after its neighbours, with exit code 0
         raise SequenceError(
             f"{what}: {len(unstamped)} of {len(left)} images have a zero header stamp (the first received at "
-            f"{unstamped[0] * 1e-9:.9f} s), the others the camera's: frame times from two clocks cannot be put in order"
+            f"{shown_number(unstamped[0] * 1e-9, '.9f')} s), the others the camera's: frame times from two clocks cannot be put in order"
         )
     if np.any(np.diff(left) <= 0):
         order = np.argsort(left, kind="stable")

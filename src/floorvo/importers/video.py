@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from floorvo.errors import SequenceError
+from floorvo.errors import SequenceError, shown_number
 from floorvo.importers.recording import FrameImages, Recording, to_mono
 from floorvo.io import image_size_problem
 
@@ -81,7 +81,9 @@ def read(source: Path, options=None) -> Recording:
     by_fps = False  # the container's times replaced by i / --fps
     if n > 1 and np.any(np.diff(ts) <= 0):
         k = int(np.argmax(np.diff(ts) <= 0)) + 1
-        where = f"frame {k} at {ts[k]:.6f} s follows frame {k - 1} at {ts[k - 1]:.6f} s"
+        where = (
+            f"frame {k} at {shown_number(ts[k], '.6f')} s follows frame {k - 1} at {shown_number(ts[k - 1], '.6f')} s"
+        )
         if getattr(options, "timestamps_s", None) is not None:
             pass  # --timestamps replaces them
         elif getattr(options, "fps", None) is not None:
