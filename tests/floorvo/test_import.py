@@ -569,13 +569,21 @@ def test_ground_truth_on_another_clock_than_the_frames_is_refused_before_writing
 
 def test_frames_closer_than_a_nanosecond_are_refused_before_writing(tmp_path, synth, capsys):
     """--fps 1e12 imported a sequence whose timestamps.txt (nanoseconds) held equal times, and its
-    reader then refused it ('timestamps must increase')."""
+    reader then refused it ('timestamps must increase'); --fps 1e308 gave every frame the time 0.
+    --fps is bounded as sequence.json's fps is (1e6 Hz), and times closer than a nanosecond
+    from a --timestamps file are refused before anything is written."""
     _, frames, _ = synth
     src = tmp_path / "frames"
     src.mkdir()
     for i, img in enumerate(frames[:3]):
         cv2.imwrite(str(src / f"{i}.png"), img)
-    err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", "1e12"])
+    for fps in ("1e12", "1e308"):
+        err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", fps])
+        assert f"--fps {float(fps)}: must be a finite number > 0 and at most 1e+06 Hz" in err
+    (tmp_path / "t.txt").write_text("0.0\n0.0000000001\n0.1\n")
+    err = _one_line_error(
+        capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--timestamps", str(tmp_path / "t.txt")]
+    )
     assert "timestamps must increase (to the nanosecond, as timestamps.txt holds them), frame 1" in err
     assert not (tmp_path / "s").exists()
     assert main(["import", str(src), "-o", str(tmp_path / "ok"), *FLAGS, "--fps", "1e6"]) == 0
@@ -595,7 +603,9 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     for height in ("nan", "1e9", "1e-9", "0.1"):  # 0.1: 100 mm given in metres
         err = _one_line_error(capsys, base + FLAGS + ["--fps", "10", "--height-mm", height])
         assert f"--height-mm {float(height)} mm: must be a finite number from 1 to 20000 mm" in err
-    assert "--fps -3.0: must be a finite number > 0" in _one_line_error(capsys, base + FLAGS + ["--fps", "-3"])
+    assert "--fps -3.0: must be a finite number > 0 and at most 1e+06 Hz" in _one_line_error(
+        capsys, base + FLAGS + ["--fps", "-3"]
+    )
     assert "--fx, --cy missing" in _one_line_error(capsys, base + ["--fy", "200", "--cx", "80", "--fps", "10"])
     assert "--distortion '0.1,x': expected numbers" in _one_line_error(
         capsys, base + FLAGS + ["--fps", "10", "--distortion", "0.1,x"]

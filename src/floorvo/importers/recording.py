@@ -35,6 +35,7 @@ from floorvo.sequence import (
     check_heights,
     check_timestamps,
 )
+from floorvo.sequence_meta import MAX_FPS_HZ
 
 __all__ = [
     "FrameImages",
@@ -234,12 +235,14 @@ def median_rate_hz(timestamps_s: np.ndarray) -> float | None:
     return float(f"{1.0 / np.median(d):.6g}") if len(d) and np.median(d) > 0 else None
 
 
-def _positive(value: float | None, what: str) -> float | None:
+def _fps(value: float | None, what: str) -> float | None:
+    """A frame rate given by the user (``--fps``): finite, > 0 and at most :data:`MAX_FPS_HZ`, as
+    ``sequence.json``'s ``fps`` (1e308 gave every frame the time 0 and a 'must increase' error)."""
     if value is None:
         return None
     v = float(value)
-    if not np.isfinite(v) or v <= 0:
-        raise ConfigError(f"{what} {shown(value)}: must be a finite number > 0")
+    if not np.isfinite(v) or v <= 0 or v > MAX_FPS_HZ:
+        raise ConfigError(f"{what} {shown(value)}: must be a finite number > 0 and at most {MAX_FPS_HZ:g} Hz")
     return v
 
 
@@ -289,7 +292,7 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     height_mm = _height(opts.height_mm, "--height-mm")
     if height_mm is None:
         height_mm = _height(rec.height_mm, f"{what}: camera height")
-    fps_given = _positive(opts.fps, "--fps")
+    fps_given = _fps(opts.fps, "--fps")
     n = rec.frame_count
     if n < 1:
         raise SequenceError(f"{what}: no frames found")
