@@ -63,6 +63,9 @@ def test_set_overrides():
         ({"lights.power": "1e308"}, r"lights.power = 1e\+308: must be <= 1000000.0"),
         ({"lights.bar_length_mm": "1e308"}, r"lights.bar_length_mm = 1e\+308 mm: must be <= 1000.0 mm"),
         ({"sensor.full_well_e": "1e308"}, r"sensor.full_well_e = 1e\+308 e-: must be <= 10000000.0 e-"),
+        # rendered without a word: frames of noise alone (a read noise beyond any full well)
+        ({"sensor.read_noise_e": "1e308"}, r"sensor.read_noise_e = 1e\+308 e-: must be <= 10000000.0 e-"),
+        ({"sensor.dsnu_e": "1e308"}, r"sensor.dsnu_e = 1e\+308 e-: must be <= 10000000.0 e-"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):
