@@ -225,9 +225,12 @@ def run_frames(
     T_world = np.array(T_world_start, dtype=float)
     if T_world.shape != (4, 4):
         raise ValueError(f"run_frames: T_world_start must be (4, 4), got {T_world.shape}")
-    # The chained pose: the camera's, or with an attitude signal its footprint's (module docstring).
+    # The chained pose: the camera's, or with an attitude signal its footprint's, or for an
+    # estimator that levels its keypoints with it (levels_with_attitude) the camera's levelled
+    # (module docstring).
     T_chain = T_world
     attitude = False
+    levelled = bool(getattr(estimator, "levels_with_attitude", False))
     measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
     state = estimator.start()
     index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
@@ -235,7 +238,7 @@ def run_frames(
     t0 = time.perf_counter()
     for k, frame in enumerate(frames):
         if k == 0 and frame.attitude_rad is not None and uses_attitude_signal(estimator):
-            start = _start_footprint(T_world, frame.attitude_rad)
+            start = _start_footprint(T_world, frame.attitude_rad, levelled=levelled)
             if start is None:
                 log.warning(
                     "%s: the run starts at a pose whose optical axis does not meet the floor (no ground truth?): "
@@ -262,7 +265,7 @@ def run_frames(
                 raise ValueError(f"{name}: frame {frame.index}: status 'ok' without T_prev_cur")
             _check_rigid(res.T_prev_cur, name, frame.index, "T_prev_cur")
             step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
-            if attitude:
+            if attitude and not levelled:
                 step = _untwisted(step, measured_from, frame.attitude_rad)
             T_chain = T_chain @ step
         if not attitude:
@@ -278,6 +281,9 @@ def run_frames(
                     st, why, fix = "lost", NO_ATTITUDE, False
                 elif noisy:  # measured and chained, not placed: the signal leaves it uncertain
                     st, why, fix = "lost", noisy, False
+                elif levelled:  # the levelled camera tilted about its own centre
+                    x, y, z = T_chain[:3, 3]
+                    T_world = T_world_cam_down(x, y, z, yaw_of_R(T_chain[:3, :3]), roll, pitch)
                 else:
                     T_world = tilted_camera_T(T_chain, roll, pitch)
         index.append(frame.index)
@@ -377,16 +383,23 @@ def _untwisted(
     return step @ make_T(rot_z(-tilt_twist_rad(attitude_prev, attitude_cur)), np.zeros(3))
 
 
-def _start_footprint(T_world_start: np.ndarray, attitude_rad: tuple[float, float]) -> np.ndarray | None:
-    """The footprint (4, 4) a footprint chain starts at: that of a camera at ``T_world_start``'s
-    position and yaw with the first frame's measured attitude (its own tilt where the frame
-    has no reading); None when its optical axis does not meet the floor (a start at the identity)."""
+def _start_footprint(
+    T_world_start: np.ndarray, attitude_rad: tuple[float, float], *, levelled: bool = False
+) -> np.ndarray | None:
+    """The pose (4, 4) an attitude chain starts at: the footprint of a camera at
+    ``T_world_start``'s position and yaw with the first frame's measured attitude (its own
+    tilt where the frame has no reading); with ``levelled`` (an estimator that levels its
+    keypoints, ``levels_with_attitude``) that camera levelled about its own centre instead
+    (looking straight down, the same yaw). None when the optical axis does not meet the floor
+    (a start at the identity)."""
     T = np.asarray(T_world_start, dtype=float)
     roll, pitch = attitude_rad
     if np.isfinite(roll) and np.isfinite(pitch):
         T = T_world_cam_down(T[0, 3], T[1, 3], T[2, 3], yaw_of_R(T[:3, :3]), roll, pitch)
     F = footprint_T(T, float(T[2, 3]))[0]
-    return F if np.isfinite(F).all() and T[2, 3] > 0 else None
+    if not (np.isfinite(F).all() and T[2, 3] > 0):
+        return None
+    return T_world_cam_down(T[0, 3], T[1, 3], T[2, 3], yaw_of_R(T[:3, :3])) if levelled else F
 
 
 def camera_height_mm(seq: Sequence) -> float:

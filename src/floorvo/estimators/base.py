@@ -36,6 +36,7 @@ __all__ = [
     "frame_height_mm",
     "frame_is_blank",
     "RESTART_NOTE",
+    "NO_ATTITUDE_READING",
     "StepBoundConfig",
     "stage_timing_ms",
     "NEEDS",
@@ -85,6 +86,11 @@ class StepBoundConfig(Config):
 #: frame (the next step is measured from it): scoring (:func:`floorvo.scoring.score_run`)
 #: scores the next ok step from this frame.
 RESTART_NOTE = "tracking restarts from this frame"
+
+#: The reason of a frame that an estimator levelling its keypoints with the frames' attitude
+#: (``levels_with_attitude``) cannot measure: the sequence has ``attitude.csv`` but no reading
+#: for it. The next frame is measured from the last one measured.
+NO_ATTITUDE_READING = "no attitude reading (attitude.csv): its keypoints cannot be levelled"
 
 
 @dataclass(frozen=True)

@@ -110,6 +110,7 @@ class HomographySixDof(_AkazeBase):
     guided = True
     fits_own_scale = True
     measures_footprint = False  # its poses are 6-DoF: an attitude signal must not turn them again
+    levels_with_attitude = False  # it measures the tilt itself
     config: HomographySixDofConfig
 
     def __init__(
