@@ -16,6 +16,24 @@ fix) sets it, and counts as a fix; otherwise an ``ok`` step composes it with its
 calibration when one is given (:func:`floorvo.calibration.apply_scale`). ``init`` places
 the frame at the current pose; ``lost`` places nothing and keeps the pose, so the next
 frame continues from the last good one.
+
+With an attitude signal (``attitude.csv``: each frame's roll and pitch, ``Frame.attitude_rad``)
+and a planar mono estimator (``measures_footprint``, ``use_attitude_signal``) the poses are
+made the tilted camera's, in one of two ways:
+
+* the estimator measures the motion of the camera's footprint (phase-corr): the chain is the
+  footprint's (it starts at the footprint of the start pose turned to the first frame's
+  attitude), each step loses the turn about the optical axis that the tilt change gives the
+  picture (:func:`floorvo.geometry.tilt_twist_rad`), and each frame is placed at the tilted
+  camera over that footprint (:func:`floorvo.geometry.tilted_camera_T`);
+* the estimator levels its keypoints with the frame's attitude (``levels_with_attitude``: the
+  AKAZE estimators): its steps are those of a camera at the camera's centre looking straight
+  down, the chain is that levelled camera's, and each frame is placed at it tilted about its
+  centre by the frame's roll and pitch.
+
+A frame without a reading is not placed (lost, the motion chained through it where the
+estimator measured it); a step that the signal's noise (:func:`attitude_noise_rad`) leaves
+uncertain beyond the estimator's bound is lost too (:func:`_attitude_problem`).
 """
 
 from __future__ import annotations
