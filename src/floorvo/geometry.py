@@ -61,6 +61,7 @@ __all__ = [
     "se2_from_T",
     "T_from_se2",
     "footprint_T",
+    "R_nadir_cam",
     "tilted_camera_T",
     "attitude_of_T",
     "tilt_twist_rad",
@@ -284,6 +285,15 @@ def attitude_of_T(T_world_cam: np.ndarray) -> np.ndarray:
     T = np.asarray(T_world_cam, dtype=float)
     g = -T[..., 2, :3]  # the third row of R: R^T (0, 0, 1)
     return np.stack([np.arctan2(g[..., 1], g[..., 2]), np.arcsin(np.clip(g[..., 0], -1.0, 1.0))], axis=-1)
+
+
+def R_nadir_cam(roll_rad: float, pitch_rad: float) -> np.ndarray:
+    """(3, 3) rotation from the frame of a camera at attitude ``roll_rad``, ``pitch_rad``
+    (:func:`attitude_of_T`) to that of a camera at the same centre and yaw looking straight
+    down: ``R_down^T Ry(pitch) Rx(roll) R_down``. A ray ``v`` of the tilted camera is
+    ``R_nadir_cam v`` in the level one, so its pixels move by the homography
+    ``K R_nadir_cam K^-1`` (levelling a frame with an attitude signal)."""
+    return R_WORLD_CAM_DOWN.T @ T_world_cam_down(0.0, 0.0, 1.0, 0.0, roll_rad, pitch_rad)[:3, :3]
 
 
 def tilt_twist_rad(attitude_prev_rad: npt.ArrayLike, attitude_cur_rad: npt.ArrayLike) -> float:

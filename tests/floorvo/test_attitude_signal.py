@@ -155,12 +155,21 @@ def tilt_seq(tmp_path_factory):
     return write_synthetic_sequence(tmp_path_factory.mktemp("tilt") / "seq", CAM, _tilt_poses(), attitude_noise_rad=0.0)
 
 
-def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(tilt_seq, tmp_path):
+@pytest.mark.parametrize("levelled, end_mm", [(True, 0.01), (False, 0.003 * 116.0)])
+def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(
+    tilt_seq, tmp_path, monkeypatch, levelled, end_mm
+):
     """Without the signal a planar estimator's end is off by about height x tilt (the footprint
     under the tilted optical axis, 3-4 mm here) and every 6-DoF step is wrong; with it the run
-    reports the tilted camera's poses: every step within issue 14's bound of the camera's 6-DoF
-    step, the end within 0.3 % of the path (the rest: the picture of a tilted floor, whose
-    perspective the planar fit reads as a little turn), and scoring holds it to the 6-DoF step."""
+    reports the tilted camera's poses, every step within issue 14's bound of the camera's 6-DoF
+    step, and scoring holds it to that step. phase-corr levels each frame with its attitude
+    (``levels_with_attitude``): the end within 0.01 mm of the truth. An estimator that measures
+    the footprint and does not level (a plugin; phase-corr with the flag off), whose footprint
+    the runner turns back: within 0.3 % of the path (the rest: the picture of a tilted floor,
+    whose perspective the planar fit reads as a little turn)."""
+    from floorvo.estimators.phase_corr import PhaseCorr
+
+    monkeypatch.setattr(PhaseCorr, "levels_with_attitude", levelled)
     T = _tilt_poses()
     seq = Sequence.open(tilt_seq)
     off = run_estimator(seq, "phase-corr", tmp_path / "off", {"use_attitude_signal": "false"})
@@ -170,7 +179,7 @@ def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(t
     end_off = np.linalg.norm(off.T_world_cam[-1][:3, 3] - T[-1][:3, 3])
     end_on = np.linalg.norm(on.T_world_cam[-1][:3, 3] - T[-1][:3, 3])
     assert end_off > 100.0 * 0.03  # height x tilt, and more
-    assert end_on < 0.003 * 116.0
+    assert end_on < end_mm
     np.testing.assert_allclose(attitude_of_T(on.T_world_cam), attitude_of_T(T), atol=1e-12)  # the tilt is the signal's
     s_on, s_off = score_run(tmp_path / "on", tilt_seq), score_run(tmp_path / "off", tilt_seq)
     assert s_on.tracking["wrong_ok_steps"] == 0 and s_on.tracking["attitude_signal"] is True
@@ -178,12 +187,20 @@ def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(t
     assert s_off.tracking["wrong_ok_steps"] == 29 and s_off.tracking["wrong_ok_steps_footprint"] == 0
 
 
-def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt_seq, tmp_path):
-    """A dropout (NaN row) is no 6-DoF pose: the frame is reported lost with the reason, its
-    measured motion chained, so the frame after it is placed as without the dropout (to 5 um:
-    the turn of the two tilt changes about the optical axis is taken out in one)."""
+@pytest.mark.parametrize("levelled", [True, False])
+def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt_seq, tmp_path, monkeypatch, levelled):
+    """A dropout (NaN row) is no 6-DoF pose: the frame is reported lost with the reason. phase-corr,
+    which levels its frames, cannot measure it (``NO_ATTITUDE_READING``) and measures the next
+    frame from the last one it measured; an estimator that measures the footprint has its
+    motion chained through it by the runner (``NO_ATTITUDE``; the turn of the two tilt changes
+    about the optical axis taken out in one). Either way the frames after it are placed as
+    without the dropout (to 10 um and 0.1 mrad)."""
     import shutil
 
+    from floorvo.estimators.base import NO_ATTITUDE_READING
+    from floorvo.estimators.phase_corr import PhaseCorr
+
+    monkeypatch.setattr(PhaseCorr, "levels_with_attitude", levelled)
     root = tmp_path / "seq"
     shutil.copytree(tilt_seq, root)
     a = Sequence.open(root).attitude_signal_rad
@@ -192,9 +209,10 @@ def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt
         w.write_attitude(a)
     full = run_estimator(Sequence.open(tilt_seq), "phase-corr", tmp_path / "full")
     gap = run_estimator(Sequence.open(root), "phase-corr", tmp_path / "gap")
-    assert gap.status[7] == "lost" and gap.reason[7] == NO_ATTITUDE and gap.lost == 1
-    np.testing.assert_allclose(gap.T_world_cam[8:, :3, 3], full.T_world_cam[8:, :3, 3], rtol=0, atol=5e-3)
-    np.testing.assert_allclose(gap.T_world_cam[8:, :3, :3], full.T_world_cam[8:, :3, :3], rtol=0, atol=2e-5)
+    assert gap.status[7] == "lost" and gap.lost == 1
+    assert gap.reason[7] == (NO_ATTITUDE_READING if levelled else NO_ATTITUDE)
+    np.testing.assert_allclose(gap.T_world_cam[8:, :3, 3], full.T_world_cam[8:, :3, 3], rtol=0, atol=0.01)
+    np.testing.assert_allclose(gap.T_world_cam[8:, :3, :3], full.T_world_cam[8:, :3, :3], rtol=0, atol=1e-4)
     assert score_run(tmp_path / "gap", root).tracking["wrong_ok_steps"] == 0
 
 

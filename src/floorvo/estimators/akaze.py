@@ -56,18 +56,17 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
 from floorvo.estimators.base import (
-    NO_ATTITUDE_READING,
     RESTART_NOTE,
     Frame,
     StepBoundConfig,
     StepResult,
+    frame_attitude_rad,
     frame_height_mm,
     frame_problem,
     stage_timing_ms,
 )
 from floorvo.geometry import (
-    R_WORLD_CAM_DOWN,
-    T_world_cam_down,
+    R_nadir_cam,
     consensus_problem,
     floor_rigid_to_T,
     pixels_to_floor_mm,
@@ -280,7 +279,7 @@ class _AkazeBase:
         """Keypoints (N, 2) px of a camera at attitude ``roll_rad``, ``pitch_rad`` (``attitude.csv``'s
         convention, :func:`floorvo.geometry.attitude_of_T`) moved to where a camera at the same
         centre and yaw looking straight down sees them: each pixel's ray (distortion undone,
-        :meth:`CameraModel.unproject`) turned by ``R_nadir_cam = R_down^T R_world_cam`` (yaw 0)
+        :meth:`CameraModel.unproject`) turned by :func:`floorvo.geometry.R_nadir_cam`
         and projected again (distortion applied, :meth:`CameraModel.project`), a homography
         ``K R K^-1`` of the ideal pinhole. A turn about the camera's centre moves every pixel as
         the floor does not, so what is left between two levelled frames is the floor's motion as
@@ -290,20 +289,8 @@ class _AkazeBase:
         turn about the optical axis, no longer enter the fit."""
         if len(kps) == 0:
             return kps
-        R_nadir_cam = R_WORLD_CAM_DOWN.T @ T_world_cam_down(0.0, 0.0, 1.0, 0.0, roll_rad, pitch_rad)[:3, :3]
-        rays = self.camera.unproject(kps, 1.0) @ R_nadir_cam.T
+        rays = self.camera.unproject(kps, 1.0) @ R_nadir_cam(roll_rad, pitch_rad).T
         return self.camera.project(rays)
-
-    def _frame_attitude(self, frame: Frame) -> tuple[float, float] | None | str:
-        """The frame's attitude (roll, pitch) rad when its keypoints are levelled
-        (``use_attitude_signal`` and a reading), None when they are not (no signal), or why the
-        frame cannot be measured (a frame of a sequence with a signal but without a reading)."""
-        att = frame.attitude_rad
-        if att is None or not self.levels_with_attitude or not self.config.use_attitude_signal:
-            return None
-        if not np.isfinite(att).all():
-            return NO_ATTITUDE_READING
-        return float(att[0]), float(att[1])
 
     def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The ``max_keypoints`` strongest keypoints (N, 2) px and their descriptors (N, B) uint8.
@@ -656,7 +643,7 @@ class _AkazeBase:
         bad = frame_problem(frame.image, self.camera)
         if bad:
             return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
-        attitude = self._frame_attitude(frame)
+        attitude = frame_attitude_rad(frame, self.levels_with_attitude and self.config.use_attitude_signal)
         if isinstance(attitude, str):
             return StepResult("lost", reason=attitude, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         kps, desc = self._detect(frame.image, state)

@@ -37,6 +37,7 @@ __all__ = [
     "frame_is_blank",
     "RESTART_NOTE",
     "NO_ATTITUDE_READING",
+    "frame_attitude_rad",
     "StepBoundConfig",
     "stage_timing_ms",
     "NEEDS",
@@ -90,7 +91,7 @@ RESTART_NOTE = "tracking restarts from this frame"
 #: The reason of a frame that an estimator levelling its keypoints with the frames' attitude
 #: (``levels_with_attitude``) cannot measure: the sequence has ``attitude.csv`` but no reading
 #: for it. The next frame is measured from the last one measured.
-NO_ATTITUDE_READING = "no attitude reading (attitude.csv): its keypoints cannot be levelled"
+NO_ATTITUDE_READING = "no attitude reading (attitude.csv): the frame cannot be levelled"
 
 
 @dataclass(frozen=True)
@@ -213,3 +214,17 @@ def frame_height_mm(frame: Frame, enabled: bool = True) -> float | None:
     if not enabled or h is None or not np.isfinite(h) or h <= 0:
         return None
     return float(h)
+
+
+def frame_attitude_rad(frame: Frame, enabled: bool = True) -> tuple[float, float] | None | str:
+    """The attitude (roll, pitch) rad measured at ``frame`` (``Frame.attitude_rad``) by which an
+    estimator that levels its frames (``levels_with_attitude``) levels it; None when it is not
+    levelled (no attitude signal, or not ``enabled``); :data:`NO_ATTITUDE_READING` when the
+    sequence has a signal but no reading for this frame (the frame cannot be measured). The one
+    rule by which the mono estimators use an attitude signal."""
+    att = frame.attitude_rad
+    if not enabled or att is None:
+        return None
+    if not np.isfinite(att).all():
+        return NO_ATTITUDE_READING
+    return float(att[0]), float(att[1])

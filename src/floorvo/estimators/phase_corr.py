@@ -61,12 +61,14 @@ from floorvo.estimators.base import (
     Frame,
     StepBoundConfig,
     StepResult,
+    frame_attitude_rad,
     frame_height_mm,
     frame_is_blank,
     frame_problem,
     stage_timing_ms,
 )
 from floorvo.geometry import (
+    R_nadir_cam,
     axis_scales_fit,
     f_sigmas,
     floor_rigid_to_T,
@@ -365,6 +367,11 @@ class PhaseCorr:
     #: (:func:`floorvo.geometry.footprint_T`), which the runner turns into the tilted
     #: camera's pose with an attitude signal (``use_attitude_signal``).
     measures_footprint: bool = True
+    #: With a frame's attitude (``use_attitude_signal``) its normalised region is levelled
+    #: first (:meth:`_levelled`): the steps are then those of a camera at the camera's centre
+    #: looking straight down, and the runner tilts that pose with the frame's attitude
+    #: (:func:`floorvo.runner.run_frames`) instead of turning a footprint back.
+    levels_with_attitude: bool = True
 
     def __init__(
         self,
@@ -508,6 +515,24 @@ class PhaseCorr:
             out = impulses_replaced(out, self.config.impulse_ratio)
         return out
 
+    def _levelled(self, region: np.ndarray, roll_rad: float, pitch_rad: float) -> np.ndarray:
+        """The normalised region (grid px, offset by ``(rx0, ry0)``) of a frame taken at attitude
+        ``roll_rad``, ``pitch_rad`` (``attitude.csv``, :func:`floorvo.geometry.attitude_of_T`) as a
+        camera at the same centre and yaw looking straight down sees it: resampled through the
+        homography ``K R K^-1`` of the grid's pinhole (:func:`floorvo.geometry.R_nadir_cam`; the
+        region is already in the ideal pinhole, so the homography is exact), bicubic, the border
+        reflected (a tilt of 0.03 rad moves the picture by 24 px of 648 at full size, within the
+        region's margin around the crop). A turn about the camera's centre moves every pixel as
+        the floor does not, so what is left between two levelled frames is the floor's motion as
+        a level camera sees it. The flat field was applied before: it belongs to the sensor's
+        pixels."""
+        K = self.grid_cam.K
+        offset = np.array([[1.0, 0.0, -self.rx0], [0.0, 1.0, -self.ry0], [0.0, 0.0, 1.0]])
+        H = offset @ K @ R_nadir_cam(roll_rad, pitch_rad) @ np.linalg.inv(K) @ np.linalg.inv(offset)
+        return cv2.warpPerspective(
+            region, H, (region.shape[1], region.shape[0]), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT
+        )
+
     def _blocks(self, img: np.ndarray) -> np.ndarray:
         """The spectra (g * g, n, n // 2 + 1) of the crop ``img``'s blocks, row by row, in one transform."""
         bs, g = self.block, self.config.grid
@@ -546,7 +571,12 @@ class PhaseCorr:
                 reason="empty frame (no texture)",
                 timing_ms={"detect": 0.0, "match": 0.0, "estimate": 0.0, "total": 0.0},
             )
+        attitude = frame_attitude_rad(frame, self.levels_with_attitude and self.config.use_attitude_signal)
+        if isinstance(attitude, str):
+            return StepResult("lost", reason=attitude, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         cur = self._normalised(img)
+        if attitude is not None:
+            cur = self._levelled(cur, *attitude)
         t1 = time.perf_counter()
         if state.prev is None:
             state.prev = cur
