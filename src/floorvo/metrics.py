@@ -291,7 +291,13 @@ WRONG_STEP_FRACTION = 0.02
 WRONG_STEP_DEG = 0.3
 
 
-def step_errors(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def step_errors(
+    T_ref: np.ndarray,
+    T_est: np.ndarray,
+    *,
+    T_ref_from: np.ndarray | None = None,
+    T_est_from: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
     """Error of each step between consecutive associated poses (N, 4, 4), mm.
 
     An estimator measures each tracked frame from its last tracked one, so the poses of a
@@ -299,16 +305,22 @@ def step_errors(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray 
     measured step per tracked frame: ``B_i^-1 B_i+1`` against the truth ``A_i^-1 A_i+1``.
     When a step was measured from another frame (an estimator that restarted its track
     on a lost frame), ``T_ref_from`` (N-1, 4, 4) gives the true pose of the frame each
-    step was measured from (default ``A_i``). Returns ``trans_mm`` (N-1,) and ``rot_deg``
-    (N-1,), the translation and rotation of the error ``(true step)^-1 (measured step)``,
-    and ``step_mm`` (N-1,), the true step's translation.
+    step was measured from (default ``A_i``), and ``T_est_from`` (N-1, 4, 4) the run's pose of
+    that frame where the run gives it one that is not ``B_i`` (default ``B_i``: the last pose
+    placed; a run whose poses an attitude signal tilts holds the restart frame at the last
+    pose's position and yaw, tilted to that frame's attitude). Returns ``trans_mm`` (N-1,) and
+    ``rot_deg`` (N-1,), the translation and rotation of the error ``(true step)^-1 (measured
+    step)``, and ``step_mm`` (N-1,), the true step's translation.
     """
     A, B = _check_pair(T_ref, T_est)
     A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
     if A_from.shape != (len(A) - 1, 4, 4):
         raise ValueError(f"step_errors: T_ref_from has shape {A_from.shape}, expected ({len(A) - 1}, 4, 4)")
+    B_from = B[:-1] if T_est_from is None else np.asarray(T_est_from, dtype=float)
+    if B_from.shape != (len(B) - 1, 4, 4):
+        raise ValueError(f"step_errors: T_est_from has shape {B_from.shape}, expected ({len(B) - 1}, 4, 4)")
     d_true = invert_T(A_from) @ A[1:]
-    E = invert_T(d_true) @ (invert_T(B[:-1]) @ B[1:])
+    E = invert_T(d_true) @ (invert_T(B_from) @ B[1:])
     return {
         "trans_mm": np.linalg.norm(E[:, :3, 3], axis=1),
         "rot_deg": _rotation_angle_deg(E[:, :3, :3]),

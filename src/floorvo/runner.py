@@ -102,7 +102,9 @@ class RunResult:
     of the loop, frame reading included. ``run_dir``: where it was written, "" if not.
     ``attitude_signal``: the poses are the tilted camera's, made 6-DoF with the frames'
     attitude (module docstring); a run folder records it (``result.json``) and scoring then
-    holds its steps to the camera's 6-DoF step only.
+    holds its steps to the camera's 6-DoF step only. ``attitude_levelled``: and the estimator
+    levelled its frames with it (``levels_with_attitude``: each pose is the levelled chain's,
+    tilted about the camera's centre by that frame's attitude).
     """
 
     estimator: str
@@ -117,6 +119,7 @@ class RunResult:
     wall_s: float
     run_dir: str = ""
     attitude_signal: bool = False
+    attitude_levelled: bool = False
 
     @property
     def frames(self) -> int:
@@ -198,6 +201,7 @@ class RunResult:
             "status_counts": self.status_counts,
             "map_fixes": self.fixes,
             "attitude_signal": self.attitude_signal,
+            "attitude_levelled": self.attitude_levelled,
             "first_frame": int(self.frame_index[0]) if self.frames else None,
             "last_frame": int(self.frame_index[-1]) if self.frames else None,
         }
@@ -329,6 +333,7 @@ def run_frames(
         fixed=np.array(fixed, dtype=bool),
         wall_s=wall,
         attitude_signal=attitude,
+        attitude_levelled=attitude and levelled,
     )
 
 

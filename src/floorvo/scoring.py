@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -23,7 +24,7 @@ import numpy as np
 from floorvo import metric_defs as md
 from floorvo.errors import SequenceError, shown_number
 from floorvo.estimators.base import RESTART_NOTE
-from floorvo.geometry import footprint_T
+from floorvo.geometry import T_world_cam_down, footprint_T, yaw_of_R
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import (
     ALIGNMENTS,
@@ -57,6 +58,7 @@ __all__ = [
     "score_run",
     "ok_step_errors",
     "ok_step_poses",
+    "levelled_restart_poses",
     "ok_step_poses_of_run",
     "write_score",
 ]
@@ -323,7 +325,8 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     )
     score.run_dir, score.seq_dir = str(run_dir), str(seq_dir)
     poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
-    steps = _step_errors_of(poses)
+    B_from = _levelled_restart_poses_of_run(run, seq_dir, result) if poses is not None else None
+    steps = _step_errors_of(poses, B_from)
     if steps is not None:
         score.tracking["ok_steps_scored"] = len(steps["trans_mm"])
         score.tracking["wrong_ok_steps"] = int(wrong_steps(steps).sum())
@@ -378,19 +381,48 @@ def ok_step_poses(
     ``init``/``ok`` frame. None when the run does not fit its trajectory (P is not the number
     of placed frames, or fewer than 2 are placed).
     """
-    placed = [i for i, st in enumerate(statuses) if st in ("init", "ok")]
+    placed, measured_from = _measured_from(statuses, reasons)
     if len(placed) < 2 or len(placed) != len(T_est_placed):
         return None
-    measured_from, ref = [], None
+    A = np.asarray(T_ref_per_frame, dtype=float)
+    return A[placed], A[measured_from], np.asarray(T_est_placed, dtype=float)
+
+
+def _measured_from(statuses: SequenceT[str], reasons: SequenceT[str] | None) -> tuple[list[int], list[int]]:
+    """The indices of a run's placed (``init``/``ok``) frames, and of the frame each step into the
+    next placed one was measured from (:func:`ok_step_poses`)."""
+    placed, measured_from, ref = [], [], None
     for i, st in enumerate(statuses):
         if st in ("init", "ok"):
+            placed.append(i)
             if ref is not None:
                 measured_from.append(ref)
             ref = i
         elif reasons is not None and RESTART_NOTE in str(reasons[i]):
             ref = i
-    A = np.asarray(T_ref_per_frame, dtype=float)
-    return A[placed], A[measured_from], np.asarray(T_est_placed, dtype=float)
+    return placed, measured_from
+
+
+def levelled_restart_poses(
+    statuses: SequenceT[str], reasons: SequenceT[str] | None, T_est_placed: np.ndarray, attitude_rad: np.ndarray
+) -> np.ndarray:
+    """The run's pose of the frame each step was measured from (P-1, 4, 4), for a run whose
+    poses are a levelled chain tilted by each frame's attitude (``result.json``'s
+    ``attitude_levelled``, :mod:`floorvo.runner`): the last placed pose, but for a step measured
+    from a restart frame that pose's position and yaw tilted to the restart frame's attitude
+    (``attitude_rad`` (F, 2), the run's frames' readings): where the run holds that frame, the
+    chain being unchanged over the lost frames. Against the last placed pose itself the step
+    would carry the tilt change across the gap (3.4 degrees on the wood tilt's restarts).
+    ``statuses``, ``reasons`` (F,) and ``T_est_placed`` (P, 4, 4): as for :func:`ok_step_poses`."""
+    placed, measured_from = _measured_from(statuses, reasons)
+    B = np.asarray(T_est_placed, dtype=float)
+    B_from = B[:-1].copy()
+    att = np.asarray(attitude_rad, dtype=float).reshape(-1, 2)
+    for k, (p, r) in enumerate(zip(placed[:-1], measured_from)):
+        if r != p and np.isfinite(att[r]).all():
+            x, y, z = B[k, :3, 3]
+            B_from[k] = T_world_cam_down(x, y, z, yaw_of_R(B[k, :3, :3]), float(att[r, 0]), float(att[r, 1]))
+    return B_from
 
 
 def ok_step_errors(
@@ -407,12 +439,16 @@ def ok_step_errors(
     return _step_errors_of(ok_step_poses(statuses, reasons, T_ref_per_frame, T_est_placed))
 
 
-def _step_errors_of(poses: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> dict[str, np.ndarray] | None:
-    """:func:`ok_step_errors` of the poses :func:`ok_step_poses` gave (None: None)."""
+def _step_errors_of(
+    poses: tuple[np.ndarray, np.ndarray, np.ndarray] | None, B_from: np.ndarray | None = None
+) -> dict[str, np.ndarray] | None:
+    """:func:`ok_step_errors` of the poses :func:`ok_step_poses` gave (None: None); ``B_from``:
+    the run's pose of each step's first frame where it is not the last placed one
+    (:func:`levelled_restart_poses`)."""
     if poses is None:
         return None
     A, A_from, B = poses
-    errors = step_errors(A, B, T_ref_from=A_from)
+    errors = step_errors(A, B, T_ref_from=A_from, T_est_from=B_from)
     known = np.isfinite(errors["trans_mm"]) & np.isfinite(errors["rot_deg"])
     if not known.any():
         return None
@@ -433,6 +469,21 @@ def _ok_steps_of_run(
     if planar and len(T_est):
         T_est = footprint_T(T_est, float(np.nanmedian(T_ref[:, 2, 3])))
     return ok_step_errors(statuses, reasons, T_per_frame, T_est)
+
+
+def _levelled_restart_poses_of_run(
+    run: RunFolder, seq_dir: Path, result: Mapping[str, Any] | None
+) -> np.ndarray | None:
+    """:func:`levelled_restart_poses` of a run folder whose ``result.json`` says
+    ``attitude_levelled``, from the sequence's ``attitude.csv`` at the run's frames; None otherwise."""
+    statuses = run.statuses
+    if not (result or {}).get("attitude_levelled") or not statuses or not run.timing or "frame" not in run.timing:
+        return None
+    attitude = Sequence.open(seq_dir).attitude_signal_rad
+    frames = np.asarray(run.timing["frame"], dtype=int)
+    if attitude is None or len(frames) == 0 or frames.max() >= len(attitude):
+        return None
+    return levelled_restart_poses(statuses, _reasons(run), run.T_world_cam, attitude[frames])
 
 
 def ok_step_poses_of_run(

@@ -329,3 +329,38 @@ def test_akaze_without_an_attitude_reading_loses_the_frame_and_measures_the_next
     assert gap.status[7] == "lost" and gap.reason[7] == NO_ATTITUDE_READING and gap.lost == 1
     np.testing.assert_allclose(gap.T_world_cam[8:, :3, 3], full.T_world_cam[8:, :3, 3], rtol=0, atol=0.01)
     assert score_run(tmp_path / "gap", root).tracking["wrong_ok_steps"] == 0
+
+
+def test_a_step_measured_from_a_restart_frame_is_scored_from_that_frames_attitude():
+    """A levelled run that restarts its track on a lost frame r measured the next step from r,
+    and holds r at the last placed pose's position and yaw tilted to r's attitude (the chain
+    does not move over lost frames). Hand-built run: the truth tilts 0.03 rad between the last
+    placed frame and r; the run measured the step from r exactly. Scored from the last placed
+    pose the step is off by that tilt change (1.7 degrees); from r's pose (levelled_restart_poses)
+    it is exact."""
+    from floorvo.estimators.base import RESTART_NOTE
+    from floorvo.metrics import step_errors
+    from floorvo.scoring import levelled_restart_poses, ok_step_poses
+
+    truth = np.stack(
+        [
+            T_world_cam_down(0.0, 0.0, 100.0, 0.0, 0.0, 0.0),
+            T_world_cam_down(4.0, 0.0, 100.0, 0.0, 0.01, 0.0),
+            T_world_cam_down(8.0, 0.0, 100.0, 0.0, 0.02, 0.0),  # lost
+            T_world_cam_down(12.0, 0.0, 100.0, 0.0, 0.04, 0.0),  # lost, restart
+            T_world_cam_down(16.0, 0.0, 100.0, 0.0, 0.03, 0.0),
+        ]
+    )
+    statuses = ["init", "ok", "lost", "lost", "ok"]
+    reasons = ["first frame", "", "blocks disagree", f"blocks disagree; {RESTART_NOTE}", ""]
+    att = attitude_of_T(truth)
+    # The run: frames 0, 1 placed at the truth; the chain stays at frame 1's (level: x 4, yaw 0)
+    # over the gap; the step r -> 4 (4 mm along x, level) chained onto it, tilted by frame 4's attitude.
+    placed = np.stack([truth[0], truth[1], T_world_cam_down(8.0, 0.0, 100.0, 0.0, *att[4])])
+    A, A_from, B = ok_step_poses(statuses, reasons, truth, placed)
+    from_last = step_errors(A, B, T_ref_from=A_from)
+    B_from = levelled_restart_poses(statuses, reasons, placed, att)
+    from_r = step_errors(A, B, T_ref_from=A_from, T_est_from=B_from)
+    assert from_last["rot_deg"][1] == pytest.approx(np.degrees(0.03), abs=1e-6)
+    np.testing.assert_allclose(from_r["rot_deg"], 0.0, atol=1e-6)
+    np.testing.assert_allclose(from_r["trans_mm"], 0.0, atol=1e-9)
