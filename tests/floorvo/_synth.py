@@ -154,3 +154,20 @@ def hand_run(
     (run / "timing.csv").write_text("\n".join(rows) + "\n")
     (run / "result.json").write_text(json.dumps({"estimator": estimator}))
     return run, seq
+
+
+def blank_meta(camera: CameraModel, n: int) -> dict:
+    """``sequence.json`` of an ``n``-frame mono sequence of ``camera`` at 30 fps, 100 mm up."""
+    return {"camera": camera.to_dict(), "fps": 30.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+
+
+def blank_sequence(tmp_path: Path, camera: CameraModel, n: int = 3) -> Path:
+    """``tmp_path/seq``: ``n`` uniform grey frames of ``camera`` (:func:`blank_meta`), for the
+    files beside the frames (``height.csv``, ``attitude.csv``) to be written and read."""
+    from floorvo.sequence import SequenceWriter
+
+    root = tmp_path / "seq"
+    with SequenceWriter(root, blank_meta(camera, n)) as w:
+        for i in range(n):
+            w.write_frame(i, np.full((camera.height_px, camera.width_px), 100, np.uint8))
+    return root

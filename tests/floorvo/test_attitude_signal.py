@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _synth import blank_meta, blank_sequence
 
 from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
@@ -29,15 +30,11 @@ CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0
 
 
 def _meta(n: int) -> dict:
-    return {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+    return blank_meta(CAM, n)
 
 
 def _write(tmp_path, n: int = 3):
-    root = tmp_path / "seq"
-    with SequenceWriter(root, _meta(n)) as w:
-        for i in range(n):
-            w.write_frame(i, np.full((CAM.height_px, CAM.width_px), 100, np.uint8))
-    return root
+    return blank_sequence(tmp_path, CAM, n)
 
 
 def _random_poses(n: int, seed: int = 0) -> np.ndarray:
@@ -150,6 +147,20 @@ def _tilt_poses(n: int = 30, amp: float = 0.03) -> np.ndarray:
     return np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.0, roll[i], pitch[i]) for i in range(n)])
 
 
+def _with_dropout(seq_dir, tmp_path, frame: int):
+    """A copy of the sequence ``seq_dir`` in ``tmp_path/seq`` whose ``attitude.csv`` has no
+    reading for ``frame``."""
+    import shutil
+
+    root = tmp_path / "seq"
+    shutil.copytree(seq_dir, root)
+    a = Sequence.open(root).attitude_signal_rad
+    a[frame] = np.nan
+    with SequenceWriter(root, Sequence.open(root).meta) as w:
+        w.write_attitude(a)
+    return root
+
+
 @pytest.fixture(scope="module")
 def tilt_seq(tmp_path_factory):
     return write_synthetic_sequence(tmp_path_factory.mktemp("tilt") / "seq", CAM, _tilt_poses(), attitude_noise_rad=0.0)
@@ -195,18 +206,11 @@ def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt
     motion chained through it by the runner (``NO_ATTITUDE``; the turn of the two tilt changes
     about the optical axis taken out in one). Either way the frames after it are placed as
     without the dropout (to 10 um and 0.1 mrad)."""
-    import shutil
-
     from floorvo.estimators.base import NO_ATTITUDE_READING
     from floorvo.estimators.phase_corr import PhaseCorr
 
     monkeypatch.setattr(PhaseCorr, "levels_with_attitude", levelled)
-    root = tmp_path / "seq"
-    shutil.copytree(tilt_seq, root)
-    a = Sequence.open(root).attitude_signal_rad
-    a[7] = np.nan
-    with SequenceWriter(root, Sequence.open(root).meta) as w:
-        w.write_attitude(a)
+    root = _with_dropout(tilt_seq, tmp_path, 7)
     full = run_estimator(Sequence.open(tilt_seq), "phase-corr", tmp_path / "full")
     gap = run_estimator(Sequence.open(root), "phase-corr", tmp_path / "gap")
     assert gap.status[7] == "lost" and gap.lost == 1
@@ -314,16 +318,9 @@ def test_akaze_levels_its_keypoints_with_the_attitude(tilt_seq, tmp_path):
 def test_akaze_without_an_attitude_reading_loses_the_frame_and_measures_the_next_from_the_last(tilt_seq, tmp_path):
     """A dropout: the frame's keypoints cannot be levelled, so akaze reports it lost with the
     reason and measures the next frame from the last one it measured, placed as without the gap."""
-    import shutil
-
     from floorvo.estimators.base import NO_ATTITUDE_READING
 
-    root = tmp_path / "seq"
-    shutil.copytree(tilt_seq, root)
-    a = Sequence.open(root).attitude_signal_rad
-    a[7] = np.nan
-    with SequenceWriter(root, Sequence.open(root).meta) as w:
-        w.write_attitude(a)
+    root = _with_dropout(tilt_seq, tmp_path, 7)
     full = run_estimator(Sequence.open(tilt_seq), "akaze-guided", tmp_path / "full")
     gap = run_estimator(Sequence.open(root), "akaze-guided", tmp_path / "gap")
     assert gap.status[7] == "lost" and gap.reason[7] == NO_ATTITUDE_READING and gap.lost == 1

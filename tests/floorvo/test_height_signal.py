@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _synth import blank_meta, blank_sequence
 
 from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
@@ -23,15 +24,11 @@ CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0
 
 
 def _meta(n: int) -> dict:
-    return {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": n, "rig": {"height_mm": 100.0}}
+    return blank_meta(CAM, n)
 
 
 def _write(tmp_path, n: int = 3):
-    root = tmp_path / "seq"
-    with SequenceWriter(root, _meta(n)) as w:
-        for i in range(n):
-            w.write_frame(i, np.full((CAM.height_px, CAM.width_px), 100, np.uint8))
-    return root
+    return blank_sequence(tmp_path, CAM, n)
 
 
 def test_height_column_round_trip_and_a_folder_without_it_loads_as_before(tmp_path):
