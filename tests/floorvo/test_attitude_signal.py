@@ -361,3 +361,23 @@ def test_a_step_measured_from_a_restart_frame_is_scored_from_that_frames_attitud
     assert from_last["rot_deg"][1] == pytest.approx(np.degrees(0.03), abs=1e-6)
     np.testing.assert_allclose(from_r["rot_deg"], 0.0, atol=1e-6)
     np.testing.assert_allclose(from_r["trans_mm"], 0.0, atol=1e-9)
+
+
+def test_akaze_reports_its_pairs_in_each_frames_own_pixels(tilt_seq):
+    """Levelled, akaze fits keypoints moved to a level camera's view, but the pairs it reports
+    (``StepResult.matches_px``, for reports and wrong_steps.py) are in each frame's own pixels:
+    moved back, they are keypoints AKAZE detected in that frame (to 1e-6 px)."""
+    from floorvo.runner import sequence_frames
+
+    seq = Sequence.open(tilt_seq)
+    est, _ = build_estimator(seq, "akaze-guided")
+    state = est.start()
+    frames = list(sequence_frames(seq, range(3)))
+    results = [est.step(state, f) for f in frames]
+    assert [r.status for r in results] == ["init", "ok", "ok"]
+    detected = [est._detect(f.image)[0] for f in frames]
+    for k in (1, 2):
+        m = results[k].matches_px
+        for pts, kps in ((m[:, :2], detected[k - 1]), (m[:, 2:], detected[k])):
+            nearest = np.min(np.linalg.norm(pts[:, None, :] - kps[None, :, :], axis=2), axis=1)
+            assert nearest.max() < 1e-6

@@ -219,6 +219,7 @@ class _State:
     height_mm: float | None = None  # camera height of the reference frame, measured or fitted (None: the rig's)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
     threshold: float | None = None  # adapt_threshold: the detector threshold of the next frame (None: the config's)
+    attitude: tuple[float, float] | None = None  # the reference's attitude its keypoints were levelled with
 
 
 @dataclass(frozen=True)
@@ -290,6 +291,14 @@ class _AkazeBase:
         if len(kps) == 0:
             return kps
         rays = self.camera.unproject(kps, 1.0) @ R_nadir_cam(roll_rad, pitch_rad).T
+        return self.camera.project(rays)
+
+    def _unlevelled(self, pts: np.ndarray, attitude: tuple[float, float] | None) -> np.ndarray:
+        """Levelled points (N, 2) px (:meth:`_levelled`) back in the pixels of the frame taken at
+        ``attitude`` (the inverse turn); as they are when ``attitude`` is None (not levelled)."""
+        if attitude is None or len(pts) == 0:
+            return pts
+        rays = self.camera.unproject(pts, 1.0) @ R_nadir_cam(*attitude)  # R^T v, row-wise
         return self.camera.project(rays)
 
     def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -659,7 +668,7 @@ class _AkazeBase:
                     n_keypoints=len(kps),
                     timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
                 )
-            state.kps, state.desc, state.packed = kps, desc, packed
+            state.kps, state.desc, state.packed, state.attitude = kps, desc, packed, attitude
             state.height_mm = self._frame_height(frame)
             self._start_reference(state, frame)
             return StepResult(
@@ -691,6 +700,7 @@ class _AkazeBase:
             why = f"{note}; {fit.problem}" if note else fit.problem
             if state.n_lost >= self.config.restart_after_lost and len(kps) >= self.config.min_matches:
                 state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
+                state.attitude = attitude
                 state.height_mm = self._frame_height(frame)
                 self._start_reference(state, frame)
                 why += f"; {RESTART_NOTE}"
@@ -714,7 +724,10 @@ class _AkazeBase:
                 n_inliers=len(fit.src),
                 timing_ms=stage_timing_ms(t0, t1, t2, time.perf_counter()),
             )
+        # The pairs in each frame's own pixels (levelled keypoints moved back), for reports.
+        matches_px = np.hstack([self._unlevelled(fit.src, state.attitude), self._unlevelled(fit.dst, attitude)])
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
+        state.attitude = attitude
         state.height_mm = self._height_after(state, fit, frame)
         t3 = time.perf_counter()
         return StepResult(
@@ -725,7 +738,7 @@ class _AkazeBase:
             n_matches=fit.n_matches,
             n_inliers=len(fit.src),
             timing_ms=stage_timing_ms(t0, t1, t2, t3),
-            matches_px=np.hstack([fit.src, fit.dst]),
+            matches_px=matches_px,
         )
 
 
