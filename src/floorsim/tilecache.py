@@ -46,7 +46,7 @@ import numpy as np
 
 from floorsim import materials, render
 from floorvo.errors import ConfigError, shown
-from floorvo.io import atomic_write_bytes, plain
+from floorvo.io import ArrayRule, atomic_write_bytes, plain, read_npz
 
 __all__ = ["TileCache", "default_cache", "cache_root", "cache_root_problem", "CACHE_FORMAT", "DEFAULT_MAX_MB"]
 
@@ -154,23 +154,19 @@ class TileCache:
 
         A file that does not hold those arrays (damaged, cut short) is a miss, logged."""
         p = self.path(key)
-        try:
-            with np.load(p, allow_pickle=False) as z:
-                h, a, n = z["height_mm"], z["albedo"], z["normals"]
-        except FileNotFoundError:
+        if not p.is_file():
             return None
-        except Exception as exc:  # noqa: BLE001 - any unreadable file is a miss, rebuilt
-            log.warning("%s: damaged tile in the cache (%s); building it again", p, type(exc).__name__)
+
+        def rule(*expected: int) -> ArrayRule:
+            return lambda s, dtype: None if s == expected and dtype == np.float32 else f"must be float32 {expected}"
+
+        rules = {"height_mm": rule(*shape), "albedo": rule(*shape), "normals": rule(*shape, 3)}
+        try:  # each header checked before its data is read (a damaged header may state terabytes)
+            z = read_npz(p, rules, str(p), "tile", ConfigError)
+        except ConfigError as exc:
+            log.warning("damaged tile in the cache: %s; building it again", exc)
             return None
-        ok = (
-            h.shape == shape
-            and a.shape == shape
-            and n.shape == (*shape, 3)
-            and h.dtype == a.dtype == n.dtype == np.float32
-        )
-        if not ok:
-            log.warning("%s: tile of the wrong shape or type in the cache; building it again", p)
-            return None
+        h, a, n = z["height_mm"], z["albedo"], z["normals"]
         try:
             os.utime(p)  # recently used: evicted last
         except OSError:

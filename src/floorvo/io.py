@@ -18,7 +18,9 @@ import os
 import re
 import secrets
 import tomllib
-from collections.abc import Iterable, Mapping
+import zipfile
+import zlib
+from collections.abc import Callable, Iterable, Mapping
 from collections.abc import Sequence as SequenceT
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,9 @@ __all__ = [
     "read_png",
     "read_image",
     "read_text",
+    "read_npy",
+    "read_npz",
+    "ArrayRule",
     "read_json",
     "read_toml",
     "json_sha256",
@@ -412,6 +417,105 @@ def read_image(
     if img is None:
         raise SequenceError(f"{path}: not a readable {kind} (corrupt or truncated)")
     return img
+
+
+#: A rule on an array's header: ``(shape, dtype)`` -> why the array is refused, or None.
+ArrayRule = Callable[[tuple[int, ...], np.dtype], "str | None"]
+
+
+def _read_array(fh: Any, stored_bytes: int | None, rule: ArrayRule | None, what: str) -> np.ndarray:
+    """The array of the ``.npy`` stream ``fh``, its header checked before any data is read.
+
+    Refused with an :class:`_ArrayRefused` whose message names ``what``: an object dtype
+    (pickled Python objects: never loaded), what ``rule`` refuses, and a shape that the data
+    after the header (``stored_bytes``, when known) does not hold: a header of 100 bytes can
+    state an array of terabytes, and ``np.load`` allocates what it states before reading. A
+    header numpy cannot read raises numpy's ValueError."""
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
+    elif version == (2, 0):
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    else:
+        raise _ArrayRefused(f"{what} is .npy format version {version[0]}.{version[1]}; only 1.0 and 2.0 are read")
+    if dtype.hasobject:
+        raise _ArrayRefused(f"{what} holds Python objects (dtype {dtype}); only arrays of numbers are read")
+    problem = rule(tuple(shape), dtype) if rule else None
+    if problem:
+        raise _ArrayRefused(f"{what} has shape {tuple(shape)} and dtype {dtype}: {problem}")
+    count = math.prod(shape)
+    size = count * dtype.itemsize
+    if stored_bytes is not None and stored_bytes - fh.tell() != size:
+        raise _ArrayRefused(
+            f"{what} states shape {tuple(shape)} of {dtype} ({size} bytes) in its header; "
+            f"the file holds {max(stored_bytes - fh.tell(), 0)} bytes of data"
+        )
+    data = fh.read(size)  # grows with the data there is, not with what the header states
+    if len(data) != size:
+        raise _ArrayRefused(f"{what} is cut short: {len(data)} of the {size} bytes its header states")
+    array = np.frombuffer(data, dtype=dtype, count=count).reshape(shape, order="F" if fortran else "C")
+    return array.copy()  # writable, as np.load's
+
+
+class _ArrayRefused(ValueError):
+    """An array whose header a reader's rule refuses (its message is the rule, shown as it is)."""
+
+
+def read_npy(
+    path: str | os.PathLike,
+    rule: ArrayRule | None = None,
+    what: str = ".npy array",
+    error: type[Exception] = SequenceError,
+) -> np.ndarray:
+    """The array of the ``.npy`` file ``path``, read as ``np.load(path, allow_pickle=False)`` would,
+    but its header checked first (:func:`_read_array`): ``rule(shape, dtype)`` (e.g. a depth
+    map's size and dtype), and the file must hold the bytes the header states. Every refusal is
+    a one-line ``error`` naming ``path``: "PATH: not a readable WHAT (...)", "PATH: WHAT has
+    shape ... and dtype ...: RULE", ..."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            return _read_array(fh, os.fstat(fh.fileno()).st_size, rule, what)
+    except _ArrayRefused as exc:
+        raise error(f"{path}: {exc}") from None
+    except (OSError, ValueError, EOFError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise error(f"{path}: not a readable {what} ({shorten(reason)})") from None
+
+
+def read_npz(
+    source: str | os.PathLike | bytes,
+    rules: Mapping[str, ArrayRule | None],
+    label: str,
+    what: str = ".npz archive",
+    error: type[Exception] = SequenceError,
+) -> dict[str, np.ndarray]:
+    """The arrays named by ``rules`` of the ``.npz`` archive ``source`` (a path, or its bytes),
+    as ``np.load(allow_pickle=False)`` gives them, each header checked before its data is read
+    (:func:`read_npy`): its rule, and the bytes the archive's directory states for the member.
+    A missing array, a damaged archive or a refused header is a one-line ``error`` starting
+    with ``label`` (the file's name)."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(source) if isinstance(source, bytes) else source) as zf:
+            names = {n.removesuffix(".npy"): n for n in zf.namelist()}
+            out = {}
+            for name, rule in rules.items():
+                if name not in names:
+                    raise _ArrayRefused(f"array {name!r} is missing (has: {shorten(', '.join(names))})")
+                info = zf.getinfo(names[name])
+                with zf.open(info) as fh:
+                    try:
+                        out[name] = _read_array(fh, info.file_size, rule, f"array {name!r}")
+                    except (_ArrayRefused, zipfile.BadZipFile):
+                        raise
+                    except (ValueError, EOFError) as exc:
+                        raise _ArrayRefused(f"array {name!r} is not readable ({shorten(str(exc))})") from None
+            return out
+    except _ArrayRefused as exc:
+        raise error(f"{label}: {exc}") from None
+    except (OSError, zipfile.BadZipFile, zlib.error, EOFError, ValueError, NotImplementedError) as exc:
+        raise error(f"{label}: not a readable {what} ({type(exc).__name__}: {shorten(str(exc))})") from None
 
 
 def read_text(

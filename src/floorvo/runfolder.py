@@ -33,7 +33,6 @@ import csv
 import io
 import math
 import os
-import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,6 +49,7 @@ from floorvo.io import (
     ensure_writable_dir,
     json_sha256,
     read_json,
+    read_npz,
     read_text,
 )
 from floorvo.locking import lock_folder
@@ -295,17 +295,25 @@ def write_match_sample(run_dir: str | os.PathLike, frame: int, matches_px: np.nd
     return path
 
 
+def _match_points_problem(shape: tuple[int, ...], dtype: np.dtype) -> str | None:
+    """Why an array of a match sample is refused (checked on its header, before it is read), or None."""
+    if len(shape) != 2 or shape[1] != 2 or dtype.kind not in "fiu":
+        return "must be (N, 2) numbers (pixels)"
+    return None
+
+
 def read_match_samples(run_dir: str | os.PathLike) -> list[tuple[int, np.ndarray, np.ndarray]]:
     """``[(frame, xy_prev_px (N, 2), xy_cur_px (N, 2)), ...]`` of ``RUN/matches``, by frame; [] when none."""
     mdir = Path(run_dir) / MATCHES
     out = []
     for f in sorted(mdir.glob("*.npz")) if mdir.is_dir() else []:
         try:
-            with np.load(f) as data:
-                a, b = np.asarray(data["xy_prev_px"], float), np.asarray(data["xy_cur_px"], float)
             frame = int(f.stem)
-        except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile):
-            raise SequenceError(f"{f}: not a match sample (an .npz with xy_prev_px and xy_cur_px)") from None
+        except ValueError:
+            raise SequenceError(f"{f}: not a match sample (named by its frame: NNNNNN.npz)") from None
+        rules = dict.fromkeys(("xy_prev_px", "xy_cur_px"), _match_points_problem)
+        data = read_npz(f, rules, str(f), "match sample (an .npz with xy_prev_px and xy_cur_px)")
+        a, b = np.asarray(data["xy_prev_px"], float), np.asarray(data["xy_cur_px"], float)
         if a.shape != b.shape or a.ndim != 2 or a.shape[1] != 2:
             raise SequenceError(f"{f}: xy_prev_px and xy_cur_px must both be (N, 2), got {a.shape} and {b.shape}")
         out.append((frame, a, b))

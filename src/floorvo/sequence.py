@@ -73,6 +73,7 @@ from floorvo.io import (
     plain,
     png_size,
     read_json,
+    read_npy,
     read_png,
     read_text,
     remove_stale_temporaries,
@@ -384,8 +385,8 @@ def _decodes(path: Path) -> bool:
         return False
     if path.suffix == ".npy":
         try:
-            np.load(path, allow_pickle=False)
-        except (OSError, ValueError, EOFError):
+            read_npy(path, _depth_dtype_problem)  # the header first: a stated shape of terabytes is not loaded
+        except SequenceError:
             return False
         return True
     try:
@@ -406,6 +407,13 @@ def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> Non
     and an estimator would measure it as if it were."""
     if bits is not None and 8 * img.dtype.itemsize != bits:
         raise SequenceError(f"{path}: image is {8 * img.dtype.itemsize}-bit, sequence.json says {key} = {bits}")
+
+
+def _depth_dtype_problem(shape: tuple[int, ...], dtype: np.dtype) -> str | None:
+    """Why a ``.npy`` depth map of ``dtype`` is refused (the format is ``npy_float32_mm``), or None."""
+    if dtype.kind != "f" or dtype.itemsize != 4:
+        return "a depth map is float32 mm (depth format npy_float32_mm)"
+    return None
 
 
 #: The last 12 bytes of every PNG: the empty IEND chunk and its CRC.
@@ -657,10 +665,14 @@ class Sequence:
         npy = self.root / "depth" / frame_name(index, "npy")
         if npy.is_file():
             path = npy
-            try:
-                depth = np.load(npy).astype(np.float32)
-            except (ValueError, OSError):
-                raise SequenceError(f"{npy}: not a readable .npy depth map") from None
+            hw = (self.camera.height_px, self.camera.width_px)
+
+            def rule(shape: tuple[int, ...], dtype: np.dtype) -> str | None:
+                if shape != hw:
+                    return f"sequence.json says {hw[1]}x{hw[0]} (shape {hw})"
+                return _depth_dtype_problem(shape, dtype)
+
+            depth = read_npy(npy, rule, "depth map").astype(np.float32)
         else:
             path = self.root / "depth" / frame_name(index)
             stated = png_size(path)

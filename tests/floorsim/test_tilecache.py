@@ -91,6 +91,22 @@ def _tile_bytes() -> bytes:
     return buf.getvalue()
 
 
+def test_a_tile_whose_header_states_another_shape_is_built_again_unread(tmp_path, caplog):
+    """np.load allocated the shape a damaged member's header stated before reading its data."""
+    import io
+    import zipfile
+
+    cache = TileCache(tmp_path)
+    key = "e" * 64
+    cache.put(key, _arrays(0))
+    head = io.BytesIO()
+    np.lib.format.write_array_header_1_0(head, {"descr": "<f4", "fortran_order": False, "shape": (10**6, 10**6)})
+    with zipfile.ZipFile(cache.path(key), "a") as zf, pytest.warns(UserWarning, match="Duplicate name"):
+        zf.writestr("height_mm.npy", head.getvalue())  # the last member of a name is the one read
+    assert cache.get(key, (40, 50)) is None
+    assert "damaged tile" in caplog.text and "must be float32 (40, 50)" in caplog.text
+
+
 def test_a_damaged_tile_is_built_again(tmp_path, caplog):
     cache = TileCache(tmp_path)
     key = "d" * 64

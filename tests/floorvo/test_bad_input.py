@@ -180,7 +180,10 @@ def _npz_arrays(root) -> dict:
         # keyframes.npz variants (BadZipFile, KeyError before)
         (lambda m, a: (m, b"PK\x03\x04 not a zip at all"), ("not a readable .npz archive",)),
         (lambda m, a: (m, {k: v for k, v in a.items() if k != "kp_offsets"}), ("array 'kp_offsets' is missing",)),
-        (lambda m, a: (m, {**a, "images": a["images"].astype(np.float32)}), ("array 'images' is float32",)),
+        (
+            lambda m, a: (m, {**a, "images": a["images"].astype(np.float32)}),
+            ("array 'images' has shape (2, 15, 20) and dtype float32: must be 3-dimensional",),
+        ),
         (lambda m, a: (m, {**a, "images": a["images"][:, :-1]}), ("inconsistent map: images uint8",)),
         (lambda m, a: (m, {**a, "kp_offsets": a["kp_offsets"][::-1].copy()}), ("keypoint offsets",)),
         (lambda m, a: (m, {**a, "kp_xy_px": a["kp_xy_px"] * np.nan}), ("kp_xy_px", "finite")),
@@ -423,7 +426,73 @@ def test_a_depth_map_of_another_size_is_refused_like_a_frame(tmp_path, capsys):
     path = seq / "depth" / "000001.npy"
     np.save(path, np.full((60, 80), 100.0, np.float32))
     assert floorvo_main(["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run")]) == 1
-    assert f"{path}: depth map is 80x60, sequence.json says 160x120" in _one_line(capsys, "floorvo")
+    err = _one_line(capsys, "floorvo")
+    assert f"{path}: depth map has shape (60, 80) and dtype float32: sequence.json says 160x120" in err
+
+
+def _npy_header(shape: tuple[int, ...], descr: str = "<f4") -> bytes:
+    """The header of a .npy file stating ``shape``, followed by a few bytes of data only."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": descr, "fortran_order": False, "shape": shape})
+    return buf.getvalue() + bytes(16)
+
+
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        (_npy_header((10**6, 10**6)), "has shape (1000000, 1000000) and dtype float32: sequence.json says 16x12"),
+        (_npy_header((12, 16)), "states shape (12, 16) of float32 (768 bytes) in its header; the file holds 16 bytes"),
+        (_npy_header((12, 16), "<f8"), "dtype float64: a depth map is float32 mm"),
+        (_npy_header((12, 16), "|O"), "holds Python objects"),
+    ],
+)
+def test_a_npy_depth_map_header_is_checked_before_its_data_is_read(tmp_path, capsys, monkeypatch, content, words):
+    """np.load allocated the shape a crafted header stated (a 100-byte file can state terabytes),
+    and read a float64 or another size's map as if it were the camera's."""
+    cam = CameraModel.from_sensor().scaled(0.025)  # 16x12
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0, depth=True)
+    path = seq / "depth" / "000001.npy"
+    path.write_bytes(content)
+    monkeypatch.setattr(np, "load", lambda *a, **k: pytest.fail("np.load reads the data before its header is checked"))
+    assert floorvo_main(["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert f"{path}: " in err and words in err, err
+
+
+def test_npz_headers_of_maps_and_match_samples_are_checked_before_their_data_is_read(tmp_path):
+    """The map's keyframes.npz and a run folder's matches/*.npz were read with np.load, which
+    allocates the shape a member's header states before reading it."""
+    import zipfile
+
+    from floorvo.errors import SequenceError
+    from floorvo.runfolder import read_match_samples, write_match_sample
+
+    def crafted(names: dict[str, bytes]) -> bytes:
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as zf:
+            for name, data in names.items():
+                zf.writestr(f"{name}.npy", data)
+        return buf.getvalue()
+
+    root = _tiny_map(tmp_path / "map")
+    arrays = _npz_arrays(root)
+    members = {}
+    for k, a in arrays.items():
+        b = io.BytesIO()
+        np.save(b, a)
+        members[k] = b.getvalue()
+    members["images"] = _npy_header((10**5, 10**5, 10**5), "|u1")
+    _resign(root, npz_bytes=crafted(members))
+    _map_refused(root, "keyframes.npz: array 'images' states shape (100000, 100000, 100000) of uint8")
+
+    write_match_sample(tmp_path / "run", 1, np.zeros((3, 4)))
+    path = tmp_path / "run" / "matches" / "000002.npz"
+    path.write_bytes(crafted({"xy_prev_px": _npy_header((10**9, 2), "<f8"), "xy_cur_px": _npy_header((3, 2), "<f8")}))
+    with pytest.raises(SequenceError, match=r"000002.npz: array 'xy_prev_px' states shape \(1000000000, 2\)"):
+        read_match_samples(tmp_path / "run")
+    path.write_bytes(crafted({"xy_prev_px": _npy_header((3, 5), "<f8"), "xy_cur_px": _npy_header((3, 2), "<f8")}))
+    with pytest.raises(SequenceError, match=r"array 'xy_prev_px' has shape \(3, 5\) .*: must be \(N, 2\)"):
+        read_match_samples(tmp_path / "run")
 
 
 @pytest.mark.parametrize("shape", [(6, 8), (12, 16, 3)])

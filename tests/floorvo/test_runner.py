@@ -243,5 +243,5 @@ def test_match_samples_round_trip_and_a_damaged_one_is_refused(tmp_path):
     np.testing.assert_array_equal(a3, m[:1, :2])
     assert read_match_samples(tmp_path / "elsewhere") == []
     (tmp_path / "matches" / "000009.npz").write_bytes(b"not a zip file")
-    with pytest.raises(SequenceError, match="000009.npz: not a match sample"):
+    with pytest.raises(SequenceError, match="000009.npz: not a readable match sample"):
         read_match_samples(tmp_path)

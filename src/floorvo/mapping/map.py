@@ -35,7 +35,7 @@ import numpy as np
 
 from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel
 from floorvo.config import MAX_SEED, Config, build, from_overrides, param, to_plain
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import (
     atomic_write_bytes,
@@ -44,6 +44,7 @@ from floorvo.io import (
     file_name_problem,
     json_sha256,
     read_json,
+    read_npz,
 )
 from floorvo.locking import locks_folder
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
@@ -442,26 +443,15 @@ def _read_map_arrays(npz: Path, sha256: str) -> dict[str, np.ndarray]:
         raise FloorbenchError(
             f"{npz}: checksum differs from map.json (the files do not belong together, or one is damaged)"
         )
-    try:
-        z = np.load(io.BytesIO(data), allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ValueError("a single array, not an .npz archive")
-        with z:
-            missing = [k for k in MAP_ARRAYS if k not in z.files]
-            if missing:
-                raise FloorbenchError(f"{npz}: array {missing[0]!r} is missing (has: {', '.join(z.files)})")
-            arr = {k: z[k] for k in MAP_ARRAYS}
-    except FloorbenchError:
-        raise
-    except Exception as exc:  # damaged zip or .npy data: BadZipFile, zlib.error, ValueError, EOFError, ...
-        raise FloorbenchError(
-            f"{npz}: not a readable .npz archive ({type(exc).__name__}: {shorten(str(exc))})"
-        ) from None
-    for k, (kinds, ndim) in MAP_ARRAYS.items():
-        a = arr[k]
-        if a.dtype.kind not in kinds or a.ndim != ndim:
-            raise FloorbenchError(f"{npz}: array {k!r} is {a.dtype} with shape {a.shape}; expected {ndim} dimensions")
-    return arr
+
+    def rule(kinds: str, ndim: int) -> Callable[[tuple[int, ...], np.dtype], str | None]:
+        numbers = {"u": "unsigned integers", "f": "floats", "iu": "integers"}[kinds]
+        return lambda shape, dtype: (
+            None if dtype.kind in kinds and len(shape) == ndim else f"must be {ndim}-dimensional, of {numbers}"
+        )
+
+    # each header checked before its data is read: a crafted header could state terabytes
+    return read_npz(data, {k: rule(*spec) for k, spec in MAP_ARRAYS.items()}, str(npz), error=FloorbenchError)
 
 
 def _map_problem(arr: dict[str, np.ndarray], T: np.ndarray, camera: CameraModel, cfg: MapConfig) -> str | None:
