@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.errors import ConfigError, shown
+from floorvo.errors import ConfigError, shown, shown_number
 
 __all__ = [
     "CameraModel",
@@ -20,6 +20,9 @@ __all__ = [
     "K_RULE",
     "PRINCIPAL_POINT_RULE",
     "K_problem",
+    "FOCAL_LENGTH_RANGE_PX",
+    "MAX_DISTORTION_COEFFICIENT",
+    "distortion_problem",
     "height_problem",
     "intrinsics_from_K",
 ]
@@ -47,6 +50,16 @@ def height_problem(height_mm: Any) -> str | None:
     return None
 
 
+#: The focal lengths fx, fy (px) that any camera may have, ends included: 1 px is a field of view
+#: of 2 atan(w / 2) (an image of 648 px seeing 3 rad), 1e6 px a 300 mm lens on 0.3 um pixels.
+#: Outside them a focal length is a unit mistake or garbage (``--fx 1e308`` was taken, and every
+#: step came out 1e-305 mm).
+FOCAL_LENGTH_RANGE_PX = (1.0, 1e6)
+#: The largest magnitude of an OpenCV distortion coefficient (k1, k2, p1, p2, k3) any camera may
+#: have: real calibrations stay within tens (k3 of a poorly constrained wide-angle fit within a few
+#: hundred); 1e308 made every pixel of the undistorted image infinite.
+MAX_DISTORTION_COEFFICIENT = 1e4
+
 #: The rule a pinhole camera matrix ``K`` follows (:func:`K_problem`).
 K_RULE = "must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
 #: The rule the principal point follows in an image of known size (:func:`K_problem`).
@@ -59,14 +72,38 @@ def K_problem(K: np.ndarray, size_px: tuple[int, int] | None = None) -> str | No
     row other than ``[0, 0, 1]``); with the image size ``size_px = (width_px, height_px)``, the
     principal point's :data:`PRINCIPAL_POINT_RULE` when ``(cx, cy)`` is outside the image (a cx
     given in another unit, or from the calibration of another resolution). The one rule for
-    ``sequence.json``, camera files, ``camera_info`` and :class:`CameraModel`."""
+    ``sequence.json``, camera files, ``camera_info`` and :class:`CameraModel`. Focal lengths
+    outside :data:`FOCAL_LENGTH_RANGE_PX` are refused too."""
     if K[0, 0] <= 0 or K[1, 1] <= 0 or K[0, 1] != 0 or K[1, 0] != 0 or not np.array_equal(K[2], [0, 0, 1]):
         return K_RULE
+    lo, hi = FOCAL_LENGTH_RANGE_PX
+    fx, fy = float(K[0, 0]), float(K[1, 1])
+    if not (lo <= fx <= hi and lo <= fy <= hi):
+        return (
+            f"focal lengths (fx, fy) = ({shown_number(fx, 'g')}, {shown_number(fy, 'g')}) px must be from "
+            f"{lo:g} to {hi:g} px (a camera's focal length in pixels)"
+        )
     if size_px is not None:
         w, h = size_px
         cx, cy = float(K[0, 2]), float(K[1, 2])
         if not (0.0 <= cx <= w and 0.0 <= cy <= h):
             return f"principal point (cx, cy) = ({cx:g}, {cy:g}) px {PRINCIPAL_POINT_RULE} ({w}x{h} px)"
+    return None
+
+
+def distortion_problem(distortion: Any, counts: tuple[int, ...] | None = (4, 5)) -> str | None:
+    """Why ``distortion`` is no OpenCV distortion (4 or 5 finite numbers k1, k2, p1, p2[, k3], each
+    of magnitude at most :data:`MAX_DISTORTION_COEFFICIENT`; ``counts=None``: any number of
+    them), or None. The one rule of ``sequence.json``, camera files, ``camera_info``,
+    ``--distortion`` and :class:`CameraModel`."""
+    try:
+        d = np.asarray(distortion, dtype=float)
+    except (TypeError, ValueError):
+        return "must be 4 or 5 numbers (OpenCV k1, k2, p1, p2[, k3])"
+    if d.ndim != 1 or (counts is not None and len(d) not in counts) or not np.isfinite(d).all():
+        return "must be 4 or 5 finite numbers (OpenCV k1, k2, p1, p2[, k3])"
+    if d.size and np.abs(d).max() > MAX_DISTORTION_COEFFICIENT:
+        return f"each coefficient must be from -{MAX_DISTORTION_COEFFICIENT:g} to {MAX_DISTORTION_COEFFICIENT:g}"
     return None
 
 
@@ -128,6 +165,9 @@ class CameraModel:
         problem = K_problem(self.K, self.size)
         if problem:
             raise ConfigError(f"camera: {problem}")
+        problem = distortion_problem(self.distortion, counts=None)
+        if problem:
+            raise ConfigError(f"camera: distortion = {shown([float(d) for d in self.distortion])}: {problem}")
         object.__setattr__(self, "distortion", tuple(float(d) for d in self.distortion))
 
     # ------------------------------------------------------------------ constructors

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, K_problem
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, K_problem, distortion_problem
 from floorvo.config import Config, build, param
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.geometry import rigid_problem
@@ -98,8 +98,9 @@ class CameraBlock(Config):
         problem = K_problem(K, (self.width_px, self.height_px))
         if problem:
             raise ConfigFieldError("K", f" = {K.tolist()}: {problem}")
-        if len(self.distortion) not in (4, 5) or not np.isfinite(self.distortion).all():
-            raise ConfigFieldError("distortion", f" = {list(self.distortion)}: must be 4 or 5 finite numbers")
+        problem = distortion_problem(self.distortion)
+        if problem:
+            raise ConfigFieldError("distortion", f" = {shown(list(self.distortion))}: {problem}")
 
 
 @dataclass(frozen=True)

@@ -589,6 +589,42 @@ def test_frames_closer_than_a_nanosecond_are_refused_before_writing(tmp_path, sy
     assert main(["import", str(src), "-o", str(tmp_path / "ok"), *FLAGS, "--fps", "1e6"]) == 0
 
 
+def test_absurd_intrinsics_are_refused_by_every_reader(tmp_path, synth, capsys):
+    """--fx 1e308 (or a distortion of 1e308) was imported as it was, and every step of a run came
+    out 1e-305 mm; one rule (FOCAL_LENGTH_RANGE_PX, MAX_DISTORTION_COEFFICIENT) serves every reader."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    base = ["import", str(src), "-o", str(tmp_path / "out"), "--fps", "10"]
+    for fx in ("1e308", "0.5", "2e6"):
+        err = _one_line_error(capsys, [*base, "--fx", fx, "--fy", "200", "--cx", "80", "--cy", "60"])
+        assert f"focal lengths (fx, fy) = ({float(fx):g}, 200) px must be from 1 to 1e+06 px" in err, err
+    err = _one_line_error(capsys, [*base, *FLAGS, "--distortion", "1e308,0,0,0"])
+    assert "distortion = [1e+308, 0.0, 0.0, 0.0, 0.0]: each coefficient must be from -10000 to 10000" in err, err
+    (tmp_path / "cam.yaml").write_text(
+        "image_width: 162\nimage_height: 124\ncamera_matrix: {rows: 3, cols: 3, data: [1e308, 0, 80, 0, 1e308, 62, 0, 0, 1]}\n"
+    )
+    err = _one_line_error(capsys, [*base, "--camera", str(tmp_path / "cam.yaml")])
+    assert "cam.yaml" in err and "focal lengths (fx, fy) = (1e+308, 1e+308) px must be from 1 to 1e+06 px" in err
+    assert not (tmp_path / "out").exists()
+    seq = tmp_path / "seq"
+    write_synthetic_sequence(seq, CAM, line_poses(8.0, 4.0), seed=0)
+    meta = json.loads((seq / "sequence.json").read_text())
+    meta["camera"]["K"][0][0] = 1e308
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    with pytest.raises(SequenceError, match=r"focal lengths \(fx, fy\) = \(1e\+308, 202.703\) px must be from 1"):
+        Sequence.open(seq)
+    meta["camera"]["K"][0][0] = CAM.fx_px
+    meta["camera"]["distortion"] = [0.1, -1e5, 0, 0, 0]
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    with pytest.raises(
+        SequenceError, match=r"distortion = \[0.1, -100000.0, 0.0, 0.0, 0.0\]: each coefficient must be"
+    ):
+        Sequence.open(seq)
+
+
 # ----------------------------------------------------------------------------- refusals
 def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     _, frames, _ = synth
