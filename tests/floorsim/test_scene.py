@@ -44,8 +44,16 @@ def test_set_overrides():
         ({"floor.seed": "-3"}, r"floor.seed = -3: must be >= 0"),
         ({"floor.seed": "1.5"}, r"floor.seed = '1.5': must be integer"),
         ({"trajectory.type": '["uniform"]'}, r"trajectory.type = \['uniform'\]: unknown type"),
-        ({"camera.pixel_pitch_um": "8193"}, r"camera: .* see \d+ x \d+ mm of floor; at most 4000 mm"),
-        ({"camera.pixel_pitch_um": "0.0001"}, r"floor: a floor tile .* mesh vertices; at most 8e\+07"),
+        (
+            {"camera.pixel_pitch_um": "100", "camera.focal_length_mm": "0.1"},
+            r"camera: .* see \d+ x \d+ mm of floor; at most 4000 mm",
+        ),
+        ({"camera.pixel_pitch_um": "0.1"}, r"floor: a floor tile .* mesh vertices; at most 8e\+07"),
+        # an infinite focal length in pixels ('intrinsics must be finite, got [inf, ...]', 'see inf x inf mm')
+        ({"camera.focal_length_mm": "1e308"}, r"camera.focal_length_mm = 1e\+308 mm: must be <= 1000.0 mm"),
+        ({"camera.pixel_pitch_um": "1e308"}, r"camera.pixel_pitch_um = 1e\+308 um: must be <= 100.0 um"),
+        ({"camera.pixel_pitch_um": "8193"}, r"camera.pixel_pitch_um = 8193.0 um: must be <= 100.0 um"),
+        ({"camera.focal_length_mm": "1e-308"}, r"camera.focal_length_mm = 1e-308 mm: must be >= 0.1 mm"),
         ({"floor.spacing_mm": "1e-6"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-06 mm holds"),
         ({"trajectory.step_mm": "1e-9"}, r"trajectory: these parameters give 4e\+09 frames; at most 1000000"),
         # a frame rate whose frame times the files cannot hold: 1e7 Hz wrote ground-truth poses that all had
