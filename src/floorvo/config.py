@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import difflib
 import math
 import tomllib
 import types
@@ -38,7 +39,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
+from floorvo.errors import MAX_SHOWN_CHARS, ConfigError, ConfigFieldError, shorten, shown
 
 __all__ = [
     "Config",
@@ -371,7 +372,27 @@ def _join(prefix: str, key: str) -> str:
     return f"{prefix}.{shorten(key)}" if prefix else shorten(key)
 
 
-def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key") -> Any:
+def unknown_key_message(where: str, key: str, known: Iterable[str], unknown: str, listed_by: str | None) -> str:
+    """One line for an unknown ``key`` at ``where`` among the ``known`` keys: every known key, unless
+    they do not fit in a short line and ``listed_by`` names the command that lists them all
+    (``floorvo list --config akaze-guided``): then the closest ones (``difflib``) and that
+    command. An estimator has dozens of keys: naming them all made a line of 500 characters."""
+    names = sorted(known)
+    if listed_by is None or len(", ".join(names)) <= MAX_SHOWN_CHARS:
+        return f"{where}: {unknown} (known: {', '.join(names)})"
+    close = difflib.get_close_matches(key, names, n=3, cutoff=0.6)
+    said = " or ".join([", ".join(close[:-1]), close[-1]] if len(close) > 1 else close)
+    return f"{where}: {unknown} ({f'did you mean {said}? ' if close else ''}every key: {listed_by})"
+
+
+def build(
+    cls: type,
+    data: Mapping[str, Any] | None,
+    prefix: str = "",
+    *,
+    unknown: str = "unknown key",
+    listed_by: str | None = None,
+) -> Any:
     """Dataclass ``cls`` from a plain mapping, every key, type and rule checked (a field without a
     default is required).
 
@@ -379,14 +400,15 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
     takes a nested mapping; values that are :class:`SetText` are read by their field's
     type. ``prefix`` names where the mapping came from in errors (``camera`` ->
     ``camera.height_mm = ...``). ``unknown``: the words after an unknown key in its error
-    (``unknown key (known: a, b)``).
+    (``unknown key (known: a, b)``); ``listed_by``: the command that lists every key, named
+    there instead of them (:func:`unknown_key_message`).
     """
     data = dict(data or {})
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     for key in data:
         if key not in fields:
-            raise ConfigError(f"{_join(prefix, key)}: {unknown} (known: {', '.join(sorted(fields))})")
+            raise ConfigError(unknown_key_message(_join(prefix, key), key, fields, unknown, listed_by))
     for key, f in fields.items():
         if key not in data and f.default is _MISSING and f.default_factory is _MISSING:
             raise ConfigError(f"{_join(prefix, key)}: missing (a required key)")
@@ -404,7 +426,7 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
                 continue
             if not isinstance(value, Mapping):
                 raise ConfigError(f"{where} = {shown(value)}: must be a table")
-            kwargs[key] = build(tp, value, where, unknown=unknown)
+            kwargs[key] = build(tp, value, where, unknown=unknown, listed_by=listed_by)
             continue
         if isinstance(value, SetText):
             if _is_table(tp) or tp is Any:
@@ -430,13 +452,18 @@ def build(cls: type, data: Mapping[str, Any] | None, prefix: str = "", *, unknow
 
 
 def from_overrides(
-    cls: type, overrides: Mapping[str, Any] | None, prefix: str = "", *, unknown: str = "unknown key"
+    cls: type,
+    overrides: Mapping[str, Any] | None,
+    prefix: str = "",
+    *,
+    unknown: str = "unknown key",
+    listed_by: str | None = None,
 ) -> Any:
     """``cls`` built from ``{"key": "text", "nested.key": "text"}`` overrides (``--set`` form).
 
     String values are read by their field's type; other values are taken as they are.
     """
-    return build(cls, apply_overrides({}, overrides), prefix, unknown=unknown)
+    return build(cls, apply_overrides({}, overrides), prefix, unknown=unknown, listed_by=listed_by)
 
 
 # ----------------------------------------------------------------------------- --set

@@ -94,6 +94,15 @@ def test_bad_config_refused_by_name():
         make_config("phase-corr", {"grid": "many"})
     with pytest.raises(ConfigError, match=r"phase-corr.bogus: unknown config key"):
         make_config("phase-corr", {"bogus": "1"})
+    # every key of akaze-guided made a line of about 510 characters: the closest ones, and where the rest are
+    with pytest.raises(ConfigError) as info:
+        make_config("akaze-guided", {"hamming_treshold": "3"})
+    assert str(info.value) == (
+        "akaze-guided.hamming_treshold: unknown config key (did you mean hamming_threshold, akaze_threshold or "
+        "adapt_threshold? every key: floorvo list --config akaze-guided)"
+    )
+    with pytest.raises(ConfigError, match=r"^akaze-guided.zzz: unknown config key \(every key: floorvo list --config"):
+        make_config("akaze-guided", {"zzz": "3"})
     with pytest.raises(ConfigError, match="unknown"):
         get_estimator("no-such-estimator")
 

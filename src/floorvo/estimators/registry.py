@@ -290,4 +290,10 @@ def make_config(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
     String values are read by the field's type (``--set`` text); others are taken as they
     are. Errors name the estimator: ``akaze-guided.hamming_threshold = 0: must be >= 1``.
     """
-    return from_overrides(get_estimator(name).Config, overrides, name, unknown="unknown config key")
+    return from_overrides(
+        get_estimator(name).Config,
+        overrides,
+        name,
+        unknown="unknown config key",
+        listed_by=f"floorvo list --config {name}",
+    )

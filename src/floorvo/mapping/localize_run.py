@@ -45,7 +45,12 @@ def localize_config(
     for key in overrides or {}:
         if key in SET_BY_OPTIONS:
             raise ConfigError(f"localize.{key}: set by the --{key} option, not --set")
-    return from_overrides(MapFusedConfig, {**(overrides or {}), "map": str(map_dir), "odometry": odometry}, "localize")
+    return from_overrides(
+        MapFusedConfig,
+        {**(overrides or {}), "map": str(map_dir), "odometry": odometry},
+        "localize",
+        listed_by="floorvo list --config localize",
+    )
 
 
 @locks_folder("out_dir", "run folder")

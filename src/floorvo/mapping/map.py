@@ -93,7 +93,7 @@ class MapConfig(Config):
     @classmethod
     def from_overrides(cls, overrides: Mapping[str, Any] | None) -> MapConfig:
         """Build from ``{"similarity.block_px": "12", "keyframes.window": "50", "vocab_words": "512"}``."""
-        return from_overrides(cls, overrides, "map")
+        return from_overrides(cls, overrides, "map", listed_by="floorvo list --config map")
 
     def to_dict(self) -> dict:
         return to_plain(self)
