@@ -111,9 +111,10 @@ class CameraSpec(Config):
 
     width_px: int = param(648, unit="px", min=1, max=8192, doc="image width")
     height_px: int = param(494, unit="px", min=1, max=8192, doc="image height")
-    # bounds: a sensor's pixels (0.56 um in phones, tens of um in thermal cameras) and lenses
-    # (fisheye to telephoto); beyond them a unit mistake, and 1e308 made an infinite focal length
-    pixel_pitch_um: float = param(7.4, unit="um", gt=0, min=0.1, max=100.0, doc="pixel size (square pixels)")
+    # bounds: a sensor's pixels (0.56 um in phones) to those of a render at --scale 8/8192 of the
+    # largest image (pitch x 1024), and lenses (fisheye to telephoto); 1e308 made an infinite focal
+    # length. How much floor a frame sees is bounded by MAX_FOOTPRINT_MM.
+    pixel_pitch_um: float = param(7.4, unit="um", gt=0, min=0.1, max=1e5, doc="pixel size (square pixels)")
     focal_length_mm: float = param(6.0, unit="mm", gt=0, min=0.1, max=1000.0, doc="lens focal length")
     height_mm: float = param(100.0, unit="mm", gt=0, min=5.0, max=2000.0, doc="camera above the mean floor plane")
     distortion: tuple[float, ...] = param((), doc="OpenCV k1, k2, p1, p2, k3 (at most 5)")

@@ -667,6 +667,6 @@ def test_a_huge_number_in_an_error_message_is_shown_short(tmp_path, small_seq, c
     rc = floorsim_main(["render", "demo", "--set", "camera.pixel_pitch_um=1e300", "-o", str(tmp_path / "r")])
     assert rc == 1
     lines.append(_one_line(capsys, "floorsim"))
-    assert "camera.pixel_pitch_um = 1e+300 um: must be <= 100.0 um" in lines[-1]
+    assert "camera.pixel_pitch_um = 1e+300 um: must be <= 100000.0 um" in lines[-1]
     for line in lines:
         assert len(line) < 200 and ("e+308" in line or "e+300" in line), line
