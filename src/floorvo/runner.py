@@ -247,8 +247,8 @@ def run_frames(
     T_world = np.array(T_world_start, dtype=float)
     if T_world.shape != (4, 4):
         raise ValueError(f"run_frames: T_world_start must be (4, 4), got {T_world.shape}")
-    # The chained pose: the camera's, or with an attitude signal its footprint's, or for an
-    # estimator that levels its keypoints with it (levels_with_attitude) the camera's levelled
+    # The chained pose: the camera's; with an attitude signal, for an estimator that levels its
+    # frames with it (levels_with_attitude) the levelled camera's, else its footprint's
     # (module docstring).
     T_chain = T_world
     attitude = False
