@@ -102,6 +102,23 @@ def find_libllvm(min_major: int = 17) -> str | None:
     return None if best is None else best[1]
 
 
+def _while_loop(dr, state: tuple, cond, body) -> tuple:
+    """``dr.while_loop(state, cond, body)``, with an interrupt raised while Dr.Jit runs ``body`` re-raised as itself.
+
+    Dr.Jit wraps every exception of a loop's Python body in a ``RuntimeError`` ("dr.while_loop():
+    encountered an exception (see above)", the original as its ``__cause__``). A Ctrl-C (or the
+    CLIs' SIGTERM) that arrived while the body was traced so became a crash: exit code 1 and a
+    traceback, not the interrupted command's one line and exit code 130. Exceptions proper stay wrapped.
+    """
+    try:
+        return dr.while_loop(state, cond, body)
+    except RuntimeError as exc:
+        cause = exc.__cause__
+        if isinstance(cause, BaseException) and not isinstance(cause, Exception):
+            raise cause from None
+        raise
+
+
 def _has_cuda() -> bool:
     return any(os.path.exists(p) for p in ("/dev/nvidiactl", "/dev/nvidia0"))
 
@@ -1022,8 +1039,8 @@ class FloorRenderer:
             walking &= ~occluded & (t < maxt)
             return t, occluded, walking
 
-        _, occluded, _ = dr.while_loop(
-            (mi.Float(0.0), mi.Bool(False), mi.Bool(active)), lambda t, occ, walking: walking, body
+        _, occluded, _ = _while_loop(
+            dr, (mi.Float(0.0), mi.Bool(False), mi.Bool(active)), lambda t, occ, walking: walking, body
         )
         return occluded
 

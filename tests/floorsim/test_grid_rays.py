@@ -101,3 +101,17 @@ def test_rays_far_off_the_vertical_are_traced_by_embree():
     corners = np.array([-0.2, 0.2, -0.2, 0.2]), np.array([-0.15, -0.15, 0.15, 0.15])
     assert r._grid_cells(np.diag([1.0, -1.0, -1.0]), *corners) == 2
     assert r._grid_cells(R_world_cam, *corners) is None
+
+
+def test_an_interrupt_while_the_grid_walk_is_traced_stays_an_interrupt(monkeypatch):
+    """Dr.Jit wraps an exception of a while loop's body in a RuntimeError: a Ctrl-C that came while
+    the shadow rays' grid walk was traced ended ``floorsim bench`` with a traceback and exit code 1."""
+    r, _ = _vinyl_renderer(24, 18)
+    ray = _rays_from_above(r, 100, np.radians(20.0), seed=2)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(r, "_cell_triangles", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        r._occluded_grid(ray, r.mi.Bool(True))

@@ -1,0 +1,220 @@
+"""``floorsim bench`` interrupted (Ctrl-C) and run again with the same arguments.
+
+The bench is started as a child in its own process group and the signal goes to the group,
+as a terminal's Ctrl-C does, at moments chosen by its own progress: once the first sequence
+frame is on disk (rendering), once the first run folder appears (running the estimators),
+once the second run's folder appears (results.csv holds a row) and once the report's plots
+folder appears (writing the report). Each time:
+
+* it ends with one line on standard error, no traceback, and exit code 130 (as shells
+  report a command Ctrl-C ended);
+* every file under its final name is whole, and no temporary or lock file is left;
+* the same command completes the bench, and its ``results.csv`` and ``report.md`` equal an
+  uninterrupted bench's (clock and memory figures aside), as do its sequence frames,
+  ground truth and trajectories, byte for byte.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from _procs import child_env
+from floorsim.bench.results import read_results_csv
+from floorvo.locking import LOCK_FILE
+from floorvo.tum import read_tum
+
+pytestmark = pytest.mark.render
+
+#: The quarter-size rig of ``_tiny`` with sensor noise, 1 mm steps; the bench renders 6 frames.
+TINY_TOML = """schema_version = 1
+name = "tiny"
+seed = 3
+fps = 30.0
+
+[camera]
+width_px = 162
+height_px = 124
+pixel_pitch_um = 29.6
+focal_length_mm = 6.0
+height_mm = 100.0
+
+[floor]
+material = "vinyl"
+
+[lights]
+height_mm = 3.0
+
+[render]
+spp = 4
+
+[trajectory]
+type = "uniform"
+distance_mm = 12.0
+step_mm = 1.0
+"""
+ESTIMATORS = ("phase-corr-fast", "akaze-guided-fast")
+#: Columns of results.csv (beside the ``time_*`` ones) that differ between identical runs (clocks,
+#: memory) or name the output folder.
+VOLATILE = ("wall_ms_per_frame", "peak_rss_mb", "fps", "run_dir", "sequence")
+#: Columns of report.md's tables that differ between identical runs.
+VOLATILE_MD = ("ms/frame", "wall ms/frame", "peak MiB", "wall ms/frame, mean", "peak MiB, max")
+
+
+def _bench_cmd(scene: Path, out: Path) -> list[str]:
+    code = "import sys; from floorsim.cli import main; sys.exit(main(sys.argv[1:]))"
+    args = ["bench", str(scene), "--estimators", ",".join(ESTIMATORS), "--frames", "6", "-o", str(out)]
+    return [sys.executable, "-c", code, "-q", *args]
+
+
+def _first_frame(out: Path) -> bool:
+    return any(out.glob("sequences/*/cam0/000000.png"))
+
+
+def _run_folder(k: int):
+    return lambda out: (out / "runs" / "tiny" / ESTIMATORS[k] / "rep0").is_dir()
+
+
+def _plots(out: Path) -> bool:
+    return (out / "plots").is_dir()
+
+
+#: Where the bench is interrupted: (name, condition on the output folder, signal).
+MOMENTS = [
+    ("rendering", _first_frame, signal.SIGINT),
+    ("first run", _run_folder(0), signal.SIGINT),
+    ("second run", _run_folder(1), signal.SIGINT),
+    ("report", _plots, signal.SIGINT),
+]
+
+
+def _interrupt_when(cmd: list[str], out: Path, ready, sig: int, timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run ``cmd``; once ``ready(out)`` send ``sig`` to its process group; its exit code and output."""
+    p = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=child_env(), start_new_session=True
+    )
+    deadline = time.monotonic() + timeout
+    try:
+        while not ready(out):
+            if p.poll() is not None:
+                out_text, err = p.communicate()
+                pytest.fail(f"the bench ended (exit code {p.returncode}) before it could be interrupted: {err}")
+            assert time.monotonic() < deadline, "the moment to interrupt never came"
+            time.sleep(0.002)
+        os.killpg(p.pid, sig)
+        out_text, err = p.communicate(timeout=timeout)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    return subprocess.CompletedProcess(cmd, p.returncode, out_text, err)
+
+
+def _whole(root: Path) -> None:
+    """Every file under ``root`` reads as its format, and no temporary or lock file is left."""
+    for p in root.rglob("*"):
+        assert not p.name.endswith(".tmp"), f"a temporary was left: {p}"
+        assert p.name != LOCK_FILE, f"a lock file was left: {p}"
+        if not p.is_file():
+            continue
+        if p.suffix == ".png":
+            assert cv2.imdecode(np.fromfile(p, np.uint8), cv2.IMREAD_UNCHANGED) is not None, p
+        elif p.suffix == ".json":
+            json.loads(p.read_text())
+        elif p.name in ("groundtruth.txt", "trajectory.txt"):
+            read_tum(p, allow_empty=True)
+        elif p.suffix == ".csv":
+            list(csv.reader(p.open()))
+        elif p.suffix == ".html":
+            assert p.read_text().rstrip().endswith("</html>"), p
+    for run in root.glob("runs/*/*/*"):  # a run folder is all or nothing: result.json marks a finished one
+        if (run / "result.json").is_file():
+            assert (run / "trajectory.txt").is_file() and (run / "timing.csv").is_file(), run
+
+
+def _rows(out: Path) -> list[dict]:
+    return [
+        {k: ("nan" if v != v else v) for k, v in r.items() if k not in VOLATILE and not k.startswith("time_")}
+        for r in read_results_csv(out / "results.csv")
+    ]
+
+
+def _report_md(out: Path) -> str:
+    """report.md with the cells of its clock and memory columns blanked."""
+    lines, header = [], None
+    for line in (out / "report.md").read_text().splitlines():
+        cells = line.split("|")
+        if not line.startswith("|"):
+            header = None
+        elif header is None:
+            header = [c.strip() for c in cells]
+        elif not set(line) <= set("|-"):
+            cells = ["" if i < len(header) and header[i] in VOLATILE_MD else c for i, c in enumerate(cells)]
+        lines.append("|".join(cells))
+    return "\n".join(lines)
+
+
+def _kept(root: Path) -> dict[str, bytes]:
+    """The files that must be the same bytes: frames, ground truth, trajectories."""
+    return {
+        str(p.relative_to(root)): p.read_bytes()
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.name.endswith((".png", "groundtruth.txt", "trajectory.txt")) and "plots" not in p.parts
+    }
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    p = tmp_path_factory.mktemp("scene") / "tiny.toml"
+    p.write_text(TINY_TOML)
+    return p
+
+
+@pytest.fixture(scope="module")
+def reference(scene, tmp_path_factory) -> Path:
+    """An uninterrupted bench."""
+    out = tmp_path_factory.mktemp("ref") / "bench"
+    r = subprocess.run(_bench_cmd(scene, out), capture_output=True, text=True, timeout=300, env=child_env())
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+@pytest.mark.parametrize(
+    "moment",
+    [
+        pytest.param(m, id=m[0].replace(" ", "-"), marks=() if m[0] == "first run" else pytest.mark.slow)
+        for m in MOMENTS
+    ],
+)
+def test_an_interrupted_bench_says_so_in_one_line_and_resumes_to_an_uninterrupted_ones_results(
+    moment, scene, reference, tmp_path
+):
+    _, ready, sig = moment
+    out = tmp_path / "bench"
+    cmd = _bench_cmd(scene, out)
+    r = _interrupt_when(cmd, out, ready, sig)
+    assert r.returncode == 128 + sig, (r.returncode, r.stderr)
+    err = r.stderr.strip()
+    assert "Traceback" not in err and err.count("\n") == 0, err
+    assert "interrupted" in err and "run the same command again" in err, err
+    _whole(out)
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=child_env())
+    assert again.returncode == 0, again.stderr
+    _whole(out)
+    got, want = _rows(out), _rows(reference)
+    diff = [
+        (i, k, a.get(k), b.get(k)) for i, (a, b) in enumerate(zip(got, want)) for k in {*a, *b} if a.get(k) != b.get(k)
+    ]
+    assert len(got) == len(want) and not diff, diff
+    assert _report_md(out) == _report_md(reference)
+    assert _kept(out) == _kept(reference)
