@@ -1,4 +1,4 @@
-"""``floorsim bench`` interrupted (Ctrl-C) and run again with the same arguments.
+"""``floorsim bench`` interrupted (Ctrl-C, SIGTERM) and run again with the same arguments.
 
 The bench is started as a child in its own process group and the signal goes to the group,
 as a terminal's Ctrl-C does, at moments chosen by its own progress: once the first sequence
@@ -6,8 +6,8 @@ frame is on disk (rendering), once the first run folder appears (running the est
 once the second run's folder appears (results.csv holds a row) and once the report's plots
 folder appears (writing the report). Each time:
 
-* it ends with one line on standard error, no traceback, and exit code 130 (as shells
-  report a command Ctrl-C ended);
+* it ends with one line on standard error, no traceback, and exit code 130 for SIGINT,
+  143 for SIGTERM (as shells report a command so ended);
 * every file under its final name is whole, and no temporary or lock file is left;
 * the same command completes the bench, and its ``results.csv`` and ``report.md`` equal an
   uninterrupted bench's (clock and memory figures aside), as do its sequence frames,
@@ -25,12 +25,14 @@ import sys
 import time
 from pathlib import Path
 
+import _bench_doubles as D
 import cv2
 import numpy as np
 import pytest
 
 from _procs import child_env
 from floorsim.bench.results import read_results_csv
+from floorsim.cli import main as floorsim_main
 from floorvo.locking import LOCK_FILE
 from floorvo.tum import read_tum
 
@@ -95,6 +97,7 @@ MOMENTS = [
     ("first run", _run_folder(0), signal.SIGINT),
     ("second run", _run_folder(1), signal.SIGINT),
     ("report", _plots, signal.SIGINT),
+    ("first run SIGTERM", _run_folder(0), signal.SIGTERM),
 ]
 
 
@@ -192,7 +195,7 @@ def reference(scene, tmp_path_factory) -> Path:
 @pytest.mark.parametrize(
     "moment",
     [
-        pytest.param(m, id=m[0].replace(" ", "-"), marks=() if m[0] == "first run" else pytest.mark.slow)
+        pytest.param(m, id=m[0].replace(" ", "-"), marks=() if m[0].startswith("first run") else pytest.mark.slow)
         for m in MOMENTS
     ],
 )
@@ -218,3 +221,29 @@ def test_an_interrupted_bench_says_so_in_one_line_and_resumes_to_an_uninterrupte
     assert len(got) == len(want) and not diff, diff
     assert _report_md(out) == _report_md(reference)
     assert _kept(out) == _kept(reference)
+
+
+def test_sigterm_ends_a_command_in_one_line_and_gives_its_folders_back(tmp_path, capsys):
+    """SIGTERM (kill PID, timeout, a batch system) ended the process at once: no message, exit code
+    -15, and the lock files of the bench folder and the run folder it was writing left behind.
+    It now unwinds as Ctrl-C does; outside a command SIGTERM keeps its default action."""
+    D.reset()
+    scene = D.write_scene(tmp_path / "s.toml")
+    runner = D.FakeRunner()
+    real_run = runner.run
+
+    def run_then_sigterm(seq_dir, name, run_dir, *args, **kwargs):
+        figures = real_run(seq_dir, name, run_dir, *args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return figures
+
+    runner.run = run_then_sigterm  # type: ignore[method-assign]
+    out = tmp_path / "out"
+    args = ["-q", "bench", str(scene), "--estimators", "scaled", "--no-report", "-o", str(out)]
+    assert floorsim_main(args, collaborators={**D.COLLABORATORS, "runner": runner}) == 143
+    err = capsys.readouterr().err
+    assert err == "floorsim: interrupted (SIGTERM); what was written is kept, run the same command again to resume\n"
+    assert not list(out.rglob(LOCK_FILE)) and not list(out.rglob("*.tmp"))
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    assert floorsim_main(args, collaborators=D.COLLABORATORS) == 0
+    assert [r["status"] for r in read_results_csv(out / "results.csv")] == ["ok"]

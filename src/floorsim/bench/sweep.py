@@ -271,9 +271,15 @@ def job_pool(
                         for fut in cf.as_completed(futs):
                             exc = fut.exception()
                             collect(futs[fut], None if exc else fut.result(), exc)
-                    except KeyboardInterrupt:
+                    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (floorvo.cli.Terminated)
                         for f in futs:
                             f.cancel()
+                        # Stop the workers' jobs too: the pool's shutdown waits for them, and a SIGTERM
+                        # reaches this process alone (Ctrl-C the whole process group), so the command
+                        # waited for jobs whose rows it no longer collects. A job so stopped leaves what a
+                        # killed one does (the next run takes its locks over, removes its temporaries).
+                        for child in mp.active_children():
+                            child.terminate()
                         raise
 
                 yield run_local

@@ -21,18 +21,21 @@ level too).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import importlib
 import logging
 import os
+import signal
 import sys
-from collections.abc import Mapping
+import threading
+from collections.abc import Iterator, Mapping
 from typing import Any, NoReturn
 
 from floorvo import __version__
 from floorvo.errors import ConfigError, FloorbenchError, shorten
 
-__all__ = ["COMMANDS", "build_parser", "run_cli", "describe_os_error", "main"]
+__all__ = ["COMMANDS", "Terminated", "build_parser", "run_cli", "describe_os_error", "main"]
 
 log = logging.getLogger(__name__)
 
@@ -127,6 +130,43 @@ def _printable_streams() -> None:
                 pass
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill PID``, ``timeout``, a batch system ending a job) while a command runs.
+
+    Raised in the main thread as Ctrl-C's ``KeyboardInterrupt`` is, so it unwinds through the same
+    clean-up: an atomic write removes its temporary, a folder lock is given back and its lock
+    file removed, and the command ends with one line and exit code 143 (128 + SIGTERM). Before,
+    SIGTERM ended the process at once, silently, leaving the temporary being written and the
+    lock files of every folder it held (harmless to the next writer, which takes them over,
+    but litter)."""
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """While the block runs, SIGTERM raises :class:`Terminated` in this (the main) thread.
+
+    Only where SIGTERM has its default action (a handler or an ignore set by whoever runs us
+    stays), and only in the process that installed it: a ``fork()``ed child that kept the handler
+    ends as SIGTERM ends it by default."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        yield
+        return
+    pid = os.getpid()
+
+    def terminated(signum: int, frame: Any) -> None:
+        if os.getpid() != pid:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        raise Terminated
+
+    signal.signal(signal.SIGTERM, terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def run_cli(
     parser: argparse.ArgumentParser,
     argv: list[str] | None,
@@ -153,7 +193,8 @@ def run_cli(
         logging.getLogger(name).setLevel(level)
     log.debug("%s %s: debug logging on", prog, args.command)
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_interrupts():
+            return int(args.func(args) or 0)
     except FloorbenchError as exc:
         # One line whatever the message holds (values are cut where they are formatted,
         # errors.shown; this keeps the contract for a path or a name read from a file too).
@@ -173,9 +214,10 @@ def run_cli(
     except OSError as exc:  # a full disk, a read-only folder, a file that vanished: one line with the path
         print(f"{prog}: error: {describe_os_error(exc)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted; what was written is kept, run the same command again to resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
+        how = "interrupted (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        print(f"{prog}: {how}; what was written is kept, run the same command again to resume", file=sys.stderr)
+        return 128 + signal.SIGTERM if isinstance(exc, Terminated) else 130
     finally:
         for name, lvl in previous.items():  # a process that runs several commands (tests) starts each afresh
             logging.getLogger(name).setLevel(lvl)
