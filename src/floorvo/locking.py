@@ -32,15 +32,17 @@ Where ``fcntl`` does not exist (Windows) nothing is locked; a warning says so on
 from __future__ import annotations
 
 import atexit
+import contextlib
 import errno
 import functools
 import inspect
 import logging
 import os
+import signal
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -139,7 +141,12 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
             held = _held.get(key)
             if held is not None:
                 return FolderLock(held, outer=False)
-        fd = _try_lock(path / LOCK_FILE)
+        with _signals_deferred():  # an interrupt here left the lock file of a lock nobody held
+            fd = _try_lock(path / LOCK_FILE)
+            if isinstance(fd, int):
+                held = _Held(fd, Path(os.path.abspath(path)), key, created)
+                with _registry:
+                    _held[key] = held  # from here on released at exit whatever happens
         if fd is None:  # the folder vanished between mkdir and open (its last holder removed it): again
             continue
         if isinstance(fd, str):  # the holder, as the lock file names it
@@ -150,9 +157,7 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
                 waited = True
             time.sleep(_WAIT_STEP_S)
             continue
-        held = _Held(fd, Path(os.path.abspath(path)), key, created)
-        with _registry:
-            _held[key] = held
+        assert held is not None  # fd is ours: recorded above
         # Only a holder of this lock writes here: a temporary in the folder is a killed writer's.
         for stale in remove_stale_temporaries(path):
             log.info("%s: removed the temporary of a writer that was killed", stale)
@@ -339,16 +344,47 @@ def _refusal(path: Path, what: str, holder: str) -> FolderLockedError:
     )
 
 
-def _release(held: _Held, refused: bool) -> None:
-    with _registry:
-        _held.pop(held.key, None)
-    # Remove the lock file while still holding the lock (a writer that opened it meanwhile
-    # finds it gone and takes a new one), then give the lock up.
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM held back (their handlers run when the block ends) while a lock is taken
+    or given back: a Ctrl-C between creating the lock file and recording the lock, or between
+    forgetting it and removing the file, left a ``.floorbench.lock`` that no exit clean-up removed.
+    The block never waits (the lock is tried with ``LOCK_NB``).
+
+    Python runs signal handlers, and so raises ``KeyboardInterrupt``, in the main thread only: there
+    the handlers are swapped for one that notes the signal (blocking the signal with
+    ``pthread_sigmask`` does not do: another thread of the process may take it). A signal with its
+    default action (SIGTERM outside a CLI command) ends the process as it would have."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[tuple[int, Any]] = []
+    previous: dict[int, Callable[[int, Any], Any]] = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if callable(handler):
+            previous[sig] = handler
+            signal.signal(sig, lambda signum, frame: caught.append((signum, frame)))
     try:
-        os.unlink(held.folder / LOCK_FILE)
-    except OSError:
-        pass
-    os.close(held.fd)
+        yield
+    finally:
+        for restored, handler in previous.items():
+            signal.signal(restored, handler)
+        for signum, frame in caught:
+            previous[signum](signum, frame)
+
+
+def _release(held: _Held, refused: bool) -> None:
+    with _signals_deferred():
+        with _registry:
+            _held.pop(held.key, None)
+        # Remove the lock file while still holding the lock (a writer that opened it meanwhile
+        # finds it gone and takes a new one), then give the lock up.
+        try:
+            os.unlink(held.folder / LOCK_FILE)
+        except OSError:
+            pass
+        os.close(held.fd)
     for folder in held.created if refused else ():  # a refused writer leaves no empty folders behind
         try:
             folder.rmdir()

@@ -257,3 +257,23 @@ def test_the_next_writer_removes_what_a_killed_writer_left_in_the_folder(seq, tm
     stale.write_text("# half a traj")
     assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
     assert sorted(p.name for p in run.iterdir()) == ["result.json", "timing.csv", "trajectory.txt"]
+
+
+def test_a_ctrl_c_while_a_lock_is_taken_leaves_no_lock_file(tmp_path, monkeypatch):
+    """A SIGINT between creating the lock file and recording the lock left a ``.floorbench.lock``
+    that nothing removed (seen when ``floorsim bench`` was interrupted as a run folder appeared):
+    the signal is now held back until the lock is recorded, and the exit clean-up removes it."""
+    import floorvo.locking as locking
+
+    real = locking._try_lock
+
+    def interrupted(lock_path):
+        taken = real(lock_path)
+        os.kill(os.getpid(), signal.SIGINT)
+        return taken
+
+    monkeypatch.setattr(locking, "_try_lock", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        lock_folder(tmp_path / "run", "run folder")
+    locking._release_all_at_exit()  # what the interpreter's exit does
+    assert not (tmp_path / "run" / LOCK_FILE).exists()
