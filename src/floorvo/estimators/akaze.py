@@ -189,8 +189,8 @@ class AkazeConfig(StepBoundConfig):
     )
     use_attitude_signal: bool = param(
         True,
-        doc="in a sequence with attitude.csv (an IMU's roll and pitch), the run's poses are the tilted camera's: "
-        "the measured footprint turned back with the frame's attitude (floorvo.runner.run_frames)",
+        doc="in a sequence with attitude.csv (an IMU's roll and pitch), each frame's keypoints are levelled with its "
+        "attitude before they are matched and the run's poses are the tilted camera's (floorvo.runner.run_frames)",
     )
     height_from_depth: bool = param(
         False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"

@@ -164,8 +164,8 @@ class PhaseCorrConfig(StepBoundConfig):
     )
     use_attitude_signal: bool = param(
         True,
-        doc="in a sequence with attitude.csv (an IMU's roll and pitch), the run's poses are the tilted camera's: "
-        "the measured footprint turned back with the frame's attitude (floorvo.runner.run_frames)",
+        doc="in a sequence with attitude.csv (an IMU's roll and pitch), each frame is levelled with its attitude "
+        "before it is measured and the run's poses are the tilted camera's (floorvo.runner.run_frames)",
     )
     height_from_depth: bool = param(
         False, doc="in a sequence with depth (and no height.csv), measure the camera height from each depth image"
@@ -526,8 +526,8 @@ class PhaseCorr:
         1 ms a frame for the 640 x 494 px region at full size, bicubic 2.7 ms; on the tilted
         renders the same drift within 0.03 points, on the synthetic tilted run the end within
         1 um of the bicubic one), bicubic on a binned grid (0.13 ms; bilinear took the binned
-        wood tilt from 0.136 to 0.233 % calibrated: BENCHMARKS.md, "A measured attitude"). A turn about the camera's centre moves every pixel as
-        the floor does not, so what is left between two levelled frames is the floor's motion as
+        wood tilt from 0.136 to 0.233 % calibrated: BENCHMARKS.md, "A measured attitude"). A turn
+        about the camera's centre moves every pixel as the floor does not, so what is left between two levelled frames is the floor's motion as
         a level camera sees it. The flat field was applied before: it belongs to the sensor's
         pixels."""
         K = self.grid_cam.K
@@ -691,9 +691,10 @@ class PhaseCorr:
         joins no window) scatter about 1 by more than their standard errors allow,
         ``sum (s_i - 1)^2 / sum sigma_i^2`` beyond :func:`floorvo.geometry.f_sigmas` at the same
         confidence (4.26 for eight frames of four blocks, where one frame needs 85): the rig is
-        bouncing, and each frame's scale is the height change, most of them too small to show
-        on their own (the full-size bounces: the gate above followed 7-12 of 40 frames; the
-        scales of level runs scatter by 0.2-1.4 of their standard errors, of bounces by 9-45).
+        bouncing, and each frame's scale is the height change, some of them too small to show
+        on their own (the half-size bounces: the gate above followed 21-22 of 40 frames in
+        phase-corr-fast, 34-36 in phase-corr; full size 34-38; the scales of level runs scatter
+        by 0.15-2.0 of their standard errors, of bounces by 9-45).
         """
         dev2, var = (m.scale - 1.0) ** 2, m.scale_sigma**2
         if not measured:
