@@ -245,8 +245,8 @@ class _AkazeBase:
     Config = AkazeConfig
     requires: frozenset[str] = frozenset()
     #: A planar mono estimator: it measures the motion of the camera's floor footprint
-    #: (:func:`floorvo.geometry.footprint_T`), which the runner turns into the tilted
-    #: camera's pose with an attitude signal (``use_attitude_signal``).
+    #: (:func:`floorvo.geometry.footprint_T`), which an attitude signal makes 6-DoF
+    #: (``use_attitude_signal``, :func:`floorvo.runner.uses_attitude_signal`).
     measures_footprint: bool = True
     #: With a frame's attitude (``use_attitude_signal``) its keypoints are levelled first
     #: (:meth:`_levelled`): the steps are then the camera's own, of a virtual camera looking
