@@ -28,6 +28,7 @@ import _bench_doubles as D
 import cv2
 import numpy as np
 import pytest
+from _tiny import TINY_TOML
 
 from _procs import assert_refused, child_env, held_by_another_process
 from floorsim.bench.bench import render_cached
@@ -40,33 +41,6 @@ from floorvo.runfolder import RunFolder
 from floorvo.synthetic import line_poses, write_synthetic_sequence
 from floorvo.tum import read_tum
 
-#: The tiny rig of ``_tiny`` (162x124) with sensor noise, 13 frames of 1 mm: about 5 s to render here.
-TINY_TOML = """schema_version = 1
-name = "tiny"
-seed = 3
-fps = 30.0
-
-[camera]
-width_px = 162
-height_px = 124
-pixel_pitch_um = 29.6
-focal_length_mm = 6.0
-height_mm = 100.0
-
-[floor]
-material = "vinyl"
-
-[lights]
-height_mm = 3.0
-
-[render]
-spp = 4
-
-[trajectory]
-type = "uniform"
-distance_mm = 12.0
-step_mm = 1.0
-"""
 FRAMES = 13
 #: Columns of results.csv that differ between two identical runs (clocks, memory) or name the output folder.
 VOLATILE = ("wall_ms_per_frame", "peak_rss_mb", "fps", "run_dir")

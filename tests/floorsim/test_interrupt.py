@@ -29,6 +29,7 @@ import _bench_doubles as D
 import cv2
 import numpy as np
 import pytest
+from _tiny import TINY_TOML
 
 from _procs import child_env
 from floorsim.bench.results import read_results_csv
@@ -38,33 +39,6 @@ from floorvo.tum import read_tum
 
 pytestmark = pytest.mark.render
 
-#: The quarter-size rig of ``_tiny`` with sensor noise, 1 mm steps; the bench renders 6 frames.
-TINY_TOML = """schema_version = 1
-name = "tiny"
-seed = 3
-fps = 30.0
-
-[camera]
-width_px = 162
-height_px = 124
-pixel_pitch_um = 29.6
-focal_length_mm = 6.0
-height_mm = 100.0
-
-[floor]
-material = "vinyl"
-
-[lights]
-height_mm = 3.0
-
-[render]
-spp = 4
-
-[trajectory]
-type = "uniform"
-distance_mm = 12.0
-step_mm = 1.0
-"""
 ESTIMATORS = ("phase-corr-fast", "akaze-guided-fast")
 #: Columns of results.csv (beside the ``time_*`` ones) that differ between identical runs (clocks,
 #: memory) or name the output folder.
