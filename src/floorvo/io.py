@@ -507,7 +507,7 @@ def read_npz(
                 with zf.open(info) as fh:
                     try:
                         out[name] = _read_array(fh, info.file_size, rule, f"array {name!r}")
-                    except (_ArrayRefused, zipfile.BadZipFile):
+                    except _ArrayRefused:  # a ValueError with its own message
                         raise
                     except (ValueError, EOFError) as exc:
                         raise _ArrayRefused(f"array {name!r} is not readable ({shorten(str(exc))})") from None
