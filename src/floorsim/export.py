@@ -345,6 +345,29 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
                 )
 
 
+def _frame_sidecar(
+    folder: Path,
+    columns: list[str],
+    values: np.ndarray,
+    stamps: np.ndarray,
+    sensor_type: str,
+    comment: str,
+    fps: float,
+) -> None:
+    """A EuRoC-style sensor folder of one reading per cam0 frame: ``data.csv`` (``#timestamp
+    [ns]`` at each frame's stamp ``stamps`` (N,) s, then the ``columns`` of ``values`` (N,) or
+    (N, k), a NaN written empty: no reading) and ``sensor.yaml`` (``sensor_type``, ``comment``,
+    the frame rate)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = np.asarray(values, dtype=float).reshape(len(stamps), -1)
+    atomic_write_csv(
+        folder / "data.csv",
+        ["#timestamp [ns]", *columns],
+        [(_ns(float(stamps[i])), *(None if np.isnan(v) else float(v) for v in row)) for i, row in enumerate(rows)],
+    )
+    _yaml_dump(folder / "sensor.yaml", {"sensor_type": sensor_type, "comment": comment, "rate_hz": float(fps)})
+
+
 def _yaml_dump(path: Path, data: dict) -> None:
     import yaml
 
@@ -421,43 +444,29 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
                 **({CAMERA_HEIGHT_KEY: float(seq.height_mm)} if c == "cam0" and seq.height_mm is not None else {}),
             },
         )
+    # Per-frame sidecars, as EuRoC's other sensors: a stamp, then values (empty = no reading).
     heights = seq.height_signal_mm
     if heights is not None:
-        h_dir = mav / HEIGHT_SENSOR
-        h_dir.mkdir(parents=True, exist_ok=True)
-        atomic_write_csv(
-            h_dir / "data.csv",
-            ["#timestamp [ns]", "height [mm]"],  # as EuRoC's other sensors: a stamp, then values
-            [(_ns(float(stamps[i])), None if np.isnan(v) else float(v)) for i, v in enumerate(heights)],
-        )
-        _yaml_dump(
-            h_dir / "sensor.yaml",
-            {
-                "sensor_type": "range",
-                "comment": "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
-                "rate_hz": float(seq.fps),
-            },
+        _frame_sidecar(
+            mav / HEIGHT_SENSOR,
+            ["height [mm]"],
+            heights,
+            stamps,
+            "range",
+            "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
+            seq.fps,
         )
     attitude = seq.attitude_signal_rad
     if attitude is not None:
-        a_dir = mav / ATTITUDE_SENSOR
-        a_dir.mkdir(parents=True, exist_ok=True)
-        atomic_write_csv(
-            a_dir / "data.csv",
-            ["#timestamp [ns]", "roll [rad]", "pitch [rad]"],
-            [
-                (_ns(float(stamps[i])), *(None if np.isnan(v) else float(v) for v in row))
-                for i, row in enumerate(attitude)
-            ],
-        )
-        _yaml_dump(
-            a_dir / "sensor.yaml",
-            {
-                "sensor_type": "attitude",
-                "comment": "floorbench: cam0's roll and pitch against gravity (rad, floorvo.sequence's attitude.csv) "
-                "at each cam0 frame; empty = no reading",
-                "rate_hz": float(seq.fps),
-            },
+        _frame_sidecar(
+            mav / ATTITUDE_SENSOR,
+            ["roll [rad]", "pitch [rad]"],
+            attitude,
+            stamps,
+            "attitude",
+            "floorbench: cam0's roll and pitch against gravity (rad, floorvo.sequence's attitude.csv) "
+            "at each cam0 frame; empty = no reading",
+            seq.fps,
         )
     gt = seq.groundtruth()
     if gt is not None:
