@@ -462,6 +462,9 @@ class PhaseCorr:
         self.image_scale_window_limits = [
             f_sigmas(config.image_scale_min_sigmas, n, n * dof) for n in range(1, max(config.image_scale_window, 1) + 1)
         ]
+        # Levelling (:meth:`_levelled`): region px -> rays of the grid's pinhole, and rays -> region px.
+        to_region = np.array([[1.0, 0.0, -self.rx0], [0.0, 1.0, -self.ry0], [0.0, 0.0, 1.0]]) @ gc.K
+        self.level_frame = (to_region, np.linalg.inv(to_region))
         # The crop's top-left corner from the principal point, and the principal point in the
         # region (grid px): what a warp into the crop adds around the centred motion.
         self.crop_from_centre = np.array([self.x0 - gc.cx_px, self.y0 - gc.cy_px])
@@ -530,9 +533,8 @@ class PhaseCorr:
         about the camera's centre moves every pixel as the floor does not, so what is left between two levelled frames is the floor's motion as
         a level camera sees it. The flat field was applied before: it belongs to the sensor's
         pixels."""
-        K = self.grid_cam.K
-        offset = np.array([[1.0, 0.0, -self.rx0], [0.0, 1.0, -self.ry0], [0.0, 0.0, 1.0]])
-        H = offset @ K @ R_nadir_cam(roll_rad, pitch_rad) @ np.linalg.inv(K) @ np.linalg.inv(offset)
+        to_region, from_region = self.level_frame
+        H = to_region @ R_nadir_cam(roll_rad, pitch_rad) @ from_region
         return cv2.warpPerspective(
             region,
             H,
