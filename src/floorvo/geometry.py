@@ -65,6 +65,7 @@ __all__ = [
     "tilted_camera_T",
     "attitude_of_T",
     "tilt_twist_rad",
+    "tilt_change_rad",
     "yaw_of_R",
     "yaws_of_T",
     "umeyama",
@@ -313,6 +314,16 @@ def tilt_twist_rad(attitude_prev_rad: npt.ArrayLike, attitude_cur_rad: npt.Array
     R0 = Rotation.from_euler("xy", [r0, p0]).as_matrix() @ R_WORLD_CAM_DOWN
     R1 = Rotation.from_euler("xy", [r1, p1]).as_matrix() @ R_WORLD_CAM_DOWN
     return float(Rotation.from_matrix(R0.T @ R1).as_rotvec()[2])
+
+
+def tilt_change_rad(attitude_prev_rad: npt.ArrayLike, attitude_cur_rad: npt.ArrayLike) -> float:
+    """The angle (rad) between the optical axes of a camera at two attitudes (roll_rad,
+    pitch_rad) (:func:`attitude_of_T`) and the same yaw: how far it tilted from one to the
+    other. The axis of a camera at attitude ``a`` is ``R_nadir_cam(a) (0, 0, 1)`` in the frame
+    of the level camera at that yaw (:func:`R_nadir_cam`)."""
+    z0 = R_nadir_cam(*np.asarray(attitude_prev_rad, dtype=float))[:, 2]
+    z1 = R_nadir_cam(*np.asarray(attitude_cur_rad, dtype=float))[:, 2]
+    return float(np.arctan2(np.linalg.norm(np.cross(z0, z1)), float(z0 @ z1)))
 
 
 # ----------------------------------------------------------------------------- rigid fits

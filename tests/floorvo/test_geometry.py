@@ -27,6 +27,7 @@ from floorvo.geometry import (
     rigid_fit_robust,
     rival_homography_support,
     rot_z,
+    tilt_change_rad,
     umeyama,
 )
 
@@ -467,3 +468,23 @@ def test_f_sigmas_keeps_the_normal_tail_for_a_ratio_of_variance_estimates():
     assert f_sigmas(3.0, 8, 24) == pytest.approx(4.257, abs=1e-3)
     assert f_sigmas(3.0, 100000, 100000) == pytest.approx(1.0, abs=0.05)
     assert f_sigmas(0.0, 8, 24) == 0.0 and f_sigmas(3.0, 8, 0) == float("inf")
+
+
+@pytest.mark.parametrize(
+    "a0, a1",
+    [
+        ((0.0, 0.0), (0.01, 0.0)),
+        ((0.0, 0.0), (0.0, -0.02)),
+        ((0.03, 0.0), (0.0, 0.03)),
+        ((0.02, -0.01), (-0.015, 0.025)),
+    ],
+)
+def test_tilt_change_is_the_angle_between_the_two_optical_axes(a0, a1):
+    """The optical axes of the two poses in the world (the third column of each rotation of
+    ``T_world_cam_down`` at those roll and pitch, the same yaw), their angle by the dot product."""
+    z0 = T_world_cam_down(0.0, 0.0, 100.0, 0.0, *a0)[:3, 2]
+    z1 = T_world_cam_down(5.0, 1.0, 99.0, 0.0, *a1)[:3, 2]
+    expected = float(np.arccos(np.clip(z0 @ z1, -1.0, 1.0)))
+    assert tilt_change_rad(a0, a1) == pytest.approx(expected, abs=1e-9)
+    assert tilt_change_rad(a1, a0) == pytest.approx(expected, abs=1e-9)
+    assert tilt_change_rad(a0, a0) == pytest.approx(0.0, abs=1e-12)

@@ -37,7 +37,10 @@ prediction is doubtful (a check failed, or the fit corrects the prediction by mo
 the search radius, so that true matches may lie beyond it) is matched again by brute
 force, and its ``reason`` (``timing.csv``'s reason column) says so; so is a guided step
 whose fit moves beyond issue 14's bound when its keypoints are matched again around it
-(the prediction pulled the matches: a repetitive floor). A frame of another
+(the prediction pulled the matches: a repetitive floor). A rigid step at an assumed camera
+height (the paper's: no height signal) is lost where the floor homography of its pairs reads
+a height change beyond issue 14's bound (``check_height_change``: a bounce; a rigid fit
+reports none, and was wrong by it). A frame of another
 size or channel count than the camera's is refused. After a lost frame the next one is
 matched against the last good frame by brute force (there is no motion to predict from),
 as the first pair is; after ``restart_after_lost`` lost frames in a row tracking restarts
@@ -48,7 +51,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -70,9 +73,11 @@ from floorvo.geometry import (
     consensus_problem,
     floor_rigid_to_T,
     pixels_to_floor_mm,
+    plane_homography_motion,
     rigid_fit,
     rigid_fit_precision,
     t_sigmas,
+    tilt_change_rad,
     umeyama,
     yaw_of_R,
 )
@@ -127,7 +132,10 @@ class AkazeConfig(StepBoundConfig):
     at least ``min_matches`` matches and ``min_inliers`` pairs left by the section II-C
     filter; the RMS distance of those pairs from the fitted rigid motion at most
     ``max_rms_px``; at least ``min_consensus`` of all matches within ``inlier_tol_px`` of
-    it. A guided step whose prediction is doubtful (it fails a check, its correction of
+    it; with ``check_height_change``, a rigid fit at an assumed camera height whose pairs'
+    floor homography shows no height change beyond issue 14's bound (plus
+    ``height_change_tilt_share`` of the shift its tilt change beyond
+    ``height_change_light_tilt_rad`` makes). A guided step whose prediction is doubtful (it fails a check, its correction of
     the prediction reaches ``doubt_radius_fraction`` of the search radius, or, with
     ``check_rematch``, matching again around its own fit moves the step beyond issue 14's
     bound) is matched again by brute force, and the step's ``reason`` says so.
@@ -199,6 +207,25 @@ class AkazeConfig(StepBoundConfig):
         False,
         doc="a frame without a measured height: fit the image scale too (a similarity) and follow the camera "
         "height from it, h_cur = h_prev / scale, from the rig's (paper 000: a rigid fit at the rig's height)",
+    )
+    check_height_change: bool = param(
+        True,
+        doc="a rigid step at an assumed camera height (no measured height, fit_image_scale off) is lost where "
+        "the floor homography of its pairs reads a height change beyond the max_step_error_* bound plus "
+        "height_change_tilt_share x the camera height x the step's tilt change",
+    )
+    height_change_tilt_share: float = param(
+        1.0,
+        min=0.0,
+        doc="check_height_change: the share of the shift a tilt change makes at the floor (camera height x tilt) "
+        "that the rig's grazing shading may show as a false height change",
+    )
+    height_change_light_tilt_rad: float = param(
+        0.002,
+        unit="rad",
+        min=0.0,
+        doc="check_height_change: the tilt change a step's floor homography reads from the rig's moving shading "
+        "where there is none; only a tilt beyond it widens the check's bound",
     )
     image_scale_min_sigmas: float = param(
         3.0,
@@ -596,6 +623,77 @@ class _AkazeBase:
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
         return T, ""
 
+    def _height_change_problem(
+        self, state: _State, fit: _Fit, frame: Frame, attitude: tuple[float, float] | None
+    ) -> str:
+        """Why a rigid step at an assumed camera height cannot be reported ('' if it can, or if
+        the check does not apply): the camera's height changed by more than the step may be off.
+
+        Paper 000's fit is rigid at the rig's height (eq. (1) with a fixed ``d``), and a planar
+        step reports no height change; on a bounce the camera rises and falls by up to 0.8 mm
+        a frame, and a step whose pairs the rigid fit still holds (a residual under
+        ``max_rms_px``) was reported ok and wrong by that change (11-15 of each full-size bounce's
+        40 steps, BENCHMARKS.md). The check fits the least-squares floor homography of the
+        fit's pairs (``fit.src -> fit.dst``, px; normalised by the camera model) and decomposes
+        it with the level floor at the reference's height (:func:`floorvo.geometry.plane_homography_motion`:
+        its height change and its tilt change). The step is lost where the height change it
+        reads differs from the one the fit assumed (none without a height signal) by more than
+        the bound a step reported ok may have (``max_step_error_mm`` + ``max_step_error_fraction``
+        of the step) plus ``height_change_tilt_share`` x the camera height x the tilt change
+        beyond ``height_change_light_tilt_rad``. Why the tilt: under grazing LEDs that ride with
+        the camera a tilt moves the shading as a height change does (the full-size tilted runs'
+        homographies read false height changes of up to 0.26 x that shift on asphalt, 0.4 x on
+        95 % of the wood run's steps), and the shift (camera height x tilt change) is what a
+        planar estimator is allowed on a tilted step (issue 14; homography-6dof's
+        ``_light_problem`` takes the same bound). Why beyond 2 mrad: the moving shading also
+        makes the homography read a tilt of up to 2-2.5 mrad on level steps (0.4-1.3 mrad
+        median on the level scenes of the motion suite), which would let a bounce's 0.2 mm
+        steps through. The tilt change is the homography's, or the attitude signal's where the
+        frames were levelled with it (their pairs then show none). What it cannot see: the
+        height itself. A rigid fit at 100 mm over a camera at 98.2 mm makes every step 1.8 %
+        long (BENCHMARKS.md)."""
+        cfg = self.config
+        if not cfg.check_height_change or cfg.fit_image_scale or self.fits_own_scale or fit.M is None:
+            return ""
+        if self._frame_height(frame) is not None or len(fit.src) < 8:
+            return ""  # the height is measured (the fit used it), or too few pairs for a homography
+        x_prev = self.camera.unproject(fit.src, 1.0)[:, :2]
+        x_cur = self.camera.unproject(fit.dst, 1.0)[:, :2]
+        H, _ = cv2.findHomography(x_prev, x_cur, 0)
+        if H is None:
+            return ""
+        h_prev = state.height_mm or self.height_mm
+        level = np.array([0.0, 0.0, 1.0])
+        T, _, h_cur = plane_homography_motion(H, level, h_prev)
+        # The height change's standard error from m interleaved blocks of the pairs (each with
+        # m times the variance of the whole, as homography-6dof's agreement check): a floor whose
+        # pairs condition the homography poorly (tiles: clustered corners) reads a height change
+        # that is its noise, and a step is lost only where the change stands beyond it.
+        m = 4 if len(x_prev) >= 16 else 2
+        h_blocks = []
+        for i in range(m):
+            H_block, _ = cv2.findHomography(x_prev[i::m], x_cur[i::m], 0)
+            if H_block is None:
+                return ""
+            h_blocks.append(plane_homography_motion(H_block, level, h_prev)[2])
+        sig_mm = float(np.std(h_blocks, ddof=1)) / np.sqrt(m)
+        tilt = float(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))
+        if attitude is not None and state.attitude is not None:
+            tilt = max(tilt, tilt_change_rad(state.attitude, attitude))
+        assumed = (self._height_after(state, fit, frame) or self.height_mm) - h_prev
+        off_mm = abs((h_cur - h_prev) - assumed)
+        mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px)
+        allowance_mm = cfg.height_change_tilt_share * h_prev * max(0.0, tilt - cfg.height_change_light_tilt_rad)
+        if off_mm - cfg.precision_sigmas * sig_mm > bound_mm + allowance_mm:
+            return (
+                f"height change not measured: the pairs' floor homography reads {h_cur - h_prev:+.3f} mm of "
+                f"camera height (standard error {sig_mm:.3f}, tilt {1e3 * tilt:.1f} mrad), the rigid fit assumes "
+                f"{assumed:+.3f} mm; {off_mm:.3f} mm less {cfg.precision_sigmas:g} standard errors > bound "
+                f"{bound_mm:.3f} + {allowance_mm:.3f} mm (fit_image_scale or a height signal measures it)"
+            )
+        return ""
+
     def _prediction_doubt(self, fit: _Fit, pred_M: np.ndarray) -> str:
         """Why the eq. (2) prediction behind a guided fit is doubtful ('' if it is not)."""
         if fit.problem or fit.M is None:
@@ -690,6 +788,8 @@ class _AkazeBase:
                 fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), scale)
         else:
             fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), self._scale_ratio(state, frame))
+        if not fit.problem:
+            fit = replace(fit, problem=self._height_change_problem(state, fit, frame, attitude))
         t2 = time.perf_counter()
         if fit.problem:
             # Lost: the next frame is matched against the last good one, without a prediction;
