@@ -1,7 +1,7 @@
 """Where phase-corr's frame time goes: wall time and calls per frame of each stage.
 
     OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python benchmarks/phase_corr_stages.py SEQ [SEQ ...] \\
-        [--estimator phase-corr-fast] [--repeats 5]
+        [--estimator phase-corr-fast] [--repeats 5] [--set KEY=VALUE ...]
 
 Each sequence's frames are read into memory, the estimator runs over them once to warm up and
 then ``--repeats`` times, and each stage's time is summed by wrapping the methods and
@@ -51,7 +51,9 @@ def main() -> None:
     ap.add_argument("sequences", nargs="+", type=Path)
     ap.add_argument("--estimator", default="phase-corr-fast", choices=["phase-corr", "phase-corr-fast"])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an estimator config key")
     args = ap.parse_args()
+    overrides = dict(kv.split("=", 1) for kv in args.set)
     cv2.setNumThreads(1)
     spent: collections.Counter = collections.Counter()
     calls: collections.Counter = collections.Counter()
@@ -61,7 +63,7 @@ def main() -> None:
         _wrap(pc, name, spent, calls)
     for path in args.sequences:
         seq = Sequence.open(path)
-        est, _ = build_estimator(seq, args.estimator)
+        est, _ = build_estimator(seq, args.estimator, overrides)
         frames = [Frame(i, float(ts), seq.image(i)) for i, ts in enumerate(seq.timestamps_s)]
 
         def run(est=est, frames=frames) -> None:

@@ -14,8 +14,9 @@ Per frame:
    and, whitened by the phase correlation, held it at no motion (BENCHMARKS.md, "phase-corr
    and a sensor's hot and dead pixels").
 2. Resample the current frame into the previous frame's coordinates through the
-   predicted rigid motion (constant velocity: the last measured motion), so the
-   residual to measure is small and the window does not bias it.
+   predicted rigid motion (constant velocity: the last measured motion; its rotation turned
+   on by the last change of the turn rate where the last three steps' rates changed alike,
+   ``predict_turn_rate``), so the residual to measure is small and the window does not bias it.
 3. Split a central crop into ``grid x grid`` blocks; in each, phase correlation
    ``ifft(B A* / |B A*|)`` gives the integer shift, and a weighted least-squares fit of
    the cross-power spectrum's phase slope over the low frequencies gives the sub-pixel
@@ -47,6 +48,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -159,6 +161,11 @@ class PhaseCorrConfig(StepBoundConfig):
         "fixed in the frame, otherwise hold the correlation at no motion); 0: none",
     )
     predict: bool = param(True, doc="start each frame from the last motion")
+    predict_turn_rate: bool = param(
+        True,
+        doc="predict: turn the last motion's rotation on by the change of the rotation per frame between the "
+        "last two steps (a turn whose rate changes steadily: the S-curves)",
+    )
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
     )
@@ -350,6 +357,8 @@ class _State:
     prev_blocks: np.ndarray | None = None  # spectra (g * g, n, n // 2 + 1) of the previous frame's blocks
     prev_crop: np.ndarray | None = None  # the previous frame's crop (its spectrum is made when needed)
     M_pred: np.ndarray = field(default_factory=lambda: np.eye(3))  # prev-centred px -> cur-centred px
+    # the rotation (rad) per frame of the last ok steps in a row, oldest first (predict_turn_rate)
+    yaws_per_frame: deque[float] = field(default_factory=lambda: deque(maxlen=3))
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
     # (scale - 1)^2 and the scale's variance of the last image_scale_window measured frames (fit_image_scale)
@@ -667,6 +676,11 @@ class PhaseCorr:
         # frames spans n_lost + 1 of them (as a prediction, twice the step left phase-corr-fast's
         # rounds 1.5 px short of it).
         state.M_pred = _per_frame(M, state.n_lost + 1)
+        if state.n_lost:
+            state.yaws_per_frame.clear()  # the turn's rate over the gap is not known
+        state.yaws_per_frame.append(float(np.arctan2(state.M_pred[1, 0], state.M_pred[0, 0])))
+        if self.config.predict_turn_rate:
+            state.M_pred[:2, :2] = _rotation(_predicted_yaw(state.yaws_per_frame))[:2, :2]
         state.n_lost, state.height_mm = 0, h_meas
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
@@ -1093,6 +1107,22 @@ def _rotation(angle_rad: float) -> np.ndarray:
     """3x3 rotation of centred pixel coordinates by ``angle_rad`` (x right, y down)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _predicted_yaw(yaws_rad: Sequence[float]) -> float:
+    """The next frame's rotation (rad) from the last steps' rotations per frame ``yaws_rad``
+    (oldest first): the last one turned on by its change from the one before where the two
+    changes before it agree (a turn whose rate changes steadily, as on an S-curve: 0.5-0.8
+    degrees a frame, which a constant-rate prediction leaves to a second round), else the last
+    one (constant rate: a steady turn, or a change of rate that did not go on, a turn's start or
+    end). They agree when both are of one sign and differ by at most half the larger."""
+    last = yaws_rad[-1]
+    if len(yaws_rad) < 3:
+        return last
+    a1, a2 = yaws_rad[-2] - yaws_rad[-3], last - yaws_rad[-2]
+    if a1 * a2 > 0 and abs(a2 - a1) <= 0.5 * max(abs(a1), abs(a2)):
+        return last + a2
+    return last
 
 
 def _per_frame(M: np.ndarray, n: int) -> np.ndarray:
