@@ -365,3 +365,16 @@ def test_a_height_change_within_what_the_steps_tilt_makes_of_the_shading_is_not_
     assert _lost_for_height(run_estimator(tilt_seq, "akaze-guided", tmp_path / "b").run_dir) == set()
     no_share = run_estimator(tilt_seq, "akaze-guided", tmp_path / "c", {"height_change_tilt_share": "0"})
     assert _lost_for_height(no_share.run_dir) == {1}
+
+
+def test_with_an_attitude_signal_the_tilt_change_it_reads_widens_the_height_check(tmp_path):
+    """Frames levelled with an IMU's attitude (``attitude.csv``) show their pairs no tilt, but
+    the rig's lights still moved with the camera: the check takes the tilt change from the
+    attitude. The step of the test above that tilts by 5 mrad and drops 0.3 mm, levelled: its
+    pairs' homography reads the drop and almost no tilt, and the step is kept because the
+    attitude changed by 5 mrad (0.3 mm beyond the 2 mrad); with the share at 0 it is lost."""
+    poses = np.stack([T_world_cam_down(0.0, 0.0, 100.0), T_world_cam_down(4.0, 0.0, 99.7, roll_rad=0.005)])
+    seq = write_synthetic_sequence(tmp_path / "seq", FULL, poses, attitude_noise_rad=0.0)
+    assert _lost_for_height(run_estimator(seq, "akaze-guided", tmp_path / "a").run_dir) == set()
+    no_share = run_estimator(seq, "akaze-guided", tmp_path / "b", {"height_change_tilt_share": "0"})
+    assert _lost_for_height(no_share.run_dir) == {1}
