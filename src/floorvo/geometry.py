@@ -66,6 +66,7 @@ __all__ = [
     "attitude_of_T",
     "tilt_twist_rad",
     "tilt_change_rad",
+    "block_homographies",
     "yaw_of_R",
     "yaws_of_T",
     "umeyama",
@@ -572,6 +573,22 @@ def floor_rigid_to_T(R2: np.ndarray, t2_mm: np.ndarray) -> np.ndarray:
     ``T_cur_prev`` (:func:`planar_T`); the result is its inverse.
     """
     return invert_T(planar_T(R2, t2_mm))
+
+
+def block_homographies(x_prev: np.ndarray, x_cur: np.ndarray) -> list[np.ndarray] | None:
+    """Least-squares homographies (3, 3) of ``m`` interleaved blocks of the pairs ``x_prev ->
+    x_cur`` (N, 2; N >= 8): pairs ``i, i + m, i + 2 m, ...`` for block ``i``, ``m`` = 4 (2 when
+    N < 16). Each block has ``m`` times the variance of the whole, so a quantity read from each
+    block's homography has the whole fit's standard error ``spread / sqrt(m)``, with ``spread``
+    the blocks' sample standard deviation. None when a block has no homography."""
+    m = 4 if len(x_prev) >= 16 else 2
+    out = []
+    for i in range(m):
+        H, _ = cv2.findHomography(x_prev[i::m], x_cur[i::m], 0)
+        if H is None:
+            return None
+        out.append(H)
+    return out
 
 
 def rival_homography_support(

@@ -70,6 +70,7 @@ from floorvo.estimators.base import (
 )
 from floorvo.geometry import (
     R_nadir_cam,
+    block_homographies,
     consensus_problem,
     floor_rigid_to_T,
     pixels_to_floor_mm,
@@ -665,18 +666,15 @@ class _AkazeBase:
         h_prev = state.height_mm or self.height_mm
         level = np.array([0.0, 0.0, 1.0])
         T, _, h_cur = plane_homography_motion(H, level, h_prev)
-        # The height change's standard error from m interleaved blocks of the pairs (each with
-        # m times the variance of the whole, as homography-6dof's agreement check): a floor whose
-        # pairs condition the homography poorly (tiles: clustered corners) reads a height change
-        # that is its noise, and a step is lost only where the change stands beyond it.
-        m = 4 if len(x_prev) >= 16 else 2
-        h_blocks = []
-        for i in range(m):
-            H_block, _ = cv2.findHomography(x_prev[i::m], x_cur[i::m], 0)
-            if H_block is None:
-                return ""
-            h_blocks.append(plane_homography_motion(H_block, level, h_prev)[2])
-        sig_mm = float(np.std(h_blocks, ddof=1)) / np.sqrt(m)
+        # The height change's standard error from interleaved blocks of the pairs (as
+        # homography-6dof's agreement check): a floor whose pairs condition the homography
+        # poorly (tiles: clustered corners) reads a height change that is its noise, and a step
+        # is lost only where the change stands beyond it.
+        blocks = block_homographies(x_prev, x_cur)
+        if blocks is None:
+            return ""
+        h_blocks = [plane_homography_motion(H_block, level, h_prev)[2] for H_block in blocks]
+        sig_mm = float(np.std(h_blocks, ddof=1)) / np.sqrt(len(blocks))
         tilt = float(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))
         if attitude is not None and state.attitude is not None:
             tilt = max(tilt, tilt_change_rad(state.attitude, attitude))

@@ -73,7 +73,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, param
 from floorvo.estimators.akaze import AkazeConfig, _AkazeBase, _Fit, _State
 from floorvo.estimators.base import Frame
-from floorvo.geometry import plane_homography_motion
+from floorvo.geometry import block_homographies, plane_homography_motion
 
 __all__ = ["HomographySixDof", "HomographySixDofConfig"]
 
@@ -177,12 +177,12 @@ class HomographySixDof(_AkazeBase):
         cfg = self.config
         if cfg.precision_sigmas <= 0.0 or len(x_prev) < 8:
             return ""
-        m = 4 if len(x_prev) >= 16 else 2
+        blocks = block_homographies(x_prev, x_cur)
+        if blocks is None:
+            return "no floor homography on a block of the pairs (the agreement check)"
+        m = len(blocks)
         t_mm, angle_rad = [], []
-        for i in range(m):
-            H_block, _ = cv2.findHomography(x_prev[i::m], x_cur[i::m], 0)
-            if H_block is None:
-                return "no floor homography on a block of the pairs (the agreement check)"
+        for H_block in blocks:
             T_block = plane_homography_motion(H_block, n_prev, d_prev_mm, tilt=not self.lights_ride)[0]
             t_mm.append(T_block[:3, 3])
             cos_angle = (float(np.trace(T_prev_cur[:3, :3].T @ T_block[:3, :3])) - 1.0) / 2.0

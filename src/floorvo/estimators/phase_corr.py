@@ -164,7 +164,8 @@ class PhaseCorrConfig(StepBoundConfig):
     predict_turn_rate: bool = param(
         True,
         doc="predict: turn the last motion's rotation on by the change of the rotation per frame between the "
-        "last two steps (a turn whose rate changes steadily: the S-curves)",
+        "last two steps, where the last three steps' rotations changed alike (a turn whose rate changes "
+        "steadily: the S-curves)",
     )
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
