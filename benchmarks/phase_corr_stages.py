@@ -29,7 +29,7 @@ from floorvo.run import build_estimator  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
 METHODS = ["_normalised", "_measure", "_spread_problem", "_blocks", "_warp_into_prev", "_settled_px"]
-FUNCTIONS = ["block_shifts", "block_shifts_near", "umeyama", "rigid_fit", "rigid_fit_precision"]
+FUNCTIONS = ["block_shifts", "block_shifts_near", "similarity_fit_2d", "rigid_fit_precision"]
 
 
 def _wrap(owner, name: str, spent: collections.Counter, calls: collections.Counter) -> None:

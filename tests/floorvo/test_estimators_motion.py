@@ -434,7 +434,8 @@ def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
     """:func:`~floorvo.estimators.phase_corr.block_shifts` measures a stack of block pairs in one
     pass: each block's known sub-pixel shift (a texture moved by the Fourier shift theorem,
     exact; one of them by whole pixels too) within 0.02 px, and the same as measuring it alone;
-    :func:`~floorvo.estimators.phase_corr.block_shifts_near`, given the whole pixels, the same."""
+    :func:`~floorvo.estimators.phase_corr.block_shifts_near`, given the whole pixels, the same,
+    from the whole spectra or from their low frequencies alone."""
     from scipy.ndimage import fourier_shift
     from tests.floorvo._synth import floor_texture
 
@@ -462,6 +463,11 @@ def test_phase_corr_block_shifts_of_a_stack_are_each_blocks_shift():
     d_near = block_shifts_near(Fa, Fb, sp, np.round(truth))
     np.testing.assert_allclose(d_near, truth, atol=0.02)
     np.testing.assert_allclose(d_near, d, atol=1e-5)
+    # The low frequencies alone (spectrum(..., low_only=True), phase-corr's warp-spread check):
+    # those of the whole spectrum, and the same shifts from them.
+    Fb_low = sp.spectrum(np.array(b_blocks), low_only=True)
+    np.testing.assert_array_equal(Fb_low, Fb[:, sp.low_rows, : sp.low_cols])
+    np.testing.assert_array_equal(block_shifts_near(Fa, Fb_low, sp, np.round(truth)), d_near)
 
 
 def _arc_poses(yaw_steps_deg: list[float], step_mm: float = 4.0) -> list[tuple[float, float, float]]:

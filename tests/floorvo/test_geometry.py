@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from floorvo.camera import CameraModel
 from floorvo.geometry import (
     T_world_cam_down,
+    axis_scales_design,
     axis_scales_fit,
     consensus_problem,
     fit_plane,
@@ -27,6 +28,7 @@ from floorvo.geometry import (
     rigid_fit_robust,
     rival_homography_support,
     rot_z,
+    similarity_fit_2d,
     tilt_change_rad,
     umeyama,
 )
@@ -175,6 +177,25 @@ def test_umeyama_recovers_a_known_similarity_and_weights_are_relative():
     a, b = umeyama(src, noisy, w, with_scale=True), umeyama(src, noisy, 7 * w, with_scale=True)
     for x, y in zip(a, b):
         np.testing.assert_allclose(x, y, atol=1e-12)
+
+
+def test_similarity_fit_2d_is_umeyamas_fit():
+    """The 2-D closed form (phase-corr's block fits) gives :func:`umeyama`'s similarity to rounding:
+    four noisy points at a small and at a half turn, a reflected point set (Umeyama's
+    reflection check picks the best rotation there too), and exact data."""
+    rng = np.random.default_rng(3)
+    src = np.array([[-48.0, -48.0], [48.0, -48.0], [-48.0, 48.0], [48.0, 48.0]]) + [5.0, -7.0]
+    for angle, scale in ((0.02, 1.003), (np.pi - 0.1, 0.8)):
+        dst = scale * src @ rot_z(angle)[:2, :2].T + [2.5, -1.5] + rng.normal(0, 0.3, src.shape)
+        for a, b in zip(similarity_fit_2d(src, dst), umeyama(src, dst, with_scale=True)):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    mirrored = src * [-1.0, 1.0] + rng.normal(0, 0.3, src.shape)
+    for a, b in zip(similarity_fit_2d(src, mirrored), umeyama(src, mirrored, with_scale=True)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    R, t, s = similarity_fit_2d(src, 2.0 * src @ rot_z(0.3)[:2, :2].T + [1.0, 2.0])
+    np.testing.assert_allclose(R, rot_z(0.3)[:2, :2], atol=1e-15)
+    np.testing.assert_allclose(t, [1.0, 2.0], atol=1e-13)
+    assert s == pytest.approx(2.0, rel=1e-14)
 
 
 def test_kabsch_hand_computed_on_two_points():
@@ -385,6 +406,9 @@ def test_axis_scales_fit_exact_on_a_hand_built_small_motion_and_refuses_bad_inpu
     scales, sigmas = axis_scales_fit(p, d)
     assert scales == pytest.approx([1.004, 0.992], abs=1e-12)
     assert sigmas == pytest.approx([0.0, 0.0], abs=1e-9)
+    # The design made once for the points (what phase-corr keeps for its blocks): the same numbers.
+    for a, b in zip(axis_scales_fit(p, d, axis_scales_design(p)), (scales, sigmas)):
+        np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="N >= 3"):
         axis_scales_fit(p[:2], d[:2])
     with pytest.raises(ValueError, match="both axes"):
