@@ -374,10 +374,14 @@ def umeyama(
     return R, t, s
 
 
-def similarity_fit_2d(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """:func:`umeyama` ``(R, t, s)`` with ``with_scale`` of a few 2-D point pairs (equal weights), in
-    closed form and plain Python: a few microseconds where :func:`umeyama`'s checks and SVD take
-    about 22 us for four points (phase-corr fits its four blocks two to three times a frame).
+def similarity_fit_2d(
+    src: np.ndarray, dst: np.ndarray, *, with_scale: bool = True
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`umeyama` ``(R, t, s)`` of a few 2-D point pairs (equal weights), in closed form and
+    plain Python: a few microseconds where :func:`umeyama`'s checks and SVD take about 22 us
+    for four points (phase-corr fits its four blocks two to three times a frame). A similarity
+    by default, the rigid fit (``s = 1``, :func:`rigid_fit`) without ``with_scale``: the same
+    rotation.
 
     In 2-D the best rotation maximises ``a cos(theta) + b sin(theta)`` with ``a = sum_i xs_i .
     yd_i`` and ``b = sum_i xs_i x yd_i`` (the centred points), so ``theta = atan2(b, a)``, and
@@ -397,7 +401,7 @@ def similarity_fit_2d(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.
         ss += px * px + py * py
     h = math.hypot(a, b)
     c, s = (a / h, b / h) if h > 0.0 else (1.0, 0.0)
-    scale = h / ss
+    scale = h / ss if with_scale else 1.0
     R = np.array([[c, -s], [s, c]])
     return R, np.array([dx - scale * (c * sx - s * sy), dy - scale * (s * sx + c * sy)]), scale
 
