@@ -259,6 +259,32 @@ class _Measured:
     scale_sigma: float = 0.0
 
 
+class _BlockFit:
+    """One round's blocks: their ``centres`` (B, 2) grid px moved to ``moved`` (B, 2), and the
+    similarity fit ``Rs``, ``ts``, ``sc`` of them; their RMS residual from it (grid px) and its
+    standard errors (:func:`floorvo.geometry.rigid_fit_precision`), each computed once, when
+    first asked for (:meth:`PhaseCorr._settled_px` and the round's result ask for the same)."""
+
+    def __init__(self, centres: np.ndarray, moved: np.ndarray, Rs: np.ndarray, ts: np.ndarray, sc: float):
+        self.centres, self.moved, self.Rs, self.ts, self.sc = centres, moved, Rs, ts, sc
+        self._rms: float | None = None
+        self._precision: tuple[float, float] | None = None
+
+    @property
+    def rms(self) -> float:
+        if self._rms is None:
+            r = self.moved - self.sc * self.centres @ self.Rs.T - self.ts
+            self._rms = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+        return self._rms
+
+    @property
+    def precision(self) -> tuple[float, float]:
+        """``(sigma_origin px, sigma_angle rad)`` of the similarity fit."""
+        if self._precision is None:
+            self._precision = rigid_fit_precision(self.centres, self.moved, self.Rs, self.ts, scale=self.sc)
+        return self._precision
+
+
 def _hann2(h: int, w: int) -> np.ndarray:
     return np.outer(np.hanning(h), np.hanning(w)).astype(np.float32)
 
@@ -295,7 +321,8 @@ class _Spectral:
         fits), the same numbers: the rows' rfft, then the columns' FFT of those columns alone
         (four 96 px blocks: 48 us instead of 58)."""
         b = np.asarray(block, dtype=np.float32)
-        b = (b - b.mean(axis=(-2, -1), keepdims=True)) * self.win
+        b = b - b.mean(axis=(-2, -1), keepdims=True)
+        b *= self.win
         if low_only:
             return sfft.fft(sfft.rfft(b, axis=-1)[..., : self.low_cols], axis=-2)[..., self.low_rows, :]
         return sfft.rfft2(b, axes=(-2, -1))
@@ -356,7 +383,7 @@ def _phase_slope(cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp:
     spectrum ``cross_low`` (B, rows, cols: the low frequencies of :class:`_Spectral`, or a
     positive multiple of them), weighted by its magnitude ``mag_low``."""
     B = len(cross_low)
-    phi = np.angle(cross_low).reshape(B, -1).astype(np.float64)
+    phi = np.arctan2(cross_low.imag, cross_low.real).reshape(B, -1).astype(np.float64)  # np.angle, less its checks
     if d0.any():  # the phase of R exp(2 pi i k.d0), wrapped into [-pi, pi] (by rounding: np.mod is 7x slower)
         phi += 2 * np.pi * (d0[:, :1] * sp.kx_low + d0[:, 1:] * sp.ky_low)
         phi -= 2 * np.pi * np.round(phi * (0.5 / np.pi))
@@ -864,6 +891,7 @@ class PhaseCorr:
             moved = centres + shifts
             Rs, ts, sc = similarity_fit_2d(centres, moved)
             R2, t2, _ = similarity_fit_2d(centres, moved, with_scale=False)
+            fit = _BlockFit(centres, moved, Rs, ts, sc)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
             resid = float(np.abs(centres @ R2.T + t2 - centres - shifts).max())
@@ -884,7 +912,7 @@ class PhaseCorr:
                 # motion): when the next round's warp would move no block centre by more than
                 # converged_px it would measure the same, and is left out (:meth:`_settled_px`);
                 # that move is reported as the last round's.
-                settled_px = self._settled_px(W, M_new, centres, moved, Rs, ts, sc, exact_yaw)
+                settled_px = self._settled_px(W, M_new, fit, exact_yaw)
                 if settled_px is not None:
                     M, M_last, moved_px = M_new, M_new.copy(), settled_px / cfg.downscale
                     break
@@ -896,8 +924,8 @@ class PhaseCorr:
                 break
         # The yaw's and the translation's precision from the last round's blocks; a similarity
         # fit, so that the scale change of a height bounce is not counted as disagreement.
-        rms = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1))))
-        sig_px, sig_rad = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
+        rms = fit.rms
+        sig_px, sig_rad = fit.precision
         if not rotating:
             # A whole-pixel warp's last round measures the step itself (no rounds to converge);
             # one that leaves a residual is pulled toward the warp, which the warp on its other side
@@ -922,22 +950,12 @@ class PhaseCorr:
             *self._image_scale(centres, shifts, float(sc), float(sig_rad)),
         )
 
-    def _settled_px(
-        self,
-        W: np.ndarray,
-        M_new: np.ndarray,
-        centres: np.ndarray,
-        moved: np.ndarray,
-        Rs: np.ndarray,
-        ts: np.ndarray,
-        sc: float,
-        exact_yaw_rad: float,
-    ) -> float | None:
+    def _settled_px(self, W: np.ndarray, M_new: np.ndarray, fit: _BlockFit, exact_yaw_rad: float) -> float | None:
         """After the first round of a rotating warp ``W`` (3x3, whole-pixel translation) measured
-        ``M_new`` (3x3, prev-centred px -> cur-centred px of the grid) from the block ``centres``
-        (B, 2) grid px moved to ``moved`` (B, 2; ``Rs``, ``ts``, ``sc``: their similarity fit):
-        how far (frame px) the next round's warp would move a block centre from this round's,
-        when that round can be left out, else None.
+        ``M_new`` (3x3, prev-centred px -> cur-centred px of the grid) from the blocks ``fit``
+        (their centres, where they moved, and the similarity fit of that): how far (frame px)
+        the next round's warp would move a block centre from this round's, when that round can
+        be left out, else None.
 
         It can when the next warp has the same whole-pixel translation and a rotation that moves
         no block centre by more than ``converged_px`` (the tolerance a round's move is held to),
@@ -951,21 +969,20 @@ class PhaseCorr:
         round was imprecise were precise after the second). The step is then measured through
         the other whole-pixel warp as every step is (:meth:`_warp_spread`)."""
         cfg = self.config
-        if not np.array_equal(np.round(M_new[:2, 2]), W[:2, 2]):
+        if round(M_new[0, 2]) != W[0, 2] or round(M_new[1, 2]) != W[1, 2]:  # np.round's halves to even too
             return None
         # The next round's warp: M_new with its translation rounded (the same), its rotation
         # dropped at or below exact_yaw_max_deg (a non-rotating warp: another warp).
         R_next = M_new[:2, :2] if abs(np.arctan2(M_new[1, 0], M_new[0, 0])) > exact_yaw_rad else np.eye(2)
         k = cfg.downscale
-        change_px = float(np.abs(centres @ (R_next - W[:2, :2]).T).max()) * k
+        change_px = float(np.abs(fit.centres @ (R_next - W[:2, :2]).T).max()) * k
         if change_px > cfg.converged_px:
             return None
-        rms_px = float(np.sqrt(np.mean(np.sum((moved - sc * centres @ Rs.T - ts) ** 2, axis=1)))) * k
-        if rms_px > cfg.block_precision_px:
+        if fit.rms * k > cfg.block_precision_px:
             return None
         if cfg.precision_sigmas > 0.0:
             mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
-            sig_px, _ = rigid_fit_precision(centres, moved, Rs, ts, scale=sc)
+            sig_px, _ = fit.precision
             if self._imprecise(sig_px * mm_per_px, float(np.linalg.norm(M_new[:2, 2])) * mm_per_px):
                 return None
         return change_px
