@@ -572,7 +572,8 @@ class PhaseCorr:
         if self.region_gain is not None:
             out = reg.astype(np.float32, copy=False) * self.region_gain
             mean = float(out.mean())
-            out = out / mean if mean > 0 else out
+            if mean > 0:
+                out /= mean  # in place: the same division without another region-sized array
         else:
             out = illumination_corrected(reg, None)
         if self.config.impulse_ratio > 0.0:
