@@ -378,3 +378,25 @@ def test_with_an_attitude_signal_the_tilt_change_it_reads_widens_the_height_chec
     assert _lost_for_height(run_estimator(seq, "akaze-guided", tmp_path / "a").run_dir) == set()
     no_share = run_estimator(seq, "akaze-guided", tmp_path / "b", {"height_change_tilt_share": "0"})
     assert _lost_for_height(no_share.run_dir) == {1}
+
+
+def test_pairs_on_a_line_give_the_height_check_no_evidence():
+    """Pairs that fix no homography (all on one line; through the principal point OpenCV returns
+    a singular matrix, which reads as the camera on the floor, 100 mm down) leave the step as the
+    rigid fit has it; the same number of pairs spread over the frame, with a 0.5 mm drop in
+    them, do not."""
+    from floorvo.estimators.akaze import _Fit, _State
+    from floorvo.geometry import floor_mm_to_pixels
+
+    est = get_estimator("akaze-guided")(make_config("akaze-guided"), FULL, height_mm=100.0)
+    M = np.eye(3)
+    M[0, 2] = 32.0
+    frame = Frame(1, 1 / 30.0, np.zeros((FULL.height_px, FULL.width_px), np.uint8))
+    along = np.linspace(-150.0, 150.0, 12)[:, None]
+    line = np.array([FULL.cx_px, FULL.cy_px]) + along * [2.0, 1.0] / np.sqrt(5.0)
+    assert est._height_change_problem(_State(), _Fit(M, line, line + [32.0, 0.0], 12), frame, None) == ""
+    rng = np.random.default_rng(1)
+    floor_prev = rng.uniform([-30.0, -20.0], [30.0, 20.0], (12, 2))  # mm on the floor, camera-centred
+    src = floor_mm_to_pixels(floor_prev, FULL, 100.0)
+    dst = floor_mm_to_pixels(floor_prev - [4.0, 0.0], FULL, 99.5)
+    assert "height change not measured" in est._height_change_problem(_State(), _Fit(M, src, dst, 12), frame, None)

@@ -660,6 +660,9 @@ class _AkazeBase:
             return ""  # the height is measured (the fit used it), or too few pairs for a homography
         x_prev = self.camera.unproject(fit.src, 1.0)[:, :2]
         x_cur = self.camera.unproject(fit.dst, 1.0)[:, :2]
+        spread = np.linalg.svd(x_prev - x_prev.mean(axis=0), compute_uv=False)
+        if spread[1] < 1e-3 * spread[0]:
+            return ""  # pairs on a line fix no homography: no evidence either way, the step as the fit has it
         H, _ = cv2.findHomography(x_prev, x_cur, 0)
         if H is None:
             return ""
