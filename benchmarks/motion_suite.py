@@ -50,6 +50,16 @@ end drift, turn error and wrong-ok count of that run. Where the spin cannot give
 run lost, its ok steps turned less than 10 degrees, or a yaw scale out of range) the straight
 run's calibration stands: the yaw-scale cell says why and the yaw-calibrated cells repeat the
 x, y calibrated figures, marked "(x, y only)".
+
+``--calibrate --spins DIR --orientation`` fits a third calibration per material and estimator:
+on the straight run, the same run turned to 60 and 120 degrees over the floor
+(:func:`floorsim.bench.material_calibration.render_turned_straight`, rendered into
+``DIR/MATERIAL-heading60`` and ``-heading120`` when missing) and the spin together, with the
+scales depending on each step's texture orientation where the runs observe it
+(:mod:`floorvo.calibration`: a grained floor, wood). Where it has such terms the material's
+scenes run a fourth time with it (``OUT/calibration/ESTIMATOR--MATERIAL--orientation.json``)
+and the table gains its end drift, turn error and wrong-ok count; elsewhere the cell says why
+there is none and the x, y, yaw figures stand, marked "(constant)".
 """
 
 from __future__ import annotations
@@ -66,9 +76,11 @@ import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
 from floorsim.bench.material_calibration import (  # noqa: E402
+    TURNED_HEADINGS_DEG,
     MaterialCalibration,
     fit_material_calibration,
     render_spin,
+    render_turned_straight,
 )
 from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
@@ -107,12 +119,20 @@ def main() -> None:
         help="with --calibrate: fit the yaw too, on a spin in place per material (rendered into DIR/MATERIAL if missing)",
     )
     ap.add_argument(
+        "--orientation",
+        action="store_true",
+        help="with --spins: also fit scales that depend on the floor texture's orientation, on straight runs "
+        "turned to 60 and 120 degrees (rendered into DIR/MATERIAL-headingN if missing) and the spin",
+    )
+    ap.add_argument(
         "--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key (repeatable)"
     )
     ap.add_argument("-o", "--output", type=Path, required=True)
     args = ap.parse_args()
     if args.spins is not None and not args.calibrate:
         ap.error("--spins goes with --calibrate (it calibrates the yaw too)")
+    if args.orientation and args.spins is None:
+        ap.error("--orientation goes with --calibrate --spins (it fits on the straight runs and the spin)")
     est_sets = parse_estimator_sets(args.est_set)
     cv2.setNumThreads(1)
     estimators: list[str] | None = [e.strip() for e in args.estimators.split(",") if e.strip()] or None
@@ -133,6 +153,7 @@ def main() -> None:
     )
     calibrated: dict[tuple[str, str], dict] = {}
     with_yaw: dict[tuple[str, str], dict] = {}
+    with_orient: dict[tuple[str, str], dict] = {}
     fits: dict[tuple[str, str], MaterialCalibration] = {}
     spins: dict[str, Path] = {}
     if args.calibrate:
@@ -141,7 +162,7 @@ def main() -> None:
         for n, sc in zip(names, loaded):
             if sc.to_dict()["trajectory"]["type"] == "spin" and n in sequence_of:
                 suite_spins.setdefault(material_of[n], sequence_of[n])
-        calibrated, with_yaw, fits, spins = _calibrated_rows(
+        calibrated, with_yaw, with_orient, fits, spins = _calibrated_rows(
             args, scenes, names, material_of, estimators, est_sets, suite_spins
         )
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %"]
@@ -156,6 +177,9 @@ def main() -> None:
     if args.spins is not None:
         cols += ["scale yaw (spin)", "x, y, yaw calibrated end drift %", "x, y, yaw calibrated turn error %"]
         cols += ["x, y, yaw calibrated wrong ok, footprint"]
+    if args.orientation:
+        cols += ["texture-orientation calibration", "orientation cal. end drift %", "orientation cal. turn error %"]
+        cols += ["orientation cal. wrong ok, footprint"]
     cols.append("lost frames by reason")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
@@ -196,6 +220,18 @@ def main() -> None:
                 _fmt(y.get("turn_error_pct")) + mark if y else "-",
                 _fmt(y.get("wrong_ok_steps_footprint"), 0),
             ]
+        if args.orientation:
+            o = with_orient.get((scene, r["estimator"]))
+            mark = ""
+            if o is None and y:  # no orientation terms: the constant calibration stands
+                o, mark = y, " (constant)"
+            o = o or {}
+            cells += [
+                fit.orientation_cell() if fit is not None else "-",
+                _fmt(o.get("end_drift_pct")) + mark if o else "-",
+                _fmt(o.get("turn_error_pct")) + mark if o else "-",
+                _fmt(o.get("wrong_ok_steps_footprint"), 0),
+            ]
         cells.append(str(r.get("lost_reasons") or "") if str(r.get("status")) == "ok" else str(r.get("status")))
         print("| " + " | ".join(cells) + " |")
     for m, seq in sorted(spins.items()):
@@ -224,7 +260,8 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
     and on the straight run with a spin over the material: the suite's own in ``suite_spins``,
     ``{material: sequence}``, else :func:`render_spin` into ``--spins``), then run the suite's
     scenes again with each. Returns ``({(scene, estimator): row}`` x, y calibrated, the same with
-    the yaw, ``{(material, estimator): MaterialCalibration}``, ``{material: spin sequence})``."""
+    the yaw, the same with the texture-orientation terms (``--orientation``), ``{(material, estimator):
+    MaterialCalibration}``, ``{material: spin sequence})``."""
     out = args.output / "calibration"
     materials = sorted(set(material_of.values()))
     cal_scenes = []
@@ -263,9 +300,37 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
             )
             for r in ran.rows:
                 spin_runs[(material_of_spin[str(r["sequence"])], r["estimator"])] = (r["run_dir"], r["sequence"])
-        fits = {key: fit_material_calibration(pair, spin_runs.get(key)) for key, pair in straight.items()}
+        turned_runs: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        if args.orientation and spins:
+            turned = {
+                (m, h): render_turned_straight(
+                    m,
+                    h,
+                    args.spins / f"{m}-heading{h:g}",
+                    next(seq for (mat, _), (_, seq) in straight.items() if mat == m),
+                )
+                for m in spins
+                for h in TURNED_HEADINGS_DEG
+            }
+            of_seq = {str(seq): m for (m, _), seq in turned.items()}
+            ran = run_bench(
+                list(turned.values()),
+                sorted({e for (_, e), f in fits.items() if f.straight is not None}),
+                out / "turned-runs",
+                report=False,
+                estimator_overrides=est_sets,
+            )
+            for r in ran.rows:
+                turned_runs.setdefault((of_seq[str(r["sequence"])], r["estimator"]), []).append(
+                    (r["run_dir"], r["sequence"])
+                )
+        fits = {
+            key: fit_material_calibration(pair, spin_runs.get(key), turned=turned_runs.get(key, ()))
+            for key, pair in straight.items()
+        }
     files: dict[tuple[str, str], Path] = {}
     yaw_files: dict[tuple[str, str], Path] = {}
+    orient_files: dict[tuple[str, str], Path] = {}
     for (m, e), fit in fits.items():
         if fit.straight is not None:
             files[(m, e)] = out / f"{e}--{m}.json"
@@ -273,11 +338,19 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
         if fit.with_yaw is not None:
             yaw_files[(m, e)] = out / f"{e}--{m}--yaw.json"
             save_scale_calibration(fit.with_yaw, yaw_files[(m, e)])
+        if fit.with_orientation is not None:
+            orient_files[(m, e)] = out / f"{e}--{m}--orientation.json"
+            save_scale_calibration(fit.with_orientation, orient_files[(m, e)])
     rows: dict[tuple[str, str], dict] = {}
     rows_yaw: dict[tuple[str, str], dict] = {}
+    rows_orient: dict[tuple[str, str], dict] = {}
     for m in materials:
         group = [p for p, n in zip(scenes, names) if material_of[n] == m]
-        for tag, found, into in (("", files, rows), ("yaw-", yaw_files, rows_yaw)):
+        for tag, found, into in (
+            ("", files, rows),
+            ("yaw-", yaw_files, rows_yaw),
+            ("orientation-", orient_files, rows_orient),
+        ):
             with_cal = sorted(e for (mat, e) in found if mat == m)
             if not group or not with_cal:
                 continue
@@ -293,7 +366,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
             )
             for r in res.rows:
                 into[(_scene_name(r), r["estimator"])] = r
-    return rows, rows_yaw, fits, spins
+    return rows, rows_yaw, rows_orient, fits, spins
 
 
 def _steps(row) -> int:

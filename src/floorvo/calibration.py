@@ -25,11 +25,39 @@ floor-dependent share of each turn too much or too little (0.39 % too little on 
 wood floor, 0.3 % too much on concrete; BENCHMARKS.md, "The turn error"), which on a turning
 run swings the rest of the path and which the translation's scales cannot take out.
 
-File (JSON): ``{"kind": "floorvo scale calibration", "version": 2, "scale_x": .., "scale_y": ..,
+On a grained floor the scales depend on how the grain lies under the rig's lights. The
+shading the grazing light casts in the grain's grooves depends on the angle between the grain
+and the light, and the light turns with the camera: the rendered wood floor's picture reads
+each turn 0.7 % short where its grain lies along the light (camera x) and 0.1 % long across
+it, and each step along x 0.02 % long along the grain and 0.18 % across it (BENCHMARKS.md,
+"Wood: the turn and the step depend on the grain's angle to the lights"). A spin over part
+of a turn, or a straight run at one heading, gives one average of that; a path that turns
+through other angles is measured otherwise. Where the calibration runs show it, each scale
+is a function of the step's texture orientation ``theta`` (the floor's dominant gradient
+direction in the image, :func:`floorvo.imaging.texture_orientation`, the mean of the step's
+two frames)::
+
+    scale_a(theta) = scale_a + a_cos2 cos(2 theta) + a_sin2 sin(2 theta)
+
+(period 180 degrees: the grain is an axis), fitted by least squares like the constant
+(regressors ``u``, ``u cos 2 theta``, ``u sin 2 theta`` for the true step component ``u``),
+and only where the runs' frames have a direction (mean coherence at least
+:data:`ORIENTATION_MIN_COHERENCE`: a grain, not the light's own direction), where ``theta``
+turned over the axis's steps (their doubled-angle resultant, weighted by ``u^2``, at most
+:data:`ORIENTATION_MAX_RESULTANT`, about 30 degrees of turn) and where the two terms are
+significant (their chi-square, from the fit's residual, at least :data:`ORIENTATION_MIN_CHI2`:
+p < 0.001). Otherwise they are 0 and the scale is the constant, as before. A run applies them
+with each step's ``theta`` (:func:`floorvo.runner.run_frames`). The runs of ``floorvo
+calibrate`` for them: straight runs at three headings over the floor (0, 60 and 120
+degrees) for the translation, a spin for the yaw.
+
+File (JSON): ``{"kind": "floorvo scale calibration", "version": 3, "scale_x": .., "scale_y": ..,
 "observed_x": bool, "observed_y": bool, "travel_x_mm": .., "travel_y_mm": .., "steps": N,
 "estimator": NAME, "run": PATH, "sequence": PATH, "scale_yaw": .., "observed_yaw": bool,
-"turn_deg": ..}``; version 1 (no yaw: ``scale_yaw`` 1) is read too. Several runs: ``run`` and
-``sequence`` list them, separated by ``"; "``.
+"turn_deg": .., "x_cos2": .., "x_sin2": .., "y_cos2": .., "y_sin2": .., "yaw_cos2": ..,
+"yaw_sin2": .., "orientation_coherence": ..}``; versions 1 (no yaw: ``scale_yaw`` 1) and 2 (no
+orientation terms: 0) are read too. Several runs: ``run`` and ``sequence`` list them,
+separated by ``"; "``.
 """
 
 from __future__ import annotations
@@ -45,9 +73,11 @@ import numpy as np
 from floorvo.config import Rule
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import invert_T, rot_z, yaw_of_R, yaws_of_T
+from floorvo.imaging import mean_orientation, texture_orientation
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import associate
-from floorvo.scoring import ok_step_poses_of_run, read_run_and_groundtruth
+from floorvo.scoring import ok_step_frames_of_run, ok_step_poses_of_run, read_run_and_groundtruth
+from floorvo.sequence import Sequence
 
 __all__ = [
     "ScaleCalibration",
@@ -60,12 +90,22 @@ __all__ = [
 ]
 
 KIND = "floorvo scale calibration"
-VERSION = 2
-#: The file versions this floorvo reads (1: no yaw scale).
-READABLE_VERSIONS = (1, 2)
+VERSION = 3
+#: The file versions this floorvo reads (1: no yaw scale; 2: no texture-orientation terms).
+READABLE_VERSIONS = (1, 2, 3)
 #: Scales outside this range are refused when a file is read (a 10 % scale error is not a
 #: calibration, it is a wrong camera height or a broken run).
 SCALE_RANGE = (0.9, 1.1)
+#: The texture-orientation terms (module docstring) are fitted only on frames whose texture has
+#: a direction this coherent on average (:func:`floorvo.imaging.texture_orientation`: the rendered
+#: wood floor 0.9; concrete, vinyl, asphalt 0.2-0.4, whose direction is the light's) ...
+ORIENTATION_MIN_COHERENCE = 0.5
+#: ... whose orientation turned over the axis's steps: the u^2-weighted resultant of exp(2i theta)
+#: at most this (sin(d)/d for orientations spread evenly over d: 0.95 is about 31 degrees) ...
+ORIENTATION_MAX_RESULTANT = 0.95
+#: ... and where the two terms are significant: their chi-square (2 degrees of freedom) at least this (p < 0.001).
+ORIENTATION_MIN_CHI2 = 13.8
+_AXES = ("x", "y", "yaw")
 
 
 @dataclass(frozen=True)
@@ -87,9 +127,33 @@ class ScaleCalibration:
     scale_yaw: float = 1.0
     observed_yaw: bool = False
     turn_deg: float = 0.0
+    x_cos2: float = 0.0
+    x_sin2: float = 0.0
+    y_cos2: float = 0.0
+    y_sin2: float = 0.0
+    yaw_cos2: float = 0.0
+    yaw_sin2: float = 0.0
+    orientation_coherence: float = 0.0
 
     def to_dict(self) -> dict:
         return {"kind": KIND, "version": VERSION, **asdict(self)}
+
+    @property
+    def uses_orientation(self) -> bool:
+        """Whether a scale depends on the step's texture orientation (a term is not 0): the run must give each step's."""
+        return any(getattr(self, f"{a}_{t}") != 0.0 for a in _AXES for t in ("cos2", "sin2"))
+
+    def scales(self, theta_rad: float | None = None) -> tuple[float, float, float]:
+        """``(scale_x, scale_y, scale_yaw)`` of a step whose texture orientation is ``theta_rad``
+        (module docstring); None: the constants, allowed only without orientation terms."""
+        if not self.uses_orientation:
+            return self.scale_x, self.scale_y, self.scale_yaw
+        if theta_rad is None:
+            raise ValueError("this scale calibration depends on the texture orientation: give the step's theta_rad")
+        c, s = math.cos(2.0 * theta_rad), math.sin(2.0 * theta_rad)
+        return tuple(
+            getattr(self, f"scale_{a}") + getattr(self, f"{a}_cos2") * c + getattr(self, f"{a}_sin2") * s for a in _AXES
+        )
 
 
 def _steps(T: np.ndarray) -> np.ndarray:
@@ -98,43 +162,87 @@ def _steps(T: np.ndarray) -> np.ndarray:
 
 
 def fit_scale_calibration(
-    T_true: np.ndarray, T_est: np.ndarray, min_travel_mm: float = 10.0, min_turn_deg: float = 10.0
+    T_true: np.ndarray,
+    T_est: np.ndarray,
+    min_travel_mm: float = 10.0,
+    min_turn_deg: float = 10.0,
+    theta_rad: np.ndarray | None = None,
+    coherence: float = 0.0,
 ) -> ScaleCalibration:
     """Fit per-axis scales (and the yaw's) from corresponding poses ``T_true``, ``T_est`` (N, 4, 4), mm.
 
     The poses must be paired (row i of both at the same time); steps are taken between
-    consecutive rows, in the camera frame of the earlier one.
+    consecutive rows, in the camera frame of the earlier one. ``theta_rad`` (N-1,): each step's
+    texture orientation, with ``coherence`` the frames' mean coherence, for the orientation
+    terms (module docstring); None: constants only.
     """
     T_true, T_est = np.asarray(T_true, float), np.asarray(T_est, float)
     if T_true.shape != T_est.shape or T_true.ndim != 3 or len(T_true) < 2:
         raise SequenceError(
             f"scale calibration: needs at least 2 paired poses, got {len(T_true)} true and {len(T_est)} estimated"
         )
-    return _fit_steps(_steps(T_true), _steps(T_est), min_travel_mm, min_turn_deg)
+    return _fit_steps(_steps(T_true), _steps(T_est), min_travel_mm, min_turn_deg, theta_rad, coherence)
 
 
-def _fit_steps(G: np.ndarray, E: np.ndarray, min_travel_mm: float, min_turn_deg: float = 10.0) -> ScaleCalibration:
+def _fit_steps(
+    G: np.ndarray,
+    E: np.ndarray,
+    min_travel_mm: float,
+    min_turn_deg: float = 10.0,
+    theta_rad: np.ndarray | None = None,
+    coherence: float = 0.0,
+) -> ScaleCalibration:
     """The least-squares scales of estimated over true steps ``E``, ``G`` (K, 4, 4), mm: per
-    camera axis of their translations, and of their yaw changes."""
+    camera axis of their translations, and of their yaw changes; with the steps' texture
+    orientations ``theta_rad`` (K,) and the frames' mean ``coherence``, the orientation terms
+    where they are observed (module docstring)."""
     for name, value, unit in (("--min-travel-mm", min_travel_mm, "mm"), ("--min-turn-deg", min_turn_deg, "deg")):
         problem = Rule(min=0.0, unit=unit).violation(float(value))
         if problem:  # NaN left every axis 'not observed' at scale 1, exit 0
             raise ConfigError(f"{name} = {value} {unit}: {problem}")
-    g, e = G[:, :3, 3], E[:, :3, 3]
-    out: dict[str, Any] = {}
-    for k, axis in enumerate("xy"):
-        travel = float(np.abs(g[:, k]).sum())
-        den = float(g[:, k] @ g[:, k])
-        observed = travel >= min_travel_mm and den > 0
-        scale = float(e[:, k] @ g[:, k]) / den if observed else 1.0
-        out[f"scale_{axis}"], out[f"observed_{axis}"], out[f"travel_{axis}_mm"] = scale, observed, travel
-    yaw_g, yaw_e = np.degrees(yaws_of_T(G)), np.degrees(yaws_of_T(E))
-    turn = float(np.abs(yaw_g).sum())
-    den = float(yaw_g @ yaw_g)
-    observed = turn >= min_turn_deg and den > 0
-    out["scale_yaw"] = float(yaw_e @ yaw_g) / den if observed else 1.0
-    out["observed_yaw"], out["turn_deg"] = observed, turn
+    true_by_axis = {"x": G[:, 0, 3], "y": G[:, 1, 3], "yaw": np.degrees(yaws_of_T(G))}
+    est_by_axis = {"x": E[:, 0, 3], "y": E[:, 1, 3], "yaw": np.degrees(yaws_of_T(E))}
+    with_orientation = theta_rad is not None and coherence >= ORIENTATION_MIN_COHERENCE
+    out: dict[str, Any] = {"orientation_coherence": float(coherence) if theta_rad is not None else 0.0}
+    for axis in _AXES:
+        u, v = true_by_axis[axis], est_by_axis[axis]
+        amount = float(np.abs(u).sum())
+        den = float(u @ u)
+        observed = amount >= (min_turn_deg if axis == "yaw" else min_travel_mm) and den > 0
+        out[f"scale_{axis}"] = float(v @ u) / den if observed else 1.0
+        out[f"observed_{axis}"] = observed
+        out["turn_deg" if axis == "yaw" else f"travel_{axis}_mm"] = amount
+        if observed and with_orientation:
+            terms = _orientation_terms(u, v, np.asarray(theta_rad, float))
+            if terms is not None:
+                out[f"scale_{axis}"], out[f"{axis}_cos2"], out[f"{axis}_sin2"] = terms
     return ScaleCalibration(steps=len(G), **out)
+
+
+def _orientation_terms(u: np.ndarray, v: np.ndarray, theta_rad: np.ndarray) -> tuple[float, float, float] | None:
+    """``(constant, cos2, sin2)`` of ``v = u (c + a cos 2 theta + b sin 2 theta)`` by least squares
+    over the steps (K,), or None where the steps do not observe the terms: theta did not turn
+    (resultant over :data:`ORIENTATION_MAX_RESULTANT`), too few steps, or the terms are not
+    significant (chi-square under :data:`ORIENTATION_MIN_CHI2`)."""
+    w = u * u
+    if len(u) < 6 or float(w.sum()) <= 0:
+        return None
+    resultant = abs(complex(np.sum(w * np.exp(2j * theta_rad)))) / float(w.sum())
+    if resultant > ORIENTATION_MAX_RESULTANT:
+        return None
+    X = np.column_stack([u, u * np.cos(2 * theta_rad), u * np.sin(2 * theta_rad)])
+    coef, *_ = np.linalg.lstsq(X, v, rcond=None)
+    r = v - X @ coef
+    dof = len(u) - 3
+    sigma2 = float(r @ r) / dof if dof > 0 else 0.0
+    XtX = X.T @ X
+    if sigma2 <= 0 or np.linalg.cond(XtX) > 1e12:
+        return None
+    cov = sigma2 * np.linalg.inv(XtX)
+    chi2 = float(coef[1:] @ np.linalg.solve(cov[1:, 1:], coef[1:]))
+    if chi2 < ORIENTATION_MIN_CHI2:
+        return None
+    return float(coef[0]), float(coef[1]), float(coef[2])
 
 
 def calibrate_run(
@@ -143,6 +251,7 @@ def calibrate_run(
     max_diff_s: float = 0.01,
     min_travel_mm: float = 10.0,
     min_turn_deg: float = 10.0,
+    orientation: bool = True,
 ) -> ScaleCalibration:
     """Fit the scales of ``RUN/trajectory.txt`` against ``SEQ/groundtruth.txt`` (or a TUM file).
 
@@ -161,24 +270,38 @@ def calibrate_runs(
     max_diff_s: float = 0.01,
     min_travel_mm: float = 10.0,
     min_turn_deg: float = 10.0,
+    orientation: bool = True,
 ) -> ScaleCalibration:
     """One calibration fitted on the steps of several ``(run folder, sequence)`` pairs together
     (each as :func:`calibrate_run`): a straight run for the translation's scales and a turning
-    one for the yaw's, say. The runs must be of one estimator (``result.json``)."""
+    one for the yaw's, say. The runs must be of one estimator (``result.json``). The
+    texture-orientation terms (``orientation``) need every run's step frames (``timing.csv``)
+    and frames (a sequence folder, not a bare ground-truth file); without them, constants only."""
     if not runs:
         raise SequenceError("scale calibration: no run given")
     G, E, names = [], [], set()
+    thetas: list[np.ndarray] | None = [] if orientation else None
+    coherences: list[float] = []
     for run_dir, seq_dir in runs:
-        g, e, estimator = _run_steps(Path(run_dir), Path(seq_dir), max_diff_s)
+        g, e, estimator, frames = _run_steps(Path(run_dir), Path(seq_dir), max_diff_s)
         G.append(g)
         E.append(e)
         names.add(estimator)
+        if thetas is not None:
+            orient = None if frames is None else _step_orientations(Path(seq_dir), *frames)
+            if orient is None:
+                thetas = None  # a run whose steps' frames are unknown or not there: no orientation terms
+            else:
+                thetas.append(orient[0])
+                coherences.append(orient[1])
     if len(names) > 1:
         raise SequenceError(
             f"scale calibration: the runs are of different estimators ({', '.join(sorted(names))}); "
             "a calibration is of one estimator on one rig"
         )
-    cal = _fit_steps(np.concatenate(G), np.concatenate(E), min_travel_mm, min_turn_deg)
+    theta = None if thetas is None else np.concatenate(thetas)
+    coherence = float(np.average(coherences, weights=[len(g) for g in G])) if theta is not None else 0.0
+    cal = _fit_steps(np.concatenate(G), np.concatenate(E), min_travel_mm, min_turn_deg, theta, coherence)
     return ScaleCalibration(
         **{
             **asdict(cal),
@@ -189,8 +312,12 @@ def calibrate_runs(
     )
 
 
-def _run_steps(run_dir: Path, seq_dir: Path, max_diff_s: float) -> tuple[np.ndarray, np.ndarray, str]:
-    """The true and estimated steps (K, 4, 4) of a run (:func:`calibrate_run`) and its estimator's name."""
+def _run_steps(
+    run_dir: Path, seq_dir: Path, max_diff_s: float
+) -> tuple[np.ndarray, np.ndarray, str, tuple[np.ndarray, np.ndarray] | None]:
+    """The true and estimated steps (K, 4, 4) of a run (:func:`calibrate_run`), its estimator's
+    name, and each step's sequence frames ``(from (K,), to (K,))`` (None: unknown, a run without
+    ``timing.csv``, or a bare ground-truth file)."""
     gt, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
     i_ref, i_est = associate(t_ref, run.timestamps_s, max_diff_s)
     if len(i_ref) < 2:
@@ -198,14 +325,30 @@ def _run_steps(run_dir: Path, seq_dir: Path, max_diff_s: float) -> tuple[np.ndar
     estimator = str(run.result.get("estimator", ""))
     poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
     if poses is None:
-        return _steps(T_ref[i_ref]), _steps(run.T_world_cam[i_est]), estimator
+        return _steps(T_ref[i_ref]), _steps(run.T_world_cam[i_est]), estimator, None
     A, A_from, B = poses
     g = invert_T(A_from) @ A[1:]
     e = invert_T(B[:-1]) @ B[1:]
     known = np.isfinite(g).all(axis=(1, 2))
     if known.sum() < 1:
         raise SequenceError(f"{run_dir}: no tracked step has a true pose at both ends in {gt}")
-    return g[known], e[known], estimator
+    frames = ok_step_frames_of_run(run) if (seq_dir / "sequence.json").is_file() else None
+    if frames is not None:
+        frames = (frames[0][known], frames[1][known])
+    return g[known], e[known], estimator, frames
+
+
+def _step_orientations(seq_dir: Path, frm: np.ndarray, to: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Each step's texture orientation (K,) rad (the mean of its two frames',
+    :func:`floorvo.imaging.mean_orientation`) and the frames' mean coherence; None for a sequence
+    that holds no frames (its ground truth only). A frame missing among others, or unreadable, is
+    an error (:meth:`floorvo.sequence.Sequence.image`)."""
+    seq = Sequence.open(seq_dir)
+    if not any(seq.image_path(int(i)).is_file() for i in frm[:1]):
+        return None
+    per_frame = {int(i): texture_orientation(seq.image(int(i))) for i in np.unique(np.concatenate([frm, to]))}
+    theta = np.array([mean_orientation(per_frame[int(a)][0], per_frame[int(b)][0]) for a, b in zip(frm, to)])
+    return theta, float(np.mean([c for _, c in per_frame.values()]))
 
 
 def save_scale_calibration(cal: ScaleCalibration, path: str | os.PathLike) -> None:
@@ -246,6 +389,17 @@ def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None
             raise ConfigError(
                 f"{path}: scale_{axis} = {shown(v)} must be a number in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
             )
+    for axis in _AXES:
+        terms = [d.get(f"{axis}_{t}", 0.0) for t in ("cos2", "sin2")]
+        for t, v in zip(("cos2", "sin2"), terms):
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise ConfigError(f"{path}: {axis}_{t} = {shown(v)} must be a finite number")
+        low, high = d.get(f"scale_{axis}", 1.0) - math.hypot(*terms), d.get(f"scale_{axis}", 1.0) + math.hypot(*terms)
+        if low < SCALE_RANGE[0] or high > SCALE_RANGE[1]:
+            raise ConfigError(
+                f"{path}: scale_{axis} with its orientation terms spans [{low:.4f}, {high:.4f}]; it must stay in "
+                f"[{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
+            )
     cal = ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
     if estimator is not None and cal.estimator and cal.estimator != estimator:
         raise ConfigError(
@@ -255,14 +409,16 @@ def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None
     return cal
 
 
-def apply_scale(T_prev_cur: np.ndarray, cal: ScaleCalibration) -> np.ndarray:
+def apply_scale(T_prev_cur: np.ndarray, cal: ScaleCalibration, theta_rad: float | None = None) -> np.ndarray:
     """The step ``T_prev_cur`` (4, 4), mm, with its camera-frame x, y translation divided by the
-    scales, and its yaw by ``scale_yaw`` (the rotation turned about the previous camera's z axis
-    by yaw / scale_yaw - yaw; roll and pitch kept)."""
+    scales, and its yaw by the yaw's (the rotation turned about the previous camera's z axis
+    by yaw / scale_yaw - yaw; roll and pitch kept). ``theta_rad``: the step's texture orientation
+    (:meth:`ScaleCalibration.scales`), needed when the calibration has orientation terms."""
+    scale_x, scale_y, scale_yaw = cal.scales(theta_rad)
     T = np.array(T_prev_cur, dtype=float, copy=True)
-    T[0, 3] /= cal.scale_x
-    T[1, 3] /= cal.scale_y
-    if cal.scale_yaw != 1.0:
+    T[0, 3] /= scale_x
+    T[1, 3] /= scale_y
+    if scale_yaw != 1.0:
         yaw = yaw_of_R(T[:3, :3])
-        T[:3, :3] = rot_z(yaw / cal.scale_yaw - yaw) @ T[:3, :3]
+        T[:3, :3] = rot_z(yaw / scale_yaw - yaw) @ T[:3, :3]
     return T

@@ -12,7 +12,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["flatfield_gain", "illumination_corrected", "impulses_replaced", "to_uint8_contrast", "local_contrast_uint8"]
+__all__ = [
+    "flatfield_gain",
+    "illumination_corrected",
+    "impulses_replaced",
+    "to_uint8_contrast",
+    "local_contrast_uint8",
+    "texture_orientation",
+    "mean_orientation",
+]
 
 
 def flatfield_gain(flatfield: np.ndarray) -> np.ndarray:
@@ -122,3 +130,42 @@ def local_contrast_uint8(image: np.ndarray, sigma_px: float = 6.0, blur_downscal
     step = max(1, int(blur_downscale))
     eps = 0.05 * float(np.median(sd[::step, ::step])) + 1e-6
     return np.clip(128.0 + 40.0 * hp / (sd + eps), 0, 255).astype(np.uint8)
+
+
+def texture_orientation(image: np.ndarray, border_px: int = 8) -> tuple[float, float]:
+    """The dominant gradient orientation of a floor frame's texture and how dominant it is.
+
+    Returns ``(theta_rad, coherence)``: ``theta_rad`` in (-pi/2, pi/2], the direction of the
+    texture's brightness gradients (an axis, not a vector: theta and theta + pi are one) measured
+    in the image from its x axis (columns) toward its y axis (rows, downward); ``coherence`` in
+    [0, 1]: 0 for a texture without a direction, 1 for parallel stripes. The structure tensor
+    ``J = mean(grad grad^T)`` of the frame halved (area averaging) with its LED falloff divided
+    out (:func:`illumination_corrected`, its own blur), over all but ``border_px`` px of the
+    halved frame's edges: ``theta = atan2(2 Jxy, Jxx - Jyy) / 2``, ``coherence = sqrt((Jxx -
+    Jyy)^2 + 4 Jxy^2) / (Jxx + Jyy)`` (Bigun and Granlund's), the gradients by Scharr's kernel. A grained floor (wood: 0.9) turns
+    theta with the floor; under the rig's grazing light a floor without grain (concrete, vinyl,
+    asphalt: 0.2-0.4) shows the light's own direction, which turns with the camera: theta stays
+    put. ``image``: (H, W) mono, any bit depth. 0.9 ms of CPU on a 648x494 frame.
+    """
+    img = np.asarray(image, dtype=np.float32)
+    h, w = img.shape
+    half = cv2.resize(img, (max(1, w // 2), max(1, h // 2)), interpolation=cv2.INTER_AREA)
+    a = illumination_corrected(half)
+    gx = cv2.Scharr(a, cv2.CV_32F, 1, 0)  # Scharr's kernel: within 0.3 degrees of any direction (3x3 Sobel: 4)
+    gy = cv2.Scharr(a, cv2.CV_32F, 0, 1)
+    b = int(border_px)
+    if min(a.shape) > 2 * b + 2:
+        gx, gy = gx[b:-b, b:-b], gy[b:-b, b:-b]
+    jxx, jyy, jxy = float(np.mean(gx * gx)), float(np.mean(gy * gy)), float(np.mean(gx * gy))
+    trace = jxx + jyy
+    if trace <= 0:
+        return 0.0, 0.0
+    return 0.5 * float(np.arctan2(2.0 * jxy, jxx - jyy)), float(np.hypot(jxx - jyy, 2.0 * jxy) / trace)
+
+
+def mean_orientation(theta_a_rad: float | np.ndarray, theta_b_rad: float | np.ndarray) -> float | np.ndarray:
+    """The mean of two axis orientations (rad; theta and theta + pi are one, :func:`texture_orientation`),
+    taken on the doubled-angle circle: in (-pi/2, pi/2]; the mean of -89 and +89 degrees is 90, not 0."""
+    z = np.exp(2j * np.asarray(theta_a_rad, float)) + np.exp(2j * np.asarray(theta_b_rad, float))
+    out = 0.5 * np.angle(z)
+    return float(out) if np.ndim(out) == 0 else out

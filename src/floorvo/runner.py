@@ -61,6 +61,7 @@ from floorvo.geometry import (
     tilted_camera_T,
     yaw_of_R,
 )
+from floorvo.imaging import mean_orientation, texture_orientation
 from floorvo.metrics import WRONG_STEP_FRACTION, WRONG_STEP_MM, lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
@@ -254,6 +255,10 @@ def run_frames(
     attitude = False
     levelled = bool(getattr(estimator, "levels_with_attitude", False))
     measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
+    # A calibration whose scales depend on the texture orientation: each frame's, and that of the
+    # frame the next step is measured from (floorvo.calibration).
+    orient = scale_calibration is not None and scale_calibration.uses_orientation
+    theta_from: float | None = None
     state = estimator.start()
     index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
     nan = float("nan")
@@ -270,6 +275,7 @@ def run_frames(
             else:
                 T_chain, attitude = start, True
         res = estimator.step(state, frame)
+        theta = texture_orientation(frame.image)[0] if orient else None
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
         st = res.status
@@ -286,10 +292,16 @@ def run_frames(
             if res.T_prev_cur is None:
                 raise ValueError(f"{name}: frame {frame.index}: status 'ok' without T_prev_cur")
             _check_rigid(res.T_prev_cur, name, frame.index, "T_prev_cur")
-            step = res.T_prev_cur if scale_calibration is None else apply_scale(res.T_prev_cur, scale_calibration)
+            if scale_calibration is None:
+                step = res.T_prev_cur
+            else:
+                step_theta = None if theta is None or theta_from is None else float(mean_orientation(theta_from, theta))
+                step = apply_scale(res.T_prev_cur, scale_calibration, theta if step_theta is None else step_theta)
             if attitude and not levelled:
                 step = _untwisted(step, measured_from, frame.attitude_rad)
             T_chain = T_chain @ step
+        if st in _PLACED or RESTART_NOTE in res.reason:
+            theta_from = theta  # the next step is measured from this frame
         if not attitude:
             T_world = T_chain
         else:

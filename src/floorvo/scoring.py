@@ -60,6 +60,7 @@ __all__ = [
     "ok_step_poses",
     "levelled_restart_poses",
     "ok_step_poses_of_run",
+    "ok_step_frames_of_run",
     "write_score",
 ]
 
@@ -493,6 +494,20 @@ def ok_step_poses_of_run(
     None without ``timing.csv`` frames and statuses."""
     args = _ok_step_args(run, Path(seq_dir), t_ref, T_ref, max_diff_s)
     return None if args is None else ok_step_poses(*args)
+
+
+def ok_step_frames_of_run(run: RunFolder) -> tuple[np.ndarray, np.ndarray] | None:
+    """The sequence frame numbers ``(from (P-1,), to (P-1,))`` of the steps of :func:`ok_step_poses_of_run`:
+    each step into a placed frame and the frame it was measured from; None without ``timing.csv``
+    frames and statuses, or with fewer than 2 placed frames."""
+    statuses = run.statuses
+    if not statuses or not run.timing or "frame" not in run.timing:
+        return None
+    frames = np.asarray(run.timing["frame"], dtype=int)
+    placed, measured_from = _measured_from(statuses, _reasons(run))
+    if len(placed) < 2:
+        return None
+    return frames[measured_from], frames[placed[1:]]
 
 
 def _ok_step_args(run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.ndarray, max_diff_s: float):

@@ -67,3 +67,18 @@ def test_a_lost_or_broken_straight_run_gives_no_calibration(tmp_path):
     broken = hand_run(tmp_path / "c", STRAIGHT, chain_scaled(STRAIGHT, 1.5))
     fit = fit_material_calibration(broken, spin)
     assert fit.straight is None and fit.scale_x_cell() == "none (scale x 1.500 fitted: a broken run)"
+
+
+def test_no_orientation_calibration_without_frames_or_turned_runs(tmp_path):
+    """The texture-orientation calibration needs the turned straight runs and frames to measure
+    the orientation in: hand-made runs of ground truth only get none, and say why; without
+    turned runs there is none to fit (the two constant calibrations as before)."""
+    straight = hand_run(tmp_path / "a", STRAIGHT, chain_scaled(STRAIGHT, 1.003))
+    spin = hand_run(tmp_path / "b", SPIN, chain_scaled(SPIN, 1.0, s_yaw=1.0035))
+    turned = [hand_run(tmp_path / f"t{k}", STRAIGHT, chain_scaled(STRAIGHT, 1.003)) for k in range(2)]
+    fit = fit_material_calibration(straight, spin, turned=turned)
+    assert fit.with_yaw is not None and fit.with_orientation is None
+    assert fit.orientation_why == "no frames to measure the texture orientation in"
+    assert fit.orientation_cell() == "none (no frames to measure the texture orientation in)"
+    fit = fit_material_calibration(straight, spin)
+    assert fit.with_orientation is None and fit.orientation_cell() == "-"

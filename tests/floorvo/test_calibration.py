@@ -9,11 +9,18 @@ import numpy as np
 import pytest
 from tests.floorvo._synth import chain_scaled, hand_run
 
-from floorvo.calibration import ScaleCalibration, apply_scale, fit_scale_calibration, load_scale_calibration
+from floorvo.calibration import (
+    ScaleCalibration,
+    _fit_steps,
+    apply_scale,
+    fit_scale_calibration,
+    load_scale_calibration,
+)
 from floorvo.camera import CameraModel
 from floorvo.cli import main as floorvo_main
 from floorvo.errors import ConfigError
-from floorvo.geometry import T_world_cam_down, invert_T
+from floorvo.estimators.base import StepResult
+from floorvo.geometry import T_world_cam_down, invert_T, make_T, rot_z
 from floorvo.synthetic import write_synthetic_sequence
 from floorvo.tum import read_tum
 
@@ -237,3 +244,168 @@ def test_an_impossible_min_travel_is_refused(tmp_path, capsys, value, words):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--min-travel-mm = {float(value)} mm: {words}" in err
     assert not (tmp_path / "c.json").exists()
+
+
+# --- scales that depend on the floor texture's orientation (a grained floor under the rig's lights)
+
+_TERMS = {"x": (1.0012, 0.0011, -0.0002), "yaw": (0.9971, 0.0047, -0.0008)}  # about what the wood floor shows
+
+
+def _s(axis: str, theta: np.ndarray) -> np.ndarray:
+    c, a, b = _TERMS[axis]
+    return c + a * np.cos(2 * theta) + b * np.sin(2 * theta)
+
+
+def _grained_steps(n: int = 60, noise: float = 0.0, seed: int = 0):
+    """True and estimated steps (n, 4, 4) of a path turning 2 degrees a frame while moving 4 mm along
+    x, its grain orientation theta turning with the floor (-yaw), each step's x and yaw scaled by
+    the orientation's functions (_TERMS); ``noise``: Gaussian noise on the estimates (mm, rad)."""
+    rng = np.random.default_rng(seed)
+    theta = -np.radians(2.0) * np.arange(n) + 0.3
+    G = np.stack([make_T(rot_z(np.radians(2.0)), [4.0, 0.0, 0.0]) for _ in range(n)])
+    E = np.stack(
+        [
+            make_T(
+                rot_z(np.radians(2.0) * _s("yaw", t) + noise * rng.normal()),
+                [4.0 * _s("x", t) + noise * rng.normal(), 0.0, 0.0],
+            )
+            for t in theta
+        ]
+    )
+    return G, E, theta
+
+
+def test_fit_recovers_scales_that_depend_on_the_texture_orientation_and_undoes_them():
+    """Steps whose x and yaw scales are functions of the step's texture orientation (120 degrees of
+    it turned): the least squares gives back the constant and both terms of each, and dividing
+    the scales at each step's orientation out gives back every true step."""
+    G, E, theta = _grained_steps()
+    cal = _fit_steps(G, E, 10.0, 10.0, theta, coherence=0.9)
+    assert cal.uses_orientation and cal.orientation_coherence == 0.9
+    for axis in ("x", "yaw"):
+        got = (getattr(cal, f"scale_{axis}"), getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
+        np.testing.assert_allclose(got, _TERMS[axis], atol=1e-6)
+    assert (cal.y_cos2, cal.y_sin2) == (0.0, 0.0) and not cal.observed_y
+    for g, e, t in zip(G, E, theta):
+        np.testing.assert_allclose(apply_scale(e, cal, t), g, atol=1e-6)
+    with pytest.raises(ValueError, match="give the step's theta_rad"):
+        apply_scale(E[0], cal)
+
+
+@pytest.mark.parametrize(
+    "what",
+    ["no direction", "orientation held", "no dependence", "no orientations"],
+)
+def test_orientation_terms_only_where_the_runs_observe_them(what):
+    """Constants only (as a version-2 calibration) where the frames' texture has no direction
+    (coherence 0.3: the light's own direction), where it did not turn (a straight run: one
+    orientation), where the scales do not depend on it (noise of the size the rendered runs
+    show, no terms: not significant) or where no orientations are given."""
+    G, E, theta = _grained_steps()
+    coherence = 0.9
+    if what == "no direction":
+        coherence = 0.3
+    elif what == "orientation held":
+        theta = np.full_like(theta, 0.3)
+    elif what == "no dependence":
+        _TERMS_SAVED = dict(_TERMS)
+        _TERMS.update({"x": (1.0012, 0.0, 0.0), "yaw": (0.9971, 0.0, 0.0)})
+        try:
+            G, E, theta = _grained_steps(noise=2e-4)
+        finally:
+            _TERMS.update(_TERMS_SAVED)
+    cal = _fit_steps(G, E, 10.0, 10.0, None if what == "no orientations" else theta, coherence)
+    assert not cal.uses_orientation
+    assert cal.scale_x == pytest.approx(np.mean(E[:, 0, 3] / 4.0), rel=1e-3)
+
+
+def test_an_orientation_calibration_round_trips_and_an_impossible_one_is_refused(tmp_path):
+    from floorvo.calibration import save_scale_calibration
+
+    G, E, theta = _grained_steps()
+    cal = _fit_steps(G, E, 10.0, 10.0, theta, coherence=0.9)
+    save_scale_calibration(cal, tmp_path / "c.json")
+    back = load_scale_calibration(tmp_path / "c.json")
+    assert back == cal and back.uses_orientation and json.loads((tmp_path / "c.json").read_text())["version"] == 3
+    # A version-2 file (constants only) is read with no terms.
+    v2 = {k: v for k, v in cal.to_dict().items() if not k.endswith(("cos2", "sin2")) and k != "orientation_coherence"}
+    (tmp_path / "v2.json").write_text(json.dumps({**v2, "version": 2}))
+    assert not load_scale_calibration(tmp_path / "v2.json").uses_orientation
+    # Terms that take a scale out of [0.9, 1.1] at some orientation: refused in one line.
+    (tmp_path / "bad.json").write_text(json.dumps({**cal.to_dict(), "yaw_cos2": 0.12}))
+    with pytest.raises(ConfigError, match=r"scale_yaw with its orientation terms spans \[0\.87.*must stay in"):
+        load_scale_calibration(tmp_path / "bad.json")
+    (tmp_path / "nan.json").write_text(json.dumps({**cal.to_dict(), "x_sin2": "a"}))
+    with pytest.raises(ConfigError, match=r"x_sin2 = 'a' must be a finite number"):
+        load_scale_calibration(tmp_path / "nan.json")
+
+
+class _Replay:
+    """An estimator that replays one given StepResult per frame."""
+
+    name = "replay"
+    requires = frozenset()
+
+    def __init__(self, script):
+        self.script = script
+
+    def start(self):
+        return {"k": 0}
+
+    def step(self, state, frame):
+        state["k"] += 1
+        return self.script[state["k"] - 1]
+
+
+def _stripes(theta_rad: float, shape=(124, 162), period_px: float = 12.0) -> np.ndarray:
+    y, x = np.mgrid[: shape[0], : shape[1]].astype(float)
+    s = np.sin(2 * np.pi * (x * np.cos(theta_rad) + y * np.sin(theta_rad)) / period_px)
+    return np.clip(110 * (1 + 0.5 * s), 0, 255).astype(np.uint8)
+
+
+def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tmp_path, capsys):
+    """End to end on a striped floor turning under the camera: ``floorvo calibrate`` on a run
+    whose x and yaw scales depend on the stripes' orientation measures it in the sequence's
+    frames and fits both terms; the runner, given that file, measures each frame's orientation
+    and divides the scales at it out of the steps: the run's path is the true one."""
+    from tests.floorvo._synth import blank_meta
+
+    from floorvo.runner import run_frames, sequence_frames
+    from floorvo.sequence import Sequence, SequenceWriter
+    from floorvo.tum import write_tum
+
+    G, E, theta = _grained_steps(n=40)
+    theta_frames = np.concatenate([[theta[0] + np.radians(1.0)], theta - np.radians(1.0)])  # steps: their means
+    T_true = np.stack([np.eye(4)] + [np.eye(4)] * 40)
+    T_est = T_true.copy()
+    for k in range(40):
+        T_true[k + 1] = T_true[k] @ G[k]
+        T_est[k + 1] = T_est[k] @ E[k]
+    seq, run = tmp_path / "seq", tmp_path / "run"
+    with SequenceWriter(seq, blank_meta(CAM, 41)) as w:
+        for i, t in enumerate(theta_frames):
+            w.write_frame(i, _stripes(t))
+    ts = np.arange(41) / 30.0
+    write_tum(seq / "groundtruth.txt", ts, T_true)
+    run.mkdir()
+    write_tum(run / "trajectory.txt", ts, T_est)
+    (run / "timing.csv").write_text(
+        "frame,total_ms,status,reason\n" + "".join(f"{i},1.0,{'init' if i == 0 else 'ok'},\n" for i in range(41))
+    )
+    (run / "result.json").write_text(json.dumps({"estimator": "phase-corr"}))
+    assert floorvo_main(["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "c.json")]) == 0
+    assert "cos 2theta" in capsys.readouterr().out
+    cal = load_scale_calibration(tmp_path / "c.json")
+    assert cal.uses_orientation and cal.orientation_coherence > 0.9
+    np.testing.assert_allclose([cal.scale_yaw, cal.yaw_cos2, cal.yaw_sin2], _TERMS["yaw"], atol=2e-4)
+    s = Sequence.open(seq)
+    steps = [StepResult("init")] + [StepResult("ok", e) for e in E]
+    res = run_frames(_Replay(steps), sequence_frames(s, range(41)), T_world_start=np.eye(4), scale_calibration=cal)
+    np.testing.assert_allclose(res.T_world_cam[-1][:3, 3], T_true[-1][:3, 3], atol=0.02)  # mm, after 160 mm
+    plain = run_frames(_Replay(steps), sequence_frames(s, range(41)), T_world_start=np.eye(4))
+    assert np.linalg.norm(plain.T_world_cam[-1][:3, 3] - T_true[-1][:3, 3]) > 0.2
+    # --no-orientation: constants only, no frame read.
+    assert (
+        floorvo_main(["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "k.json"), "--no-orientation"]) == 0
+    )
+    assert not load_scale_calibration(tmp_path / "k.json").uses_orientation

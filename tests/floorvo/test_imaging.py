@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from floorvo.estimators.base import frame_is_blank
-from floorvo.imaging import flatfield_gain, illumination_corrected, impulses_replaced, local_contrast_uint8
+from floorvo.imaging import (
+    flatfield_gain,
+    illumination_corrected,
+    impulses_replaced,
+    local_contrast_uint8,
+    mean_orientation,
+    texture_orientation,
+)
 
 
 def test_flatfield_gain_corrects_as_dividing_by_the_flat_field():
@@ -75,3 +83,42 @@ def test_impulses_replaced_changes_only_the_hot_pixels():
     assert out[10, 20] == neighbours[4]  # the 3 x 3 median
     assert out[10, 20] == pytest.approx(img[10, 20], rel=0.02)
     np.testing.assert_array_equal(impulses_replaced(img), img)
+
+
+def _grating(angle_rad: float, shape=(124, 162), period_px: float = 9.0, falloff: bool = True) -> np.ndarray:
+    """uint8 stripes whose brightness varies along ``angle_rad`` (from the image x axis toward y, rows
+    down), under an LED-like falloff that rises toward the left edge."""
+    y, x = np.mgrid[: shape[0], : shape[1]].astype(float)
+    s = np.sin(2 * np.pi * (x * np.cos(angle_rad) + y * np.sin(angle_rad)) / period_px)
+    light = 1.5 - x / shape[1] if falloff else 1.0
+    return np.clip(100 * light * (1 + 0.4 * s), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("angle_deg", [-80.0, -30.0, 0.0, 25.0, 60.0, 89.0])
+def test_texture_orientation_of_stripes_is_their_gradient_direction(angle_deg):
+    """Stripes whose brightness varies along a direction: that direction (mod 180 degrees),
+    within a degree, the LED falloff divided out, and a coherence near 1."""
+    theta, coherence = texture_orientation(_grating(np.radians(angle_deg)))
+    err = (np.degrees(theta) - angle_deg + 90.0) % 180.0 - 90.0
+    assert abs(err) < 1.0 and coherence > 0.9
+
+
+def test_texture_orientation_turns_with_the_picture_and_has_no_direction_in_noise():
+    """Turning a textured picture by 30 degrees about its centre turns the orientation by 30
+    (rows down: a positive cv2 angle turns the content the other way); white noise has none."""
+    rng = np.random.default_rng(0)
+    base = _grating(np.radians(10.0), shape=(300, 300), falloff=False).astype(np.float32)
+    base += rng.normal(0, 10, base.shape).astype(np.float32)
+    R = cv2.getRotationMatrix2D((149.5, 149.5), 30.0, 1.0)
+    turned = cv2.warpAffine(base, R, (300, 300), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    a, _ = texture_orientation(base[60:240, 60:240])
+    b, _ = texture_orientation(turned[60:240, 60:240])
+    assert np.degrees(a - b) == pytest.approx(30.0, abs=1.0)
+    _, coherence = texture_orientation(rng.normal(128, 20, (124, 162)).clip(0, 255).astype(np.uint8))
+    assert coherence < 0.1
+
+
+def test_mean_orientation_is_taken_on_the_doubled_circle():
+    """Axes, not vectors: -89 and +89 degrees average to 90 (not 0); 10 and 30 to 20."""
+    assert np.degrees(mean_orientation(np.radians(-89.0), np.radians(89.0))) == pytest.approx(90.0)
+    assert np.degrees(mean_orientation(np.radians(10.0), np.radians(30.0))) == pytest.approx(20.0)

@@ -10,25 +10,52 @@ fits both calibrations and says, in one short line, why one of them is missing: 
 run lost (a featureless floor) or its scale out of range (no calibration at all), or the spin
 lost, turned too little in the steps it kept, or its yaw scale out of range (the straight
 run's calibration alone: x and y, the yaw's scale 1).
+
+On a grained floor the scales depend on the grain's angle to the rig's lights
+(:mod:`floorvo.calibration`, the texture-orientation terms). :func:`render_turned_straight`
+renders the material's straight run at other headings over the floor
+(:data:`TURNED_HEADINGS_DEG`: 60 and 120 degrees, the camera turned with its direction of travel),
+and with them :func:`fit_material_calibration` fits a third calibration on the straight runs
+and the spin together with those terms (``with_orientation``), kept only where the runs
+observe them (the floor's texture has a direction that turns with it, and the terms are
+significant): on the shipped floors, wood.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
-from dataclasses import dataclass
+from collections.abc import Sequence as Sequence_
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from floorsim.scene import load_scene, scenes_dir
 from floorsim.simulate import render_sequence
-from floorvo.calibration import SCALE_RANGE, ScaleCalibration, calibrate_run, calibrate_runs
+from floorvo.calibration import (
+    ORIENTATION_MIN_COHERENCE,
+    SCALE_RANGE,
+    ScaleCalibration,
+    calibrate_run,
+    calibrate_runs,
+)
 from floorvo.errors import FloorbenchError
 from floorvo.sequence import Sequence
 
-__all__ = ["SPIN_SCENE", "MaterialCalibration", "fit_material_calibration", "render_spin"]
+__all__ = [
+    "SPIN_SCENE",
+    "TURNED_HEADINGS_DEG",
+    "MaterialCalibration",
+    "fit_material_calibration",
+    "render_spin",
+    "render_turned_straight",
+]
 
 #: The shipped scene a spin over another material is rendered from (``floor.material`` set).
 SPIN_SCENE = "motion/motion_turn_spin_concrete.toml"
+#: The headings (degrees, from the floor's x axis) of the straight runs that observe the
+#: translation's texture-orientation terms, besides the material's own run at 0.
+TURNED_HEADINGS_DEG = (60.0, 120.0)
 
 RunPair = tuple[str | os.PathLike, str | os.PathLike]  # (run folder, sequence folder)
 
@@ -40,6 +67,20 @@ def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike) 
     one of another scene or size is refused in one line."""
     width = Sequence.open(like).camera.width_px
     scene = load_scene(scenes_dir() / SPIN_SCENE, {"floor.material": json.dumps(material)})
+    full = scene.camera_model().width_px
+    return render_sequence(scene, out, scale=None if width == full else width / full)
+
+
+def render_turned_straight(material: str, heading_deg: float, out: str | os.PathLike, like: str | os.PathLike) -> Path:
+    """The material's straight run (``scenes/material_MATERIAL.toml``) with the camera turned to
+    ``heading_deg`` over the floor and travelling along its own x axis, as its run at 0 does, in
+    the sequence folder ``out``, at the frame size of ``like``; reused and resumed as :func:`render_spin`."""
+    width = Sequence.open(like).camera.width_px
+    heading = json.dumps(math.radians(heading_deg))
+    scene = load_scene(
+        scenes_dir() / f"material_{material}.toml",
+        {"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading},
+    )
     full = scene.camera_model().width_px
     return render_sequence(scene, out, scale=None if width == full else width / full)
 
@@ -56,6 +97,17 @@ class MaterialCalibration:
     straight: ScaleCalibration | None
     with_yaw: ScaleCalibration | None
     why: str = ""
+    with_orientation: ScaleCalibration | None = None
+    orientation_why: str = ""
+
+    def orientation_cell(self) -> str:
+        """The texture-orientation calibration's yaw scale at its extremes, or why there is none."""
+        c = self.with_orientation
+        if c is None:
+            return f"none ({self.orientation_why})" if self.orientation_why else "-"
+        amp = math.hypot(c.yaw_cos2, c.yaw_sin2)
+        amp_x = math.hypot(c.x_cos2, c.x_sin2)
+        return f"yaw {c.scale_yaw:.4f} +/- {amp:.4f}, x {c.scale_x:.4f} +/- {amp_x:.4f}"
 
     def scale_x_cell(self) -> str:
         return f"{self.straight.scale_x:.4f}" if self.straight is not None else f"none ({self.why})"
@@ -71,23 +123,50 @@ class MaterialCalibration:
 def _out_of_range(cal: ScaleCalibration, axes: tuple[str, ...]) -> str:
     for axis in axes:
         v = getattr(cal, f"scale_{axis}")
-        if not SCALE_RANGE[0] <= v <= SCALE_RANGE[1]:
-            return f"scale {axis} {v:.3f} fitted: a broken run"
+        amp = math.hypot(getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
+        if not SCALE_RANGE[0] <= v - amp <= v + amp <= SCALE_RANGE[1]:
+            return f"scale {axis} {v:.3f}" + (f" +/- {amp:.3f}" if amp else "") + " fitted: a broken run"
     return ""
 
 
 def fit_material_calibration(
-    straight: RunPair, spin: RunPair | None, min_turn_deg: float = 10.0
+    straight: RunPair, spin: RunPair | None, min_turn_deg: float = 10.0, turned: Sequence_[RunPair] = ()
 ) -> MaterialCalibration:
     """Fit ``straight`` alone and, with ``spin`` (None: no spin over this floor), both together.
 
     The straight run's calibration is kept either way (the x, y column of the suite); the one
     with the yaw only where the spin's steps reported ok turned ``min_turn_deg`` or more and the
     yaw's scale is in :data:`floorvo.calibration.SCALE_RANGE`, else the straight run's stands
-    (x and y, the yaw's scale 1) and ``why`` says why.
+    (x and y, the yaw's scale 1) and ``why`` says why. Both with constant scales. With the
+    ``turned`` straight runs (:func:`render_turned_straight`) and a calibration with the yaw,
+    ``with_orientation`` is fitted on all the runs with the texture-orientation terms, and kept
+    where it has some (else ``orientation_why`` says why not).
     """
+    fit = _fit_constant(straight, spin, min_turn_deg)
+    if not turned or fit.with_yaw is None or spin is None:
+        return fit
     try:
-        cal = calibrate_run(*straight)
+        cal = calibrate_runs([straight, *turned, spin], min_turn_deg=min_turn_deg, orientation=True)
+    except FloorbenchError as exc:
+        return replace(fit, orientation_why=f"a turned straight run lost: {exc}")
+    if not cal.uses_orientation:
+        if cal.orientation_coherence == 0.0:
+            why = "no frames to measure the texture orientation in"
+        elif cal.orientation_coherence < ORIENTATION_MIN_COHERENCE:
+            why = f"texture without a direction (coherence {cal.orientation_coherence:.2f})"
+        else:
+            why = "no significant texture-orientation term"
+        return replace(fit, orientation_why=why)
+    bad = _out_of_range(cal, ("x", "y", "yaw"))
+    if bad:
+        return replace(fit, orientation_why=bad)
+    return replace(fit, with_orientation=cal)
+
+
+def _fit_constant(straight: RunPair, spin: RunPair | None, min_turn_deg: float) -> MaterialCalibration:
+    """:func:`fit_material_calibration`'s two calibrations with constant scales."""
+    try:
+        cal = calibrate_run(*straight, orientation=False)
     except FloorbenchError:  # the run tracked too little (a featureless floor)
         return MaterialCalibration(None, None, "calibration run lost")
     bad = _out_of_range(cal, ("x", "y"))
@@ -96,7 +175,7 @@ def fit_material_calibration(
     if spin is None:
         return MaterialCalibration(cal, None, "no spin over this floor")
     try:
-        both = calibrate_runs([straight, spin], min_turn_deg=min_turn_deg)
+        both = calibrate_runs([straight, spin], min_turn_deg=min_turn_deg, orientation=False)
     except FloorbenchError as exc:
         # The message names the run and sequence folders: the cell needs the reason only.
         text = str(exc).replace(f"{Path(spin[0])}/", "").replace(str(Path(spin[0])), "the run")
