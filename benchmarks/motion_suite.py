@@ -54,7 +54,8 @@ x, y calibrated figures, marked "(x, y only)".
 ``--calibrate --spins DIR --orientation`` fits a third calibration per material and estimator:
 on the straight run, the same run turned to 60 and 120 degrees over the floor
 (:func:`floorsim.bench.material_calibration.render_turned_straight`, rendered into
-``DIR/MATERIAL-heading60`` and ``-heading120`` when missing) and the spin together, with the
+``DIR/MATERIAL-heading60`` and ``-heading120`` when missing) and a spin over 3.5 rad (more
+than half a turn: ``DIR/MATERIAL-spin3.5rad``) together, with the
 scales depending on each step's texture orientation where the runs observe it
 (:mod:`floorvo.calibration`: a grained floor, wood). Where it has such terms the material's
 scenes run a fourth time with it (``OUT/calibration/ESTIMATOR--MATERIAL--orientation.json``)
@@ -76,6 +77,7 @@ import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
 from floorsim.bench.material_calibration import (  # noqa: E402
+    FULL_SPIN_RAD,
     TURNED_HEADINGS_DEG,
     MaterialCalibration,
     fit_material_calibration,
@@ -122,7 +124,7 @@ def main() -> None:
         "--orientation",
         action="store_true",
         help="with --spins: also fit scales that depend on the floor texture's orientation, on straight runs "
-        "turned to 60 and 120 degrees (rendered into DIR/MATERIAL-headingN if missing) and the spin",
+        "turned to 60 and 120 degrees and a spin over 3.5 rad (rendered into DIR if missing)",
     )
     ap.add_argument(
         "--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key (repeatable)"
@@ -301,6 +303,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
             for r in ran.rows:
                 spin_runs[(material_of_spin[str(r["sequence"])], r["estimator"])] = (r["run_dir"], r["sequence"])
         turned_runs: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        full_spin_runs: dict[tuple[str, str], tuple[str, str]] = {}
         if args.orientation and spins:
             turned = {
                 (m, h): render_turned_straight(
@@ -313,19 +316,34 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
                 for h in TURNED_HEADINGS_DEG
             }
             of_seq = {str(seq): m for (m, _), seq in turned.items()}
+            full_spins = {
+                m: render_spin(
+                    m,
+                    args.spins / f"{m}-spin{FULL_SPIN_RAD:g}rad",
+                    next(seq for (mat, _), (_, seq) in straight.items() if mat == m),
+                    FULL_SPIN_RAD,
+                )
+                for m in spins
+            }
+            of_seq.update({str(seq): m for m, seq in full_spins.items()})
             ran = run_bench(
-                list(turned.values()),
+                list(turned.values()) + list(full_spins.values()),
                 sorted({e for (_, e), f in fits.items() if f.straight is not None}),
-                out / "turned-runs",
+                out / "orientation-runs",
                 report=False,
                 estimator_overrides=est_sets,
             )
+            full_of = {str(seq) for seq in full_spins.values()}
             for r in ran.rows:
-                turned_runs.setdefault((of_seq[str(r["sequence"])], r["estimator"]), []).append(
-                    (r["run_dir"], r["sequence"])
-                )
+                key = (of_seq[str(r["sequence"])], r["estimator"])
+                if str(r["sequence"]) in full_of:
+                    full_spin_runs[key] = (r["run_dir"], r["sequence"])
+                else:
+                    turned_runs.setdefault(key, []).append((r["run_dir"], r["sequence"]))
         fits = {
-            key: fit_material_calibration(pair, spin_runs.get(key), turned=turned_runs.get(key, ()))
+            key: fit_material_calibration(
+                pair, spin_runs.get(key), turned=turned_runs.get(key, ()), full_spin=full_spin_runs.get(key)
+            )
             for key, pair in straight.items()
         }
     files: dict[tuple[str, str], Path] = {}

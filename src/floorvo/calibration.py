@@ -44,12 +44,13 @@ two frames)::
 and only where the runs' frames have a direction (mean coherence at least
 :data:`ORIENTATION_MIN_COHERENCE`: a grain, not the light's own direction), where ``theta``
 turned over the axis's steps (their doubled-angle resultant, weighted by ``u^2``, at most
-:data:`ORIENTATION_MAX_RESULTANT`, about 30 degrees of turn) and where the two terms are
+:data:`ORIENTATION_MAX_RESULTANT`: spread over about 108 of its 180 degrees) and where the two terms are
 significant (their chi-square, from the fit's residual, at least :data:`ORIENTATION_MIN_CHI2`:
 p < 0.001). Otherwise they are 0 and the scale is the constant, as before. A run applies them
 with each step's ``theta`` (:func:`floorvo.runner.run_frames`). The runs of ``floorvo
 calibrate`` for them: straight runs at three headings over the floor (0, 60 and 120
-degrees) for the translation, a spin for the yaw.
+degrees) for the translation, a spin over more than half a turn for the yaw (a fit on the
+115 degrees of a 2-rad spin read the other 65 0.1-0.2 % of the turn wrong).
 
 File (JSON): ``{"kind": "floorvo scale calibration", "version": 3, "scale_x": .., "scale_y": ..,
 "observed_x": bool, "observed_y": bool, "travel_x_mm": .., "travel_y_mm": .., "steps": N,
@@ -84,6 +85,8 @@ __all__ = [
     "fit_scale_calibration",
     "calibrate_run",
     "calibrate_runs",
+    "RunSteps",
+    "run_steps",
     "save_scale_calibration",
     "load_scale_calibration",
     "apply_scale",
@@ -101,8 +104,9 @@ SCALE_RANGE = (0.9, 1.1)
 #: wood floor 0.9; concrete, vinyl, asphalt 0.2-0.4, whose direction is the light's) ...
 ORIENTATION_MIN_COHERENCE = 0.5
 #: ... whose orientation turned over the axis's steps: the u^2-weighted resultant of exp(2i theta)
-#: at most this (sin(d)/d for orientations spread evenly over d: 0.95 is about 31 degrees) ...
-ORIENTATION_MAX_RESULTANT = 0.95
+#: at most this (sin(d)/d for orientations spread evenly over d degrees of the 180: 0.5 is about
+#: 108; a fit on less extrapolates the rest) ...
+ORIENTATION_MAX_RESULTANT = 0.5
 #: ... and where the two terms are significant: their chi-square (2 degrees of freedom) at least this (p < 0.001).
 ORIENTATION_MIN_CHI2 = 13.8
 _AXES = ("x", "y", "yaw")
@@ -279,28 +283,18 @@ def calibrate_runs(
     and frames (a sequence folder, not a bare ground-truth file); without them, constants only."""
     if not runs:
         raise SequenceError("scale calibration: no run given")
-    G, E, names = [], [], set()
-    thetas: list[np.ndarray] | None = [] if orientation else None
-    coherences: list[float] = []
-    for run_dir, seq_dir in runs:
-        g, e, estimator, frames = _run_steps(Path(run_dir), Path(seq_dir), max_diff_s)
-        G.append(g)
-        E.append(e)
-        names.add(estimator)
-        if thetas is not None:
-            orient = None if frames is None else _step_orientations(Path(seq_dir), *frames)
-            if orient is None:
-                thetas = None  # a run whose steps' frames are unknown or not there: no orientation terms
-            else:
-                thetas.append(orient[0])
-                coherences.append(orient[1])
+    got = [run_steps(run_dir, seq_dir, max_diff_s, orientation) for run_dir, seq_dir in runs]
+    G, E = [r.true for r in got], [r.est for r in got]
+    names = {r.estimator for r in got}
     if len(names) > 1:
         raise SequenceError(
             f"scale calibration: the runs are of different estimators ({', '.join(sorted(names))}); "
             "a calibration is of one estimator on one rig"
         )
-    theta = None if thetas is None else np.concatenate(thetas)
-    coherence = float(np.average(coherences, weights=[len(g) for g in G])) if theta is not None else 0.0
+    # A run whose steps' frames are unknown or not there: no orientation terms.
+    with_theta = orientation and all(r.theta_rad is not None for r in got)
+    theta = np.concatenate([r.theta_rad for r in got]) if with_theta else None
+    coherence = float(np.average([r.coherence for r in got], weights=[len(g) for g in G])) if with_theta else 0.0
     cal = _fit_steps(np.concatenate(G), np.concatenate(E), min_travel_mm, min_turn_deg, theta, coherence)
     return ScaleCalibration(
         **{
@@ -310,6 +304,35 @@ def calibrate_runs(
             "sequence": "; ".join(str(s) for _, s in runs),
         }
     )
+
+
+@dataclass(frozen=True)
+class RunSteps:
+    """The steps of a run a calibration is fitted on (:func:`run_steps`): ``true``, ``est`` (K, 4, 4)
+    mm, each step's true and estimated motion in the camera frame of the frame it was measured
+    from; ``estimator``: the run's; ``theta_rad`` (K,): each step's texture orientation
+    (:func:`floorvo.imaging.texture_orientation`, the mean of its two frames'), None where it
+    was not asked for or cannot be measured; ``coherence``: the frames' mean (0 without)."""
+
+    true: np.ndarray
+    est: np.ndarray
+    estimator: str
+    theta_rad: np.ndarray | None = None
+    coherence: float = 0.0
+
+
+def run_steps(
+    run_dir: str | os.PathLike, seq_dir: str | os.PathLike, max_diff_s: float = 0.01, orientation: bool = True
+) -> RunSteps:
+    """The steps of a run against its ground truth (:func:`calibrate_run`'s pairing) and, with
+    ``orientation``, their texture orientations, read from the sequence's frames (none without
+    ``timing.csv``, for a bare ground-truth file, or a sequence without frames)."""
+    run_dir, seq_dir = Path(run_dir), Path(seq_dir)
+    g, e, estimator, frames = _run_steps(run_dir, seq_dir, max_diff_s)
+    orient = _step_orientations(seq_dir, *frames) if orientation and frames is not None else None
+    if orient is None:
+        return RunSteps(g, e, estimator)
+    return RunSteps(g, e, estimator, *orient)
 
 
 def _run_steps(

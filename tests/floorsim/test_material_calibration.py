@@ -76,7 +76,7 @@ def test_no_orientation_calibration_without_frames_or_turned_runs(tmp_path):
     straight = hand_run(tmp_path / "a", STRAIGHT, chain_scaled(STRAIGHT, 1.003))
     spin = hand_run(tmp_path / "b", SPIN, chain_scaled(SPIN, 1.0, s_yaw=1.0035))
     turned = [hand_run(tmp_path / f"t{k}", STRAIGHT, chain_scaled(STRAIGHT, 1.003)) for k in range(2)]
-    fit = fit_material_calibration(straight, spin, turned=turned)
+    fit = fit_material_calibration(straight, spin, turned=turned, full_spin=spin)
     assert fit.with_yaw is not None and fit.with_orientation is None
     assert fit.orientation_why == "no frames to measure the texture orientation in"
     assert fit.orientation_cell() == "none (no frames to measure the texture orientation in)"

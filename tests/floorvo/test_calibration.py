@@ -294,12 +294,12 @@ def test_fit_recovers_scales_that_depend_on_the_texture_orientation_and_undoes_t
 
 @pytest.mark.parametrize(
     "what",
-    ["no direction", "orientation held", "no dependence", "no orientations"],
+    ["no direction", "orientation held", "turned too little", "no dependence", "no orientations"],
 )
 def test_orientation_terms_only_where_the_runs_observe_them(what):
     """Constants only (as a version-2 calibration) where the frames' texture has no direction
     (coherence 0.3: the light's own direction), where it did not turn (a straight run: one
-    orientation), where the scales do not depend on it (noise of the size the rendered runs
+    orientation) or turned through less than about 108 of its 180 degrees, where the scales do not depend on it (noise of the size the rendered runs
     show, no terms: not significant) or where no orientations are given."""
     G, E, theta = _grained_steps()
     coherence = 0.9
@@ -307,6 +307,8 @@ def test_orientation_terms_only_where_the_runs_observe_them(what):
         coherence = 0.3
     elif what == "orientation held":
         theta = np.full_like(theta, 0.3)
+    elif what == "turned too little":  # 80 of 180 degrees: the rest would be extrapolated
+        G, E, theta = G[:40], E[:40], theta[:40]
     elif what == "no dependence":
         _TERMS_SAVED = dict(_TERMS)
         _TERMS.update({"x": (1.0012, 0.0, 0.0), "yaw": (0.9971, 0.0, 0.0)})
@@ -374,23 +376,24 @@ def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tm
     from floorvo.sequence import Sequence, SequenceWriter
     from floorvo.tum import write_tum
 
-    G, E, theta = _grained_steps(n=40)
+    n = 60  # 120 degrees of the stripes' 180
+    G, E, theta = _grained_steps(n=n)
     theta_frames = np.concatenate([[theta[0] + np.radians(1.0)], theta - np.radians(1.0)])  # steps: their means
-    T_true = np.stack([np.eye(4)] + [np.eye(4)] * 40)
+    T_true = np.stack([np.eye(4)] * (n + 1))
     T_est = T_true.copy()
-    for k in range(40):
+    for k in range(n):
         T_true[k + 1] = T_true[k] @ G[k]
         T_est[k + 1] = T_est[k] @ E[k]
     seq, run = tmp_path / "seq", tmp_path / "run"
-    with SequenceWriter(seq, blank_meta(CAM, 41)) as w:
+    with SequenceWriter(seq, blank_meta(CAM, n + 1)) as w:
         for i, t in enumerate(theta_frames):
             w.write_frame(i, _stripes(t))
-    ts = np.arange(41) / 30.0
+    ts = np.arange(n + 1) / 30.0
     write_tum(seq / "groundtruth.txt", ts, T_true)
     run.mkdir()
     write_tum(run / "trajectory.txt", ts, T_est)
     (run / "timing.csv").write_text(
-        "frame,total_ms,status,reason\n" + "".join(f"{i},1.0,{'init' if i == 0 else 'ok'},\n" for i in range(41))
+        "frame,total_ms,status,reason\n" + "".join(f"{i},1.0,{'init' if i == 0 else 'ok'},\n" for i in range(n + 1))
     )
     (run / "result.json").write_text(json.dumps({"estimator": "phase-corr"}))
     assert floorvo_main(["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "c.json")]) == 0
@@ -400,9 +403,9 @@ def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tm
     np.testing.assert_allclose([cal.scale_yaw, cal.yaw_cos2, cal.yaw_sin2], _TERMS["yaw"], atol=2e-4)
     s = Sequence.open(seq)
     steps = [StepResult("init")] + [StepResult("ok", e) for e in E]
-    res = run_frames(_Replay(steps), sequence_frames(s, range(41)), T_world_start=np.eye(4), scale_calibration=cal)
-    np.testing.assert_allclose(res.T_world_cam[-1][:3, 3], T_true[-1][:3, 3], atol=0.02)  # mm, after 160 mm
-    plain = run_frames(_Replay(steps), sequence_frames(s, range(41)), T_world_start=np.eye(4))
+    res = run_frames(_Replay(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4), scale_calibration=cal)
+    np.testing.assert_allclose(res.T_world_cam[-1][:3, 3], T_true[-1][:3, 3], atol=0.02)  # mm, after 240 mm
+    plain = run_frames(_Replay(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4))
     assert np.linalg.norm(plain.T_world_cam[-1][:3, 3] - T_true[-1][:3, 3]) > 0.2
     # --no-orientation: constants only, no frame read.
     assert (

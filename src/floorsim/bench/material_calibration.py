@@ -15,10 +15,11 @@ On a grained floor the scales depend on the grain's angle to the rig's lights
 (:mod:`floorvo.calibration`, the texture-orientation terms). :func:`render_turned_straight`
 renders the material's straight run at other headings over the floor
 (:data:`TURNED_HEADINGS_DEG`: 60 and 120 degrees, the camera turned with its direction of travel),
-and with them :func:`fit_material_calibration` fits a third calibration on the straight runs
-and the spin together with those terms (``with_orientation``), kept only where the runs
-observe them (the floor's texture has a direction that turns with it, and the terms are
-significant): on the shipped floors, wood.
+:func:`render_spin` a spin over more than half a turn (:data:`FULL_SPIN_RAD`), and with them
+:func:`fit_material_calibration` fits a third calibration on the straight runs and that spin
+together with those terms (``with_orientation``), kept only where the runs observe them (the
+floor's texture has a direction that turns with it, and the terms are significant): on the
+shipped floors, wood.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from floorvo.sequence import Sequence
 __all__ = [
     "SPIN_SCENE",
     "TURNED_HEADINGS_DEG",
+    "FULL_SPIN_RAD",
     "MaterialCalibration",
     "fit_material_calibration",
     "render_spin",
@@ -56,17 +58,25 @@ SPIN_SCENE = "motion/motion_turn_spin_concrete.toml"
 #: The headings (degrees, from the floor's x axis) of the straight runs that observe the
 #: translation's texture-orientation terms, besides the material's own run at 0.
 TURNED_HEADINGS_DEG = (60.0, 120.0)
+#: The turn (rad) of the spin that observes the yaw's texture-orientation terms: more than half a
+#: turn, the grain's period, so that the fit sees every orientation (the 2-rad spin of the constant
+#: yaw scale sees 115 degrees of the 180, and a fit on it read the other 65 0.1-0.2 % of the turn wrong).
+FULL_SPIN_RAD = 3.5
 
 RunPair = tuple[str | os.PathLike, str | os.PathLike]  # (run folder, sequence folder)
 
 
-def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike) -> Path:
+def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike, angle_rad: float | None = None) -> Path:
     """The spin in place over ``material`` in the sequence folder ``out``, at the frame size of
-    the sequence ``like`` (the material's straight run). A finished render of the same scene
-    there is reused and an interrupted one resumed (:func:`floorsim.simulate.render_sequence`);
-    one of another scene or size is refused in one line."""
+    the sequence ``like`` (the material's straight run); ``angle_rad``: its turn (None: the
+    scene's, 2 rad; :data:`FULL_SPIN_RAD` for the texture-orientation terms). A finished render of
+    the same scene there is reused and an interrupted one resumed
+    (:func:`floorsim.simulate.render_sequence`); one of another scene or size is refused in one line."""
     width = Sequence.open(like).camera.width_px
-    scene = load_scene(scenes_dir() / SPIN_SCENE, {"floor.material": json.dumps(material)})
+    keys = {"floor.material": json.dumps(material)}
+    if angle_rad is not None:
+        keys["trajectory.angle_rad"] = json.dumps(float(angle_rad))
+    scene = load_scene(scenes_dir() / SPIN_SCENE, keys)
     full = scene.camera_model().width_px
     return render_sequence(scene, out, scale=None if width == full else width / full)
 
@@ -130,7 +140,11 @@ def _out_of_range(cal: ScaleCalibration, axes: tuple[str, ...]) -> str:
 
 
 def fit_material_calibration(
-    straight: RunPair, spin: RunPair | None, min_turn_deg: float = 10.0, turned: Sequence_[RunPair] = ()
+    straight: RunPair,
+    spin: RunPair | None,
+    min_turn_deg: float = 10.0,
+    turned: Sequence_[RunPair] = (),
+    full_spin: RunPair | None = None,
 ) -> MaterialCalibration:
     """Fit ``straight`` alone and, with ``spin`` (None: no spin over this floor), both together.
 
@@ -138,15 +152,16 @@ def fit_material_calibration(
     with the yaw only where the spin's steps reported ok turned ``min_turn_deg`` or more and the
     yaw's scale is in :data:`floorvo.calibration.SCALE_RANGE`, else the straight run's stands
     (x and y, the yaw's scale 1) and ``why`` says why. Both with constant scales. With the
-    ``turned`` straight runs (:func:`render_turned_straight`) and a calibration with the yaw,
-    ``with_orientation`` is fitted on all the runs with the texture-orientation terms, and kept
-    where it has some (else ``orientation_why`` says why not).
+    ``turned`` straight runs (:func:`render_turned_straight`), a ``full_spin`` (over more than half
+    a turn, :data:`FULL_SPIN_RAD`) and a calibration with the yaw, ``with_orientation`` is fitted
+    on the straight runs and the full spin with the texture-orientation terms, and kept where it
+    has some (else ``orientation_why`` says why not).
     """
     fit = _fit_constant(straight, spin, min_turn_deg)
-    if not turned or fit.with_yaw is None or spin is None:
+    if not turned or full_spin is None or fit.with_yaw is None:
         return fit
     try:
-        cal = calibrate_runs([straight, *turned, spin], min_turn_deg=min_turn_deg, orientation=True)
+        cal = calibrate_runs([straight, *turned, full_spin], min_turn_deg=min_turn_deg, orientation=True)
     except FloorbenchError as exc:
         return replace(fit, orientation_why=f"a turned straight run lost: {exc}")
     if not cal.uses_orientation:
