@@ -275,7 +275,8 @@ def run_frames(
             else:
                 T_chain, attitude = start, True
         res = estimator.step(state, frame)
-        theta = texture_orientation(frame.image)[0] if orient else None
+        # (A frame the estimator refused, of no image or another shape, gives none.)
+        theta = texture_orientation(frame.image)[0] if orient and np.ndim(frame.image) == 2 else None
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
         st = res.status
