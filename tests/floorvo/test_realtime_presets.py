@@ -168,7 +168,7 @@ def test_describing_the_kept_keypoints_only_gives_the_same_features():
     for kept_only in (False, True):
         cfg = make_config("akaze-guided-fast", {"describe_kept_only": str(kept_only).lower()})
         est = get_estimator("akaze-guided-fast")(cfg, CAM_FULL, height_mm=100.0, flatfield=flat)
-        both[kept_only] = est._detect(prev)
+        both[kept_only] = est._detect(prev)[:2]
     (pts_all, desc_all), (pts_kept, desc_kept) = both[False], both[True]
     assert len(pts_all) == 600
     order_all, order_kept = np.lexsort(pts_all.T), np.lexsort(pts_kept.T)
@@ -198,9 +198,9 @@ def test_adapted_threshold_finds_the_same_features_in_one_pass():
     thresholds, counts, n_kept = [], [], []
     for i, img in enumerate(frames):
         thresholds.append(state.threshold)
-        pts_a, desc_a = adapted._detect(img, state)
+        pts_a, desc_a, _ = adapted._detect(img, state)
         counts.append(dict(calls))
-        pts_f, desc_f = fixed._detect(img)
+        pts_f, desc_f, _ = fixed._detect(img)
         n_kept.append(len(pts_f))
         oa, of = np.lexsort(pts_a.T), np.lexsort(pts_f.T)
         assert len(pts_a) == len(pts_f) and len(pts_a) > 0, i

@@ -28,6 +28,10 @@ Paper 000 (Nakashima et al., IEEE Access 2019), faithfully, then extended to yaw
   keeps a band of one standard deviation and drops most true matches with the false
   ones; under yaw the band is a strip of the image, which conditions the rotation poorly
   (0.1-0.2 degrees per frame of error on a rendered S-curve, 0.01 with the refit).
+* **Sub-pixel pairs** (ours, off by default: ``refine_window_px``): the fit's pairs' current
+  positions refined by Lucas-Kanade about the previous keypoints, and the motion fitted again
+  (:meth:`_AkazeBase._refined`); BENCHMARKS.md, "AKAZE's pairs refined to a sub-pixel by
+  Lucas-Kanade", has what it gains and where it loses.
 
 Never silently wrong (issue 14): each step checks itself and is reported ``lost`` with
 the reason when it fails a check: too few matches, too few pairs behind the fit, the
@@ -169,6 +173,17 @@ class AkazeConfig(StepBoundConfig):
     max_candidates: int = param(32, min=1, max=256, doc="nearest candidates tried per keypoint in the guided search")
     filter_passes: int = param(2, min=0, max=10, doc="passes of the mean +/- one std movement filter (section II-C)")
     refine_passes: int = param(2, min=0, max=10, doc="re-fits on the matches within inlier_tol_px of the fit")
+    refine_window_px: int = param(
+        0,
+        min=0,
+        max=63,
+        doc="the fit's pairs' current-frame positions refined to a sub-pixel by Lucas-Kanade in windows of this "
+        "size around the previous keypoints, and the motion fitted again (ours); 0: the keypoints' own positions "
+        "(paper 000)",
+    )
+    refine_max_pairs: int = param(
+        300, min=3, doc="refine_window_px: at most this many of the fit's pairs refined, spread over them"
+    )
     min_matches: int = param(6, min=2, doc="fewer matches: the frame is lost")
     min_inliers: int = param(8, min=2, doc="fewer pairs behind the fit: the frame is lost")
     max_rms_px: float = param(1.25, unit="px", gt=0.0, doc="larger RMS distance of the pairs from the fit: lost")
@@ -248,6 +263,7 @@ class _State:
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
     threshold: float | None = None  # adapt_threshold: the detector threshold of the next frame (None: the config's)
     attitude: tuple[float, float] | None = None  # the reference's attitude its keypoints were levelled with
+    img8: np.ndarray | None = None  # (H, W) uint8 picture of the reference (refine_window_px)
 
 
 @dataclass(frozen=True)
@@ -329,8 +345,9 @@ class _AkazeBase:
         rays = self.camera.unproject(pts, 1.0) @ R_nadir_cam(*attitude)  # R^T v, row-wise
         return self.camera.project(rays)
 
-    def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The ``max_keypoints`` strongest keypoints (N, 2) px and their descriptors (N, B) uint8.
+    def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ``max_keypoints`` strongest keypoints (N, 2) px, their descriptors (N, B) uint8 and
+        the (H, W) uint8 picture they were found in (the frame, illumination corrected).
 
         With ``adapt_threshold`` and a ``state`` that holds a threshold from the previous frame,
         AKAZE detects and describes at that threshold in one pass: every keypoint whose response
@@ -377,12 +394,12 @@ class _AkazeBase:
         if adapt and state is not None:
             state.threshold = self._next_threshold(found or ())
         if desc is None or len(kps) == 0:
-            return np.zeros((0, 2)), np.zeros((0, 61), dtype=np.uint8)
+            return np.zeros((0, 2)), np.zeros((0, 61), dtype=np.uint8), img8
         if len(kps) > cfg.max_keypoints:
             order = np.argsort([-k.response for k in kps])[: cfg.max_keypoints]
             kps = [kps[i] for i in order]
             desc = desc[order]
-        return np.array([k.pt for k in kps], dtype=np.float64), desc
+        return np.array([k.pt for k in kps], dtype=np.float64), desc, img8
 
     def _next_threshold(self, kps: Sequence[cv2.KeyPoint]) -> float | None:
         """``adapt_threshold``: the next frame's detector threshold from this frame's keypoints
@@ -695,6 +712,51 @@ class _AkazeBase:
             )
         return ""
 
+    def _refined(self, state: _State, fit: _Fit, img8: np.ndarray, attitude: tuple[float, float] | None) -> _Fit:
+        """The fit with its pairs' current-frame positions refined to a sub-pixel (``refine_window_px``, ours).
+
+        AKAZE finds a keypoint to about half a pixel (0.55-0.7 px median against the true motion
+        on the rendered ceramic floor), and its position follows the shading as much as the
+        floor. Pyramidal Lucas-Kanade (one level; ``cv2.calcOpticalFlowPyrLK``) aligns the
+        ``refine_window_px`` window about each previous keypoint with the current picture,
+        starting at its matched keypoint, so each pair names one floor point in both pictures
+        (the previous keypoint's window) to a tenth of a pixel where the floor has texture. At
+        most ``refine_max_pairs`` pairs, evenly spread over the fit's, are refined; a pair
+        whose window does not converge or moves by more than ``inlier_tol_px`` is left out, and
+        the motion is fitted again on the rest with the fit's own model (the known image scale,
+        or the fitted similarity). Fewer than ``min_inliers`` left, or a homography
+        (``fits_own_scale``): the fit as it was. Levelled keypoints (an attitude signal) are
+        refined in the frames' own pixels and levelled again. The fit's checks were made on
+        its pairs before this; the height-change check (:meth:`_height_change_problem`) and
+        the step (:meth:`_motion`) use the refined pairs.
+        """
+        cfg = self.config
+        if fit.M is None or self.fits_own_scale or state.img8 is None or len(fit.src) < cfg.min_inliers:
+            return fit
+        pick = np.unique(np.linspace(0, len(fit.src) - 1, min(len(fit.src), cfg.refine_max_pairs)).astype(int))
+        src, dst = fit.src[pick], fit.dst[pick]
+        p0 = self._unlevelled(src, state.attitude).astype(np.float32).reshape(-1, 1, 2)
+        guess = self._unlevelled(dst, attitude).astype(np.float32).reshape(-1, 1, 2)
+        w = int(cfg.refine_window_px)
+        p1, ok, _ = cv2.calcOpticalFlowPyrLK(
+            state.img8,
+            img8,
+            p0,
+            guess.copy(),
+            winSize=(w, w),
+            maxLevel=0,
+            criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01),
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        )
+        p1 = p1.reshape(-1, 2).astype(np.float64)
+        keep = (ok.ravel() == 1) & (np.linalg.norm(p1 - guess.reshape(-1, 2), axis=1) <= cfg.inlier_tol_px)
+        if keep.sum() < cfg.min_inliers:
+            return fit
+        src = src[keep]
+        dst = p1[keep] if attitude is None else self._levelled(p1[keep], *attitude)
+        scale = None if fit.scale_fitted else float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
+        return replace(fit, M=self._rigid_px(src, dst, scale), src=src, dst=dst)
+
     def _prediction_doubt(self, fit: _Fit, pred_M: np.ndarray) -> str:
         """Why the eq. (2) prediction behind a guided fit is doubtful ('' if it is not)."""
         if fit.problem or fit.M is None:
@@ -754,7 +816,7 @@ class _AkazeBase:
         attitude = frame_attitude_rad(frame, self.levels_with_attitude and self.config.use_attitude_signal)
         if isinstance(attitude, str):
             return StepResult("lost", reason=attitude, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
-        kps, desc = self._detect(frame.image, state)
+        kps, desc, img8 = self._detect(frame.image, state)
         if attitude is not None:
             kps = self._levelled(kps, *attitude)
         packed = pack_descriptors(desc)
@@ -767,7 +829,7 @@ class _AkazeBase:
                     n_keypoints=len(kps),
                     timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
                 )
-            state.kps, state.desc, state.packed, state.attitude = kps, desc, packed, attitude
+            state.kps, state.desc, state.packed, state.attitude, state.img8 = kps, desc, packed, attitude, img8
             state.height_mm = self._frame_height(frame)
             self._start_reference(state, frame)
             return StepResult(
@@ -789,6 +851,8 @@ class _AkazeBase:
                 fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), scale)
         else:
             fit = self._fit(*self._bruteforce(state, kps, desc), np.eye(3), self._scale_ratio(state, frame))
+        if not fit.problem and self.config.refine_window_px:
+            fit = self._refined(state, fit, img8, attitude)
         if not fit.problem:
             fit = replace(fit, problem=self._height_change_problem(state, fit, frame, attitude))
         t2 = time.perf_counter()
@@ -801,7 +865,7 @@ class _AkazeBase:
             why = f"{note}; {fit.problem}" if note else fit.problem
             if state.n_lost >= self.config.restart_after_lost and len(kps) >= self.config.min_matches:
                 state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
-                state.attitude = attitude
+                state.attitude, state.img8 = attitude, img8
                 state.height_mm = self._frame_height(frame)
                 self._start_reference(state, frame)
                 why += f"; {RESTART_NOTE}"
@@ -828,7 +892,7 @@ class _AkazeBase:
         # The pairs in each frame's own pixels (levelled keypoints moved back), for reports.
         matches_px = np.hstack([self._unlevelled(fit.src, state.attitude), self._unlevelled(fit.dst, attitude)])
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
-        state.attitude = attitude
+        state.attitude, state.img8 = attitude, img8
         state.height_mm = self._height_after(state, fit, frame)
         t3 = time.perf_counter()
         return StepResult(
