@@ -211,35 +211,38 @@ def main() -> None:
                 _fmt(c.get("wrong_ok_steps_footprint"), 0),
             ]
         if args.spins is not None:
-            y = with_yaw.get((scene, r["estimator"]))
-            mark = ""
-            if y is None and c:  # the spin gave no yaw: the x, y calibrated run stands
-                y, mark = c, " (x, y only)"
-            y = y or {}
-            cells += [
-                fit.scale_yaw_cell() if fit is not None else "-",
-                _fmt(y.get("end_drift_pct")) + mark if y else "-",
-                _fmt(y.get("turn_error_pct")) + mark if y else "-",
-                _fmt(y.get("wrong_ok_steps_footprint"), 0),
-            ]
+            # The spin gave no yaw: the x, y calibrated run stands.
+            y, more = _calibrated_cells(
+                with_yaw.get((scene, r["estimator"])), c, " (x, y only)", fit.scale_yaw_cell() if fit else "-"
+            )
+            cells += more
         if args.orientation:
-            o = with_orient.get((scene, r["estimator"]))
-            mark = ""
-            if o is None and y:  # no orientation terms: the constant calibration stands
-                o, mark = y, " (constant)"
-            o = o or {}
-            cells += [
-                fit.orientation_cell() if fit is not None else "-",
-                _fmt(o.get("end_drift_pct")) + mark if o else "-",
-                _fmt(o.get("turn_error_pct")) + mark if o else "-",
-                _fmt(o.get("wrong_ok_steps_footprint"), 0),
-            ]
+            # No texture-orientation terms: the constant calibration stands.
+            _, more = _calibrated_cells(
+                with_orient.get((scene, r["estimator"])), y, " (constant)", fit.orientation_cell() if fit else "-"
+            )
+            cells += more
         cells.append(str(r.get("lost_reasons") or "") if str(r.get("status")) == "ok" else str(r.get("status")))
         print("| " + " | ".join(cells) + " |")
     for m, seq in sorted(spins.items()):
         print(f"spin over {m}: {seq}")
     print(f"\nmachine: {platform.machine()}, {os.cpu_count()} cores; OpenCV {cv2.__version__} with 1 thread")
     print(f"results: {res.results_csv}; report: {res.report_html}")
+
+
+def _calibrated_cells(row: dict | None, stands: dict, mark: str, calibration_cell: str) -> tuple[dict, list[str]]:
+    """The row of a calibrated run (or, where it did not run, the ``stands`` row its cells repeat,
+    marked ``mark``) and its cells: the calibration, end drift, turn error, wrong ok against the footprint."""
+    if row is None and stands:
+        row, shown = stands, mark
+    else:
+        row, shown = row or {}, ""
+    return row, [
+        calibration_cell,
+        _fmt(row.get("end_drift_pct")) + shown if row else "-",
+        _fmt(row.get("turn_error_pct")) + shown if row else "-",
+        _fmt(row.get("wrong_ok_steps_footprint"), 0),
+    ]
 
 
 def _cached(cache: Path, name: str) -> Path | None:

@@ -171,3 +171,21 @@ def blank_sequence(tmp_path: Path, camera: CameraModel, n: int = 3) -> Path:
         for i in range(n):
             w.write_frame(i, np.full((camera.height_px, camera.width_px), 100, np.uint8))
     return root
+
+
+class Scripted:
+    """An estimator that replays one given StepResult per frame (the loop's only collaborator)."""
+
+    name = "scripted"
+    requires = frozenset()
+
+    def __init__(self, script):
+        self.script = script
+
+    def start(self):
+        return {"k": 0}
+
+    def step(self, state, frame):
+        res = self.script[state["k"]]
+        state["k"] += 1
+        return res

@@ -342,23 +342,6 @@ def test_an_orientation_calibration_round_trips_and_an_impossible_one_is_refused
         load_scale_calibration(tmp_path / "nan.json")
 
 
-class _Replay:
-    """An estimator that replays one given StepResult per frame."""
-
-    name = "replay"
-    requires = frozenset()
-
-    def __init__(self, script):
-        self.script = script
-
-    def start(self):
-        return {"k": 0}
-
-    def step(self, state, frame):
-        state["k"] += 1
-        return self.script[state["k"] - 1]
-
-
 def _stripes(theta_rad: float, shape=(124, 162), period_px: float = 12.0) -> np.ndarray:
     y, x = np.mgrid[: shape[0], : shape[1]].astype(float)
     s = np.sin(2 * np.pi * (x * np.cos(theta_rad) + y * np.sin(theta_rad)) / period_px)
@@ -370,7 +353,7 @@ def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tm
     whose x and yaw scales depend on the stripes' orientation measures it in the sequence's
     frames and fits both terms; the runner, given that file, measures each frame's orientation
     and divides the scales at it out of the steps: the run's path is the true one."""
-    from tests.floorvo._synth import blank_meta
+    from tests.floorvo._synth import Scripted, blank_meta
 
     from floorvo.runner import run_frames, sequence_frames
     from floorvo.sequence import Sequence, SequenceWriter
@@ -403,9 +386,9 @@ def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tm
     np.testing.assert_allclose([cal.scale_yaw, cal.yaw_cos2, cal.yaw_sin2], _TERMS["yaw"], atol=2e-4)
     s = Sequence.open(seq)
     steps = [StepResult("init")] + [StepResult("ok", e) for e in E]
-    res = run_frames(_Replay(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4), scale_calibration=cal)
+    res = run_frames(Scripted(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4), scale_calibration=cal)
     np.testing.assert_allclose(res.T_world_cam[-1][:3, 3], T_true[-1][:3, 3], atol=0.02)  # mm, after 240 mm
-    plain = run_frames(_Replay(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4))
+    plain = run_frames(Scripted(steps), sequence_frames(s, range(n + 1)), T_world_start=np.eye(4))
     assert np.linalg.norm(plain.T_world_cam[-1][:3, 3] - T_true[-1][:3, 3]) > 0.2
     # --no-orientation: constants only, no frame read.
     assert (

@@ -11,6 +11,7 @@ import json
 
 import numpy as np
 import pytest
+from tests.floorvo._synth import Scripted
 
 from floorvo.calibration import ScaleCalibration
 from floorvo.camera import CameraModel
@@ -24,24 +25,6 @@ from floorvo.synthetic import line_poses, write_synthetic_sequence
 from floorvo.tum import write_tum
 
 CAM = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)  # GSD 0.4933 mm at 100 mm
-
-
-class Scripted:
-    """An estimator that replays one given StepResult per frame (the loop's only collaborator)."""
-
-    name = "scripted"
-    requires = frozenset()
-
-    def __init__(self, script):
-        self.script = script
-
-    def start(self):
-        return {"k": 0}
-
-    def step(self, state, frame):
-        res = self.script[state["k"]]
-        state["k"] += 1
-        return res
 
 
 def _frames(n):
