@@ -47,7 +47,9 @@ a height change beyond issue 14's bound (``check_height_change``: a bounce; a ri
 reports none, and was wrong by it). A frame of another
 size or channel count than the camera's is refused. After a lost frame the next one is
 matched against the last good frame by brute force (there is no motion to predict from),
-as the first pair is; after ``restart_after_lost`` lost frames in a row tracking restarts
+as the first pair is; a brute-force fit that the section II-C filter leaves failing a check
+(on a repetitive floor most brute-force matches are wrong) is fitted again from the pairs a
+RANSAC similarity finds in agreement (``ransac_retry``, ours) and taken if it passes every check; after ``restart_after_lost`` lost frames in a row tracking restarts
 from the current frame (the motion over the gap is unknown; the lost frames show it).
 """
 
