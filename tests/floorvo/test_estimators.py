@@ -241,6 +241,9 @@ def test_refined_pairs_land_on_the_true_motion_to_a_tenth_of_a_pixel():
     err_before = np.abs(est._predict(fit.M, corner) - est._predict(M, corner)).max()
     err_after = np.abs(est._predict(refined.M, corner) - est._predict(M, corner)).max()
     assert err_after < 0.05 and err_after < err_before / 2
+    # OpenCV's Lucas-Kanade asserts on a window under 3 px: refused in one line instead.
+    with pytest.raises(ConfigError, match=r"refine_window_px = 2: must be 0 \(off\) or >= 3"):
+        make_config("akaze-guided", {"refine_window_px": "2"})
 
 
 def test_a_fit_the_filter_cannot_find_is_found_from_ransac_pairs_and_random_pairs_stay_lost():

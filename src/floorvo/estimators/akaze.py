@@ -64,6 +64,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
+from floorvo.errors import ConfigFieldError
 from floorvo.estimators.base import (
     RESTART_NOTE,
     Frame,
@@ -180,8 +181,8 @@ class AkazeConfig(StepBoundConfig):
         min=0,
         max=63,
         doc="the fit's pairs' current-frame positions refined to a sub-pixel by Lucas-Kanade in windows of this "
-        "size around the previous keypoints, and the motion fitted again (ours); 0: the keypoints' own positions "
-        "(paper 000)",
+        "size (3 or more) around the previous keypoints, and the motion fitted again (ours); 0: the keypoints' "
+        "own positions (paper 000)",
     )
     refine_max_pairs: int = param(
         300, min=3, doc="refine_window_px: at most this many of the fit's pairs refined, spread over them"
@@ -258,6 +259,10 @@ class AkazeConfig(StepBoundConfig):
         "many of its standard errors, at this many normal standard errors' confidence for the pairs' degrees of "
         "freedom (Student's t); elsewhere the rigid fit, the height kept; 0: wherever it differs",
     )
+
+    def validate(self) -> None:
+        if 0 < self.refine_window_px < 3:  # Lucas-Kanade needs a window of 3 px or more (OpenCV asserts)
+            raise ConfigFieldError("refine_window_px", f" = {self.refine_window_px}: must be 0 (off) or >= 3")
 
 
 @dataclass
