@@ -49,8 +49,9 @@ size or channel count than the camera's is refused. After a lost frame the next 
 matched against the last good frame by brute force (there is no motion to predict from),
 as the first pair is; a brute-force fit that the section II-C filter leaves failing a check
 (on a repetitive floor most brute-force matches are wrong) is fitted again from the pairs a
-RANSAC similarity finds in agreement (``ransac_retry``, ours) and taken if it passes every check; after ``restart_after_lost`` lost frames in a row tracking restarts
-from the current frame (the motion over the gap is unknown; the lost frames show it).
+RANSAC similarity finds in agreement (``ransac_retry``, ours) and taken if it passes every
+check; after ``restart_after_lost`` lost frames in a row tracking restarts from the current
+frame (the motion over the gap is unknown; the lost frames show it).
 """
 
 from __future__ import annotations
