@@ -238,9 +238,11 @@ def _orientation_terms(u: np.ndarray, v: np.ndarray, theta_rad: np.ndarray) -> t
     coef, *_ = np.linalg.lstsq(X, v, rcond=None)
     r = v - X @ coef
     dof = len(u) - 3
-    sigma2 = float(r @ r) / dof if dof > 0 else 0.0
+    if dof <= 0:
+        return None
+    sigma2 = max(float(r @ r) / dof, 1e-30)  # an exact fit (code-made steps): its terms are certain
     XtX = X.T @ X
-    if sigma2 <= 0 or np.linalg.cond(XtX) > 1e12:
+    if np.linalg.cond(XtX) > 1e12:
         return None
     cov = sigma2 * np.linalg.inv(XtX)
     chi2 = float(coef[1:] @ np.linalg.solve(cov[1:, 1:], coef[1:]))
