@@ -286,7 +286,9 @@ class _Fit:
 
     ``M``: 3x3 prev-centred px -> cur-centred px; ``src``, ``dst``: (K, 2) px, the pairs
     the section II-C filter kept; ``problem``: '' when every check passed, else why not;
-    ``scale_fitted``: ``M``'s image scale was fitted (``fit_image_scale``), not known.
+    ``scale_fitted``: ``M``'s image scale was fitted (``fit_image_scale``), not known;
+    ``no_motion``: the problem is that the filter's pairs hold no motion (too few of them, too
+    few matches agreeing with their fit), not a later check on one (its residual, precision).
     """
 
     M: np.ndarray | None
@@ -297,6 +299,7 @@ class _Fit:
     consensus: float = 0.0
     problem: str = ""
     scale_fitted: bool = False
+    no_motion: bool = False  # the filter's pairs hold no motion (too few of them, too few matches agree)
 
 
 class _AkazeBase:
@@ -442,10 +445,14 @@ class _AkazeBase:
         first two frames at two of three floor seeds, whose runs then restarted 8 mm on, 5 %
         of their path (BENCHMARKS.md, "A brute-force fit retried with RANSAC"). With
         ``ransac_retry`` such a fit is made again from the pairs a RANSAC similarity finds
-        in agreement; it is taken only if it passes every check."""
+        in agreement; it is taken only if it passes every check. Only a fit whose filter found no
+        motion (too few pairs, too few matches agreeing) is tried again: one whose motion failed a
+        later check (its residual, imprecise, a rival motion) stays lost (retried, an imprecise
+        half-size ceramic step came back 0.58 degrees wrong)."""
         src, dst = self._bruteforce(state, kps, desc)
         fit = self._fit(src, dst, np.eye(3), scale)
-        if not fit.problem or not self.config.ransac_retry:
+        if not fit.no_motion or not self.config.ransac_retry:
+            # Found a motion that failed a later check (imprecise, a rival motion): that verdict stands.
             return fit, ""
         again = self._fit(src, dst, np.eye(3), scale, ransac=True)
         if again.problem or len(again.src) < 2 * self.config.min_inliers:
@@ -508,7 +515,14 @@ class _AkazeBase:
                 keep = agree.ravel().astype(bool)
         s, d = src[keep], dst[keep]
         if len(s) < cfg.min_inliers:
-            return _Fit(None, s, d, n, problem=f"too few pairs left by the filter ({len(s)} < {cfg.min_inliers})")
+            return _Fit(
+                None,
+                s,
+                d,
+                n,
+                problem=f"too few pairs left by the filter ({len(s)} < {cfg.min_inliers})",
+                no_motion=True,
+            )
         M = self._rigid_px(s, d, scale)
         # Refinement: the fit again on every match within inlier_tol_px of it. The filter
         # keeps a band of +/- one standard deviation and drops most true matches with
@@ -530,6 +544,7 @@ class _AkazeBase:
                     n,
                     consensus=float(inl.mean()),
                     problem=f"too few matches agree with the fit ({len(s)} < {cfg.min_inliers})",
+                    no_motion=True,
                 )
         if scale is None and not self._scale_changed(M, s, d):
             # No change of height measured: the rigid fit, the height kept.
@@ -537,6 +552,7 @@ class _AkazeBase:
         rms = float(np.sqrt(np.mean(np.sum((self._predict(M, s) - d) ** 2, axis=1))))
         consensus = float(inl.mean())
         problem = ""
+        no_motion = rms <= cfg.max_rms_px and consensus < cfg.min_consensus
         if rms > cfg.max_rms_px:
             problem = f"fit residual {rms:.2f} px RMS > {cfg.max_rms_px:g}"
         elif consensus < cfg.min_consensus:
@@ -557,7 +573,7 @@ class _AkazeBase:
                 min_count=cfg.min_inliers,
                 max_rival_fraction=cfg.max_rival_fraction,
             ) or (self._similarity_precision_problem(M, s, d) if scale is None else self._precision_problem(M, s, d))
-        return _Fit(M, s, d, n, rms, consensus, problem, scale_fitted=scale is None)
+        return _Fit(M, s, d, n, rms, consensus, problem, scale_fitted=scale is None, no_motion=no_motion)
 
     def _precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
         """Why the fit ``M`` of the pairs ``s -> d`` (K, 2) px is too imprecise to report ('' if it is not).
