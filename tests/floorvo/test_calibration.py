@@ -19,8 +19,9 @@ from floorvo.calibration import (
 from floorvo.camera import CameraModel
 from floorvo.cli import main as floorvo_main
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import StepResult
+from floorvo.estimators.base import Frame, StepResult
 from floorvo.geometry import T_world_cam_down, invert_T, make_T, rot_z
+from floorvo.imaging import texture_orientation
 from floorvo.synthetic import write_synthetic_sequence
 from floorvo.tum import read_tum
 
@@ -395,3 +396,24 @@ def test_calibrate_reads_the_orientation_from_the_frames_and_a_run_applies_it(tm
         floorvo_main(["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "k.json"), "--no-orientation"]) == 0
     )
     assert not load_scale_calibration(tmp_path / "k.json").uses_orientation
+
+
+def test_a_frame_without_a_mono_image_gets_no_orientation_and_the_run_goes_on():
+    """With an orientation calibration the runner measures each frame's texture orientation; a frame
+    the estimator refuses (a colour frame, lost with its reason) is not measured, and the next ok
+    step is scaled at the orientation of the frames it was measured between."""
+    from tests.floorvo._synth import Scripted
+
+    from floorvo.runner import run_frames
+
+    G, E, theta = _grained_steps()
+    cal = _fit_steps(G, E, 10.0, 10.0, theta, coherence=0.9)
+    frames = [
+        Frame(0, 0.0, _stripes(theta[0])),
+        Frame(1, 0.1, np.zeros((124, 162, 3), np.uint8)),
+        Frame(2, 0.2, _stripes(theta[0])),
+    ]
+    script = [StepResult("init"), StepResult("lost", reason="frame has 3 channels"), StepResult("ok", E[0])]
+    res = run_frames(Scripted(script), frames, T_world_start=np.eye(4), scale_calibration=cal)
+    assert list(res.status) == ["init", "lost", "ok"]
+    np.testing.assert_allclose(res.T_world_cam[-1], apply_scale(E[0], cal, texture_orientation(frames[0].image)[0]))
