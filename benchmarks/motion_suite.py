@@ -287,12 +287,12 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
         (_scene_name(r).removeprefix("material_"), r["estimator"]): (r["run_dir"], r["sequence"]) for r in cal.rows
     }
     fits = {key: fit_material_calibration(pair, None) for key, pair in straight.items()}
+    straight_seq = {m: seq for (m, _), (_, seq) in straight.items()}  # each material's straight run
     spins: dict[str, Path] = {}
     if args.spins is not None:
         # A spin only for the floors some estimator could be calibrated on (not the featureless one).
         for m in sorted({m for (m, _), f in fits.items() if f.straight is not None}):
-            like = next(seq for (mat, _), (_, seq) in straight.items() if mat == m)
-            spins[m] = suite_spins.get(m) or render_spin(m, args.spins / m, like)
+            spins[m] = suite_spins.get(m) or render_spin(m, args.spins / m, straight_seq[m])
         spin_runs: dict[tuple[str, str], tuple[str, str]] = {}
         if spins:
             material_of_spin = {str(seq): m for m, seq in spins.items()}
@@ -313,7 +313,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
                     m,
                     h,
                     args.spins / f"{m}-heading{h:g}",
-                    next(seq for (mat, _), (_, seq) in straight.items() if mat == m),
+                    straight_seq[m],
                 )
                 for m in spins
                 for h in TURNED_HEADINGS_DEG
@@ -323,7 +323,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
                 m: render_spin(
                     m,
                     args.spins / f"{m}-spin{FULL_SPIN_RAD:g}rad",
-                    next(seq for (mat, _), (_, seq) in straight.items() if mat == m),
+                    straight_seq[m],
                     FULL_SPIN_RAD,
                 )
                 for m in spins

@@ -275,10 +275,13 @@ def run_frames(
             else:
                 T_chain, attitude = start, True
         res = estimator.step(state, frame)
-        # (A frame the estimator refused, of no image or another shape, gives none.)
-        theta = texture_orientation(frame.image)[0] if orient and np.ndim(frame.image) == 2 else None
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
+        # Measured only on a frame a step ends on or is measured from (a frame the estimator
+        # refused, of no image or another shape, gives none).
+        theta = None
+        if orient and np.ndim(frame.image) == 2 and (res.status in _PLACED or RESTART_NOTE in res.reason):
+            theta = texture_orientation(frame.image)[0]
         st = res.status
         why = res.reason
         fix = False

@@ -31,7 +31,7 @@ from collections.abc import Sequence as Sequence_
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from floorsim.scene import load_scene, scenes_dir
+from floorsim.scene import Scene, load_scene, scenes_dir
 from floorsim.simulate import render_sequence
 from floorvo.calibration import (
     ORIENTATION_MIN_COHERENCE,
@@ -72,25 +72,24 @@ def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike, 
     scene's, 2 rad; :data:`FULL_SPIN_RAD` for the texture-orientation terms). A finished render of
     the same scene there is reused and an interrupted one resumed
     (:func:`floorsim.simulate.render_sequence`); one of another scene or size is refused in one line."""
-    width = Sequence.open(like).camera.width_px
     keys = {"floor.material": json.dumps(material)}
     if angle_rad is not None:
         keys["trajectory.angle_rad"] = json.dumps(float(angle_rad))
-    scene = load_scene(scenes_dir() / SPIN_SCENE, keys)
-    full = scene.camera_model().width_px
-    return render_sequence(scene, out, scale=None if width == full else width / full)
+    return _render_like(load_scene(scenes_dir() / SPIN_SCENE, keys), out, like)
 
 
 def render_turned_straight(material: str, heading_deg: float, out: str | os.PathLike, like: str | os.PathLike) -> Path:
     """The material's straight run (``scenes/material_MATERIAL.toml``) with the camera turned to
     ``heading_deg`` over the floor and travelling along its own x axis, as its run at 0 does, in
     the sequence folder ``out``, at the frame size of ``like``; reused and resumed as :func:`render_spin`."""
-    width = Sequence.open(like).camera.width_px
     heading = json.dumps(math.radians(heading_deg))
-    scene = load_scene(
-        scenes_dir() / f"material_{material}.toml",
-        {"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading},
-    )
+    keys = {"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading}
+    return _render_like(load_scene(scenes_dir() / f"material_{material}.toml", keys), out, like)
+
+
+def _render_like(scene: Scene, out: str | os.PathLike, like: str | os.PathLike) -> Path:
+    """``scene`` rendered into the sequence folder ``out`` at the frame size of the sequence ``like``."""
+    width = Sequence.open(like).camera.width_px
     full = scene.camera_model().width_px
     return render_sequence(scene, out, scale=None if width == full else width / full)
 
