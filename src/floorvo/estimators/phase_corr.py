@@ -185,6 +185,28 @@ class PhaseCorrConfig(StepBoundConfig):
         doc="a rotating warp whose last round moves the estimate more than this (plus the blocks' disagreement) is "
         "lost; its first round is the last when the next round's warp would move no block centre by more than this",
     )
+    max_residual_bound_fraction: float = param(
+        0.5,
+        min=0.0,
+        max=1.0,
+        doc="blocks may disagree by up to this fraction of issue 14's bound for the step (max_step_error_*, in px) "
+        "where that is more than max_residual_px: a 30 mm step's bound is 0.65 mm (5.3 px at full size)",
+    )
+    robust_grid: int = param(
+        3,
+        min=0,
+        max=8,
+        doc="a step whose blocks fail (a weak peak, blocks that disagree, an imprecise yaw) from every first "
+        "guess is measured once more with this many blocks per side over the same crop, robust_outlier_blocks "
+        "of which may disagree and are left out; 0: not",
+    )
+    robust_outlier_blocks: int = param(
+        2,
+        min=0,
+        max=16,
+        doc="robust_grid: the most blocks left out, one at a time, the one furthest from the rigid fit of the "
+        "others, while the blocks disagree by more than the gross check allows",
+    )
     restart_after_lost: int = param(
         2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
     )
@@ -238,8 +260,8 @@ class _Measured:
     height) and the standard error of its translation there from the blocks' residual (mm;
     the similarity fit's, :func:`floorvo.geometry.rigid_fit_precision`). ``warp`` (3x3, the last round's whole-pixel
     warp, grid px), ``offset`` (the previous frame's crop offset) and ``prev_blocks``,
-    ``centres`` (the blocks it was measured with): what :meth:`PhaseCorr._warp_spread`
-    measures the step again with. ``scale``, ``scale_sigma``: the image scale of the current
+    ``centres`` (the blocks it was measured with, those it kept): what :meth:`PhaseCorr._warp_spread`
+    measures the step again with; ``layout`` and ``keep``: which blocks those are. ``scale``, ``scale_sigma``: the image scale of the current
     frame relative to the previous one and its standard error (:meth:`PhaseCorr._image_scale`;
     1 and 0 without ``fit_image_scale``)."""
 
@@ -257,6 +279,8 @@ class _Measured:
     centres: np.ndarray
     scale: float = 1.0
     scale_sigma: float = 0.0
+    layout: _Layout | None = None  # the blocks it was measured with (None: the default ones)
+    keep: np.ndarray | None = None  # the indices of the layout's blocks it kept (None: all)
 
 
 class _BlockFit:
@@ -283,6 +307,65 @@ class _BlockFit:
         if self._precision is None:
             self._precision = rigid_fit_precision(self.centres, self.moved, self.Rs, self.ts, scale=self.sc)
         return self._precision
+
+
+class _Layout:
+    """The blocks a crop is cut into: ``grid`` x ``grid`` blocks of ``block`` px (grid px) over its
+    central ``grid * block`` px square, whose top-left corner is ``inset`` px into the crop, and
+    what follows from the layout alone: the blocks' spectral constants (``sp``), their
+    ``centres`` (B, 2) prev-centred grid px, row by row, the image-scale fit's least squares
+    at them (``scale_design``), the yaw's standard error blocks agreeing at
+    ``block_precision_px`` leave (``yaw_floor_deg``, frame px) and whether it bounds the yaw
+    (``bounds_yaw``), and the image-scale tests' limits (``image_scale_window_limits``).
+    ``max_outliers`` blocks may be left out of a measurement (:meth:`PhaseCorr._agreeing`)."""
+
+    def __init__(
+        self,
+        config: PhaseCorrConfig,
+        grid: int,
+        block: int,
+        crop_origin_centred: np.ndarray,
+        inset: int,
+        max_outliers: int = 0,
+    ):
+        self.grid, self.block, self.inset, self.max_outliers = grid, block, inset, max_outliers
+        self.sp = _Spectral(block, config.low_freq_fraction)
+        c = (np.arange(grid) + 0.5) * block + inset
+        cx, cy = np.meshgrid(c + crop_origin_centred[0], c + crop_origin_centred[1])
+        self.centres = np.stack([cx.ravel(), cy.ravel()], axis=1)  # prev-centred px
+        # fit_image_scale's least squares at the block centres, made once (the crop moved back
+        # for a large step, or blocks left out, make their own)
+        self.scale_design = axis_scales_design(self.centres)
+        # The yaw's standard error that blocks agreeing at their own precision (block_precision_px
+        # RMS) leave, from the layout alone: sigma / sqrt(sum |c_i - c_mean|^2), in the frame's
+        # pixels. Blocks agreeing that well skip the gross yaw check; where this exceeds
+        # max_yaw_sigma_deg their agreement does not bound the yaw, and the precision check holds
+        # the yaw itself to issue 14's bound (_precision_problem). 0.11 deg for the default 384 px
+        # crop, 0.18-0.19 deg for half-size frames; 16 px blocks: 1.3 deg, and their steps were
+        # reported ok degrees off.
+        k = config.downscale
+        spread_px = k * np.sqrt(np.sum((self.centres - self.centres.mean(axis=0)) ** 2))
+        self.yaw_floor_deg = float(np.degrees(config.block_precision_px / spread_px))
+        self.bounds_yaw = self.yaw_floor_deg <= config.max_yaw_sigma_deg
+        # The image-scale tests (fit_image_scale, :meth:`PhaseCorr._height_changed`): the blocks'
+        # 2 B coordinates (the fewest a measurement keeps) less the fit's parameters (a
+        # similarity's 4, or axis_scales_fit's 5) leave the scale's standard error its degrees
+        # of freedom, fixed by the layout. Over n frames sum (s_i - 1)^2 / sum sigma_i^2 is F(n, n
+        # dof)-distributed where the height does not change: its limit for each n at the
+        # two-sided tail of image_scale_min_sigmas normal standard errors (n = 1: one frame's,
+        # Student's t squared: 9.2^2 for four blocks).
+        dof = 2 * (grid**2 - max_outliers) - (4 if config.image_scale_axis == "both" else 5)
+        self.image_scale_window_limits = [
+            f_sigmas(config.image_scale_min_sigmas, n, n * dof) for n in range(1, max(config.image_scale_window, 1) + 1)
+        ]
+
+    def blocks(self, crop: np.ndarray, low_only: bool = False) -> np.ndarray:
+        """The spectra (grid * grid, n, n // 2 + 1) of the blocks of ``crop`` (the estimator's whole
+        crop, grid px), row by row, in one transform (``low_only``: their low frequencies
+        alone, :meth:`_Spectral.spectrum`)."""
+        bs, g, o = self.block, self.grid, self.inset
+        sq = np.asarray(crop, dtype=np.float32)[o : o + g * bs, o : o + g * bs]
+        return self.sp.spectrum(sq.reshape(g, bs, g, bs).swapaxes(1, 2).reshape(g * g, bs, bs), low_only)
 
 
 def _hann2(h: int, w: int) -> np.ndarray:
@@ -496,34 +579,18 @@ class PhaseCorr:
                     f"flatfield shape {flat.shape} differs from the camera's {camera.height_px}x{camera.width_px}"
                 )
             self.region_gain = self._region(flatfield_gain(flat)).astype(np.float32)
-        self.sp = _Spectral(bs, config.low_freq_fraction)
         self.sp_crop = _Spectral(self.crop, config.low_freq_fraction)
-        c = (np.arange(g) + 0.5) * bs
-        cx, cy = np.meshgrid(c + self.x0 - gc.cx_px, c + self.y0 - gc.cy_px)
-        self.block_centres = np.stack([cx.ravel(), cy.ravel()], axis=1)  # prev-centred px
-        # fit_image_scale's least squares at the block centres, made once (the crop moved back
-        # for a large step makes its own)
-        self.block_scale_design = axis_scales_design(self.block_centres)
-        # The yaw's standard error that blocks agreeing at their own precision (block_precision_px
-        # RMS) leave, from the layout alone: sigma / sqrt(sum |c_i - c_mean|^2), in the frame's
-        # pixels. Blocks agreeing that well skip the gross yaw check; where this exceeds
-        # max_yaw_sigma_deg their agreement does not bound the yaw, and the precision check holds
-        # the yaw itself to issue 14's bound (_precision_problem). 0.11 deg for the default 384 px
-        # crop, 0.18-0.19 deg for half-size frames; 16 px blocks: 1.3 deg, and their steps were
-        # reported ok degrees off.
-        spread_px = k * np.sqrt(np.sum((self.block_centres - self.block_centres.mean(axis=0)) ** 2))
-        self.yaw_floor_deg = float(np.degrees(config.block_precision_px / spread_px))
-        self.layout_bounds_yaw = self.yaw_floor_deg <= config.max_yaw_sigma_deg
-        # The image-scale tests (fit_image_scale, :meth:`_height_changed`): the blocks' 2 g^2
-        # coordinates less the fit's parameters (a similarity's 4, or axis_scales_fit's 5) leave
-        # the scale's standard error its degrees of freedom, fixed by the layout. Over n frames
-        # sum (s_i - 1)^2 / sum sigma_i^2 is F(n, n dof)-distributed where the height does not
-        # change: its limit for each n at the two-sided tail of image_scale_min_sigmas normal
-        # standard errors (n = 1: one frame's, Student's t squared: 9.2^2 for four blocks).
-        dof = 2 * config.grid**2 - (4 if config.image_scale_axis == "both" else 5)
-        self.image_scale_window_limits = [
-            f_sigmas(config.image_scale_min_sigmas, n, n * dof) for n in range(1, max(config.image_scale_window, 1) + 1)
-        ]
+        origin = np.array([self.x0 - gc.cx_px, self.y0 - gc.cy_px], dtype=float)
+        self.layout = _Layout(config, g, bs, origin, 0)
+        # The finer blocks a failed step is measured with once more (robust_grid), over the same crop.
+        self.robust_layout: _Layout | None = None
+        rg = config.robust_grid
+        if rg > g:
+            rbs = self.crop // rg
+            rbs -= rbs % 2
+            if rbs >= 16 and rg**2 - config.robust_outlier_blocks >= 4:
+                inset = (self.crop - rg * rbs) // 2
+                self.robust_layout = _Layout(config, rg, rbs, origin, inset, config.robust_outlier_blocks)
         # Levelling (:meth:`_levelled`): region px -> rays of the grid's pinhole, and rays -> region px.
         to_region = np.array([[1.0, 0.0, -self.rx0], [0.0, 1.0, -self.ry0], [0.0, 0.0, 1.0]]) @ gc.K
         self.level_frame = (to_region, np.linalg.inv(to_region))
@@ -534,6 +601,17 @@ class PhaseCorr:
         self.crop_corners_centred = (
             np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + self.crop_from_centre
         )
+
+    @property
+    def yaw_floor_deg(self) -> float:
+        """The yaw's standard error (deg) the default blocks leave when they agree at their own
+        precision (:class:`_Layout`)."""
+        return self.layout.yaw_floor_deg
+
+    @property
+    def layout_bounds_yaw(self) -> bool:
+        """Whether the default blocks' agreement bounds the yaw (:class:`_Layout`)."""
+        return self.layout.bounds_yaw
 
     def start(self) -> _State:
         return _State()
@@ -607,11 +685,8 @@ class PhaseCorr:
         )
 
     def _blocks(self, img: np.ndarray, low_only: bool = False) -> np.ndarray:
-        """The spectra (g * g, n, n // 2 + 1) of the crop ``img``'s blocks, row by row, in one transform
-        (``low_only``: their low frequencies alone, :meth:`_Spectral.spectrum`)."""
-        bs, g = self.block, self.config.grid
-        stack = np.asarray(img, dtype=np.float32).reshape(g, bs, g, bs).swapaxes(1, 2).reshape(g * g, bs, bs)
-        return self.sp.spectrum(stack, low_only)
+        """The spectra (g * g, n, n // 2 + 1) of the crop ``img``'s default blocks (:meth:`_Layout.blocks`)."""
+        return self.layout.blocks(img, low_only)
 
     def _warp_into_prev(self, cur: np.ndarray, M: np.ndarray, offset: tuple[int, int] = (0, 0)) -> np.ndarray:
         """cur sampled at M(p) for p on the previous frame's crop grid (moved by ``offset`` px).
@@ -663,14 +738,17 @@ class PhaseCorr:
             return StepResult("init", reason="first frame", timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
         m = self._measure(state, cur, M0)
+        tried = [m]
         if self._failed(m) and not np.array_equal(M0, np.eye(3)):
             m = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
+            tried.append(m)
         if self._failed(m):
             # A step too large for the crop (its correlation wraps beyond half the crop): a
             # first guess from the whole normalised region, then the blocks where both frames see them.
             M_big = self._coarse(state, cur)
             if M_big is not None:
                 m = self._measure(state, cur, M_big)
+                tried.append(m)
         if self._failed(m):
             # A turn sharper than the blocks follow from the prediction (the first frame of a
             # 90-degree corner on a 30 mm radius turns 7.6 degrees): a first guess of the
@@ -678,9 +756,19 @@ class PhaseCorr:
             M_rot = self._coarse_rotation(state, cur)
             if M_rot is not None:
                 m = self._measure(state, cur, M_rot)
+                tried.append(m)
+        if self._failed(m) and self.robust_layout is not None:
+            # The blocks failed from every first guess: once more with finer blocks
+            # (robust_grid) from the guess whose blocks agreed best, leaving out those that
+            # disagree (robust_outlier_blocks). Over a texture that varies little along the
+            # motion (the wood's grain along x at 30 mm/frame) one or two of the four blocks
+            # find another peak, or a wide one.
+            m_robust = self._measure(state, cur, min(tried, key=lambda t: t.resid_px).M, self.robust_layout)
+            if not self._failed(m_robust):
+                m = m_robust
         M = m.M
         t2_ = time.perf_counter()
-        n_blocks = self.config.grid**2
+        n_blocks = len(m.centres)
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
@@ -768,19 +856,20 @@ class PhaseCorr:
         by 0.15-2.0 of their standard errors, of bounces by 9-45).
         """
         dev2, var = (m.scale - 1.0) ** 2, m.scale_sigma**2
+        limits = (m.layout or self.layout).image_scale_window_limits
         if not measured:
-            return not dev2 <= self.image_scale_window_limits[0] * var
+            return not dev2 <= limits[0] * var
         window = state.scale_window
         window.append((dev2, var))
-        while len(window) > len(self.image_scale_window_limits):
+        while len(window) > len(limits):
             window.popleft()
-        if not dev2 <= self.image_scale_window_limits[0] * var:
+        if not dev2 <= limits[0] * var:
             return True
         n = len(window)
         if n < 2:
             return False
         sum_dev2, sum_var = (float(np.sum(a)) for a in zip(*window))
-        return not sum_dev2 <= self.image_scale_window_limits[n - 1] * sum_var
+        return not sum_dev2 <= limits[n - 1] * sum_var
 
     def _failed(self, m: _Measured) -> bool:
         """The measurement failed (:meth:`_gross_problem`): worth measuring again from another start.
@@ -793,7 +882,7 @@ class PhaseCorr:
         cfg = self.config
         if m.min_peak < cfg.min_peak:
             return f"weak correlation peak {m.min_peak:.3f}"
-        if m.resid_px > cfg.max_residual_px:
+        if m.resid_px > self._max_residual_px(m.step_mm):
             return f"blocks disagree by {m.resid_px:.2f} px"
         if m.block_rms_px > cfg.block_precision_px and m.yaw_sigma_deg > cfg.max_yaw_sigma_deg:
             return (
@@ -806,6 +895,35 @@ class PhaseCorr:
                 f"> {cfg.converged_px:g} + their disagreement {m.resid_px:.2f}"
             )
         return ""
+
+    def _max_residual_px(self, step_mm: float) -> float:
+        """The largest disagreement (frame px) of the blocks with their rigid fit for a step of
+        ``step_mm``: ``max_residual_px``, or ``max_residual_bound_fraction`` of issue 14's bound
+        for the step (``max_step_error_*``) in px where that is more. The check is for blocks
+        whose correlation found another peak (10-30 px off); blocks within a fraction of the
+        bound of each other do not show a wrong step, and the precision checks hold the step to
+        the bound. At 30 mm/frame over the wood floor, whose grain runs along the motion, the
+        blocks that agreed disagreed by 1.3-2.2 px and the steps were 0.03-0.12 mm off."""
+        cfg = self.config
+        mm_per_frame_px = self.grid_cam.gsd_mm_per_px(self.height_mm) / cfg.downscale
+        return max(cfg.max_residual_px, cfg.max_residual_bound_fraction * cfg.bound_mm(step_mm) / mm_per_frame_px)
+
+    def _agreeing(self, centres: np.ndarray, shifts: np.ndarray, max_outliers: int) -> np.ndarray | None:
+        """The indices of the blocks kept (None: all): up to ``max_outliers`` blocks left out,
+        one at a time, the one furthest from the rigid fit of those left, while the largest
+        distance is beyond ``max_residual_px`` (frame px; ``centres``, ``shifts``: (B, 2) grid px)."""
+        if max_outliers <= 0:
+            return None
+        keep = np.arange(len(centres))
+        k = self.config.downscale
+        for _ in range(max_outliers):
+            c, d = centres[keep], shifts[keep]
+            R2, t2, _ = similarity_fit_2d(c, c + d, with_scale=False)
+            r = np.hypot(*(c @ R2.T + t2 - c - d).T)
+            if r.max() * k <= self.config.max_residual_px:
+                break
+            keep = np.delete(keep, int(np.argmax(r)))
+        return None if len(keep) == len(centres) else keep
 
     def _imprecise(self, sigma_mm: float, step_mm: float) -> bool:
         """``precision_sigmas`` standard errors ``sigma_mm`` of a step of ``step_mm`` exceed issue
@@ -833,14 +951,17 @@ class PhaseCorr:
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of {what} are "
                 f"{cfg.precision_sigmas * sigma_mm:.3f} mm (bound {cfg.bound_mm(m.step_mm):.3f} mm)"
             )
-        if not self.layout_bounds_yaw and not cfg.precision_sigmas * m.yaw_sigma_deg <= cfg.max_step_error_deg:
+        if (
+            not (m.layout or self.layout).bounds_yaw
+            and not cfg.precision_sigmas * m.yaw_sigma_deg <= cfg.max_step_error_deg
+        ):
             return (
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of its yaw are "
                 f"{cfg.precision_sigmas * m.yaw_sigma_deg:.2f} deg (bound {cfg.max_step_error_deg:g} deg)"
             )
         return ""
 
-    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray) -> _Measured:
+    def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray, layout: _Layout | None = None) -> _Measured:
         """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px of the grid) from a start value.
 
         ``iterations`` warp-and-measure rounds, fewer when the whole-pixel warp repeats (a
@@ -852,6 +973,8 @@ class PhaseCorr:
         7.6-degree turn measured from a straight prediction moved 1.2 px in its second round,
         and two rounds reported it ok and 0.15 mm off.
         The residuals and the last round's move are returned in the frame's pixels, whatever the grid.
+        ``layout``: the blocks (default: ``grid``'s); a layout that may leave blocks out
+        (``robust_grid``) keeps those that agree (:meth:`_agreeing`) in each round.
         """
         assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
@@ -865,12 +988,16 @@ class PhaseCorr:
         # A step that carries the crop out of the current frame's region: the previous frame's
         # crop moves back by half the step (within its region), so both frames see the blocks.
         off = self._crop_offset(M)
-        prev_blocks, centres = state.prev_blocks, self.block_centres
+        lay = layout or self.layout
+        centres = lay.centres
         if off != (0, 0):
             assert state.prev is not None
             ox, oy = self.x0 - self.rx0 + off[0], self.y0 - self.ry0 + off[1]
-            prev_blocks = self._blocks(state.prev[oy : oy + self.crop, ox : ox + self.crop])
-            centres = self.block_centres + np.array(off, dtype=float)
+            prev_blocks = lay.blocks(state.prev[oy : oy + self.crop, ox : ox + self.crop])
+            centres = lay.centres + np.array(off, dtype=float)
+        else:
+            prev_blocks = state.prev_blocks if lay is self.layout else lay.blocks(state.prev_crop)
+        all_centres, all_prev_blocks, keep = centres, prev_blocks, None
         min_peak, resid = 0.0, np.inf
         exact_yaw = np.radians(cfg.exact_yaw_max_deg)
         moved_px, M_last = np.inf, None  # how far the last round moved the estimate at the blocks
@@ -886,7 +1013,17 @@ class PhaseCorr:
                 M[:2, :2] = np.eye(2)
             W = M.copy()  # the whole-pixel warp of this round
             w = self._warp_into_prev(cur, M, off)
-            shifts, peaks = block_shifts(prev_blocks, self._blocks(w), self.sp)
+            shifts, peaks = block_shifts(all_prev_blocks, lay.blocks(w), lay.sp)
+            keep = self._agreeing(all_centres, shifts, lay.max_outliers)
+            if keep is not None:
+                centres, shifts, peaks, prev_blocks = (
+                    all_centres[keep],
+                    shifts[keep],
+                    peaks[keep],
+                    all_prev_blocks[keep],
+                )
+            else:
+                centres, prev_blocks = all_centres, all_prev_blocks
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
             # The rigid fit and the similarity fit (for the precision below): the least-squares
             # rotation does not depend on the scale (Umeyama), the same in both.
@@ -949,7 +1086,9 @@ class PhaseCorr:
             off,
             prev_blocks,
             centres,
-            *self._image_scale(centres, shifts, float(sc), float(sig_rad)),
+            *self._image_scale(centres, shifts, float(sc), float(sig_rad), lay),
+            layout=lay,
+            keep=keep,
         )
 
     def _settled_px(self, W: np.ndarray, M_new: np.ndarray, fit: _BlockFit, exact_yaw_rad: float) -> float | None:
@@ -990,7 +1129,7 @@ class PhaseCorr:
         return change_px
 
     def _image_scale(
-        self, centres: np.ndarray, shifts: np.ndarray, similarity_scale: float, similarity_sigma: float
+        self, centres: np.ndarray, shifts: np.ndarray, similarity_scale: float, similarity_sigma: float, layout: _Layout
     ) -> tuple[float, float]:
         """The current frame's image scale relative to the previous one's (``h_prev / h_cur``)
         and its standard error, from the block ``shifts`` (B, 2) px at their ``centres`` (B, 2)
@@ -1009,9 +1148,7 @@ class PhaseCorr:
             return 1.0, 0.0
         if cfg.image_scale_axis == "both":
             return similarity_scale, similarity_sigma
-        scales, sigmas = axis_scales_fit(
-            centres, shifts, self.block_scale_design if centres is self.block_centres else None
-        )
+        scales, sigmas = axis_scales_fit(centres, shifts, layout.scale_design if centres is layout.centres else None)
         i = 0 if cfg.image_scale_axis == "x" else 1
         return float(scales[i]), float(sigmas[i])
 
@@ -1042,7 +1179,11 @@ class PhaseCorr:
         # E c - c), so its whole pixels are known and the phase-slope fit measures the rest.
         E = np.linalg.solve(W2, m.M)
         d0 = np.round(m.centres @ E[:2, :2].T + E[:2, 2] - m.centres)
-        shifts = block_shifts_near(m.prev_blocks, self._blocks(w, low_only=True), self.sp, d0)
+        lay = m.layout or self.layout
+        cur_blocks = lay.blocks(w, low_only=True)
+        if m.keep is not None:
+            cur_blocks = cur_blocks[m.keep]
+        shifts = block_shifts_near(m.prev_blocks, cur_blocks, lay.sp, d0)
         R2, t2, _ = similarity_fit_2d(m.centres, m.centres + shifts, with_scale=False)
         E = np.eye(3)
         E[:2, :2], E[:2, 2] = R2, t2
