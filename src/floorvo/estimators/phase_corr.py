@@ -768,7 +768,8 @@ class PhaseCorr:
                 m = m_robust
         M = m.M
         t2_ = time.perf_counter()
-        n_blocks = len(m.centres)
+        # the blocks measured, and those the step kept (robust_grid may leave some out)
+        n_blocks, n_kept = len(m.layout.centres) if m.layout is not None else len(m.centres), len(m.centres)
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
@@ -827,7 +828,7 @@ class PhaseCorr:
         state.n_lost, state.height_mm = 0, h_meas
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
-        return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_blocks, timing_ms=stage_timing_ms(t0, t1, t2_, t3))
+        return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_kept, timing_ms=stage_timing_ms(t0, t1, t2_, t3))
 
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
