@@ -626,3 +626,27 @@ def test_phase_corr_blocks_of_a_fast_step_may_disagree_by_part_of_its_bound():
         est = get_estimator(name)(make_config(name), CAM, height_mm=100.0)
         assert est._max_residual_px(4.0) == pytest.approx(1.5)
         assert est._max_residual_px(30.0) == pytest.approx(0.5 * (0.05 + 0.02 * 30.0) / gsd, rel=1e-6)
+
+
+def test_phase_corr_finer_blocks_only_where_they_are_large_enough_and_enough_remain():
+    """``robust_grid`` at full size: 128 px blocks (phase-corr), 64 px (phase-corr-fast, binned
+    2 x 2); at half size 72 px (the 220 px crop of a 247 px high frame), and binned 2 x 2 they
+    would be 36 px, under ``robust_min_block_px``: none.
+    Leaving out so many that fewer than four blocks remain is refused in one line."""
+    from floorvo.errors import ConfigError
+
+    half = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
+    sizes = {}
+    for name, cam in [("phase-corr", CAM), ("phase-corr-fast", CAM), ("phase-corr", half), ("phase-corr-fast", half)]:
+        est = get_estimator(name)(make_config(name), cam, height_mm=100.0)
+        sizes[name, cam.width_px] = None if est.robust_layout is None else est.robust_layout.block
+    assert sizes == {
+        ("phase-corr", 648): 128,
+        ("phase-corr-fast", 648): 64,
+        ("phase-corr", 324): 74,
+        ("phase-corr-fast", 324): None,
+    }
+    with pytest.raises(
+        ConfigError, match=r"^phase-corr\.robust_outlier_blocks = 6: leaves fewer than 4 of robust_grid 3's 9"
+    ):
+        get_estimator("phase-corr")(make_config("phase-corr", {"robust_outlier_blocks": "6"}), CAM, height_mm=100.0)
