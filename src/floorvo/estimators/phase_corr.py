@@ -30,6 +30,9 @@ Per frame:
    When the blocks fail from the prediction and from no motion, a first guess is taken
    from the whole region (a step larger than half the crop) or from the crops' log-polar
    magnitude spectra (a sharp turn: Reddy & Chatterji's rotation by phase correlation).
+   When the blocks fail from each of these, the step is measured once more with finer
+   blocks (``robust_grid``, 3 x 3 over the same crop), leaving out up to
+   ``robust_outlier_blocks`` that disagree with the rigid fit of the rest.
 5. Pixels to floor millimetres with the camera model at the camera height (eq. (1) of
    paper 000 generalised), then to the camera motion ``T_prev_cur``.
 
