@@ -397,15 +397,13 @@ def test_phase_corr_measures_a_step_larger_than_half_its_crop(tmp_path):
     """30 mm per frame (900 mm/s at 30 fps): 243 px at full size, more than half the 384 px
     crop, whose correlation wraps it to -141 px, and the crop moved by it leaves the frame.
     phase-corr takes a first guess from the whole normalised region and measures the blocks
-    where both frames see them (the previous frame's crop moved back by half the step), with
-    its finer 3 x 3 blocks first (``_measure_from``): every step is ok and within issue 14's
-    bound (before: every step lost)."""
+    where both frames see them (the previous frame's crop moved back by half the step): every
+    step is ok and within issue 14's bound (before: every step lost)."""
     seq = _sequence(tmp_path, [(30.0 * i, 0.0, 0.0) for i in range(4)])
     results, truth = _run("phase-corr", seq)
     assert results[0].status == "init"
     for k, (res, T_true) in enumerate(zip(results[1:], truth), start=1):
         assert res.status == "ok", f"step {k}: {res.reason}"
-        assert res.n_matches == 9, f"step {k}: measured with {res.n_matches} blocks"
         assert _within_bound(res.T_prev_cur, T_true), f"step {k}: {_step_error(res.T_prev_cur, T_true)}"
 
 

@@ -752,17 +752,17 @@ class PhaseCorr:
             state.height_mm = self._frame_height(frame)
             return StepResult("init", reason="first frame", timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()))
         M0 = state.M_pred.copy() if self.config.predict else np.eye(3)
-        m = self._measure_from(state, cur, M0)
+        m = self._measure(state, cur, M0)
         tried = [m]
         if self._failed(m) and not np.array_equal(M0, np.eye(3)):
-            m = self._measure_from(state, cur, np.eye(3))  # the prediction misled: start afresh
+            m = self._measure(state, cur, np.eye(3))  # the prediction misled: start afresh
             tried.append(m)
         if self._failed(m):
             # A step too large for the crop (its correlation wraps beyond half the crop): a
             # first guess from the whole normalised region, then the blocks where both frames see them.
             M_big = self._coarse(state, cur)
             if M_big is not None:
-                m = self._measure_from(state, cur, M_big)
+                m = self._measure(state, cur, M_big)
                 tried.append(m)
         if self._failed(m):
             # A turn sharper than the blocks follow from the prediction (the first frame of a
@@ -770,7 +770,7 @@ class PhaseCorr:
             # rotation from the crops' magnitude spectra, then the blocks measure the step.
             M_rot = self._coarse_rotation(state, cur)
             if M_rot is not None:
-                m = self._measure_from(state, cur, M_rot)
+                m = self._measure(state, cur, M_rot)
                 tried.append(m)
         if self._failed(m) and self.robust_layout is not None:
             # The blocks failed from every first guess: once more with finer blocks
@@ -976,26 +976,6 @@ class PhaseCorr:
                 f"{cfg.precision_sigmas * m.yaw_sigma_deg:.2f} deg (bound {cfg.max_step_error_deg:g} deg)"
             )
         return ""
-
-    def _measure_from(self, state: _State, cur: np.ndarray, M: np.ndarray) -> _Measured:
-        """The step measured from the first guess ``M`` (3x3, :meth:`_measure`): with the default
-        blocks, or, for a guess that carries the crop out of the current frame's region (a step
-        beyond ``margin_px``: the previous frame's crop is then moved back, :meth:`_crop_offset`),
-        with the finer blocks (``robust_grid``) first, and the default ones if those fail.
-
-        The two frames then see each block at image positions a step apart, lit differently by
-        the rig's LEDs, and that light's structure is strongest in the lowest spatial
-        frequencies, which the phase-slope fit weighs and a larger block reaches further down.
-        On the full-size 30 mm/frame wood run the four 192 px blocks converged 1.8 px (0.23 mm)
-        beyond the true step from every start between 4 px short and 6 px long, the 3 x 3
-        blocks 0.6 px beyond it; over its 20 steps phase-corr read 30.12 mm on average with the
-        default blocks, 30.06 mm this way (phase-corr-fast 30.26, 30.15; 20 mm/frame on concrete:
-        20.12 either way)."""
-        if self.robust_layout is not None and M[:2, 2].any() and self._crop_offset(M) != (0, 0):
-            m = self._measure(state, cur, M, self.robust_layout)
-            if not self._failed(m):
-                return m
-        return self._measure(state, cur, M)
 
     def _measure(self, state: _State, cur: np.ndarray, M: np.ndarray, layout: _Layout | None = None) -> _Measured:
         """Refine the image motion ``M`` (3x3, prev-centred px -> cur-centred px of the grid) from a start value.
