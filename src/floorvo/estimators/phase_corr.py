@@ -287,9 +287,9 @@ class _Measured:
     offset: tuple[int, int]
     prev_blocks: np.ndarray
     centres: np.ndarray
+    layout: _Layout  # the blocks it was measured with
     scale: float = 1.0
     scale_sigma: float = 0.0
-    layout: _Layout | None = None  # the blocks it was measured with (None: the default ones)
     keep: np.ndarray | None = None  # the indices of the layout's blocks it kept (None: all)
 
 
@@ -784,7 +784,7 @@ class PhaseCorr:
         M = m.M
         t2_ = time.perf_counter()
         # the blocks measured, and those the step kept (robust_grid may leave some out)
-        n_blocks, n_kept = len(m.layout.centres) if m.layout is not None else len(m.centres), len(m.centres)
+        n_blocks, n_kept = len(m.layout.centres), len(m.centres)
         crop = cur[
             self.y0 - self.ry0 : self.y0 - self.ry0 + self.crop, self.x0 - self.rx0 : self.x0 - self.rx0 + self.crop
         ]
@@ -872,7 +872,7 @@ class PhaseCorr:
         by 0.15-2.0 of their standard errors, of bounces by 9-45).
         """
         dev2, var = (m.scale - 1.0) ** 2, m.scale_sigma**2
-        limits = (m.layout or self.layout).image_scale_window_limits
+        limits = m.layout.image_scale_window_limits
         if not measured:
             return not dev2 <= limits[0] * var
         window = state.scale_window
@@ -967,10 +967,7 @@ class PhaseCorr:
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of {what} are "
                 f"{cfg.precision_sigmas * sigma_mm:.3f} mm (bound {cfg.bound_mm(m.step_mm):.3f} mm)"
             )
-        if (
-            not (m.layout or self.layout).bounds_yaw
-            and not cfg.precision_sigmas * m.yaw_sigma_deg <= cfg.max_step_error_deg
-        ):
+        if not m.layout.bounds_yaw and not cfg.precision_sigmas * m.yaw_sigma_deg <= cfg.max_step_error_deg:
             return (
                 f"imprecise step: {cfg.precision_sigmas:g} standard errors of its yaw are "
                 f"{cfg.precision_sigmas * m.yaw_sigma_deg:.2f} deg (bound {cfg.max_step_error_deg:g} deg)"
@@ -1102,8 +1099,8 @@ class PhaseCorr:
             off,
             prev_blocks,
             centres,
+            lay,
             *self._image_scale(centres, shifts, float(sc), float(sig_rad), lay),
-            layout=lay,
             keep=keep,
         )
 
@@ -1195,7 +1192,7 @@ class PhaseCorr:
         # E c - c), so its whole pixels are known and the phase-slope fit measures the rest.
         E = np.linalg.solve(W2, m.M)
         d0 = np.round(m.centres @ E[:2, :2].T + E[:2, 2] - m.centres)
-        lay = m.layout or self.layout
+        lay = m.layout
         cur_blocks = lay.blocks(w, low_only=True)
         if m.keep is not None:
             cur_blocks = cur_blocks[m.keep]
