@@ -616,6 +616,29 @@ def test_phase_corr_measures_with_finer_blocks_when_a_block_sees_something_else(
     assert res.status == "lost" and res.reason.startswith("blocks disagree by"), res.reason
 
 
+def test_phase_corr_finer_blocks_leave_out_what_the_gross_check_would_not_pass():
+    """The finer layout leaves out a block by the gross check's own measure of disagreement
+    (the larger component of its residual from the blocks' rigid fit): of 3 x 3 blocks moved by
+    (5, -2) px, the centre one off by (1.2, 1.2) px more leaves it a residual of 8/9 of that, by
+    hand (the fit's translation takes the mean; the centre block adds no rotation): (1.07, 1.07)
+    px, 1.51 px long but each component within ``max_residual_px`` (1.5): kept. Off by (2, 0) px,
+    its residual is 1.78 px: left out. Three off by 5 px are more than ``robust_outlier_blocks``
+    (2) leaves out: the two worst go and the step is left to the gross check."""
+    est = get_estimator("phase-corr")(make_config("phase-corr"), CAM, height_mm=100.0)
+    lay = est.robust_layout
+    assert lay is not None and len(lay.centres) == 9 and lay.max_outliers == 2
+    shifts = np.tile([5.0, -2.0], (9, 1))
+    for off, kept in [((1.2, 1.2), None), ((2.0, 0.0), [0, 1, 2, 3, 5, 6, 7, 8])]:
+        s = shifts.copy()
+        s[4] += off
+        keep = est._agreeing(lay.centres, s, lay.max_outliers)
+        assert (keep if keep is None else keep.tolist()) == kept, off
+    s = shifts.copy()
+    s[[0, 4, 8]] += (5.0, 0.0)
+    keep = est._agreeing(lay.centres, s, lay.max_outliers)
+    assert keep is not None and len(keep) == 7
+
+
 def test_phase_corr_blocks_of_a_fast_step_may_disagree_by_part_of_its_bound():
     """The gross check's tolerance (``_max_residual_px``): ``max_residual_px`` (1.5 px) for a
     4 mm step, whose bound (0.05 mm + 2 %: 0.13 mm) is 1.05 px at this camera's 0.1233 mm per
