@@ -79,6 +79,7 @@ from floorvo.geometry import (
     f_sigmas,
     floor_rigid_to_T,
     pixel_rigid_to_floor,
+    rigid_fit_2d_information,
     rigid_fit_precision,
     similarity_fit_2d,
 )
@@ -195,6 +196,21 @@ class PhaseCorrConfig(StepBoundConfig):
         doc="blocks may disagree by up to this fraction of issue 14's bound for the step (max_step_error_*, in px) "
         "where that is more than max_residual_px: a 30 mm step's bound is 0.65 mm (5.3 px at full size)",
     )
+    weigh_blocks_by_texture: bool = param(
+        False,
+        doc="fit the motion to the blocks' shifts weighted by each block's texture (its shift's information "
+        "along x and y: a grain along x measures little along x) where the blocks share a direction "
+        "(texture_weight_min_coherence) and the warp does not rotate (fast runs along a grain); false: every "
+        "coordinate alike",
+    )
+    texture_weight_min_coherence: float = param(
+        0.8,
+        min=0.0,
+        max=1.0,
+        doc="weigh the blocks by their texture only where the sum of their information's shapes has at least this "
+        "coherence ((l1 - l2) / (l1 + l2) of its eigenvalues: a grain all of them see; wood 0.84-0.98, "
+        "concrete, vinyl, asphalt 0.2-0.4, a tile's grout in several directions under 0.1)",
+    )
     robust_grid: int = param(
         3,
         min=0,
@@ -291,6 +307,8 @@ class _Measured:
     scale: float = 1.0
     scale_sigma: float = 0.0
     keep: np.ndarray | None = None  # the indices of the layout's blocks it kept (None: all)
+    # :meth:`PhaseCorr._warp_spread`'s result, once measured: (mm, deg, bracketed, M through the other warp)
+    spread: tuple[float, float, bool, np.ndarray] | None = None
 
 
 class _BlockFit:
@@ -426,12 +444,13 @@ def block_shift(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarr
 
     ``Fa``, ``Fb``: rfft2 spectra of the windowed blocks (size sp.n). :func:`block_shifts` for a stack.
     """
-    d, peak = block_shifts(Fa[None], Fb[None], sp)
+    d, peak, _ = block_shifts(Fa[None], Fb[None], sp)
     return d[0], float(peak[0])
 
 
-def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`block_shift` of a stack of B block pairs in one pass: ``(d (B, 2) px, peaks (B,))``.
+def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`block_shift` of a stack of B block pairs in one pass: ``(d (B, 2) px, peaks (B,),
+    information (B, 2, 2))``, the last the sub-pixel fit's normal matrices (:func:`_phase_slope`).
 
     ``Fa``, ``Fb``: (B, n, n // 2 + 1) rfft2 spectra of the windowed blocks (size sp.n). Phase
     correlation ``ifft(Fb Fa* / |Fb Fa*|)`` gives each block's integer shift at its peak; a
@@ -453,28 +472,34 @@ def block_shifts(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral) -> tuple[np.ndar
     d0[d0 > n // 2] -= n  # beyond half the block: a negative shift
     d0 = d0.astype(np.float64)
     low = (slice(None), sp.low_rows, slice(0, sp.low_cols))
-    return d0 + _phase_slope(R[low], mag[low], d0, sp), peaks
+    frac, info = _phase_slope(R[low], mag[low], d0, sp)
+    return d0 + frac, peaks, info
 
 
-def block_shifts_near(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral, d0: np.ndarray) -> np.ndarray:
+def block_shifts_near(Fa: np.ndarray, Fb: np.ndarray, sp: _Spectral, d0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`block_shifts` of block pairs whose integer shifts ``d0`` (B, 2) px are known: no
     correlation and no peak search, the phase-slope fit alone over the low frequencies (the
     cross-power spectrum formed there only). ``Fa``, ``Fb``: whole spectra, or their low
     frequencies alone (``sp.spectrum(..., low_only=True)``: a spectrum of that shape is taken
-    as them). ``(B, 2)`` px."""
+    as them). ``(d (B, 2) px, information (B, 2, 2))``."""
     low = (slice(None), sp.low_rows, slice(0, sp.low_cols))
     cross = (Fb if Fb.shape[-2:] == sp.low_shape else Fb[low]) * np.conj(
         Fa if Fa.shape[-2:] == sp.low_shape else Fa[low]
     )
     d0 = np.asarray(d0, dtype=np.float64).reshape(-1, 2)
-    return d0 + _phase_slope(cross, np.abs(cross), d0, sp)
+    frac, info = _phase_slope(cross, np.abs(cross), d0, sp)
+    return d0 + frac, info
 
 
-def _phase_slope(cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp: _Spectral) -> np.ndarray:
+def _phase_slope(
+    cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp: _Spectral
+) -> tuple[np.ndarray, np.ndarray]:
     """The sub-pixel shifts (B, 2) px left after the integer shifts ``d0`` (B, 2): a weighted
     least-squares fit of the phase slope ``phi = -2 pi (kx dx + ky dy)`` of the cross-power
     spectrum ``cross_low`` (B, rows, cols: the low frequencies of :class:`_Spectral`, or a
-    positive multiple of them), weighted by its magnitude ``mag_low``."""
+    positive multiple of them), weighted by its magnitude ``mag_low``; and each fit's normal
+    matrix (B, 2, 2), ``sum_l w_l A_l^T A_l``: the shift's information up to the phase noise's
+    variance, whose shape is the block's texture (a grain along x gives little along x)."""
     B = len(cross_low)
     phi = np.angle(cross_low).reshape(B, -1).astype(np.float64)
     if d0.any():  # the phase of R exp(2 pi i k.d0), wrapped into [-pi, pi] (by rounding: np.mod is 7x slower)
@@ -491,7 +516,7 @@ def _phase_slope(cross_low: np.ndarray, mag_low: np.ndarray, d0: np.ndarray, sp:
         a, d = a + 1e-12, d + 1e-12
         det = a * d - b * c
         out.append(((d * r0 - b * r1) / det, (a * r1 - c * r0) / det))
-    return np.array(out)
+    return np.array(out), lhs.reshape(B, 2, 2)
 
 
 @dataclass
@@ -781,6 +806,17 @@ class PhaseCorr:
             m_robust = self._measure(state, cur, min(tried, key=lambda t: t.resid_px).M, self.robust_layout)
             if not self._failed(m_robust):
                 m = m_robust
+        if self.config.check_warp_spread and not self._failed(m):
+            # Measured again through the whole-pixel warp beyond it, the blocks still see the step
+            # further on (:meth:`_warp_spread`): it had not converged. The rounds go on from there
+            # once, and the step is checked as any other. Along a grain the blocks' shifts are
+            # pulled toward their warp: on the 30 mm/frame wood run a step read -244.59 px through
+            # the warp at -244 and -245.15 through the one at -245.
+            _, _, bracketed, M_beyond = self._warp_spread(cur, m)
+            if not bracketed:
+                m_on = self._measure(state, cur, M_beyond, m.layout)
+                if not self._failed(m_on):
+                    m = m_on
         M = m.M
         t2_ = time.perf_counter()
         # the blocks measured, and those the step kept (robust_grid may leave some out)
@@ -944,6 +980,58 @@ class PhaseCorr:
             keep = np.delete(keep, int(np.argmax(r)))
         return None if len(keep) == len(centres) else keep
 
+    def _block_motion(
+        self,
+        centres: np.ndarray,
+        shifts: np.ndarray,
+        information: np.ndarray,
+        rotating: bool,
+        equal: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The rigid motion ``(R (2, 2), t (2,))`` that takes the block ``centres`` (B, 2) grid px to
+        ``centres + shifts``: every coordinate alike (:func:`_rigid_residuals`; ``equal``: that fit
+        when already made), or, with ``weigh_blocks_by_texture`` where the blocks see a grain and
+        the warp does not rotate, each block's residual weighted by the shape of its shift's ``information`` (B,
+        2, 2, :func:`_phase_slope`), scaled to the same trace for every block
+        (:func:`floorvo.geometry.rigid_fit_2d_information`).
+
+        On the wood floor whose grain runs along the motion, at 30 mm/frame, the blocks'
+        information along x is 1-3 % of that along y, and their x shifts disagreed by up to 3.4 px
+        where their y shifts agreed within 0.1: fitted alike, the x shifts of the rows set the yaw
+        (0.096 degrees standard deviation a step); weighted, it comes from the y shifts (0.005).
+        Why the shape only: the information's size follows the block's contrast, but what limits
+        a block here is how the shading changed between the frames, which the contrast does not
+        tell; its shape tells which way the block sees the motion.
+
+        Weighted only where both of these hold (else alike):
+        - the sum of the blocks' shapes has a coherence (``(l1 - l2) / (l1 + l2)``, its
+          eigenvalues) of at least ``texture_weight_min_coherence``: the blocks see one
+          direction, a grain. On the ceramic tile their strong directions differ (the grout's
+          lines and corners), and weighted so a 15-degree two-frame step of the corner came out
+          0.39 degrees off where the checks passed it;
+        - the warp does not rotate (``rotating``): on a wood S-curve the weighted fit read the
+          turns 1.3 % short (phase-corr-fast), against 0.2 % alike.
+
+        Off by default: on wood runs at 4 mm/frame with the grain at 60 or 120 degrees to the
+        motion, or bouncing, the weighted yaw was less noisy but biased (0.003-0.007 degrees a
+        step, its sign the grain's side: the shading's pattern across the frame, which an oblique
+        weighting turns into yaw), and their drift grew by 0.02-0.09 points; at 20-30 mm/frame along the grain it fell
+        by up to 0.38 (BENCHMARKS.md, "phase-corr on a grained floor: the blocks weighted by what
+        they see")."""
+        R, t = equal if equal is not None else _rigid_residuals(centres, shifts)[:2]
+        cfg = self.config
+        if not cfg.weigh_blocks_by_texture or rotating:
+            return R, t
+        tr = information[:, 0, 0] + information[:, 1, 1]
+        shape = information * (2.0 / np.maximum(tr, 1e-300))[:, None, None]
+        sxx, syy, sxy = (float(v) for v in (shape[:, 0, 0].sum(), shape[:, 1, 1].sum(), shape[:, 0, 1].sum()))
+        if not float(np.hypot(sxx - syy, 2.0 * sxy)) >= cfg.texture_weight_min_coherence * (sxx + syy):
+            return R, t
+        try:
+            return rigid_fit_2d_information(centres, centres + shifts, shape)
+        except ValueError:  # blocks without texture (no information): their shifts alike
+            return R, t
+
     def _imprecise(self, sigma_mm: float, step_mm: float) -> bool:
         """``precision_sigmas`` standard errors ``sigma_mm`` of a step of ``step_mm`` exceed issue
         14's bound for it (``max_step_error_*``); never with ``precision_sigmas = 0``."""
@@ -1029,23 +1117,27 @@ class PhaseCorr:
                 M[:2, :2] = np.eye(2)
             W = M.copy()  # the whole-pixel warp of this round
             w = self._warp_into_prev(cur, M, off)
-            shifts, peaks = block_shifts(all_prev_blocks, lay.blocks(w), lay.sp)
+            shifts, peaks, info = block_shifts(all_prev_blocks, lay.blocks(w), lay.sp)
             keep = self._agreeing(all_centres, shifts, lay.max_outliers)
             if keep is not None:
-                centres, shifts, peaks, prev_blocks = (
+                centres, shifts, peaks, info, prev_blocks = (
                     all_centres[keep],
                     shifts[keep],
                     peaks[keep],
+                    info[keep],
                     all_prev_blocks[keep],
                 )
             else:
                 centres, prev_blocks = all_centres, all_prev_blocks
             # E maps block centres c to c + d (warped(p) = prev(E^-1 p)); M_true = M E.
-            # The rigid fit and the similarity fit (for the precision below): the least-squares
-            # rotation does not depend on the scale (Umeyama), the same in both.
+            # The rigid fit (the blocks' disagreement) and the similarity fit (for the
+            # precision below): the least-squares rotation does not depend on the scale
+            # (Umeyama), the same in both. The motion itself from the blocks weighted by their
+            # texture (:meth:`_block_motion`).
             moved = centres + shifts
             Rs, ts, sc = similarity_fit_2d(centres, moved)
             R2, t2, block_resid = _rigid_residuals(centres, shifts)
+            R2, t2 = self._block_motion(centres, shifts, info, rotating, (R2, t2))
             fit = _BlockFit(centres, moved, Rs, ts, sc)
             E = np.eye(3)
             E[:2, :2], E[:2, 2] = R2, t2
@@ -1168,13 +1260,14 @@ class PhaseCorr:
         i = 0 if cfg.image_scale_axis == "x" else 1
         return float(scales[i]), float(sigmas[i])
 
-    def _warp_spread(self, cur: np.ndarray, m: _Measured) -> tuple[float, float, bool]:
+    def _warp_spread(self, cur: np.ndarray, m: _Measured) -> tuple[float, float, bool, np.ndarray]:
         """The step ``m.M``, measured through the whole-pixel warp ``m.warp``, measured again
         through the whole-pixel warp on its other side (per axis, the nearest whole pixel
         beyond ``m.M`` seen from ``m.warp``; the neighbour of a warp that converged): the
         distance between the two estimates' translations at the principal point (mm, at the
         rig's height), between their yaws (deg), and whether the two warps bracket the step
-        (each one's blocks see it toward the other).
+        (each one's blocks see it toward the other), and the step measured through the other
+        warp (3x3, as ``m.M``). Measured once per measurement (kept in ``m.spread``).
 
         The blocks' phase-slope fit measures what is left after the warp, and image content
         that does not move with the floor (under LEDs that ride with the camera: structure of
@@ -1187,6 +1280,8 @@ class PhaseCorr:
         1.5 px from its warp after the rounds: the prediction after a lost frame was twice the
         step) leave it unknown how far off it is. One more round through a warp per step that
         passed every other check."""
+        if m.spread is not None:
+            return m.spread
         d = m.M[:2, 2] - m.warp[:2, 2]
         W2 = m.warp.copy()
         W2[:2, 2] = np.where(d >= 0.0, np.floor(m.M[:2, 2]) + 1.0, np.ceil(m.M[:2, 2]) - 1.0)
@@ -1199,8 +1294,8 @@ class PhaseCorr:
         cur_blocks = lay.blocks(w, low_only=True)
         if m.keep is not None:
             cur_blocks = cur_blocks[m.keep]
-        shifts = block_shifts_near(m.prev_blocks, cur_blocks, lay.sp, d0)
-        R2, t2, _ = _rigid_residuals(m.centres, shifts)
+        shifts, info = block_shifts_near(m.prev_blocks, cur_blocks, lay.sp, d0)
+        R2, t2 = self._block_motion(m.centres, shifts, info, bool(W2[1, 0] != 0.0))
         E = np.eye(3)
         E[:2, :2], E[:2, 2] = R2, t2
         M2 = W2 @ E
@@ -1208,7 +1303,8 @@ class PhaseCorr:
         spread_mm = float(np.linalg.norm(M2[:2, 2] - m.M[:2, 2])) * mm_per_px
         spread_deg = abs(float(np.degrees(np.arctan2(M2[1, 0], M2[0, 0]) - np.arctan2(m.M[1, 0], m.M[0, 0]))))
         bracketed = bool(np.all((M2[:2, 2] - W2[:2, 2]) * d <= 0.0))
-        return spread_mm, spread_deg, bracketed
+        m.spread = (spread_mm, spread_deg, bracketed, M2)
+        return m.spread
 
     def _spread_problem(self, cur: np.ndarray, m: _Measured) -> str:
         """Why the step ``m`` is not the same measured through the whole-pixel warp on its other
@@ -1219,7 +1315,7 @@ class PhaseCorr:
         cfg = self.config
         if not cfg.check_warp_spread:
             return ""
-        spread_mm, spread_deg, bracketed = self._warp_spread(cur, m)
+        spread_mm, spread_deg, bracketed, _ = self._warp_spread(cur, m)
         if not bracketed:
             return (
                 "step not converged: measured again through the whole-pixel warp beyond it, the blocks "
