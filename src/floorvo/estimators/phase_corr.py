@@ -806,7 +806,8 @@ class PhaseCorr:
             m_robust = self._measure(state, cur, min(tried, key=lambda t: t.resid_px).M, self.robust_layout)
             if not self._failed(m_robust):
                 m = m_robust
-        if self.config.check_warp_spread and not self._failed(m):
+        gross = self._gross_problem(m)
+        if self.config.check_warp_spread and not gross:
             # Measured again through the whole-pixel warp beyond it, the blocks still see the step
             # further on (:meth:`_warp_spread`): it had not converged. The rounds go on from there
             # once, and the step is checked as any other. Along a grain the blocks' shifts are
@@ -815,8 +816,9 @@ class PhaseCorr:
             _, _, bracketed, M_beyond = self._warp_spread(cur, m)
             if not bracketed:
                 m_on = self._measure(state, cur, M_beyond, m.layout)
-                if not self._failed(m_on):
-                    m = m_on
+                gross_on = self._gross_problem(m_on)
+                if not gross_on:
+                    m, gross = m_on, gross_on
         M = m.M
         t2_ = time.perf_counter()
         # the blocks measured, and those the step kept (robust_grid may leave some out)
@@ -830,7 +832,6 @@ class PhaseCorr:
         h_prev = state.height_mm or self.height_mm
         h_meas = self._frame_height(frame)
         height_sigma_mm = 0.0
-        gross = self._gross_problem(m)
         if h_meas is None and self.config.fit_image_scale:
             if self._height_changed(state, m, measured=not gross):
                 h_meas = h_prev / m.scale
