@@ -1019,7 +1019,7 @@ class PhaseCorr:
         weighting turns into yaw), and their drift grew by 0.02-0.09 points; at 20-30 mm/frame along the grain it fell
         by up to 0.38 (BENCHMARKS.md, "phase-corr on a grained floor: the blocks weighted by what
         they see")."""
-        R, t = equal if equal is not None else _rigid_residuals(centres, shifts)[:2]
+        R, t = equal if equal is not None else similarity_fit_2d(centres, centres + shifts, with_scale=False)[:2]
         cfg = self.config
         if not cfg.weigh_blocks_by_texture or rotating:
             return R, t
