@@ -990,11 +990,11 @@ class PhaseCorr:
         equal: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The rigid motion ``(R (2, 2), t (2,))`` that takes the block ``centres`` (B, 2) grid px to
-        ``centres + shifts``: every coordinate alike (:func:`_rigid_residuals`; ``equal``: that fit
-        when already made), or, with ``weigh_blocks_by_texture`` where the blocks see a grain and
-        the warp does not rotate, each block's residual weighted by the shape of its shift's ``information`` (B,
-        2, 2, :func:`_phase_slope`), scaled to the same trace for every block
-        (:func:`floorvo.geometry.rigid_fit_2d_information`).
+        ``centres + shifts``: every coordinate alike (the fit of :func:`_rigid_residuals`;
+        ``equal``: that fit when already made), or, with ``weigh_blocks_by_texture`` where the
+        blocks see a grain and the warp does not rotate, each block's residual weighted by the
+        shape of its shift's ``information`` (B, 2, 2, :func:`_phase_slope`), scaled to the same
+        trace for every block (:func:`floorvo.geometry.rigid_fit_2d_information`).
 
         On the wood floor whose grain runs along the motion, at 30 mm/frame, the blocks'
         information along x is 1-3 % of that along y, and their x shifts disagreed by up to 3.4 px
@@ -1016,9 +1016,9 @@ class PhaseCorr:
         Off by default: on wood runs at 4 mm/frame with the grain at 60 or 120 degrees to the
         motion, or bouncing, the weighted yaw was less noisy but biased (0.003-0.007 degrees a
         step, its sign the grain's side: the shading's pattern across the frame, which an oblique
-        weighting turns into yaw), and their drift grew by 0.02-0.09 points; at 20-30 mm/frame along the grain it fell
-        by up to 0.38 (BENCHMARKS.md, "phase-corr on a grained floor: the blocks weighted by what
-        they see")."""
+        weighting turns into yaw), and their drift grew by 0.02-0.09 points; at 20-30 mm/frame
+        along the grain it fell by up to 0.38 (BENCHMARKS.md, "phase-corr on a grained floor: the
+        blocks weighted by what they see")."""
         R, t = equal if equal is not None else similarity_fit_2d(centres, centres + shifts, with_scale=False)[:2]
         cfg = self.config
         if not cfg.weigh_blocks_by_texture or rotating:
