@@ -306,8 +306,10 @@ def test_phase_corr_blocks_that_disagree_on_the_yaw_are_lost(tmp_path):
     )
     frames = [np.clip(np.round(f / np.percentile(prev, 99.5) * 200.0), 0, 255).astype(np.uint8) for f in (prev, cur)]
     # Without the yaw check (and the translation's precision check, which these blocks fail too) it was ok.
+    # Leaving out three of the finer 3 x 3 blocks, six agree on a motion that is not the floor's
+    # (0.156 mm off): the three left out agree on another one, and the step is lost.
     relaxed = {"max_yaw_sigma_deg": "10", "precision_sigmas": "0"}
-    for overrides, status in [({}, "lost"), (relaxed, "ok")]:
+    for overrides, status in [({}, "lost"), (relaxed, "ok"), ({"robust_outlier_blocks": "3"}, "lost")]:
         res = _step_frames("phase-corr", frames, overrides)
         assert res[1].status == status, res[1].reason
         if status == "lost":
@@ -722,6 +724,33 @@ def test_phase_corr_finer_blocks_leave_out_what_the_gross_check_would_not_pass()
     s[[0, 4, 8]] += (5.0, 0.0)
     keep = est._agreeing(lay.centres, s, lay.max_outliers)
     assert keep is not None and len(keep) == 7
+
+
+def test_phase_corr_blocks_left_out_that_agree_on_another_motion_are_a_second_motion():
+    """:meth:`PhaseCorr._second_motion`, by hand: of 3 x 3 blocks moved by (5, -2) px, three
+    left out that each read 2.55 px more along x agree on another motion (3, 2.55 px); two that
+    do (something fixed to the rig) are left out as before; three that read 2.55, -4 and 6 px
+    more (wrong peaks) do not agree; three that agree 1 px away are not distinct from the rest at
+    a tolerance of 1.5 px."""
+    est = get_estimator("phase-corr")(make_config("phase-corr", {"robust_outlier_blocks": "3"}), CAM, height_mm=100.0)
+    lay = est.robust_layout
+    assert lay is not None and lay.max_outliers == 3
+    kept = np.array([0, 1, 3, 4, 5, 6])
+    for extra, dropped, expected in [
+        ([(2.55, 0.0)] * 3, [2, 7, 8], (3, 2.55)),
+        ([(2.55, 0.0)] * 2, [2, 7], None),
+        ([(2.55, 0.0), (-4.0, 0.0), (6.0, 1.0)], [2, 7, 8], None),
+        ([(1.0, 0.0)] * 3, [2, 7, 8], None),
+    ]:
+        shifts = np.tile([5.0, -2.0], (9, 1))
+        for i, d in zip(dropped, extra, strict=True):
+            shifts[i] += d
+        keep = np.setdiff1d(np.arange(9), dropped) if len(dropped) == 2 else kept
+        got = est._second_motion(lay.centres, shifts, keep, 1.5)
+        if expected is None:
+            assert got is None, (extra, got)
+        else:
+            assert got is not None and got[0] == expected[0] and got[1] == pytest.approx(expected[1]), got
 
 
 def test_phase_corr_blocks_of_a_fast_step_may_disagree_by_part_of_its_bound():

@@ -272,6 +272,11 @@ class PhaseCorrConfig(StepBoundConfig):
     )
 
 
+#: The most blocks left out (``robust_outlier_blocks``) that may agree on one other motion: two
+#: (something fixed to the rig over two of the 3 x 3 blocks); three that agree are a second motion
+#: (:meth:`PhaseCorr._second_motion`).
+SECOND_MOTION_MIN_BLOCKS = 2
+
 #: Rounds a rotating warp may take beyond ``iterations`` while its estimate still moves.
 MAX_EXTRA_ROUNDS = 3
 
@@ -307,6 +312,9 @@ class _Measured:
     scale: float = 1.0
     scale_sigma: float = 0.0
     keep: np.ndarray | None = None  # the indices of the layout's blocks it kept (None: all)
+    # the blocks left out that agree on one other shift (px from the kept blocks' fit), when they
+    # are more than SECOND_MOTION_MIN_BLOCKS: (their number, the shift's length)
+    second_motion: tuple[int, float] | None = None
     # :meth:`PhaseCorr._warp_spread`'s result, once measured: (mm, deg, bracketed, M through the other warp)
     spread: tuple[float, float, bool, np.ndarray] | None = None
 
@@ -933,6 +941,9 @@ class PhaseCorr:
         """Why a measurement failed ('' when it did not): a weak peak, blocks that disagree, an
         imprecise yaw, a rotating warp that did not converge."""
         cfg = self.config
+        if m.second_motion is not None:
+            n, off_px = m.second_motion
+            return f"two motions: the {n} blocks left out agree on another, {off_px:.1f} px from the rest"
         if m.min_peak < cfg.min_peak:
             return f"weak correlation peak {m.min_peak:.3f}"
         if m.resid_px > self._max_residual_px(m.step_mm):
@@ -980,6 +991,30 @@ class PhaseCorr:
                 break
             keep = np.delete(keep, int(np.argmax(r)))
         return None if len(keep) == len(centres) else keep
+
+    def _second_motion(
+        self, centres: np.ndarray, shifts: np.ndarray, keep: np.ndarray, distinct_px: float
+    ) -> tuple[int, float] | None:
+        """Whether the blocks :meth:`_agreeing` left out agree on one other motion: more than
+        :data:`SECOND_MOTION_MIN_BLOCKS` of them, each within ``max_residual_px`` of their mean
+        residual from the kept blocks' rigid fit (frame px; ``centres``, ``shifts``: (B, 2) grid px
+        of all the layout's blocks). Then a third of the view or more moves otherwise than the
+        rest, and which is the floor is not known: ``(their number, that motion's distance from the
+        kept fit, px)``, else None. Two blocks may agree so (something fixed to the rig in a corner
+        of the view) and are left out as before; blocks left out for a wrong peak each (a tile's
+        bare glaze) do not agree."""
+        dropped = np.setdiff1d(np.arange(len(centres)), keep)
+        if len(dropped) <= SECOND_MOTION_MIN_BLOCKS:
+            return None
+        R, t, _ = _rigid_residuals(centres[keep], shifts[keep])
+        k = self.config.downscale
+        resid = (centres[dropped] @ R.T + t - centres[dropped] - shifts[dropped]) * k
+        mean = resid.mean(axis=0)
+        if float(np.abs(resid - mean).max()) > self.config.max_residual_px:
+            return None
+        if not float(np.abs(mean).max()) > distinct_px:
+            return None
+        return len(dropped), float(np.hypot(*mean))
 
     def _block_motion(
         self,
@@ -1083,6 +1118,7 @@ class PhaseCorr:
         """
         assert state.prev_crop is not None and state.prev_blocks is not None  # set by the first frame
         cfg = self.config
+        mm_per_grid_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
         M = M.copy()
         if not M[:2, 2].any():
             # No prediction of the translation (none at all, or a rotation guess): a
@@ -1120,6 +1156,13 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M, off)
             shifts, peaks, info = block_shifts(all_prev_blocks, lay.blocks(w), lay.sp)
             keep = self._agreeing(all_centres, shifts, lay.max_outliers)
+            second = (
+                None
+                if keep is None
+                else self._second_motion(
+                    all_centres, shifts, keep, self._max_residual_px(float(np.linalg.norm(M[:2, 2])) * mm_per_grid_px)
+                )
+            )
             if keep is not None:
                 centres, shifts, peaks, info, prev_blocks = (
                     all_centres[keep],
@@ -1198,6 +1241,7 @@ class PhaseCorr:
             lay,
             *self._image_scale(centres, shifts, float(sc), float(sig_rad), lay),
             keep=keep,
+            second_motion=second if keep is not None else None,
         )
 
     def _settled_px(self, W: np.ndarray, M_new: np.ndarray, fit: _BlockFit, exact_yaw_rad: float) -> float | None:
