@@ -32,7 +32,8 @@ Per frame:
    magnitude spectra (a sharp turn: Reddy & Chatterji's rotation by phase correlation).
    When the blocks fail from each of these, the step is measured once more with finer
    blocks (``robust_grid``, 3 x 3 over the same crop), leaving out up to
-   ``robust_outlier_blocks`` that disagree with the rigid fit of the rest.
+   ``robust_outlier_blocks`` that disagree with the rigid fit of the rest (more than two left
+   out that agree on another motion are two motions: the measurement fails).
 5. Pixels to floor millimetres with the camera model at the camera height (eq. (1) of
    paper 000 generalised), then to the camera motion ``T_prev_cur``.
 
