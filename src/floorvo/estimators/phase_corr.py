@@ -998,8 +998,10 @@ class PhaseCorr:
     ) -> tuple[int, float] | None:
         """Whether the blocks :meth:`_agreeing` left out agree on one other motion: more than
         :data:`SECOND_MOTION_MIN_BLOCKS` of them, each within ``max_residual_px`` of their mean
-        residual from the kept blocks' rigid fit (frame px; ``centres``, ``shifts``: (B, 2) grid px
-        of all the layout's blocks). Then a third of the view or more moves otherwise than the
+        residual from the kept blocks' rigid fit, that mean further from it than ``distinct_px``
+        along x or y (the gross check's tolerance for the step, :meth:`_max_residual_px`; frame
+        px; ``centres``, ``shifts``: (B, 2) grid px of all the layout's blocks; ``keep``: the
+        indices kept). Then a third of the view or more moves otherwise than the
         rest, and which is the floor is not known: ``(their number, that motion's distance from the
         kept fit, px)``, else None. Two blocks may agree so (something fixed to the rig in a corner
         of the view) and are left out as before; blocks left out for a wrong peak each (a tile's
@@ -1242,7 +1244,7 @@ class PhaseCorr:
             lay,
             *self._image_scale(centres, shifts, float(sc), float(sig_rad), lay),
             keep=keep,
-            second_motion=second if keep is not None else None,
+            second_motion=second,
         )
 
     def _settled_px(self, W: np.ndarray, M_new: np.ndarray, fit: _BlockFit, exact_yaw_rad: float) -> float | None:
