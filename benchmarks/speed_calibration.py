@@ -11,7 +11,8 @@ For each straight (``uniform``) scene of the suite whose step or exposure differ
 material's straight run (``scenes/material_MATERIAL.toml``), the calibration run at speed is the
 same scene over another floor (``floor.seed`` = the scene's seed + 1: the same material, other
 boards, other grain), rendered into the render cache. Each estimator's x, y scale is fitted on
-it (:func:`floorvo.calibration.calibrate_run`) and on the material's straight run, and the scene
+it (:func:`floorsim.bench.material_calibration.fit_material_calibration`, as the suite's
+calibration) and on the material's straight run, and the scene
 runs with each. One Markdown row per scene and estimator: ok steps, wrong ok steps (issue 14's
 bound), end drift in % uncalibrated, with the material's 4 mm/frame scale and with the scale at
 speed.
@@ -37,11 +38,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
+from floorsim.bench.material_calibration import fit_material_calibration  # noqa: E402
 from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
 from floorsim.scene import Scene, load_scene, resolve_scene_path  # noqa: E402
-from floorvo.calibration import SCALE_RANGE, calibrate_run, save_scale_calibration  # noqa: E402
-from floorvo.errors import FloorbenchError  # noqa: E402
+from floorvo.calibration import save_scale_calibration  # noqa: E402
 
 # The suite's cache lookup and cells (run as a script: this folder is on the path).
 from motion_suite import _cached, _fmt, _no_cache, _scene_name  # noqa: E402
@@ -91,18 +92,12 @@ def main() -> None:
         for kind, res in (("material", material), ("speed", at_speed)):
             for r in res.rows:
                 e = r["estimator"]
-                try:
-                    cal = calibrate_run(r["run_dir"], r["sequence"], orientation=False)
-                except FloorbenchError:  # the run tracked too little to fit on
-                    scales[kind, e] = "none (calibration run lost)"
-                    continue
-                if not SCALE_RANGE[0] <= cal.scale_x <= SCALE_RANGE[1]:
-                    scales[kind, e] = f"none (scale x {cal.scale_x:.3f}: a broken run)"
-                    continue
-                f = out / sc.name / f"{e}--{kind}.json"
-                save_scale_calibration(cal, f)
-                fits[kind][e] = f
-                scales[kind, e] = f"{cal.scale_x:.4f}"
+                # x and y fitted on the straight run, or why not (lost, or a scale out of range)
+                fit = fit_material_calibration((r["run_dir"], r["sequence"]), None)
+                scales[kind, e] = fit.scale_x_cell()
+                if fit.straight is not None:
+                    fits[kind][e] = out / sc.name / f"{e}--{kind}.json"
+                    save_scale_calibration(fit.straight, fits[kind][e])
         plain = {r["estimator"]: r for r in run_bench([seq], estimators, out / f"{sc.name}/plain", **kw).rows}
         calibrated: dict[str, dict[str, dict]] = {}
         for kind, files in fits.items():
