@@ -731,7 +731,9 @@ def test_phase_corr_blocks_left_out_that_agree_on_another_motion_are_a_second_mo
     left out that each read 2.55 px more along x agree on another motion (3, 2.55 px); two that
     do (something fixed to the rig) are left out as before; three that read 2.55, -4 and 6 px
     more (wrong peaks) do not agree; three that agree 1 px away are not distinct from the rest at
-    a tolerance of 1.5 px."""
+    a 4 mm step's tolerance of 1.5 px."""
+    from floorvo.estimators.phase_corr import _rigid_residuals
+
     est = get_estimator("phase-corr")(make_config("phase-corr", {"robust_outlier_blocks": "3"}), CAM, height_mm=100.0)
     lay = est.robust_layout
     assert lay is not None and lay.max_outliers == 3
@@ -746,7 +748,8 @@ def test_phase_corr_blocks_left_out_that_agree_on_another_motion_are_a_second_mo
         for i, d in zip(dropped, extra, strict=True):
             shifts[i] += d
         keep = np.setdiff1d(np.arange(9), dropped) if len(dropped) == 2 else kept
-        got = est._second_motion(lay.centres, shifts, keep, 1.5)
+        R, t, _ = _rigid_residuals(lay.centres[keep], shifts[keep])
+        got = est._second_motion(lay.centres, shifts, keep, R, t, 4.0)  # a 4 mm step: tolerance 1.5 px
         if expected is None:
             assert got is None, (extra, got)
         else:

@@ -318,6 +318,8 @@ class _Measured:
     second_motion: tuple[int, float] | None = None
     # :meth:`PhaseCorr._warp_spread`'s result, once measured: (mm, deg, bracketed, M through the other warp)
     spread: tuple[float, float, bool, np.ndarray] | None = None
+    # :meth:`PhaseCorr._gross_problem`'s verdict, once made (a step asks it of a measurement up to five times)
+    gross: str | None = None
 
 
 class _BlockFit:
@@ -940,7 +942,14 @@ class PhaseCorr:
 
     def _gross_problem(self, m: _Measured) -> str:
         """Why a measurement failed ('' when it did not): a weak peak, blocks that disagree, an
-        imprecise yaw, a rotating warp that did not converge."""
+        imprecise yaw, a rotating warp that did not converge (:meth:`_gross_check`, made once
+        per measurement and kept in ``m.gross``)."""
+        if m.gross is None:
+            m.gross = self._gross_check(m)
+        return m.gross
+
+    def _gross_check(self, m: _Measured) -> str:
+        """:meth:`_gross_problem`'s verdict on ``m``, made."""
         cfg = self.config
         if m.second_motion is not None:
             n, off_px = m.second_motion
@@ -994,14 +1003,14 @@ class PhaseCorr:
         return None if len(keep) == len(centres) else keep
 
     def _second_motion(
-        self, centres: np.ndarray, shifts: np.ndarray, keep: np.ndarray, distinct_px: float
+        self, centres: np.ndarray, shifts: np.ndarray, keep: np.ndarray, R: np.ndarray, t: np.ndarray, step_mm: float
     ) -> tuple[int, float] | None:
         """Whether the blocks :meth:`_agreeing` left out agree on one other motion: more than
         :data:`SECOND_MOTION_MIN_BLOCKS` of them, each within ``max_residual_px`` of their mean
-        residual from the kept blocks' rigid fit, that mean further from it than ``distinct_px``
-        along x or y (the gross check's tolerance for the step, :meth:`_max_residual_px`; frame
-        px; ``centres``, ``shifts``: (B, 2) grid px of all the layout's blocks; ``keep``: the
-        indices kept). Then a third of the view or more moves otherwise than the
+        residual from the kept blocks' rigid fit ``R`` (2, 2), ``t`` (2,) (:func:`_rigid_residuals`),
+        that mean further from it along x or y than the gross check's tolerance for a step of
+        ``step_mm`` (:meth:`_max_residual_px`; frame px; ``centres``, ``shifts``: (B, 2) grid px of
+        all the layout's blocks; ``keep``: the indices kept). Then a third of the view or more moves otherwise than the
         rest, and which is the floor is not known: ``(their number, that motion's distance from the
         kept fit, px)``, else None. Two blocks may agree so (something fixed to the rig in a corner
         of the view) and are left out as before; blocks left out for a wrong peak each (a tile's
@@ -1009,13 +1018,12 @@ class PhaseCorr:
         dropped = np.setdiff1d(np.arange(len(centres)), keep)
         if len(dropped) <= SECOND_MOTION_MIN_BLOCKS:
             return None
-        R, t, _ = _rigid_residuals(centres[keep], shifts[keep])
         k = self.config.downscale
         resid = (centres[dropped] @ R.T + t - centres[dropped] - shifts[dropped]) * k
         mean = resid.mean(axis=0)
         if float(np.abs(resid - mean).max()) > self.config.max_residual_px:
             return None
-        if not float(np.abs(mean).max()) > distinct_px:
+        if not float(np.abs(mean).max()) > self._max_residual_px(step_mm):
             return None
         return len(dropped), float(np.hypot(*mean))
 
@@ -1159,13 +1167,7 @@ class PhaseCorr:
             w = self._warp_into_prev(cur, M, off)
             shifts, peaks, info = block_shifts(all_prev_blocks, lay.blocks(w), lay.sp)
             keep = self._agreeing(all_centres, shifts, lay.max_outliers)
-            second = (
-                None
-                if keep is None
-                else self._second_motion(
-                    all_centres, shifts, keep, self._max_residual_px(float(np.linalg.norm(M[:2, 2])) * mm_per_grid_px)
-                )
-            )
+            all_shifts = shifts
             if keep is not None:
                 centres, shifts, peaks, info, prev_blocks = (
                     all_centres[keep],
@@ -1184,6 +1186,13 @@ class PhaseCorr:
             moved = centres + shifts
             Rs, ts, sc = similarity_fit_2d(centres, moved)
             R2, t2, block_resid = _rigid_residuals(centres, shifts)
+            second = (
+                None
+                if keep is None
+                else self._second_motion(
+                    all_centres, all_shifts, keep, R2, t2, float(np.linalg.norm(M[:2, 2])) * mm_per_grid_px
+                )
+            )
             R2, t2 = self._block_motion(centres, shifts, info, rotating, (R2, t2))
             fit = _BlockFit(centres, moved, Rs, ts, sc)
             E = np.eye(3)
