@@ -98,8 +98,10 @@ __all__ = [
     "AkazeBruteforce",
     "AkazeGuidedFast",
     "AkazeBruteforceFast",
+    "AkazeGuidedSubpixel",
     "AkazeConfig",
     "AkazeFastConfig",
+    "AkazeSubpixelConfig",
     "mean_std_filter",
 ]
 
@@ -182,8 +184,8 @@ class AkazeConfig(StepBoundConfig):
         min=0,
         max=63,
         doc="the fit's pairs' current-frame positions refined to a sub-pixel by Lucas-Kanade in windows of this "
-        "size (3 or more) around the previous keypoints, and the motion fitted again (ours); 0: the keypoints' "
-        "own positions (paper 000)",
+        "size (3 or more) around the previous keypoints, on the previous picture turned by the fit, and the "
+        "motion fitted again (ours); 0: the keypoints' own positions (paper 000)",
     )
     refine_max_pairs: int = param(
         300, min=3, doc="refine_window_px: at most this many of the fit's pairs refined, spread over them"
@@ -783,7 +785,15 @@ class _AkazeBase:
         floor. Pyramidal Lucas-Kanade (one level; ``cv2.calcOpticalFlowPyrLK``) aligns the
         ``refine_window_px`` window about each previous keypoint with the current picture,
         starting at its matched keypoint, so each pair names one floor point in both pictures
-        (the previous keypoint's window) to a tenth of a pixel where the floor has texture. At
+        (the previous keypoint's window) to a tenth of a pixel where the floor has texture.
+        Lucas-Kanade fits a translation of the window only, so the previous picture is first
+        warped by the least-squares similarity of the pairs (bilinear, ``cv2.warpAffine``): the
+        window is then compared with the current picture turned and scaled as the step turns
+        and scales it, not as it was (a 6-degree turn moves a 21 px window's corners by 1.5 px
+        against its centre: on a synthetic 8-degree turn, Lucas-Kanade on the unturned picture
+        left the pairs 0.24 px off and read the turn 0.025 degrees short, on the turned one
+        0.01 px and 0.001 degrees; BENCHMARKS.md, "Sub-pixel pairs on the previous picture
+        turned by the step"). At
         most ``refine_max_pairs`` pairs, evenly spread over the fit's, are refined; a pair
         whose window does not converge or moves by more than ``inlier_tol_px`` is left out, and
         the motion is fitted again on the rest with the fit's own model (the known image scale,
@@ -800,11 +810,18 @@ class _AkazeBase:
         src, dst = fit.src[pick], fit.dst[pick]
         p0 = self._unlevelled(src, state.attitude).astype(np.float32).reshape(-1, 1, 2)
         guess = self._unlevelled(dst, attitude).astype(np.float32).reshape(-1, 1, 2)
+        # The previous picture turned and scaled by the pairs' similarity (frames' own pixels):
+        # warped(S(p)) = prev(p), so the window about S(p0) shows the floor about p0.
+        p0_px, guess_px = p0.reshape(-1, 2).astype(np.float64), guess.reshape(-1, 2).astype(np.float64)
+        R, t, k = umeyama(p0_px, guess_px, with_scale=True)
+        S = np.hstack([k * R, t[:, None]])
+        prev_turned = cv2.warpAffine(state.img8, S, (img8.shape[1], img8.shape[0]), flags=cv2.INTER_LINEAR)
+        p0_turned = (p0_px @ S[:, :2].T + S[:, 2]).astype(np.float32).reshape(-1, 1, 2)
         w = int(cfg.refine_window_px)
         p1, ok, _ = cv2.calcOpticalFlowPyrLK(
-            state.img8,
+            prev_turned,
             img8,
-            p0,
+            p0_turned,
             guess.copy(),
             winSize=(w, w),
             maxLevel=0,
@@ -1022,3 +1039,22 @@ class AkazeBruteforceFast(AkazeBruteforce):
     name = "akaze-bruteforce-fast"
     description = "akaze-bruteforce's real-time preset: one AKAZE octave of one sublevel, upright, 600 keypoints"
     Config = AkazeFastConfig
+
+
+#: Sub-pixel pairs (ours): akaze-guided with its fit's pairs refined by Lucas-Kanade
+#: (``refine_window_px`` 21, :meth:`_AkazeBase._refined`). AKAZE's keypoints are found to about
+#: half a pixel; on a floor that gives few of them (tile: 30-130 pairs a step) that noise is the
+#: drift, and the refined pairs take it to about a tenth. Its scale is the refined pairs', which
+#: follow the grazing shading with the step's length: calibrated on a 4 mm/frame straight run
+#: the blurred 10-20 mm/frame runs read 0.2-0.3 % long, so calibrate it at the rig's speed
+#: (BENCHMARKS.md, "Sub-pixel pairs on the previous picture turned by the step").
+AkazeSubpixelConfig = with_defaults(AkazeConfig, "AkazeSubpixelConfig", refine_window_px=21)
+
+
+class AkazeGuidedSubpixel(AkazeGuided):
+    name = "akaze-guided-subpixel"
+    description = (
+        "akaze-guided with its pairs refined to a sub-pixel by Lucas-Kanade (refine_window_px = 21; ours): "
+        "floors with few keypoints (tile); calibrate it at the rig's speed"
+    )
+    Config = AkazeSubpixelConfig

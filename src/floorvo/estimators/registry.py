@@ -69,6 +69,8 @@ BUILTIN_ESTIMATORS: dict[str, str] = {
     "orb-icp-fast": "floorvo.estimators.orb_icp:OrbIcpFast",
     "stereo-sift-fast": "floorvo.estimators.stereo_sift:StereoSiftFast",
     "phase-corr-fast": "floorvo.estimators.phase_corr:PhaseCorrFast",
+    # Sub-pixel pairs (ours): akaze-guided with refine_window_px = 21.
+    "akaze-guided-subpixel": "floorvo.estimators.akaze:AkazeGuidedSubpixel",
 }
 
 #: The entry-point group a plugin package declares its estimators in.
