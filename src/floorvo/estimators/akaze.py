@@ -223,8 +223,9 @@ class AkazeConfig(StepBoundConfig):
         min=0.0,
         max=45.0,
         doc="a doubtful guided prediction whose brute-force fit finds no motion: matched guided again from the "
-        "last motion turned by +/- turn_sweep_step_deg up to this much more or less, taken if every turn's fit "
-        "that passes its checks agrees (ours; a turn that starts between two frames on a repetitive floor); 0: off",
+        "last motion turned by +/- turn_sweep_step_deg up to this much more or less, taken if the turns' fits "
+        "that pass every check with twice the evidence agree (ours; a turn that starts between two frames on a "
+        "repetitive floor); 0: off",
     )
     turn_sweep_step_deg: float = param(
         2.5, unit="deg", gt=0.0, max=45.0, doc="turn_sweep_deg: the step between the turns tried"
