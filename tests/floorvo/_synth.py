@@ -49,21 +49,30 @@ def pixel_motion(T_prev_cur: np.ndarray, camera: CameraModel, height_mm: float) 
     return M
 
 
-def frame_pair(
-    camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
-):
-    """(prev uint8, cur uint8, flatfield uint16) for camera motion ``T_prev_cur`` (mm)."""
+def frames_along(
+    camera: CameraModel, T_world_cam: list[np.ndarray], height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """(uint8 frames, flatfield uint16) of the floor seen from each pose ``T_world_cam`` (mm; the
+    floor is placed under the first)."""
     size = int(2.2 * max(camera.width_px, camera.height_px))
     tex = floor_texture(size, seed)
     fall = falloff(camera)
     rng = np.random.default_rng(seed + 1)
     out = []
-    for M in (np.eye(3), pixel_motion(T_prev_cur, camera, height_mm)):
-        img = view(tex, camera, M) * fall
+    for T in T_world_cam:
+        img = view(tex, camera, pixel_motion(invert_T(T_world_cam[0]) @ T, camera, height_mm)) * fall
         img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
         out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
     flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
-    return out[0], out[1], flat
+    return out, flat
+
+
+def frame_pair(
+    camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
+):
+    """(prev uint8, cur uint8, flatfield uint16) for camera motion ``T_prev_cur`` (mm)."""
+    (prev, cur), flat = frames_along(camera, [np.eye(4), T_prev_cur], height_mm, seed, noise_dn)
+    return prev, cur, flat
 
 
 def flat_floor_depth(camera: CameraModel, height_mm: float = 100.0) -> np.ndarray:

@@ -272,21 +272,6 @@ def test_subpixel_preset_tracks_a_turning_step_on_refined_pairs(seed):
     assert np.degrees(yaw_of_R(r1.T_prev_cur[:3, :3] @ T_true[:3, :3].T)) == pytest.approx(0.0, abs=0.005)
 
 
-def _frames_along(T_world_cam: list[np.ndarray], seed: int = 0) -> tuple[list[np.ndarray], np.ndarray]:
-    """uint8 frames of the synthetic floor seen from each pose (mm), and the flat-field frame."""
-    from _synth import falloff, floor_texture, pixel_motion, view
-
-    tex = floor_texture(int(2.2 * max(CAM.width_px, CAM.height_px)), seed)
-    fall = falloff(CAM)
-    rng = np.random.default_rng(seed + 1)
-    frames = []
-    for T in T_world_cam:
-        img = view(tex, CAM, pixel_motion(invert_T(T_world_cam[0]) @ T, CAM, 100.0)) * fall
-        img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, 1.0, img.shape)
-        frames.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
-    return frames, np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
-
-
 @pytest.mark.parametrize("name", ["akaze-guided", "akaze-guided-fast"])
 def test_a_turn_that_starts_between_two_frames_is_found_from_the_last_motion_turned(name, monkeypatch):
     """``turn_sweep_deg``: a straight step, then one that turns 8 degrees (a robot starting a turn
@@ -294,11 +279,13 @@ def test_a_turn_that_starts_between_two_frames_is_found_from_the_last_motion_tur
     brute force is made to find none). The eq. (2) prediction misses the keypoints by up to
     55 px; matched from the last motion turned by 2.5, 5, 7.5 ... degrees, the step is measured
     within akaze-guided's tolerance and says how. With the sweep off it is lost."""
+    from _synth import frames_along
+
     from floorvo.estimators.akaze import _Fit
 
     poses = [T_world_cam_down(0.0, 0.0, 100.0), T_world_cam_down(4.0, 0.0, 100.0)]
     poses.append(poses[1] @ _motion(4.0, 0.0, 8.0))
-    frames, flat = _frames_along(poses)
+    frames, flat = frames_along(CAM, poses)
     T_true = invert_T(poses[1]) @ poses[2]
     nothing = _Fit(None, np.zeros((0, 2)), np.zeros((0, 2)), 0, problem="(made to find nothing)", no_motion=True)
     for sweep, status in (("15", "ok"), ("0", "lost")):
