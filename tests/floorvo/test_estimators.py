@@ -13,7 +13,7 @@ from floorvo.camera import CameraModel
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators import Frame, get_estimator, list_estimators, make_config
 from floorvo.estimators.akaze import mean_std_filter
-from floorvo.geometry import T_world_cam_down, invert_T, yaw_of_R
+from floorvo.geometry import T_world_cam_down, invert_T, rot_z, yaw_of_R
 
 CAM = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)  # GSD 0.2467 mm at 100 mm
 MONO = ["phase-corr", "akaze-guided", "akaze-bruteforce"]
@@ -316,8 +316,7 @@ def test_turned_predictions_that_fit_two_motions_leave_the_step_lost(monkeypatch
     st.M_last[0, 2] = 32.0
 
     def turned(deg: float) -> np.ndarray:
-        c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ st.M_last
+        return rot_z(np.radians(deg)) @ st.M_last
 
     def run(fits: dict[float, tuple[int, float]]):
         def fake_fit(src, dst, M, scale=1.0, ransac=False):

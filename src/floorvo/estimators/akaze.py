@@ -88,6 +88,7 @@ from floorvo.geometry import (
     plane_homography_motion,
     rigid_fit,
     rigid_fit_precision,
+    rot_z,
     t_sigmas,
     tilt_change_rad,
     umeyama,
@@ -884,8 +885,7 @@ class _AkazeBase:
         for k in range(1, n + 1):
             for sign in (1.0, -1.0):
                 turn_deg = sign * k * cfg.turn_sweep_step_deg
-                c, s = np.cos(np.radians(turn_deg)), np.sin(np.radians(turn_deg))
-                M = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ state.M_last
+                M = rot_z(np.radians(turn_deg)) @ state.M_last  # about the principal point (centred px)
                 fit = self._fit(*self._guided(state, kps, packed, M), M, scale)
                 if fit.problem or fit.M is None:
                     continue
@@ -899,12 +899,9 @@ class _AkazeBase:
             return None, ""
         best_deg, best = max(passing, key=lambda p: len(p[1].src))
         assert best.M is not None
-        mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
-        bound_mm = cfg.bound_mm(float(np.linalg.norm(best.M[:2, 2])) * mm_per_px)
         for turn_deg, fit in passing:
             assert fit.M is not None
-            apart_mm = float(np.linalg.norm(fit.M[:2, 2] - best.M[:2, 2])) * mm_per_px
-            apart_deg = abs(float(np.degrees(yaw_of_R(fit.M[:2, :2] @ best.M[:2, :2].T))))
+            apart_mm, apart_deg, bound_mm = self._steps_apart(fit.M, best.M)
             if apart_mm > bound_mm or apart_deg > cfg.max_step_error_deg:
                 problem = (
                     f"the last motion turned by {best_deg:+g} and {turn_deg:+g} deg predicts steps "
@@ -928,6 +925,15 @@ class _AkazeBase:
         if corr > limit:
             return f"the motion differs from the prediction by {corr:.1f} px (search radius {self.config.search_radius_px:.1f})"
         return ""
+
+    def _steps_apart(self, M: np.ndarray, M_ref: np.ndarray) -> tuple[float, float, float]:
+        """How far the image motion ``M`` is from ``M_ref`` (both 3x3 prev-centred px -> cur-centred
+        px): the principal point's image (mm at the rig's height), the yaw (deg; of ``scale R``, the
+        angle alone), and issue 14's bound (``max_step_error_*``) for ``M_ref``'s step (mm)."""
+        mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
+        apart_mm = float(np.linalg.norm(M[:2, 2] - M_ref[:2, 2])) * mm_per_px
+        apart_deg = abs(float(np.degrees(yaw_of_R(M[:2, :2] @ M_ref[:2, :2].T))))
+        return apart_mm, apart_deg, self.config.bound_mm(float(np.linalg.norm(M_ref[:2, 2])) * mm_per_px)
 
     def _rematch_problem(
         self, state: _State, kps: np.ndarray, packed: np.ndarray, fit: _Fit, scale: float | None
@@ -957,10 +963,7 @@ class _AkazeBase:
         again = self._fit(*self._guided(state, kps, packed, fit.M), fit.M, scale)
         if again.problem or again.M is None:
             return ""
-        mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
-        moved_mm = float(np.linalg.norm(again.M[:2, 2] - fit.M[:2, 2])) * mm_per_px  # the principal point's image
-        moved_deg = abs(float(np.degrees(yaw_of_R(again.M[:2, :2] @ fit.M[:2, :2].T))))  # scale R: the angle alone
-        bound_mm = cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px)
+        moved_mm, moved_deg, bound_mm = self._steps_apart(again.M, fit.M)
         if moved_mm > bound_mm or moved_deg > cfg.max_step_error_deg:
             return (
                 f"matched again around its fit, the step moves by {moved_mm:.3f} mm and {moved_deg:.2f} deg "
