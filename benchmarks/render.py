@@ -23,7 +23,8 @@ Renders ``--frames`` full-size frames of the scene at its default quality (or at
 
 * frames/s of the steady per-frame render (camera and LEDs move, the floor tile stays),
   its CPU seconds per frame (all threads; on a shared machine the wall time depends on
-  the other load), and the one-off cost of building the floor tile (materials + mesh + BVH);
+  the other load), and the one-off cost of loading the floor tile (materials, or the tile
+  cache, and the height grid; the BVH is built only for rays that need it);
 * PSNR of the central 80 % of frame 0 (radiance before sensor noise, in the sequence's
   8-bit DN scale, peak 255) against a ``--ref-spp`` render of the same frame (accumulated
   in batches of 16 spp with independent jitter);

@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/tile_cache.py [--scene paper000_uniform] [--repeats 3] [--scale 1]
 
-Each run is a fresh ``floorsim render SCENE --frames 1`` process (import, floor tile, mesh
-and BVH, the first frame, the flat-field frame, PNG writing), timed from start to exit:
+Each run is a fresh ``floorsim render SCENE --frames 1`` process (import, floor tile and
+height grid, the first frame, the flat-field frame, PNG writing), timed from start to exit:
 *cold* with an empty ``FLOORSIM_CACHE``, *warm* with the cache the cold run filled. Runs
 alternate cold, warm, so both see the same machine load; Dr.Jit's own kernel cache is
 warmed by one discarded run first. Prints the medians and their ratio.

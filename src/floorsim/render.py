@@ -43,7 +43,8 @@ cells along its track, skipping runs of cells that lie below it
 (:meth:`FloorRenderer._occluded_grid`). They meet the same triangles as Embree on the same
 mesh and give its answers up to float rounding; Embree stays for what the grid does not
 cover (a tile that is not a regular grid, rays far from the vertical, :meth:`FloorRenderer.depth`)
-and ``grid_rays = False`` uses it for every ray (for comparisons).
+and ``grid_rays = False`` uses it for every ray (for comparisons). The tile's Mitsuba scene,
+and with it the BVH, is built the first time such a ray needs it (:attr:`FloorRenderer.scene`).
 
 A rolling-shutter frame is traced with one camera pose (and one set of LED positions) per
 image row, gathered per lane from arrays of the H row poses: each row is exactly the row a
@@ -381,9 +382,11 @@ class FloorRenderer:
 
         self.dr = dr
         self.camera = camera
-        self.scene: Any = None  # the loaded tile's mitsuba Scene (None until one is loaded)
+        self._scene: Any = None  # the loaded tile's mitsuba Scene, once built (see :attr:`scene`)
+        #: (xs, ys, height_mm, albedo, normals) of the loaded tile while its Mitsuba scene is not built.
+        self._mesh_source: tuple | None = None
         #: World position (mm) of the loaded tile's local origin: the mesh, the camera and the
-        #: LEDs are traced in coordinates relative to it (see :meth:`_set_mesh`).
+        #: LEDs are traced in coordinates relative to it (see :meth:`_mesh_scene`).
         self.origin_mm = np.zeros(3)
         self.shadow_offset_mm = 0.0
         #: (k_s, Blinn-Phong exponent) of a glossy coat on the floor, or None (matte).
@@ -420,7 +423,7 @@ class FloorRenderer:
             raise ValueError(
                 f"load_heightfield: height {height_mm.shape} and albedo {albedo.shape} must be equal, >= 2x2"
             )
-        # Tile-local coordinates about the central vertex (see _set_mesh): two tiles of one
+        # Tile-local coordinates about the central vertex (see _mesh_scene): two tiles of one
         # size hold bit-identical vertex x, y whatever their place in the world.
         cx, cy = (nx - 1) // 2, (ny - 1) // 2
         xs = (spacing_mm * (np.arange(nx) - cx)).astype(np.float32)
@@ -445,32 +448,57 @@ class FloorRenderer:
         origin_xy_mm,
         normals: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Triangulate the grid of vertices (xs[j], ys[i], height[i, j]) (tile-local mm) and load it.
+        """Load the grid of vertices (xs[j], ys[i], height[i, j]) (tile-local mm), the tile's origin at
+        world ``origin_xy_mm``: as the height grid that rays are traced against, and as the source
+        of its triangle mesh (:attr:`scene`, built on first use).
 
-        ``xs`` (nx,), ``ys`` (ny,), ``height_mm`` and ``albedo`` (ny, nx), all float32. Cell
-        (i, j) with a = i nx + j is split along its diagonal into (a, a+1, a+1+nx) and
-        (a, a+1+nx, a+nx). ``normals``: precomputed (ny, nx, 3) vertex normals, or None.
-        Returns the normals.
+        ``xs`` (nx,), ``ys`` (ny,), ``height_mm`` and ``albedo`` (ny, nx), all float32.
+        ``normals``: precomputed (ny, nx, 3) vertex normals, or None. Returns the normals.
         """
         ny, nx = height_mm.shape
-        V = np.empty((ny, nx, 3), dtype=np.float32)
-        V[..., 0] = xs[None, :]
-        V[..., 1] = ys[:, None]
-        V[..., 2] = height_mm
         if normals is not None and np.asarray(normals).shape != (ny, nx, 3):
             raise ValueError(f"_set_grid: normals {np.asarray(normals).shape} must be {(ny, nx, 3)}")
         N = heightfield_vertex_normals(xs, ys, height_mm) if normals is None else np.asarray(normals, np.float32)
-        a = (np.arange(ny - 1, dtype=np.uint32)[:, None] * nx + np.arange(nx - 1, dtype=np.uint32)[None, :]).ravel()
-        F = np.empty((2 * a.size, 3), dtype=np.uint32)
-        F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
-        F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
-        self._set_mesh(V.reshape(-1), F.reshape(-1), N.reshape(-1), albedo.reshape(-1), nx * ny, len(F), origin_xy_mm)
+        self.scene = None
+        self.origin_mm = np.array([origin_xy_mm[0], origin_xy_mm[1], 0.0], dtype=np.float64)
+        extent = max(float(np.abs(a).max()) for a in (xs, ys, height_mm))  # the largest |coordinate| of a vertex
+        #: Lift of a shadow ray's origin along the geometric normal (mm): constant over the tile.
+        self.shadow_offset_mm = 64.0 * float(np.finfo(np.float32).eps) * (1.0 + extent)
+        self._mesh_source = (xs, ys, height_mm, albedo, N)
         self._grid = _HeightGrid.of(self.mi, xs, ys, height_mm, albedo, N)
         return N
 
-    def _set_mesh(self, V, F, N, albedo, n_vertices, n_faces, origin_xy_mm) -> None:
-        """Load the mesh; ``V`` (3 n,) float32 in tile-local mm, the tile's origin at world ``origin_xy_mm``;
-        ``N`` (3 n,) float32 unit vertex normals.
+    @property
+    def scene(self) -> Any:
+        """The loaded tile's Mitsuba scene (its triangle mesh in Embree's or OptiX's BVH), or None
+        when no floor is loaded.
+
+        Built on first use: rays that the height grid answers (:meth:`_grid_cells`; every ray of
+        the shipped rigs) never need it, and the BVH is most of a tile's load: 0.7-1.0 s of 1.0-1.7 s
+        on LLVM (paper000_uniform, 648x494) and about 15 s on CUDA (an NVIDIA H200; BENCHMARKS.md,
+        "GPU"). Setting it (None unloads the floor) replaces the tile's scene and grid.
+        """
+        if self._scene is None and self._mesh_source is not None:
+            self._scene = self._mesh_scene(*self._mesh_source)
+            self._mesh_source = None
+        return self._scene
+
+    @scene.setter
+    def scene(self, value: Any) -> None:
+        self._scene, self._mesh_source = value, None
+        if value is None:
+            self._grid = None
+
+    @property
+    def has_floor(self) -> bool:
+        """Whether a floor is loaded (its Mitsuba scene built or not)."""
+        return self._scene is not None or self._mesh_source is not None
+
+    def _mesh_scene(self, xs, ys, height_mm, albedo, N) -> Any:
+        """The Mitsuba scene of the grid's triangle mesh: vertex (i, j) at (xs[j], ys[i], height_mm[i, j])
+        in tile-local mm, the tile's origin at world :attr:`origin_mm`; ``N`` (ny, nx, 3) float32
+        unit vertex normals. Cell (i, j) with a = i nx + j is split along its diagonal into
+        (a, a+1, a+1+nx) and (a, a+1+nx, a+nx).
 
         Why tile-local: a shadow ray must start a little off the surface so that it does not
         hit its own triangle, and Mitsuba's ``spawn_ray_to`` lifts it by
@@ -488,19 +516,23 @@ class FloorRenderer:
         from run to run (see :func:`heightfield_vertex_normals`).
         """
         mi = self.mi
-        self.scene = None
-        self.origin_mm = np.array([origin_xy_mm[0], origin_xy_mm[1], 0.0], dtype=np.float64)
-        extent = float(np.abs(np.asarray(V, dtype=np.float64)).max())
-        #: Lift of a shadow ray's origin along the geometric normal (mm): constant over the tile.
-        self.shadow_offset_mm = 64.0 * float(np.finfo(np.float32).eps) * (1.0 + extent)
-        mesh = mi.Mesh("floor", n_vertices, n_faces, has_vertex_normals=True, has_vertex_texcoords=False)
+        ny, nx = height_mm.shape
+        V = np.empty((ny, nx, 3), dtype=np.float32)
+        V[..., 0] = xs[None, :]
+        V[..., 1] = ys[:, None]
+        V[..., 2] = height_mm
+        a = (np.arange(ny - 1, dtype=np.uint32)[:, None] * nx + np.arange(nx - 1, dtype=np.uint32)[None, :]).ravel()
+        F = np.empty((2 * a.size, 3), dtype=np.uint32)
+        F[: a.size, 0], F[: a.size, 1], F[: a.size, 2] = a, a + 1, a + 1 + nx
+        F[a.size :, 0], F[a.size :, 1], F[a.size :, 2] = a, a + 1 + nx, a + nx
+        mesh = mi.Mesh("floor", nx * ny, len(F), has_vertex_normals=True, has_vertex_texcoords=False)
         params = mi.traverse(mesh)
-        params["vertex_positions"] = mi.Float(V)
-        params["vertex_normals"] = mi.Float(N)
-        params["faces"] = mi.UInt32(F)
+        params["vertex_positions"] = mi.Float(V.reshape(-1))
+        params["vertex_normals"] = mi.Float(np.asarray(N, np.float32).reshape(-1))
+        params["faces"] = mi.UInt32(F.reshape(-1))
         params.update()  # "vertex_normals" among the changed keys: Mitsuba keeps ours
-        mesh.add_attribute("vertex_albedo", 1, mi.Float(albedo))
-        self.scene = mi.load_dict({"type": "scene", "floor": mesh})
+        mesh.add_attribute("vertex_albedo", 1, mi.Float(np.asarray(albedo, np.float32).reshape(-1)))
+        return mi.load_dict({"type": "scene", "floor": mesh})
 
     # --------------------------------------------------------------------- rays
     def _sampler(self, spp: int):
@@ -563,7 +595,7 @@ class FloorRenderer:
         ``ambient``: irradiance of light leaking under the hood, uniform over the upper
         hemisphere and unshadowed (adds ``ambient * albedo / pi``).
         """
-        if self.scene is None:
+        if not self.has_floor:
             raise RuntimeError("FloorRenderer.render: no floor loaded")
         mi, dr = self.mi, self.dr
         cam = self.camera
@@ -1131,7 +1163,7 @@ class FloorRenderer:
         """Shadow ray from the hit point ``p`` with geometric normal ``n_geo`` to the point ``target`` (tile-local mm).
 
         As ``Interaction.spawn_ray_to`` but with the fixed lift :attr:`shadow_offset_mm`
-        along the geometric normal, on the side of the target (see :meth:`_set_mesh`).
+        along the geometric normal, on the side of the target (see :meth:`_mesh_scene`).
         """
         mi, dr = self.mi, self.dr
         # Opaque: the offset follows the tile's extent, and a literal would compile a new kernel per value.

@@ -59,3 +59,12 @@ def test_cuda_is_chosen_by_itself_and_renders_what_llvm_renders(tmp_path, overri
     # Same scene, seed and exposure: the two backends may differ only in float rounding.
     mse = float(np.mean((gpu - cpu) ** 2))
     assert mse == 0.0 or 10 * np.log10(255.0**2 / mse) > 40.0
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/nvidia0"), reason="needs an NVIDIA device")
+def test_cuda_renders_the_same_sequence_to_the_bit_twice(tmp_path):
+    """The same scene and seed give the same frames on the same machine, on the GPU too (two processes)."""
+    info, first = _render(tmp_path / "first", None, {"lights.led_size_mm": 3.0})
+    assert info["variant"] == "cuda_ad_mono"
+    _, second = _render(tmp_path / "second", None, {"lights.led_size_mm": 3.0})
+    assert np.array_equal(first, second)

@@ -93,6 +93,27 @@ def test_render_on_the_grid_matches_the_embree_render():
     assert np.mean(np.abs(grid - embree) > 1e-3 * embree.mean()) < 0.01
 
 
+def test_the_mesh_bvh_is_built_only_when_a_ray_needs_it_and_of_the_tile_loaded_last():
+    """A render that the grid answers builds no Mitsuba scene (its BVH is most of a tile's load, about
+    15 s on CUDA); the first ray that needs Embree builds it, of the tile loaded last, not of one
+    loaded before it; unloading the floor (``scene = None``) leaves nothing to render."""
+    r, T = _vinyl_renderer(48, 36)
+    leds = _leds(tiny_scene(), T)
+    r.render(T, leds, spp=4, seed=1)
+    assert r._scene is None
+    r.scene.ray_test(r.mi.Ray3f(r.mi.Point3f(0, 0, 50), r.mi.Vector3f(0, 0, -1)))  # builds this tile's BVH
+    xs = (np.arange(300) - 150) * SPACING_MM
+    ys = (np.arange(240) - 120) * SPACING_MM
+    raised = np.full((240, 300), 2.5, np.float32)  # a second, flat tile 2.5 mm up
+    r.load_heightfield(xs[0], ys[0], SPACING_MM, raised, np.full_like(raised, 0.5))
+    assert r._scene is None
+    down = r.mi.Ray3f(r.mi.Point3f(1.0, -2.0, 50.0), r.mi.Vector3f(0.0, 0.0, -1.0))
+    assert r.scene.ray_intersect(down).p.z.numpy() == pytest.approx([2.5], abs=1e-5)
+    r.scene = None
+    with pytest.raises(RuntimeError, match="no floor loaded"):
+        r.render(T, leds, spp=4, seed=1)
+
+
 def test_rays_far_off_the_vertical_are_traced_by_embree():
     """A camera tilted 80 degrees sees the floor at grazing angles: the grid's few-cell bound does not hold."""
     r, _ = _vinyl_renderer()
