@@ -57,9 +57,27 @@ def estimator_faults(name: str, what: str) -> Iterator[None]:
         ) from exc
 
 
+def require_opencv4(name: str) -> None:
+    """Refuse, in one line, to build the built-in estimator ``name`` on OpenCV 5 or newer.
+
+    OpenCV 5.0 moved AKAZE (with KAZE and BRISK) out of the main package into contrib's
+    ``xfeatures2d``: on it the AKAZE estimators failed with ``AttributeError: module 'cv2' has
+    no attribute 'AKAZE'`` (seen on a machine whose image had OpenCV 5.0.0). The project pins
+    ``opencv-python-headless>=4.10,<5``; a plugin's estimator may bring its own needs."""
+    import cv2
+
+    if estimator_source(name).kind == "built-in" and int(str(cv2.__version__).split(".")[0]) >= 5:
+        raise FloorbenchError(
+            f"estimator {name!r} needs OpenCV 4 (opencv-python-headless>=4.10,<5), and this Python has OpenCV "
+            f"{cv2.__version__}, which moved AKAZE to contrib: pip install 'opencv-python-headless>=4.10,<5'"
+        )
+
+
 def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | None = None):
-    """Instantiate estimator ``name`` for ``seq``; refuses a sequence lacking what it requires."""
+    """Instantiate estimator ``name`` for ``seq``; refuses a sequence lacking what it requires, and a
+    built-in estimator on OpenCV 5 (:func:`require_opencv4`)."""
     cls = get_estimator(name)
+    require_opencv4(name)
     cfg = make_config(name, overrides)
     req = set(getattr(cls, "requires", ()))
     if "depth" in req and not seq.has_depth:

@@ -71,6 +71,18 @@ def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     assert str(blocker) in _one_line(capsys, "floorvo")
 
 
+def test_opencv_5_is_refused_in_one_line_before_a_built_in_estimator_is_built(small_seq, tmp_path, monkeypatch, capsys):
+    """OpenCV 5 moved AKAZE out of the main package: akaze-guided raised an AttributeError from its __init__."""
+    import cv2
+
+    monkeypatch.setattr(cv2, "__version__", "5.0.0")
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "akaze-guided", "-o", str(run)]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert "'akaze-guided' needs OpenCV 4" in err and "OpenCV 5.0.0" in err and "opencv-python-headless>=4.10,<5" in err
+    assert not (run / "result.json").exists()
+
+
 # --------------------------------------------------------------------------- maps
 def _tiny_map(root):
     """A 2-keyframe map of a 40 x 30 px camera with random arrays, saved to ``root``."""
