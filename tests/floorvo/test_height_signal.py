@@ -400,3 +400,31 @@ def test_pairs_on_a_line_give_the_height_check_no_evidence():
     src = floor_mm_to_pixels(floor_prev, FULL, 100.0)
     dst = floor_mm_to_pixels(floor_prev - [4.0, 0.0], FULL, 99.5)
     assert "height change not measured" in est._height_change_problem(_State(), _Fit(M, src, dst, 12), frame, None)
+
+
+def test_the_height_check_takes_its_read_as_a_share_of_the_change():
+    """The rig's LEDs rise and fall with the camera, and their shading hides a part of a height
+    change from the homography (it read 85-97 % of the true change on the motion suite's level
+    runs): ``height_change_read_share`` (0.85) takes a read as that share of the change. By hand:
+    noise-free pairs of a 4 mm step that drops the camera 0.12 mm read 0.120 mm with no spread;
+    the bound is 0.05 mm + 2 % of 4 mm = 0.13 mm. At a read share of 1 the step stands; at 0.85
+    the read stands for 0.141 mm, and the step is lost."""
+    from floorvo.estimators.akaze import _Fit, _State
+    from floorvo.geometry import floor_mm_to_pixels
+
+    rng = np.random.default_rng(2)
+    floor_prev = rng.uniform([-30.0, -20.0], [30.0, 20.0], (40, 2))  # mm on the floor, camera-centred
+    src = floor_mm_to_pixels(floor_prev, FULL, 100.0)
+    dst = floor_mm_to_pixels(floor_prev - [4.0, 0.0], FULL, 99.88)
+    M = np.eye(3)
+    M[0, 2] = 4.0 / FULL.gsd_mm_per_px(100.0)  # the rigid fit's step: 4 mm along x
+    frame = Frame(1, 1 / 30.0, np.zeros((FULL.height_px, FULL.width_px), np.uint8))
+    why = {}
+    for share in ("1", "0.85"):
+        est = get_estimator("akaze-guided")(
+            make_config("akaze-guided", {"height_change_read_share": share}), FULL, height_mm=100.0
+        )
+        why[share] = est._height_change_problem(_State(), _Fit(M, src, dst, 40), frame, None)
+    assert why["1"] == ""
+    assert "reads -0.120 mm" in why["0.85"] and "standard error 0.000" in why["0.85"]
+    assert "0.141 mm > bound 0.130" in why["0.85"]
