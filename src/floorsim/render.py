@@ -154,13 +154,25 @@ def _import_mitsuba(variant: str | None = None):
     try:
         mi.set_variant(want)
     except (ImportError, AttributeError, RuntimeError) as exc:
-        if want.startswith("cuda") and asked is None:
-            log.warning("variant %s unavailable (%s); falling back to llvm_ad_mono", want, exc)
-            os.environ.setdefault("DRJIT_LIBLLVM_PATH", find_libllvm() or "")
-            mi.set_variant("llvm_ad_mono")
-        else:
-            reason = " ".join(str(exc).split())  # one line
+        reason = " ".join(str(exc).split())  # one line
+        if not (want.startswith("cuda") and asked is None):
             raise FloorbenchError(f"mitsuba variant {want!r} is not available ({reason})") from None
+        # Chosen by itself (an NVIDIA device node exists) and CUDA did not start: the CPU, said.
+        path = os.environ.get("DRJIT_LIBLLVM_PATH") or find_libllvm()
+        if not path:
+            raise FloorbenchError(
+                f"mitsuba variant {want!r} is not available ({reason}), and the fallback llvm_ad_mono needs "
+                "libLLVM >= 17: run scripts/setup, or 'apt-get install libllvm19', or set DRJIT_LIBLLVM_PATH"
+            ) from None
+        log.warning("variant %s unavailable (%s); falling back to llvm_ad_mono", want, reason)
+        os.environ["DRJIT_LIBLLVM_PATH"] = path
+        try:
+            mi.set_variant("llvm_ad_mono")
+        except (ImportError, AttributeError, RuntimeError) as exc2:
+            why = " ".join(str(exc2).split())
+            raise FloorbenchError(
+                f"mitsuba variant {want!r} is not available ({reason}), nor the fallback llvm_ad_mono ({why})"
+            ) from None
     _MI = mi
     return mi
 

@@ -285,6 +285,43 @@ def test_asking_for_the_cuda_variant_without_a_device_is_refused_in_one_line(tmp
     assert len(err) == 1 and "mitsuba variant 'cuda_ad_mono' is not available" in err[0], err
 
 
+def test_cuda_chosen_by_itself_that_does_not_start_falls_back_to_llvm_or_says_why(monkeypatch, caplog):
+    """An NVIDIA device node and no working CUDA: llvm_ad_mono with a warning; without a libLLVM >= 17
+    either, one line naming both (the fallback raised Dr.Jit's own error from inside the renderer)."""
+    import logging
+
+    import mitsuba
+
+    import floorsim.render as fr
+    from floorvo.errors import FloorbenchError
+
+    asked: list[str] = []
+
+    def set_variant(variant):
+        asked.append(variant)
+        if variant.startswith("cuda"):
+            raise ImportError("CUDA driver not found")
+
+    monkeypatch.setattr(fr, "_MI", None)
+    monkeypatch.setattr(fr, "_has_cuda", lambda: True)
+    monkeypatch.setattr(mitsuba, "set_variant", set_variant)
+    monkeypatch.delenv("FLOORSIM_VARIANT", raising=False)
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    monkeypatch.setattr(fr, "find_libllvm", lambda min_major=17: None)
+    with pytest.raises(FloorbenchError) as exc:
+        fr._import_mitsuba()
+    assert str(exc.value) == (
+        "mitsuba variant 'cuda_ad_mono' is not available (CUDA driver not found), and the fallback llvm_ad_mono "
+        "needs libLLVM >= 17: run scripts/setup, or 'apt-get install libllvm19', or set DRJIT_LIBLLVM_PATH"
+    )
+    monkeypatch.setattr(fr, "find_libllvm", lambda min_major=17: "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
+    with caplog.at_level(logging.WARNING, logger="floorsim.render"):
+        assert fr._import_mitsuba() is mitsuba
+    assert asked == ["cuda_ad_mono", "cuda_ad_mono", "llvm_ad_mono"]
+    assert os.environ["DRJIT_LIBLLVM_PATH"] == "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
+    assert "falling back to llvm_ad_mono" in caplog.text
+
+
 def _down_camera_at(x_mm: float) -> np.ndarray:
     """T_world_cam of a camera 100 mm above (x_mm, 0), looking straight down, image x along world x."""
     T = np.eye(4)
