@@ -488,7 +488,7 @@ class FloorRenderer:
         Built on first use: rays that the height grid answers (:meth:`_grid_cells`; every ray of
         the shipped rigs) never need it, and the BVH is most of a tile's load: 0.7-1.0 s of 1.0-1.7 s
         on LLVM (paper000_uniform, 648x494) and about 15 s on CUDA (an NVIDIA H200; BENCHMARKS.md,
-        "GPU"). Setting it (None unloads the floor) replaces the tile's scene and grid.
+        "On a GPU"). Setting it (None unloads the floor) replaces the tile's scene and grid.
         """
         if self._scene is None and self._mesh_source is not None:
             self._scene = self._mesh_scene(*self._mesh_source)

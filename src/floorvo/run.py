@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
 
+import cv2
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration
@@ -64,8 +65,6 @@ def require_opencv4(name: str) -> None:
     ``xfeatures2d``: on it the AKAZE estimators failed with ``AttributeError: module 'cv2' has
     no attribute 'AKAZE'`` (seen on a machine whose image had OpenCV 5.0.0). The project pins
     ``opencv-python-headless>=4.10,<5``; a plugin's estimator may bring its own needs."""
-    import cv2
-
     if estimator_source(name).kind == "built-in" and int(str(cv2.__version__).split(".")[0]) >= 5:
         raise FloorbenchError(
             f"estimator {name!r} needs OpenCV 4 (opencv-python-headless>=4.10,<5), and this Python has OpenCV "

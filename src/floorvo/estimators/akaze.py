@@ -761,8 +761,9 @@ class _AkazeBase:
         shading their lower or higher light casts moves against the image's change of scale, so
         the homography reads 85-97 % of a true height change (median per scene, the motion
         suite's bounces and vibrations, full size); a 0.171 mm rise read as 0.145 mm passed a
-        0.130 mm bound (BENCHMARKS.md, "A height change read as a share"). The tilt change is the homography's, or the attitude signal's where the
-        frames were levelled with it (their pairs then show none). What it cannot see: the
+        0.130 mm bound (BENCHMARKS.md, "A height change read as a share"). The tilt change is
+        the homography's, or the attitude signal's where the frames were levelled with it (their
+        pairs then show none). What it cannot see: the
         height itself. A rigid fit at 100 mm over a camera at 98.2 mm makes every step 1.8 %
         long (BENCHMARKS.md)."""
         cfg = self.config
