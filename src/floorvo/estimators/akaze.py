@@ -747,8 +747,8 @@ class _AkazeBase:
         its height change and its tilt change). The step is lost where the height change it
         reads differs from the one the fit assumed (none without a height signal), less
         ``precision_sigmas`` of its standard errors and divided by ``height_change_read_share``,
-        by more than the bound a step reported ok may have (``max_step_error_mm`` + ``max_step_error_fraction``
-        of the step) plus ``height_change_tilt_share`` x the camera height x the tilt change
+        by more than the bound a step reported ok may have (``max_step_error_mm`` +
+        ``max_step_error_fraction`` of the step) plus ``height_change_tilt_share`` x the camera height x the tilt change
         beyond ``height_change_light_tilt_rad``. Why the tilt: under grazing LEDs that ride with
         the camera a tilt moves the shading as a height change does (the full-size tilted runs'
         homographies read false height changes of up to 0.26 x that shift on asphalt, 0.4 x on
@@ -763,9 +763,8 @@ class _AkazeBase:
         suite's bounces and vibrations, full size); a 0.171 mm rise read as 0.145 mm passed a
         0.130 mm bound (BENCHMARKS.md, "A height change read as a share"). The tilt change is
         the homography's, or the attitude signal's where the frames were levelled with it (their
-        pairs then show none). What it cannot see: the
-        height itself. A rigid fit at 100 mm over a camera at 98.2 mm makes every step 1.8 %
-        long (BENCHMARKS.md)."""
+        pairs then show none). What it cannot see: the height itself. A rigid fit at 100 mm over
+        a camera at 98.2 mm makes every step 1.8 % long (BENCHMARKS.md)."""
         cfg = self.config
         if not cfg.check_height_change or cfg.fit_image_scale or self.fits_own_scale or fit.M is None:
             return ""
