@@ -6,7 +6,7 @@
 Each sequence's frames are read into memory, the estimator runs over them once to warm up and
 then ``--repeats`` times, and each stage's time is summed by wrapping the methods and
 functions of :mod:`floorvo.estimators.phase_corr` that make a step (their times nest:
-``_measure`` holds the rounds' warps, spectra, block shifts and fits; ``_spread_problem`` the
+``_measure`` holds the rounds' warps, spectra, block shifts and fits; ``_warp_spread`` the
 warp-spread round's). The wrappers cost about a microsecond a call, so the total is a little
 above an unwrapped run's. OpenCV on one thread.
 """
@@ -28,7 +28,7 @@ from floorvo.estimators import phase_corr as pc  # noqa: E402
 from floorvo.run import build_estimator  # noqa: E402
 from floorvo.sequence import Sequence  # noqa: E402
 
-METHODS = ["_normalised", "_measure", "_spread_problem", "_blocks", "_warp_into_prev", "_settled_px"]
+METHODS = ["_normalised", "_measure", "_warp_spread", "_blocks", "_warp_into_prev", "_settled_px"]
 FUNCTIONS = ["block_shifts", "block_shifts_near", "similarity_fit_2d", "rigid_fit_precision"]
 
 

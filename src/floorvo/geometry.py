@@ -407,6 +407,17 @@ def similarity_fit_2d(
     return R, np.array([dx - scale * (c * sx - s * sy), dy - scale * (s * sx + c * sy)]), scale
 
 
+def nearest_rotation_2d(M: np.ndarray) -> np.ndarray:
+    """The rotation (2, 2) nearest ``M`` (2, 2) in the Frobenius norm: ``theta = atan2(M10 - M01,
+    M00 + M11)``, which maximises ``trace(R^T M)``. Where ``det M > 0`` (a rotation scaled or
+    sheared by a little) it is the ``U V^T`` of ``M``'s SVD, to rounding (1e-16), in about a
+    tenth of the time."""
+    (m00, m01), (m10, m11) = np.asarray(M, dtype=float).tolist()
+    h = math.hypot(m00 + m11, m10 - m01)
+    c, s = ((m00 + m11) / h, (m10 - m01) / h) if h > 0.0 else (1.0, 0.0)
+    return np.array([[c, -s], [s, c]])
+
+
 def rigid_fit(src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares rigid motion ``dst_i ~ R src_i + t`` (no scale): :func:`umeyama`'s ``(R, t)``.
 
@@ -658,8 +669,7 @@ def pixel_rigid_to_floor(
     R = np.asarray(R_px, dtype=float)
     t = np.asarray(t_px, dtype=float).reshape(2)
     D = np.array([camera.fx_px, camera.fy_px]) / float(height_mm)
-    U, _, Vt = np.linalg.svd((R * D[None, :]) / D[:, None])  # D^-1 R D, re-orthonormalised
-    R2 = U @ Vt
+    R2 = nearest_rotation_2d((R * D[None, :]) / D[:, None])  # D^-1 R D, re-orthonormalised
     if not centred:
         c = np.array([camera.cx_px, camera.cy_px])
         t = R @ c + t - c

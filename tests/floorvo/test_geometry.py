@@ -19,6 +19,7 @@ from floorvo.geometry import (
     footprint_T,
     invert_T,
     make_T,
+    nearest_rotation_2d,
     pixel_rigid_to_floor,
     pixels_to_floor_mm,
     planar_T,
@@ -242,6 +243,22 @@ def test_similarity_fit_2d_is_umeyamas_fit():
     np.testing.assert_allclose(R, rot_z(0.3)[:2, :2], atol=1e-15)
     np.testing.assert_allclose(t, [1.0, 2.0], atol=1e-13)
     assert s == pytest.approx(2.0, rel=1e-14)
+
+
+def test_nearest_rotation_2d_is_the_svds_and_keeps_a_rotation():
+    """The closed form gives the ``U V^T`` of the SVD for rotations seen through unequal focal
+    lengths (``D^-1 R D``, what pixel_rigid_to_floor re-orthonormalises) and for a noisy
+    rotation; a rotation is its own nearest; hand-worked: a quarter turn scaled by 3 along x."""
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        R = rot_z(rng.uniform(-np.pi, np.pi))[:2, :2]
+        D = rng.uniform(0.5, 2.0, 2)
+        for M in ((R * D[None, :]) / D[:, None], R + rng.normal(0.0, 0.05, (2, 2))):
+            U, _, Vt = np.linalg.svd(M)
+            np.testing.assert_allclose(nearest_rotation_2d(M), U @ Vt, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(nearest_rotation_2d(R), R, rtol=0, atol=1e-15)
+    # [[0, -1], [3, 0]]: a + d = 0, c - b = 4: theta = atan2(4, 0), a quarter turn.
+    np.testing.assert_allclose(nearest_rotation_2d(np.array([[0.0, -1.0], [3.0, 0.0]])), [[0, -1], [1, 0]], atol=1e-16)
 
 
 def test_kabsch_hand_computed_on_two_points():

@@ -58,7 +58,7 @@ PRESETS = {
         (0.03, 0.05),
     ),
     "orb-icp-fast": ("orb-icp", {"n_levels": 1, "per_cell": 15}, (0.03, 0.05)),
-    "phase-corr-fast": ("phase-corr", {"downscale": 2, "impulse_ratio": 0.0}, (0.03, 0.05)),
+    "phase-corr-fast": ("phase-corr", {"downscale": 2, "impulse_ratio": 0.0, "converged_px": 0.2}, (0.03, 0.05)),
     "stereo-sift-fast": (
         "stereo-sift",
         {"detect_scale": 0.5, "contrast_blur_downscale": 2, "right_features": "flow"},
