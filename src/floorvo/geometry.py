@@ -388,6 +388,9 @@ def similarity_fit_2d(
     yd_i`` and ``b = sum_i xs_i x yd_i`` (the centred points), so ``theta = atan2(b, a)``, and
     the trace Umeyama's scale divides is ``hypot(a, b)`` (the two singular values' sum, or
     their difference where the reflection check flips one): the same fit to rounding (1e-15).
+    For a few points only: its plain-Python loop grows with N, and for the hundreds of pairs
+    the AKAZE estimators fit, :func:`umeyama`'s vectorised sums and SVD are the faster (300
+    pairs: 31 us against 85).
     ``src``, ``dst``: (N, 2), N >= 2, ``src`` not all at one point; coincident ``dst`` points
     (``a = b = 0``) give the identity rotation."""
     ps, pd = np.asarray(src, dtype=float).tolist(), np.asarray(dst, dtype=float).tolist()
