@@ -114,6 +114,35 @@ def test_the_mesh_bvh_is_built_only_when_a_ray_needs_it_and_of_the_tile_loaded_l
         r.render(T, leds, spp=4, seed=1)
 
 
+def test_a_camera_turned_over_a_tall_relief_is_traced_on_the_grid():
+    """Over asphalt (relief 0.38 mm) a camera of the rig's field of view turned by 45 degrees needs a
+    block of 5 cells (its corner rays run furthest along one axis): traced on the grid, without
+    building the tile's BVH, and the picture is Embree's up to float rounding."""
+    full = CameraModel.from_sensor()
+    k = 96 / full.width_px  # the rig's field of view on a small frame
+    cam = CameraModel(96, 73, full.fx_px * k, full.fy_px * k, 47.5, 36.0)
+    xs = (np.arange(300) - 150) * SPACING_MM
+    ys = (np.arange(240) - 120) * SPACING_MM
+    height, albedo = sample_material("asphalt", xs, ys, 5)
+    r = FloorRenderer(cam)
+    r.load_heightfield(xs[0], ys[0], SPACING_MM, height, albedo)
+    c = np.cos(np.radians(45.0))
+    T = np.array([[c, c, 0.0, 0.0], [c, -c, 0.0, 0.0], [0.0, 0.0, -1.0, 100.0], [0.0, 0.0, 0.0, 1.0]])
+    corners = (
+        (np.array([-0.5, 95.5, -0.5, 95.5]) - 47.5) / cam.fx_px,
+        (np.array([-0.5, -0.5, 72.5, 72.5]) - 36.0) / cam.fy_px,
+    )
+    assert r._grid_cells(T[:3, :3], *corners) == 5
+    assert r._grid_cells(np.diag([1.0, -1.0, -1.0]), *corners) == 4
+    leds = _leds(tiny_scene(), T)
+    grid = r.render(T, leds, spp=4, seed=1).astype(np.float64)
+    assert r._scene is None  # no BVH was built
+    r.grid_rays = False
+    embree = r.render(T, leds, spp=4, seed=1).astype(np.float64)
+    assert np.mean(np.abs(grid - embree)) < 1e-3 * embree.mean()
+    assert np.mean(np.abs(grid - embree) > 1e-3 * embree.mean()) < 0.01
+
+
 def test_rays_far_off_the_vertical_are_traced_by_embree():
     """A camera tilted 80 degrees sees the floor at grazing angles: the grid's few-cell bound does not hold."""
     r, _ = _vinyl_renderer()
