@@ -113,11 +113,13 @@ def prepare_scene(
     return out
 
 
-def _trajectory_of(scene: Scene) -> Trajectory:
+def _trajectory_of(scene: Scene, *, whole: bool = False) -> Trajectory:
+    """The scene's trajectory, cut to ``trajectory.max_frames`` (``frames=`` of
+    :func:`prepare_scene`) unless ``whole``."""
     t = dict(scene.trajectory)
     max_frames = t.pop("max_frames", None)
     traj = dataclasses.replace(scene, trajectory=t).build_trajectory()
-    if max_frames is not None and max_frames < traj.frame_count:
+    if not whole and max_frames is not None and max_frames < traj.frame_count:
         traj = dataclasses.replace(traj, frame_count=int(max_frames))
     return traj
 
@@ -392,16 +394,25 @@ def render_sequence(
             # The exposure is a deterministic function of the scene and seed: choose it again.
             log.warning("%s: unusable (%s); choosing the exposure again", sensor_path, exc)
             gain = 0.0
+    # The floor's tiles are planned on the whole trajectory, also when only its first frames are
+    # rendered (frames=N): a tile's extent sets its shadow rays' lift, and a lift changed by
+    # rounding changes the sensor's noise draws from that pixel on, so the first N frames would
+    # otherwise differ from the whole render's.
+    T_plan = _trajectory_of(scene, whole=True).T_world_cam
     margin = 2.0 + 2 * spacing
     reach_ms = scene.sensor.exposure_ms + scene.sensor.readout_ms
-    if reach_ms > 0 and len(T_all) > 1:
+    if reach_ms > 0 and len(T_plan) > 1:
         # Motion blur and a rolling shutter reach poses up to half an exposure plus half a readout away.
-        step_mm = float(np.max(np.linalg.norm(np.diff(T_all[:, :3, 3], axis=0), axis=1)))
+        step_mm = float(np.max(np.linalg.norm(np.diff(T_plan[:, :3, 3], axis=0), axis=1)))
         margin += step_mm * reach_ms / 1000.0 * scene.fps
     # The tile must hold what both cameras see: widen the margin by the baseline.
-    tiles = plan_tiles(
-        T_all, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm)
-    )
+    tiles = [
+        ([i for i in idx if i < total], box)
+        for idx, box in plan_tiles(
+            T_plan, cam, scene.floor.tile_length_mm, margin + (0.0 if T_01 is None else scene.stereo.baseline_mm)
+        )
+        if idx[0] < total
+    ]
     loaded_box = None  # the floor tile the renderer holds
     rad_first = None  # frame 0's radiance when the exposure was chosen from it
     if gain <= 0:
