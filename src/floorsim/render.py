@@ -42,7 +42,7 @@ of those cells is tested (:meth:`FloorRenderer._intersect_grid`); a shadow ray w
 cells along its track, skipping runs of cells that lie below it
 (:meth:`FloorRenderer._occluded_grid`). They meet the same triangles as Embree on the same
 mesh and give its answers up to float rounding; Embree stays for what the grid does not
-cover (a tile that is not a regular grid, rays far from the vertical, :meth:`FloorRenderer.depth`)
+cover (a tile that is not a regular grid, rays far from the vertical; depth too only there)
 and ``grid_rays = False`` uses it for every ray (for comparisons). The tile's Mitsuba scene,
 and with it the BVH, is built the first time such a ray needs it (:attr:`FloorRenderer.scene`).
 
@@ -1209,7 +1209,10 @@ class FloorRenderer:
     def depth(self, T_world_cam: np.ndarray) -> np.ndarray:
         """Depth (distance along the optical axis, mm) of the floor at each pixel centre; NaN where no hit.
 
-        ``T_world_cam`` (4, 4), or (H, 4, 4): one pose per image row (rolling shutter)."""
+        ``T_world_cam`` (4, 4), or (H, 4, 4): one pose per image row (rolling shutter). The rays are
+        traced on the height grid where the primary rays are (:meth:`_grid_cells`), else by
+        Embree: the same distances to float rounding (1e-4 mm), without building the tile's BVH
+        (about 15 s a tile on CUDA)."""
         mi = self.mi
         cam = self.camera
         u, v = np.meshgrid(np.arange(cam.width_px, dtype=float), np.arange(cam.height_px, dtype=float))
@@ -1225,8 +1228,13 @@ class FloorRenderer:
             d_world = ((d_cam / norm[:, None]) @ T[:3, :3].T).astype(np.float32)
             origin = mi.Point3f(*[float(x) for x in T[:3, 3] - self.origin_mm])
         ray = mi.Ray3f(origin, mi.Vector3f(d_world[:, 0], d_world[:, 1], d_world[:, 2]))
-        si = self.scene.ray_intersect(ray)
-        t = np.asarray(si.t.numpy(), dtype=np.float64)  # distance along the unit ray
-        t[~np.asarray(si.is_valid().numpy(), dtype=bool)] = np.nan
+        cells = self._grid_cells(T[..., :3, :3], d_cam[:, 0], d_cam[:, 1])
+        if cells is None:
+            si = self.scene.ray_intersect(ray)
+            t_jit, valid_jit = si.t, si.is_valid()
+        else:
+            valid_jit, t_jit, *_ = self._intersect_grid(ray.o, ray.d, cells)
+        t = np.asarray(t_jit.numpy(), dtype=np.float64)  # distance along the unit ray
+        t[~np.asarray(valid_jit.numpy(), dtype=bool)] = np.nan
         # The unit ray is d_cam / |d_cam| with d_cam.z = 1, so depth along the axis = t / |d_cam|.
         return (t / norm).reshape(cam.height_px, cam.width_px).astype(np.float32)

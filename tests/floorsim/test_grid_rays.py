@@ -143,6 +143,22 @@ def test_a_camera_turned_over_a_tall_relief_is_traced_on_the_grid():
     assert np.mean(np.abs(grid - embree) > 1e-3 * embree.mean()) < 0.01
 
 
+def test_depth_on_the_grid_is_embrees_depth_without_the_bvh():
+    """The depth image is traced on the height grid (no BVH built) and equals the depth Embree
+    gives on the same mesh to float rounding, for a level camera and for one pose per row."""
+    r, T = _vinyl_renderer(48, 36)
+    rows = np.repeat(T[None], 36, axis=0)
+    rows[:, 0, 3] = np.linspace(0.0, 0.5, 36)  # a rolling shutter's rows along x
+    grid = [r.depth(T), r.depth(rows)]
+    assert r._scene is None
+    r.grid_rays = False
+    embree = [r.depth(T), r.depth(rows)]
+    for g, e in zip(grid, embree, strict=True):
+        assert np.all(np.isfinite(g)) and np.all(np.isfinite(e))
+        assert np.abs(g - e).max() < 1e-4  # mm, about 100 mm away
+        assert 99.5 < float(np.median(g)) < 100.5
+
+
 def test_rays_far_off_the_vertical_are_traced_by_embree():
     """A camera tilted 80 degrees sees the floor at grazing angles: the grid's few-cell bound does not hold."""
     r, _ = _vinyl_renderer()
