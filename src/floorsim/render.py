@@ -981,7 +981,7 @@ class FloorRenderer:
         (x_cam, y_cam) and takes its extremes over a rectangle at its corners: the four corners
         of the rectangle that bounds the coordinates stand for them all (every ray of a
         distorted 648x494 frame at 4 spp with a pose per row would have made 494 x 1.3 M
-        directions, 15 GB).
+        directions, 14 GiB).
         """
         g = self._grid
         if g is None or not self.grid_rays:

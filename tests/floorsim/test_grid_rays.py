@@ -162,7 +162,7 @@ def test_depth_on_the_grid_is_embrees_depth_without_the_bvh():
 def test_the_cell_bound_of_every_ray_and_a_pose_per_row_costs_no_memory():
     """A distorted frame passes every ray's coordinates and a rolling shutter a pose per row: the
     bound is that of the rays' bounding rectangle, computed from its four corners (the rays times
-    the rows had been 15 GB for a 648x494 frame at 4 spp; 5.2 GB peak at half size)."""
+    the rows had been 14 GiB for a 648x494 frame at 4 spp; 5.0 GiB peak at half size)."""
     import tracemalloc
 
     r, _ = _vinyl_renderer()
