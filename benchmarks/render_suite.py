@@ -24,10 +24,9 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(HERE / "src"))
+from floorsim.bench.suites import suite_scenes
 
-from floorsim.bench.suites import suite_scenes  # noqa: E402
+HERE = Path(__file__).resolve().parents[1]
 
 
 def _render(scene: Path, out: Path, cache: Path, args, src: Path) -> float:
