@@ -16,7 +16,8 @@ folder the program writes into, a camera file in OpenCV YAML, ...), runs the pro
 process group of its own (what it leaves running there is killed when it ends), and expects
 ``{output}/trajectory.txt`` (TUM: seconds and metres,
 ``T_world_cam``, one line per frame it placed, stamped with the sequence's frame times) and
-optionally ``{output}/timing.csv`` (the run folder's columns, ``frame`` at least). It records
+optionally ``{output}/timing.csv`` (the run folder's columns, ``frame`` at least: a row for each
+frame of the sequence, those it did not track with status ``lost``). It records
 the wall time and the child's peak resident memory (``ru_maxrss`` of its own ``wait4``).
 
 The program's poses are taken relative to its first one and placed at the run's start pose:
@@ -323,26 +324,65 @@ def _pose_at_no_frame(seq: Sequence, timestamps_s: np.ndarray) -> str:
 
 
 def _timing_problem(seq: Sequence, written: RunFolder) -> str:
-    """Why the program's ``timing.csv`` does not fit the sequence or its own trajectory: a frame
-    index past the sequence's last frame, or ``init``/``ok`` frames that are not as many as its
-    poses (a pose at each frame it tracked and at no other); "" when it fits or there is none. A
-    program's 7 frames 'lost' beside 8 poses was scored as tracking 12.5 % of a perfect
-    trajectory, and frame 99 of an 8-frame sequence was taken, with exit code 0."""
+    """Why the program's ``timing.csv`` does not fit the sequence or its own trajectory; "" when it
+    fits or there is none. It must hold a row for each frame of the sequence, once (the program was
+    given them all: a frame it did not track is a row with status ``lost``; :meth:`RunFolder.read`
+    has checked that they increase), and, with a
+    ``status`` column, mark ``init`` or ``ok`` exactly the frames at whose times
+    ``trajectory.txt`` holds a pose (every pose is at a frame's time: :func:`_pose_at_no_frame`).
+    A program's 7 frames 'lost' beside 8 poses was scored as tracking 12.5 % of a perfect
+    trajectory; frame 99 of an 8-frame sequence was taken, with exit code 0; a program that wrote
+    rows for its first 3 frames of 12 was scored as tracking 100 % (the ground truth was cut to
+    the frames it listed); and one that marked frame 4 lost while its trajectory held a pose at
+    frame 4's time and none at frame 7's had its poses paired with the wrong steps."""
     timing = written.timing
     if not timing:
         return ""
     frames = timing.get("frame")
-    if frames is not None and len(frames) and int(np.max(frames)) >= seq.frame_count:
-        return f"timing.csv: frame {int(np.max(frames))} is past the sequence's last frame ({seq.frame_count - 1})"
+    if frames is None:
+        return "timing.csv: no frame column (a row for each frame of the sequence, its index in 'frame')"
+    idx = np.asarray(frames).astype(int)  # whole numbers >= 0, increasing (RunFolder.read checked them)
+    if len(idx) and int(idx.max()) >= seq.frame_count:
+        return f"timing.csv: frame {int(idx.max())} is past the sequence's last frame ({seq.frame_count - 1})"
+    missing = np.setdiff1d(np.arange(seq.frame_count), idx)
+    if len(missing):
+        return (
+            f"timing.csv: {len(missing)} of the sequence's {seq.frame_count} frames have no row ({_frame_ranges(missing)}): "
+            "a row for each frame, those not tracked with status lost"
+        )
     statuses = written.statuses
     if statuses is not None:
-        placed = sum(s in ("init", "ok") for s in statuses)
-        if placed != len(written.timestamps_s):
-            return (
-                f"timing.csv marks {placed} frame(s) init or ok and trajectory.txt holds {len(written.timestamps_s)} "
-                "pose(s): a pose at each frame tracked and at no other"
-            )
+        placed = sorted(int(f) for f, st in zip(idx, statuses, strict=True) if st in ("init", "ok"))
+        i_frame, _ = associate(seq.timestamps_s, np.asarray(written.timestamps_s, dtype=float), GROUNDTRUTH_MAX_DIFF_S)
+        posed = sorted(int(f) for f in i_frame)
+        if placed != posed:
+            unposed = sorted(set(placed) - set(posed))
+            unmarked = sorted(set(posed) - set(placed))
+            what = []
+            if unposed:
+                what.append(
+                    f"marks frame(s) {_frame_ranges(np.array(unposed))} init or ok, and trajectory.txt has no pose at their time"
+                )
+            if unmarked:
+                what.append(
+                    f"marks frame(s) {_frame_ranges(np.array(unmarked))} lost, and trajectory.txt has a pose at their time"
+                )
+            return "timing.csv " + "; it ".join(what) + ": a pose at each frame tracked and at no other"
     return ""
+
+
+def _frame_ranges(frames: np.ndarray) -> str:
+    """Sorted frame indices as ranges, the first few: ``3-11``, ``4, 7``, ``2-5, 9, ... (14 in all)``."""
+    runs: list[str] = []
+    start = prev = int(frames[0])
+    for f in [int(x) for x in frames[1:]] + [None]:
+        if f is not None and f == prev + 1:
+            prev = f
+            continue
+        runs.append(str(start) if start == prev else f"{start}-{prev}")
+        if f is not None:
+            start = prev = f
+    return ", ".join(runs[:4]) + (f", ... ({len(frames)} in all)" if len(runs) > 4 else "")
 
 
 def _start_pose(seq: Sequence, t_first_s: float, T_world_start: np.ndarray | None) -> np.ndarray:

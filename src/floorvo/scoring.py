@@ -289,7 +289,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
         log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)
         return score
-    _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
+    gt_path, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
     timing, result = run.timing, run.result
     if len(run.timestamps_s) < 2 and run.statuses:
         # Every step lost (a featureless floor): nothing to compare with the ground truth, but
@@ -303,7 +303,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
         why = f"the estimate shares no timestamp with the ground truth (within {max_diff_s} s)"
         log.warning("%s: %s; scored tracking and timing only", run_dir, why)
         score = _score_without_groundtruth(run_dir, seq_dir, why)
-        score.warnings.append(why + ": check the frame times of the run and of groundtruth.txt")
+        score.warnings.append(why + f": check the frame times of the run and of {gt_path.name}")
         return score
     if timing and "frame" in timing and len(timing["frame"]):
         # The estimator saw only these frames: cut the reference to the poses taken at their times.
@@ -528,8 +528,13 @@ def _ok_step_args(run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.nd
 def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
     run = RunFolder.read(run_dir)
     n_frames = len(run.timing["frame"]) if run.timing and "frame" in run.timing else None
+    if n_frames is None and run.result.get("frames"):
+        n_frames = int(run.result["frames"])
     if n_frames is None:  # a run without timing.csv (a program's): every frame of the sequence
-        n_frames = int(run.result.get("frames") or read_json(seq_dir / "sequence.json").get("frame_count", 0))
+        if seq_dir.is_dir():
+            n_frames = int(read_json(seq_dir / "sequence.json").get("frame_count", 0))
+        else:  # a bare TUM ground truth (floorvo score RUN --gt FILE): a frame at each of its poses
+            n_frames = len(read_tum(seq_dir)[0])
     score = score_without_groundtruth(
         n_frames,
         run.timestamps_s,

@@ -117,28 +117,52 @@ def test_poses_at_other_times_than_the_frames_are_a_failed_run(line_sequence, tm
     assert not (tmp_path / "run" / "result.json").exists()
 
 
-# The ground truth as the trajectory, and a timing.csv of the given rows (frame,status).
+# The ground truth as the trajectory (less its pose at frame `drop`, -1: none), and a timing.csv of
+# the given rows (frame,status).
 _GT_AND_TIMING = (
-    "import sys, pathlib; seq, out, rows = sys.argv[1], sys.argv[2], sys.argv[3]; "
-    "pathlib.Path(out, 'trajectory.txt').write_text(pathlib.Path(seq, 'groundtruth.txt').read_text()); "
+    "import sys, pathlib; seq, out, rows, drop = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]); "
+    "gt = [l for l in pathlib.Path(seq, 'groundtruth.txt').read_text().splitlines() if not l.startswith('#')]; "
+    "pathlib.Path(out, 'trajectory.txt').write_text(chr(10).join(l for i, l in enumerate(gt) if i != drop) + chr(10)); "
     "pathlib.Path(out, 'timing.csv').write_text('frame,status' + chr(10) + rows.replace(';', chr(10)) + chr(10))"
 )
 
 
+def _rows(statuses: dict[int, str], frames: range = range(14)) -> str:
+    return ";".join(f"{i},{statuses.get(i, 'init' if i == 0 else 'ok')}" for i in frames)
+
+
 @pytest.mark.parametrize(
-    ("rows", "words"),
+    ("rows", "drop", "words"),
     [
-        (";".join(["0,init"] + [f"{i},ok" for i in range(1, 14)]), ""),
-        (";".join(["0,init"] + [f"{i},lost" for i in range(1, 14)]), "timing.csv marks 1 frame(s) init or ok and"),
-        (";".join(["0,init"] + [f"{i},ok" for i in range(1, 13)] + ["99,ok"]), "frame 99 is past the sequence's last"),
+        (_rows({}), -1, ""),
+        (_rows({4: "lost"}), 4, ""),
+        (
+            _rows({i: "lost" for i in range(1, 14)}),
+            -1,
+            "timing.csv marks frame(s) 1-13 lost, and trajectory.txt has a pose",
+        ),
+        (_rows({}, range(13)) + ";99,ok", -1, "frame 99 is past the sequence's last"),
+        # rows for the first 3 frames only: scored as 3 of 3 frames tracked, 100 %
+        (_rows({}, range(3)), 2, "11 of the sequence's 14 frames have no row (3-13)"),
+        # frame 4 marked lost, a pose at its time and none at frame 7's: poses paired with the wrong steps
+        (
+            _rows({4: "lost"}),
+            7,
+            "marks frame(s) 7 init or ok, and trajectory.txt has no pose at their time; it marks frame(s) 4",
+        ),
     ],
 )
-def test_a_timing_csv_that_does_not_fit_is_a_failed_run(line_sequence, tmp_path, rows, words):
+def test_a_timing_csv_that_does_not_fit_is_a_failed_run(line_sequence, tmp_path, rows, drop, words):
     """A program's timing.csv saying 13 of 14 frames lost beside 14 poses was scored as tracking
-    7 % of a perfect trajectory, and one naming frame 99 of a 14-frame sequence was taken, exit 0."""
-    spec = ExternalEstimator(name="t", command=(sys.executable, "-c", _GT_AND_TIMING, "{sequence}", "{output}", rows))
+    7 % of a perfect trajectory, and one naming frame 99 of a 14-frame sequence was taken, exit 0;
+    one with rows for its first 3 frames was scored as tracking 100 % (the ground truth cut to
+    them), and one whose lost frame held the pose of another had its steps scored against the
+    wrong ones."""
+    spec = ExternalEstimator(
+        name="t", command=(sys.executable, "-c", _GT_AND_TIMING, "{sequence}", "{output}", rows, str(drop))
+    )
     if not words:
-        assert run_external(line_sequence, spec, tmp_path / "run").placed == 14
+        assert run_external(line_sequence, spec, tmp_path / "run").placed == 14 - (drop >= 0)
         return
     with pytest.raises(ExternalEstimatorError) as info:
         run_external(line_sequence, spec, tmp_path / "run")
@@ -347,6 +371,13 @@ def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(lin
     assert "ate_se2_rmse_mm" not in score.flat() and score.flat()["tracked_fraction"] == 1.0
     assert floorvo_main(["score", str(tmp_path / "r"), "--gt", str(shifted), "-o", str(tmp_path / "s.json")]) == 0
     assert "accuracy (ATE, RPE, drift, segments): the estimate shares no timestamp" in capsys.readouterr().out
+    # the same with a bare TUM file as the ground truth: it read sequence.json beside no folder and failed
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    write_tum(bare / "trajectory.txt", *read_tum(tmp_path / "r" / "trajectory.txt"))
+    assert floorvo_main(["score", str(bare), "--gt", str(shifted / "groundtruth.txt")]) == 0
+    score = score_run(bare, shifted / "groundtruth.txt")
+    assert score.flat()["tracked_fraction"] == 1.0 and "of groundtruth.txt" in score.warnings[0]
 
 
 def test_initial_pose_is_a_floor_pose_or_a_tum_line():
