@@ -18,7 +18,7 @@ process group of its own (what it leaves running there is killed when it ends), 
 ``T_world_cam``, one line per frame it placed, stamped with the sequence's frame times) and
 optionally ``{output}/timing.csv`` (the run folder's columns, ``frame`` at least: a row for each
 frame of the sequence, those it did not track with status ``lost``). It records
-the wall time and the child's peak resident memory (``ru_maxrss`` of its own ``wait4``).
+the wall time and the program's peak resident memory (:class:`floorvo.memory.PeakRss`).
 
 The program's poses are taken relative to its first one and placed at the run's start pose:
 the ground-truth pose at the time of its first pose when the sequence has ground truth,
@@ -77,6 +77,7 @@ from floorvo.estimators.base import NEEDS
 from floorvo.estimators.registry import EstimatorSource
 from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
+from floorvo.memory import PeakRss
 from floorvo.metrics import associate
 from floorvo.runfolder import SEQUENCE_SHA256, RunFolder, sequence_sha256
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
@@ -266,11 +267,14 @@ def _tail(path: Path, lines: int = STDERR_TAIL_LINES) -> str:
 
 
 def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, float, float]:
-    """Wait for ``proc`` with a blocking ``os.wait4`` (its own resource usage, not every child's);
-    after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL 2 s later. Once it
-    has ended, whatever it left running in its process group is killed: a child it started kept
-    running after the run (and through the next estimator's timing in a bench). Returns
-    ``(wait status, or None when it was killed for the timeout; wall s; peak RSS MiB)``."""
+    """Wait for ``proc`` to end (``os.waitid`` without reaping it, then ``os.wait4``), sampling its
+    peak resident memory meanwhile (:class:`floorvo.memory.PeakRss`: its own and its children's,
+    not the ``ru_maxrss`` of ``wait4``, which counts this process's memory that the child carried
+    over its ``exec``); after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL
+    2 s later. Once it has ended, whatever it left running in its process group is killed: a
+    child it started kept running after the run (and through the next estimator's timing in a
+    bench). Returns ``(wait status, or None when it was killed for the timeout; wall s; peak
+    RSS MiB, NaN where it cannot be read)``."""
     done, timed_out = threading.Event(), threading.Event()
 
     def kill() -> None:
@@ -289,8 +293,11 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     if timer is not None:
         timer.daemon = True
         timer.start()
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
+    with PeakRss(pid=proc.pid) as mem:
+        # Ended, not yet reaped: the sampler stops while its pid still names the program.
+        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+        wall = time.perf_counter() - t0
+    _, status, _ = os.wait4(proc.pid, 0)
     done.set()
     if timer is not None:
         timer.cancel()
@@ -299,7 +306,7 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     except (ProcessLookupError, PermissionError):
         pass
     proc.returncode = os.waitstatus_to_exitcode(status)  # reaped here: Popen must not wait again
-    return (None if timed_out.is_set() else status), wall, usage.ru_maxrss / 1024.0  # Linux: KiB
+    return (None if timed_out.is_set() else status), wall, mem.peak_mb
 
 
 def _pose_at_no_frame(seq: Sequence, timestamps_s: np.ndarray) -> str:
@@ -493,7 +500,7 @@ def run_external(
         "fps": seq.frame_count / wall_s if wall_s > 0 else 0.0,
         "wall_s": wall_s,
         "wall_ms_per_frame": run.wall_ms_per_frame,
-        "peak_rss_mb": peak_mb,
+        "peak_rss_mb": None if np.isnan(peak_mb) else peak_mb,  # None: not measured (no /proc)
         "source": src.to_dict(),
         "external": {
             "command": argv,

@@ -395,3 +395,27 @@ def test_initial_pose_is_a_floor_pose_or_a_tum_line():
     for bad in ("1,2", "a,b,c", "0 0 0 0 0 0 0", "1,2,nan", "0 1e306 0 0 0 0 0 1", "1e308,0,0", "0 0 1.1e8 0 0 0 0 1"):
         with pytest.raises(ConfigError, match=r"^--initial-pose .*: expected x_mm,y_mm,yaw_rad"):
             InitialPose.parse(bad)
+
+
+# The ground truth as the trajectory, after holding `mb` MiB for 0.3 s; run as `sh -c` with
+# `wrap`, the shell starts it as a child of its own (a command after it: no exec).
+_HOLDING = (
+    "import sys, time, pathlib; import numpy as np; a = np.ones(int(sys.argv[3]) * 2**20, np.uint8); time.sleep(0.3); "
+    "pathlib.Path(sys.argv[2], 'trajectory.txt').write_text(pathlib.Path(sys.argv[1], 'groundtruth.txt').read_text())"
+)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="reads /proc")
+@pytest.mark.parametrize(("mb", "wrap"), [(0, False), (150, False), (150, True)])
+def test_a_programs_peak_memory_is_its_own(line_sequence, tmp_path, mb, wrap):
+    """A program's peak memory was the ru_maxrss of its wait4, which counts the memory of the
+    process that started it (carried over the exec): a 2 MiB program read as the bench's 112-500
+    MiB. Here the test process holds 250 MiB while it runs a program holding 0 or 150."""
+    held = np.ones(250 * 2**20, np.uint8)  # this process's memory, which the program's must not show
+    cmd = (sys.executable, "-c", _HOLDING, "{sequence}", "{output}", str(mb))
+    if wrap:
+        cmd = ("sh", "-c", shlex.join(cmd) + "; true")
+    res = run_external(line_sequence, ExternalEstimator(name="m", command=cmd), tmp_path / "run")
+    assert held.sum() == held.size and res.placed == 14
+    assert mb + 5 < res.peak_rss_mb < mb + 150  # a Python child with numpy: some tens of MiB besides
+    assert json.loads((tmp_path / "run" / "result.json").read_text())["peak_rss_mb"] == res.peak_rss_mb

@@ -7,17 +7,16 @@ programs it was given (:mod:`floorvo.external`); the bench, its paper protocols 
 :data:`DEFAULT_RUNNER`), and tests pass a subclass whose estimators have known errors.
 
 Every run gives the figures the bench compares estimators by besides accuracy
-(:data:`RUN_FIGURES`): wall time per frame and peak resident memory. A program's peak is
-its own (``wait4``); an estimator run in the bench's process is measured by sampling the
-process's resident memory during the run, so it includes the bench's own (a Python
-process with numpy and OpenCV loaded, about 150-250 MiB).
+(:data:`RUN_FIGURES`): wall time per frame and peak resident memory
+(:class:`floorvo.memory.PeakRss`). A program's peak is its own (the high-water mark of its
+resident set, and of the processes it starts); an estimator run in the bench's process is
+measured by sampling the process's resident memory during the run, so it includes the bench's
+own (a Python process with numpy and OpenCV loaded, about 150-250 MiB).
 """
 
 from __future__ import annotations
 
 import copy
-import os
-import threading
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ from floorvo.calibration import ScaleCalibration
 from floorvo.errors import ConfigError, FloorbenchError
 from floorvo.estimators import EstimatorSource, estimator_source, get_estimator, list_estimators, make_config
 from floorvo.external import ExternalEstimator, run_external
+from floorvo.memory import PeakRss
 from floorvo.run import build_estimator, run_estimator
 from floorvo.sequence import Sequence
 
@@ -36,44 +36,6 @@ __all__ = ["DEFAULT_RUNNER", "EstimatorRunner", "RUN_FIGURES", "PeakRss"]
 #: Columns every run adds to its row: wall-clock ms per sequence frame (the whole run, frame
 #: reading or program start-up included) and peak resident memory (MiB).
 RUN_FIGURES = ("wall_ms_per_frame", "peak_rss_mb")
-
-
-class PeakRss:
-    """Context manager sampling this process's resident memory every ``interval_s``; ``peak_mb``
-    is the largest sample (MiB), NaN where ``/proc/self/statm`` does not exist (not Linux)."""
-
-    def __init__(self, interval_s: float = 0.02):
-        self.interval_s = interval_s
-        self.peak_mb = float("nan")
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    @staticmethod
-    def current_mb() -> float:
-        try:
-            with open("/proc/self/statm") as fh:
-                return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-        except (OSError, ValueError, IndexError):
-            return float("nan")
-
-    def _sample(self) -> None:
-        self.peak_mb = np.fmax(self.peak_mb, self.current_mb())
-
-    def _loop(self) -> None:
-        while not self._stop.wait(self.interval_s):
-            self._sample()
-
-    def __enter__(self) -> PeakRss:
-        self._sample()
-        self._thread = threading.Thread(target=self._loop, name="peak-rss", daemon=True)
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-        self._sample()
 
 
 class EstimatorRunner:

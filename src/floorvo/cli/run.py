@@ -59,9 +59,10 @@ def _run_external(args, start) -> int:
         raise ConfigError("--set and --scale-calibration apply to Python estimators, not to a program")
     spec = parse_external(args.external) if args.external else load_estimator_file(args.estimator_file)
     res = run_external(args.sequence, spec, args.output, T_world_start=start)
+    peak = "not measured" if res.peak_rss_mb != res.peak_rss_mb else f"{res.peak_rss_mb:.0f} MiB"  # NaN: no /proc
     print(
         f"{res.estimator}: {res.frames} frames, {res.placed} placed, {res.wall_ms_per_frame:.1f} ms/frame (wall), "
-        f"peak {res.peak_rss_mb:.0f} MiB -> {res.run_dir}"
+        f"peak {peak} -> {res.run_dir}"
     )
     if res.placed < 2:
         print(f"floorvo: error: {res.estimator} placed no frame after the first (see {res.run_dir})", file=sys.stderr)
