@@ -587,6 +587,12 @@ def test_frames_closer_than_a_nanosecond_are_refused_before_writing(tmp_path, sy
     assert "timestamps must increase (to the nanosecond, as timestamps.txt holds them), frame 1" in err
     assert not (tmp_path / "s").exists()
     assert main(["import", str(src), "-o", str(tmp_path / "ok"), *FLAGS, "--fps", "1e6"]) == 0
+    # --fps beside frame times at another rate was written into sequence.json (and given to programs as {fps})
+    (tmp_path / "t30.txt").write_text("0.0\n0.033333\n0.066667\n")
+    argv = ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--timestamps", str(tmp_path / "t30.txt")]
+    err = _one_line_error(capsys, argv + ["--fps", "25"])
+    assert "--fps 25.0: the frames have times (from the timestamps file); --fps is for a source without them" in err
+    assert not (tmp_path / "s").exists()
 
 
 def test_absurd_intrinsics_are_refused_by_every_reader(tmp_path, synth, capsys):

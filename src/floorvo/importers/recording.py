@@ -307,6 +307,12 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         ts, time_source = np.arange(n) / fps_given, "--fps"
     else:
         raise ConfigError(f"{what}: the source states no frame times; give --timestamps FILE or --fps HZ")
+    if fps_given is not None and time_source != "--fps":
+        # It was written into sequence.json beside times at another rate (and given to programs as {fps}).
+        raise ConfigError(
+            f"--fps {shown_number(fps_given)}: the frames have times (from the {time_source}); --fps is for a source "
+            "without them, or a video whose times do not increase: leave it out"
+        )
     fps = fps_given or rec.fps or median_rate_hz(ts) or 1.0
     if not np.isfinite(fps) or fps <= 0:
         fps = median_rate_hz(ts) or 1.0
