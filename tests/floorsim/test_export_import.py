@@ -153,8 +153,9 @@ def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     assert not imp.has_stereo and imp.frame_count == 8
 
 
-def _bag_without(src, dst, topic: str, k: int) -> None:
-    """Copy the ROS 2 bag ``src`` to ``dst`` leaving out the ``k``-th message of ``topic``."""
+def _bag_without(src, dst, topic: str, k: int, keep_bytes: int | None = None) -> None:
+    """Copy the ROS 2 bag ``src`` to ``dst`` leaving out the ``k``-th message of ``topic``, or
+    with only its first ``keep_bytes`` bytes (a message cut short)."""
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -166,8 +167,25 @@ def _bag_without(src, dst, topic: str, k: int) -> None:
             if c.topic == topic:
                 seen += 1
                 if seen - 1 == k:
-                    continue
+                    if keep_bytes is None:
+                        continue
+                    raw = raw[:keep_bytes]
             w.write(conns[c.id], t, raw)
+
+
+@pytest.mark.parametrize(("topic", "k"), [("/cam0/image_raw", 5), ("/cam0/camera_info", 0)])
+def test_a_bag_message_cut_short_is_refused_in_one_line(tmp_path, original, capsys, topic, k):
+    """A message rosbags cannot deserialize (cut to 50 bytes) raised its AnyReaderError as a
+    25-line traceback."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "rosbag2", tmp_path / "exported")
+    _bag_without(exported, tmp_path / "cut", topic, k, keep_bytes=50)
+    out = tmp_path / "imported"
+    assert main(["import", str(tmp_path / "cut"), "-o", str(out), "--height-mm", "100"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert f"{topic}: the message at " in err[0] and "ns (bag time) cannot be read as sensor_msgs/msg/" in err[0]
+    assert not out.exists()
 
 
 def test_a_bags_left_image_without_a_right_one_is_refused_unless_left_only(tmp_path, original, capsys, caplog):

@@ -299,6 +299,19 @@ def _open_reader(source: Path):
     return reader
 
 
+def _deserialized(reader: Any, raw: bytes, conn: Any, bag_ns: int, source: Path) -> Any:
+    """The message ``raw`` of connection ``conn`` (its topic and type), deserialized; a message
+    that is not one (cut short, or garbage) is a one-line :class:`SequenceError` naming the bag,
+    the topic and the message's bag time (rosbags raised its own error from deep inside)."""
+    try:
+        return reader.deserialize(raw, conn.msgtype)
+    except Exception as exc:  # rosbags raises its own types, and struct's, for a message it cannot read
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SequenceError(
+            f"{source} {conn.topic}: the message at {int(bag_ns)} ns (bag time) cannot be read as {conn.msgtype} ({why})"
+        ) from None
+
+
 def _pair(left_ns: np.ndarray, other_ns: np.ndarray) -> dict[int, int]:
     """``{other stamp: left stamp}`` for each left stamp with an other stamp within tolerance (nearest)."""
     other = np.sort(np.asarray(other_ns, dtype=np.int64))
@@ -347,7 +360,7 @@ def read(source: Path, options=None) -> Recording:
         flats: dict[str, np.ndarray] = {}
         height_readings: list[tuple[int, float]] = []  # (stamp ns, range m)
         for conn, bag_ns, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg = _deserialized(reader, raw, conn, bag_ns, source)
             roles = roles_of.get(conn.topic, [])
             for role in roles:
                 if role in stamps:
@@ -496,7 +509,7 @@ def read(source: Path, options=None) -> Recording:
             cs = [c for c in rd.connections if c.topic in img_topics]
             for conn, bag_ns, raw in rd.messages(connections=cs):
                 role = img_topics[conn.topic]
-                msg = rd.deserialize(raw, conn.msgtype)
+                msg = _deserialized(rd, raw, conn, bag_ns, source)
                 t = _stamp_ns(msg, bag_ns)
                 t_left = t if role == "image" else partners[role].get(t)
                 if t_left is None or t_left not in index_of:
