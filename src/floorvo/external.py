@@ -112,6 +112,9 @@ PLACEHOLDERS: dict[str, str] = {
 DEFAULT_TIMEOUT_START_S = 120.0
 #: ... plus this much per frame of the sequence (see the module doc).
 DEFAULT_TIMEOUT_PER_FRAME_S = 2.0
+#: The longest ``timeout_s``, s (30 days; 0 is no limit): 1e10 s killed the timer thread with an
+#: OverflowError (beyond the platform's time_t), and the program then ran without a limit.
+MAX_TIMEOUT_S = 30 * 86400.0
 #: Lines of the program's standard error kept for a failed row.
 STDERR_TAIL_LINES = 5
 _NAME_CHARS = set(string.ascii_letters + string.digits + "-_.+")
@@ -135,6 +138,7 @@ class ExternalEstimator(Config):
         None,
         unit="s",
         min=0,
+        max=MAX_TIMEOUT_S,
         doc=f"kill the program after this long (a failed run); default {DEFAULT_TIMEOUT_START_S:g} s + "
         f"{DEFAULT_TIMEOUT_PER_FRAME_S:g} s per frame; 0: no limit",
     )
@@ -231,6 +235,8 @@ def parse_external(command: str, name: str = "") -> ExternalEstimator:
         argv = tuple(shlex.split(command))
     except ValueError as exc:
         raise ConfigError(f"--external {command!r}: {exc}") from None
+    if not argv:
+        raise ConfigError(f"--external {command!r}: an empty command: give the program and its arguments")
     if not name:
         name = _program_name(argv)
     return build(ExternalEstimator, {"name": name, "command": argv, "here": os.getcwd()}, "--external")

@@ -271,6 +271,11 @@ def test_needs_are_checked_before_the_program_runs(line_sequence, tmp_path):
         ('name = "x"\ncommand = []\n', r"x\.toml\.command = \[\]: must name a program"),
         ('name = "x"\ncommand = ["vo", "{seq}"]\n', r"unknown placeholder \{seq\} \(known: sequence, output"),
         ('name = "x"\ncommand = ["vo"]\ntimeout_s = -1\n', r"x\.toml\.timeout_s = -1\.0 s: must be >= 0 s"),
+        # 1e10 s killed the timer thread (OverflowError: beyond time_t), and the program ran without a limit
+        (
+            'name = "x"\ncommand = ["vo"]\ntimeout_s = 1e10\n',
+            r"x\.toml\.timeout_s = 10000000000\.0 s: must be <= 2592000\.0 s",
+        ),
         ('name = "x"\ncommand = ["vo"]\nneeds = ["lidar"]\n', r"'lidar' must be one of depth, stereo"),
         ('name = "x"\ncommand = ["vo"]\nwhen = 3\n', r"x\.toml\.when: unknown key \(known: command, env"),
         ('name = "a b"\ncommand = ["vo"]\n', r"x\.toml\.name = 'a b': must be a non-empty name"),
@@ -297,6 +302,15 @@ def test_external_argument_is_split_like_a_shell_and_hashed_as_given():
     assert parse_external("{python} -u -m my_vo {sequence} {output}").name == "my_vo"
     with pytest.raises(ConfigError, match=r"^--external\.command argument '\{sequence': a brace without a placeholder"):
         parse_external("my_vo {sequence")
+    # an empty command: `floorvo run --external ""` took it for no --external and crashed on a None file
+    with pytest.raises(ConfigError, match=r"^--external '': an empty command: give the program and its arguments$"):
+        parse_external("")
+
+
+def test_floorvo_run_with_an_empty_external_command_is_refused_in_one_line(line_sequence, tmp_path, capsys):
+    assert floorvo_main(["run", str(line_sequence), "--external", "", "-o", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--external '': an empty command" in err[0], err
 
 
 def test_floorvo_run_external_and_estimator_file(line_sequence, tmp_path, capsys):

@@ -57,7 +57,7 @@ def _run_external(args, start) -> int:
 
     if args.set or args.scale_calibration:
         raise ConfigError("--set and --scale-calibration apply to Python estimators, not to a program")
-    spec = parse_external(args.external) if args.external else load_estimator_file(args.estimator_file)
+    spec = parse_external(args.external) if args.external is not None else load_estimator_file(args.estimator_file)
     res = run_external(args.sequence, spec, args.output, T_world_start=start)
     peak = "not measured" if res.peak_rss_mb != res.peak_rss_mb else f"{res.peak_rss_mb:.0f} MiB"  # NaN: no /proc
     print(
