@@ -176,3 +176,38 @@ def test_a_worker_count_beyond_the_machine_is_refused_in_one_line(tmp_path, caps
         assert f"{flag} {n}: must be from 1 to 8 (4 per CPU of the 2 this process may use)" in err, err
         assert not out.exists()
     assert sweep_module.local_workers_problem(8) is None
+
+
+def test_a_scheduler_address_that_is_not_one_is_refused_before_anything_is_written(tmp_path, capsys):
+    """--scheduler notaurl was a 62-line traceback from inside Dask, after study.json and
+    study.toml were written into the output folder."""
+    from floorsim.cli import main
+
+    sweep = _sweep_file(tmp_path)
+    out = tmp_path / "out"
+    assert main(["sweep", str(sweep), "-o", str(out), "--scheduler", "notaurl"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "--scheduler 'notaurl': not a Dask scheduler address, e.g. tcp://HOST:PORT" in err
+    assert not out.exists()
+
+
+def test_a_sweep_whose_workers_do_not_start_leaves_no_study_record(tmp_path, monkeypatch):
+    """A scheduler that did not answer was refused in one line, but left study.json and
+    study.toml behind in the folder it created: a refused command writes nothing."""
+    import contextlib
+
+    import floorsim.bench.sweep as sweep_module
+    from floorvo.errors import FloorbenchError
+
+    @contextlib.contextmanager
+    def no_workers(*args, **kwargs):
+        raise FloorbenchError("--scheduler tcp://127.0.0.1:1: cannot connect to a Dask scheduler there")
+        yield
+
+    monkeypatch.setattr(sweep_module, "job_pool", no_workers)
+    D.reset()
+    out = tmp_path / "out"
+    with pytest.raises(FloorbenchError, match="cannot connect"):
+        run_sweep(_sweep_file(tmp_path), out, scheduler="tcp://127.0.0.1:1")
+    assert not out.exists()

@@ -70,6 +70,7 @@ from floorsim.bench.study import (
     SweepSpec,
     as_override,
     load_sweep,
+    remove_study_record,
     resume_problem,
     scene_key_unit,
     write_study_record,
@@ -238,6 +239,21 @@ def local_workers_problem(n: int) -> str | None:
     return None
 
 
+def scheduler_problem(address: str) -> str | None:
+    """Why ``address`` is not a Dask scheduler address (``tcp://HOST:PORT``, ``HOST:PORT``,
+    ``tls://...``), or None: checked before anything is written (``notaurl`` was a 62-line
+    traceback from inside Dask, after the study's record was written)."""
+    from distributed.comm.addressing import parse_address, parse_host_port  # only for Dask runs
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except ValueError as exc:
+        return f"not a Dask scheduler address, e.g. tcp://HOST:PORT ({exc})"
+    return None
+
+
 @contextlib.contextmanager
 def job_pool(
     scheduler: str | None = None, workers: int | None = None, jobs: int = 1, processes: bool = True
@@ -294,7 +310,7 @@ def job_pool(
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise FloorbenchError(
                 f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})"
             ) from None
@@ -615,6 +631,9 @@ def run_sweep(
         problem = None if n is None else local_workers_problem(n)
         if problem:
             raise ConfigError(f"{flag} {n}: {problem}")
+    problem = None if scheduler is None else scheduler_problem(scheduler)
+    if problem:
+        raise ConfigError(f"--scheduler {scheduler!r}: {problem}")
     spec = load_sweep(sweep_path)
     base = _check_study(spec, load_scene, runner)
     out_dir = Path(out_dir)
@@ -624,6 +643,7 @@ def run_sweep(
     problem = resume_problem(spec, out_dir, base_scene, programs)
     if problem:
         raise ConfigError(problem)
+    recorded_before = (out_dir / "study.json").exists()
     record = write_study_record(spec, out_dir, base_scene, programs)
     # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
     cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
@@ -658,7 +678,14 @@ def run_sweep(
             if not todo:
                 return
             if pool is None:  # workers start on the first job that is not already done
-                pool = stack.enter_context(job_pool(scheduler, workers, jobs, processes))
+                try:
+                    pool = stack.enter_context(job_pool(scheduler, workers, jobs, processes))
+                except FloorbenchError:
+                    # No workers (a scheduler that does not answer): a study that ran nothing leaves
+                    # no record behind (the lock then removes the folder it created, if empty).
+                    if not recorded_before and not rows:
+                        remove_study_record(out_dir)
+                    raise
             counts["ran"] += len(todo)
             counts["submitted"] += len(todo)
             pool(run_sweep_job, todo, args, collect)
