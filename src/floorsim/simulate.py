@@ -592,11 +592,13 @@ def render_flatfield(
 def range_sensor_heights(T_world_cam: np.ndarray, spec: RangeSensorSpec, seed: int) -> np.ndarray:
     """(N,) heights (mm) a simulated range sensor reads: the camera's height above the floor
     (z of ``T_world_cam`` (N, 4, 4)) plus Gaussian noise of ``spec.noise_mm``, NaN for a
-    fraction ``spec.dropout`` of the frames; seeded by ``seed``, the same in every process."""
-    rng = np.random.default_rng([int(seed), 0x52414E47])  # "RANG"
+    fraction ``spec.dropout`` of the frames; seeded by ``seed``, the same in every process. The
+    noise and the dropout are drawn frame by frame from streams of their own, so the first k
+    frames' readings do not depend on N (``floorsim render --frames k`` gives the whole render's
+    first k: the dropout drawn after all N frames' noise moved with N)."""
     z = np.asarray(T_world_cam, dtype=float)[:, 2, 3]
-    h = z + rng.normal(0.0, spec.noise_mm, z.shape)
-    h[rng.random(z.shape) < spec.dropout] = np.nan
+    h = z + np.random.default_rng([int(seed), 0x52414E47]).normal(0.0, spec.noise_mm, z.shape)  # "RANG"
+    h[np.random.default_rng([int(seed), 0x52414E47, 1]).random(z.shape) < spec.dropout] = np.nan
     return h
 
 
@@ -605,9 +607,9 @@ def attitude_sensor_angles(T_world_cam: np.ndarray, spec: AttitudeSensorSpec, se
     against gravity (:func:`floorvo.geometry.attitude_of_T` of ``T_world_cam`` (N, 4, 4)) plus
     Gaussian noise of ``spec.noise_rad`` on each angle, a row of NaN for a fraction
     ``spec.dropout`` of the frames; seeded by ``seed`` (a stream of its own, not the range
-    sensor's), the same in every process."""
-    rng = np.random.default_rng([int(seed), 0x41545449])  # "ATTI"
+    sensor's), the same in every process; the noise and the dropout each from a stream of its own,
+    frame by frame, as :func:`range_sensor_heights`'s."""
     a = attitude_of_T(np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4))
-    a = a + rng.normal(0.0, spec.noise_rad, a.shape)
-    a[rng.random(len(a)) < spec.dropout] = np.nan
+    a = a + np.random.default_rng([int(seed), 0x41545449]).normal(0.0, spec.noise_rad, a.shape)  # "ATTI"
+    a[np.random.default_rng([int(seed), 0x41545449, 1]).random(len(a)) < spec.dropout] = np.nan
     return a

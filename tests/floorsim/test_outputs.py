@@ -63,6 +63,11 @@ def test_range_sensor_writes_the_true_height_plus_its_seeded_noise(tmp_path):
     a = range_sensor_heights(T, RangeSensorSpec(enabled=True, noise_mm=0.3, dropout=0.25), seed=4)
     b = range_sensor_heights(T, RangeSensorSpec(enabled=True, noise_mm=0.3, dropout=0.25), seed=4)
     np.testing.assert_array_equal(a, b)
+    # the first k frames' readings do not depend on the frame count (render --frames k): the
+    # dropout was drawn after every frame's noise, and moved with it
+    k = 137
+    spec = RangeSensorSpec(enabled=True, noise_mm=0.3, dropout=0.25)
+    np.testing.assert_array_equal(range_sensor_heights(T[:k], spec, seed=4), a[:k])
     assert np.isnan(a).mean() == pytest.approx(0.25, abs=0.02)
     assert np.nanstd(a) == pytest.approx(0.3, rel=0.05) and np.nanmean(a) == pytest.approx(100.0, abs=0.01)
 
@@ -96,6 +101,7 @@ def test_attitude_sensor_writes_the_true_roll_and_pitch_plus_its_seeded_noise(tm
     spec = AttitudeSensorSpec(enabled=True, noise_rad=0.002, dropout=0.25)
     a = attitude_sensor_angles(T, spec, seed=4)
     np.testing.assert_array_equal(a, attitude_sensor_angles(T, spec, seed=4))
+    np.testing.assert_array_equal(attitude_sensor_angles(T[:137], spec, seed=4), a[:137])  # as --frames 137
     assert np.isnan(a[:, 0]).mean() == pytest.approx(0.25, abs=0.02)
     assert np.array_equal(np.isnan(a[:, 0]), np.isnan(a[:, 1]))  # a dropout loses both angles
     assert np.nanstd(a[:, 0]) == pytest.approx(0.002, rel=0.05) and abs(np.nanmean(a)) < 1e-4
