@@ -72,6 +72,7 @@ from scipy.ndimage import maximum_filter
 
 from floorvo.camera import CameraModel
 from floorvo.errors import FloorbenchError
+from floorvo.locking import signals_deferred
 
 __all__ = ["LedArray", "FloorRenderer", "heightfield_vertex_normals", "stratified_spp", "find_libllvm", "backend_info"]
 
@@ -132,7 +133,6 @@ def _import_mitsuba(variant: str | None = None):
     unnoticed). Without one, ``cuda_ad_mono`` is chosen when an NVIDIA device node exists,
     falling back to ``llvm_ad_mono`` with a warning if CUDA cannot start; ``llvm_ad_mono``
     otherwise."""
-    global _MI
     if _MI is not None:
         return _MI
     asked = variant or os.environ.get("FLOORSIM_VARIANT") or None
@@ -145,6 +145,16 @@ def _import_mitsuba(variant: str | None = None):
                 "or set DRJIT_LIBLLVM_PATH to a libLLVM.so of version 17 or newer"
             )
         os.environ["DRJIT_LIBLLVM_PATH"] = path
+    # Ctrl-C or SIGTERM held back until Mitsuba and its variant are loaded (half a second): inside
+    # Dr.Jit's import an interrupt became an ordinary exception, sequence.json recorded the backend
+    # as 'unavailable', and the process aborted or exited 0.
+    with signals_deferred():
+        return _load_mitsuba(want, asked)
+
+
+def _load_mitsuba(want: str, asked: str | None):
+    """:func:`_import_mitsuba`'s import and variant (``want``; ``asked``: whether the user named it)."""
+    global _MI
     try:
         import mitsuba as mi
     except ImportError as exc:

@@ -56,7 +56,7 @@ try:
 except ImportError:  # pragma: no cover - Windows
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["LOCK_FILE", "FolderLock", "lock_folder", "locks_folder", "lock_holder"]
+__all__ = ["LOCK_FILE", "FolderLock", "lock_folder", "locks_folder", "lock_holder", "signals_deferred"]
 
 log = logging.getLogger(__name__)
 
@@ -141,7 +141,7 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
             held = _held.get(key)
             if held is not None:
                 return FolderLock(held, outer=False)
-        with _signals_deferred():  # an interrupt here left the lock file of a lock nobody held
+        with signals_deferred():  # an interrupt here left the lock file of a lock nobody held
             fd = _try_lock(path / LOCK_FILE)
             if isinstance(fd, int):
                 held = _Held(fd, Path(os.path.abspath(path)), key, created)
@@ -345,11 +345,13 @@ def _refusal(path: Path, what: str, holder: str) -> FolderLockedError:
 
 
 @contextlib.contextmanager
-def _signals_deferred() -> Iterator[None]:
+def signals_deferred() -> Iterator[None]:
     """SIGINT and SIGTERM held back (their handlers run when the block ends) while a lock is taken
     or given back: a Ctrl-C between creating the lock file and recording the lock, or between
     forgetting it and removing the file, left a ``.floorbench.lock`` that no exit clean-up removed.
-    The block never waits (the lock is tried with ``LOCK_NB``).
+    The block never waits (the lock is tried with ``LOCK_NB``). The renderer imports Mitsuba in
+    such a block too (:func:`floorsim.render._import_mitsuba`): an interrupt inside Dr.Jit's
+    import became an ordinary exception there, and the render went on, crashed, or exited 0.
 
     Python runs signal handlers, and so raises ``KeyboardInterrupt``, in the main thread only: there
     the handlers are swapped for one that notes the signal (blocking the signal with
@@ -375,7 +377,7 @@ def _signals_deferred() -> Iterator[None]:
 
 
 def _release(held: _Held, refused: bool) -> None:
-    with _signals_deferred():
+    with signals_deferred():
         with _registry:
             _held.pop(held.key, None)
         # Remove the lock file while still holding the lock (a writer that opened it meanwhile

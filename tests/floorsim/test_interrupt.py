@@ -221,3 +221,62 @@ def test_sigterm_ends_a_command_in_one_line_and_gives_its_folders_back(tmp_path,
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
     assert floorsim_main(args, collaborators=D.COLLABORATORS) == 0
     assert [r["status"] for r in read_results_csv(out / "results.csv")] == ["ok"]
+
+
+#: Runs the floorsim CLI with a SIGTERM or SIGINT (env INTERRUPT_SIGNAL) sent to itself the moment
+#: Dr.Jit imports its LLVM backend: inside the renderer's import of Mitsuba.
+_INTERRUPT_AT_DRJIT = """
+import os, signal, sys
+sig = getattr(signal, os.environ["INTERRUPT_SIGNAL"])
+class Hook:
+    fired = False
+    def find_spec(self, name, path=None, target=None):
+        if name == "drjit.llvm" and not Hook.fired:
+            Hook.fired = True
+            os.kill(os.getpid(), sig)
+        return None
+sys.meta_path.insert(0, Hook())
+from floorsim.cli import main
+code = main(sys.argv[1:])
+print("fired" if Hook.fired else "not fired", file=sys.stderr)
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_an_interrupt_while_mitsuba_loads_ends_the_render_and_it_resumes(scene, tmp_path, sig):
+    """An interrupt inside Dr.Jit's import became an ordinary exception: sequence.json recorded the
+    backend as 'unavailable', then the process aborted (134) or went on and exited 0; the same
+    command was then refused ('holds a different sequence'). Now the interrupt waits for the import
+    to end and stops the render in one line; the same command renders the sequence."""
+    out = tmp_path / "seq"
+    cmd = [sys.executable, "-c", _INTERRUPT_AT_DRJIT, "-q", "render", str(scene), "-o", str(out), "--frames", "2"]
+    r = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=300, env={**child_env(), "INTERRUPT_SIGNAL": sig.name}
+    )
+    lines = r.stderr.strip().splitlines()
+    assert lines[-1] == "fired", r.stderr  # the hook ran: Dr.Jit's LLVM backend was imported
+    assert r.returncode == 128 + sig, (r.returncode, r.stderr)
+    assert len(lines) == 2 and "interrupted" in lines[0] and "Traceback" not in r.stderr, r.stderr
+    again = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from floorsim.cli import main; sys.exit(main(sys.argv[1:]))",
+            "-q",
+            "render",
+            str(scene),
+            "-o",
+            str(out),
+            "--frames",
+            "2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=child_env(),
+    )
+    assert again.returncode == 0, again.stderr
+    versions = json.loads((out / "sequence.json").read_text())["versions"]
+    assert "backend" not in versions and versions["variant"].startswith(("llvm", "cuda")), versions
+    _whole(out)
