@@ -46,6 +46,7 @@ import os
 import re
 import secrets
 import shutil
+import sqlite3
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -180,7 +181,13 @@ def export_rosbag2(seq: Sequence, out: str | os.PathLike) -> Path:
     _check_stamps(seq, "rosbag2")
     final = _check_out(out, may_exist_empty=False)
     with _staged(final) as dest:
-        _write_rosbag2(seq, dest)
+        try:
+            _write_rosbag2(seq, dest)
+        except sqlite3.Error as exc:
+            # the bag's storage (rosbags writes it through sqlite3): a full disk was a 28-line traceback
+            # ('database or disk is full', raised as the writer closed)
+            why = " ".join(str(exc).split()) or type(exc).__name__
+            raise FloorbenchError(f"{final / (final.name + '.db3')}: {why} (sqlite3)") from None
     return final
 
 

@@ -214,6 +214,31 @@ def test_an_export_that_fails_half_way_leaves_nothing_behind(stereo_depth_seq, t
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["metadata.yaml", "out.db3"]
 
 
+def test_a_full_disk_stops_a_bag_export_in_one_line(stereo_depth_seq, tmp_path, monkeypatch, capsys):
+    """The bag's storage is sqlite3, whose full disk ('database or disk is full', raised as the
+    writer closed) was a 28-line traceback; here its writer fails so after three messages."""
+    import sqlite3
+
+    from rosbags.rosbag2 import Writer
+
+    from floorsim.cli import main
+
+    seq_dir, _ = stereo_depth_seq
+    write, calls = Writer.write, []
+
+    def filling(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) > 3:
+            raise sqlite3.OperationalError("database or disk is full")
+        return write(self, *args, **kwargs)
+
+    monkeypatch.setattr(Writer, "write", filling)
+    assert main(["export", str(seq_dir), "--format", "rosbag2", "-o", str(tmp_path / "bag")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"floorsim: error: {tmp_path / 'bag' / 'bag.db3'}: database or disk is full (sqlite3)"], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["seq"]  # no output, no hidden temporary
+
+
 def test_a_killed_exports_hidden_folder_is_removed_by_the_next_export(stereo_depth_seq, tmp_path):
     """A killed export left its hidden temporary folder beside the output for good. The next
     export to the same path removes it; a running export's (locked), a link named like one and
