@@ -306,6 +306,12 @@ def job_pool(
 
     from dask.distributed import Client, LocalCluster, as_completed  # heavy, and only for Dask runs
 
+    # Dask's own loggers (their level set by its configuration on import) pass every record to the
+    # CLI's handler: 24 'INFO distributed.*' lines a sweep, under -q too, and on a Ctrl-C its nanny's
+    # warning that it killed a worker still in a job. Errors only, but with -v (its INFO then): what
+    # a job met comes back as its future's exception, and is reported as the job's.
+    debug = logging.getLogger("floorsim").getEffectiveLevel() <= logging.DEBUG
+    logging.getLogger("distributed").setLevel(logging.INFO if debug else logging.ERROR)
     cluster = None
     if scheduler is not None:
         try:
@@ -320,7 +326,14 @@ def job_pool(
             threads_per_worker=1,
             processes=processes,
             dashboard_address=None,
-            silence_logs=logging.WARNING,
+            # the scheduler's web server (it serves more than the dashboard) on a free port: on 8787, in
+            # use, Dask warned in four lines
+            scheduler_kwargs={"dashboard_address": ":0"},
+            # The workers' own log records (a task cancelled by an interrupt warned in a line each) to
+            # errors; a job's failure comes back as its future's exception. A worker ignores Ctrl-C,
+            # which this process handles (:mod:`floorsim.bench.dask_worker`).
+            silence_logs=logging.ERROR,
+            preload=["floorsim.bench.dask_worker"],
         )
         client = Client(cluster)
     try:
