@@ -79,7 +79,7 @@ from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
 from floorvo.memory import PeakRss
 from floorvo.metrics import associate
-from floorvo.runfolder import SEQUENCE_SHA256, RunFolder, sequence_sha256
+from floorvo.runfolder import SEQUENCE_SHA256, RunFolder, remove_derived_files, sequence_sha256
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
 __all__ = [
@@ -434,6 +434,7 @@ def run_external(
     for stale in ("trajectory.txt", "timing.csv", "result.json"):  # a rerun must not read an older run's files
         (out / stale).unlink(missing_ok=True)
         (program_dir / stale).unlink(missing_ok=True)
+    remove_derived_files(out)  # nor keep the older run's score beside a failed one
     program_dir.mkdir(exist_ok=True)
     height = seq.height_mm
     camera_file = out / "camera.yaml"

@@ -69,6 +69,9 @@ __all__ = [
     "SEQUENCE_SHA256",
     "sequence_sha256",
     "check_run_of_sequence",
+    "SCORE",
+    "DERIVED",
+    "remove_derived_files",
 ]
 
 #: The ``result.json`` key holding the content hash of the ``sequence.json`` a run was made on.
@@ -120,6 +123,27 @@ TRAJECTORY = "trajectory.txt"
 TIMING = "timing.csv"
 RESULT = "result.json"
 MATCHES = "matches"
+SCORE = "score.json"
+#: What is made from a finished run and kept in its folder: its score (``floorvo score``, the
+#: bench) and the bench's match samples. A new run written into the folder removes them
+#: (:func:`remove_derived_files`): a score of one run beside the trajectory of another was read
+#: as the new run's (``floorvo run -e akaze-guided -o R`` kept phase-corr's ``R/score.json``).
+DERIVED = (SCORE, MATCHES)
+
+
+def remove_derived_files(run_dir: str | os.PathLike) -> None:
+    """Remove :data:`DERIVED` from ``run_dir``: ``score.json`` and the match samples of
+    ``matches/`` (the folder too, once empty). The caller holds the folder's lock."""
+    run_dir = Path(run_dir)
+    (run_dir / SCORE).unlink(missing_ok=True)
+    mdir = run_dir / MATCHES
+    if mdir.is_dir():
+        for f in mdir.glob("*.npz"):
+            f.unlink(missing_ok=True)
+        try:
+            mdir.rmdir()
+        except OSError:  # something else is in it: not ours to remove
+            pass
 
 
 @dataclass(frozen=True)
@@ -150,10 +174,12 @@ class RunFolder:
     def write(self, run_dir: str | os.PathLike) -> Path:
         """Write the files into ``run_dir`` (created), each atomically; returns the folder.
 
-        All or nothing: the folder's old ``result.json`` goes first and the new one is
-        written last, and when a write fails (a full disk) the files this call wrote are
-        removed again before the error propagates, so a folder never holds the trajectory of
-        one run beside the summary of another, nor a trajectory without its summary. The
+        All or nothing: the folder's old ``result.json`` goes first, with what was derived from
+        the old run (:data:`DERIVED`: its ``score.json``, the bench's match samples), and the new
+        ``result.json`` is written last; when a write fails (a full disk) the files this call
+        wrote are removed again before the error propagates, so a folder never holds the
+        trajectory of one run beside the summary or the score of another, nor a trajectory
+        without its summary. The
         folder is locked while it is written (:func:`floorvo.locking.lock_folder`; a writer
         that holds it already, such as :func:`floorvo.run.run_estimator`, keeps it).
         """
@@ -166,6 +192,7 @@ class RunFolder:
         tum = format_tum(ts, T, self.header or None)
         table = timing_table(self.timing) if self.timing is not None else None
         (out / RESULT).unlink(missing_ok=True)
+        remove_derived_files(out)
         written: list[Path] = []
         try:
             atomic_write_text(out / TRAJECTORY, tum)

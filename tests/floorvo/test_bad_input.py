@@ -64,6 +64,29 @@ def test_a_run_that_cannot_finish_leaves_no_half_run(small_seq, tmp_path, monkey
     assert sorted(p.name for p in run.iterdir()) == []  # neither the new trajectory nor the old summary
 
 
+def test_a_new_run_into_a_folder_removes_the_old_runs_score_and_match_samples(small_seq, tmp_path, capsys):
+    """`floorvo run -e akaze-guided -o R` into a folder that phase-corr's run was scored in kept
+    phase-corr's R/score.json beside akaze-guided's trajectory (and the bench's match samples of
+    the old run); a program's run that fails kept the old score beside no run at all."""
+    from floorvo.errors import ExternalEstimatorError
+    from floorvo.external import ExternalEstimator, run_external
+    from floorvo.runfolder import write_match_sample
+
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 0
+    write_match_sample(run, 1, np.array([[1.0, 2.0, 3.0, 4.0]]))
+    assert json.loads((run / "score.json").read_text())["estimator"] == "phase-corr"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr-fast", "-o", str(run)]) == 0
+    assert sorted(p.name for p in run.iterdir()) == ["result.json", "timing.csv", "trajectory.txt"]
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 0
+    assert json.loads((run / "score.json").read_text())["estimator"] == "phase-corr-fast"
+    crash = ExternalEstimator(name="crash", command=("sh", "-c", "exit 3"))
+    with pytest.raises(ExternalEstimatorError, match="exit code 3"):
+        run_external(small_seq, crash, run)
+    assert not (run / "score.json").exists() and not (run / "result.json").exists()
+
+
 def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
