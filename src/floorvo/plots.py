@@ -48,11 +48,18 @@ class PlotRun:
 
 def load_plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotRun | None:
     """A run folder as a :class:`PlotRun` (label: ``result.json``'s estimator, else the folder name);
-    None when it has no pose (a failed run: nothing to draw)."""
+    None when it has no pose or cannot be read (a failed run in a bench report: nothing to draw;
+    :func:`plot_runs` says why)."""
     try:
-        run = RunFolder.read(run_dir)
+        return _plot_run(run_dir, label)
     except FloorbenchError:
         return None
+
+
+def _plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotRun | None:
+    """:func:`load_plot_run`, a folder that cannot be read refused in one line
+    (:meth:`~floorvo.runfolder.RunFolder.read`: the file, the line and the rule, as ``floorvo score``)."""
+    run = RunFolder.read(run_dir)
     if len(run.timestamps_s) == 0:
         return None
     name = label or str(run.result.get("estimator") or Path(run_dir).name)
@@ -117,13 +124,15 @@ def plot_runs(
     above and, with ground truth, the error against distance travelled.
 
     ``groundtruth``: a sequence folder (its ``groundtruth.txt``) or a TUM file, or None. A run
-    folder without poses is refused, as is a ground truth that shares no timestamp with any run.
+    folder without poses is refused, and one that cannot be read with the reader's reason
+    (:meth:`~floorvo.runfolder.RunFolder.read`, as ``floorvo score`` gives it), as is a ground truth
+    that shares no timestamp with any run.
     """
     runs = []
     for d in run_dirs:
-        r = load_plot_run(d)
+        r = _plot_run(d)  # a damaged run folder: the reader's one line, as floorvo score gives it
         if r is None:
-            raise FloorbenchError(f"{d}: not a run folder with poses (trajectory.txt)")
+            raise FloorbenchError(f"{Path(d) / 'trajectory.txt'}: holds no pose; the run placed no frame to draw")
         runs.append(r)
     if not runs:
         raise FloorbenchError("floorvo plot: give at least one run folder")

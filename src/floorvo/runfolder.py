@@ -20,11 +20,17 @@ trajectory type and one ``file_interface``. The format is the contract with othe
     :meth:`floorvo.runner.RunResult.summary`. Optional for a run written by another program.
 ``matches/NNNNNN.npz``
     Optional samples of matched keypoints for the report (:func:`write_match_sample`).
+``score.json``
+    The run's score (``floorvo score``, the bench: :func:`floorvo.scoring.write_score`).
 
 Every file is written atomically (:mod:`floorvo.io`); ``result.json`` last, so its
-presence marks a finished run. Writers lock the folder (:func:`floorvo.locking.lock_folder`);
+presence marks a finished run. A new run written into a folder first removes the old
+``result.json`` and what was derived from the old run (:data:`DERIVED`: ``score.json``,
+``matches/``). Writers lock the folder (:func:`floorvo.locking.lock_folder`);
 readers do not. A missing, malformed or inconsistent file is refused with a
-one-line :class:`~floorvo.errors.SequenceError` naming the file and the rule.
+one-line :class:`~floorvo.errors.SequenceError` naming the file and the rule; so are files
+that disagree with each other (:meth:`RunFolder.read`): a trajectory or a ``timing.csv`` cut
+short at a line boundary is whole on its own, and was scored as a shorter run.
 """
 
 from __future__ import annotations
@@ -208,10 +214,15 @@ class RunFolder:
         return out
 
     @classmethod
-    def read(cls, run_dir: str | os.PathLike) -> RunFolder:
+    def read(cls, run_dir: str | os.PathLike, *, agree: bool = True) -> RunFolder:
         """Read a run folder; ``trajectory.txt`` is required, ``timing.csv`` and ``result.json`` optional.
 
-        A malformed file is a one-line :class:`SequenceError` naming it and the rule.
+        A malformed file is a one-line :class:`SequenceError` naming it and the rule. So are
+        files that disagree with each other (:func:`_disagreement`): a pose for each frame
+        ``timing.csv`` marks ``init`` or ``ok``, and ``result.json``'s frame counts those of
+        ``timing.csv`` (or of the trajectory). ``agree=False`` reads each file on its own: for
+        a program's output (:mod:`floorvo.external`), whose ``result.json`` is the program's
+        own and whose ``timing.csv`` is checked against the sequence and the trajectory there.
         """
         run_dir = Path(run_dir)
         if not run_dir.is_dir():
@@ -222,7 +233,84 @@ class RunFolder:
         result = read_json(rp, SequenceError) if rp.is_file() else {}
         if not isinstance(result, dict):
             raise SequenceError(f"{rp}: must hold a JSON object (the run's summary), got {type(result).__name__}")
-        return cls(ts, T, timing, result)
+        run = cls(ts, T, timing, result)
+        problem = _disagreement(run_dir, run) if agree else ""
+        if problem:
+            raise SequenceError(
+                f"{run_dir}: {problem}; a run's files must agree (one of them is cut short, or from another run)"
+            )
+        return run
+
+
+_PLACED = ("init", "ok")
+
+
+def _count(path: Path, result: Mapping[str, Any], key: str, where: str = "") -> int | None:
+    """``result[key]`` (or ``result[where][key]``) of ``result.json`` at ``path`` as a whole number
+    >= 0; None when absent (or null); a one-line :class:`SequenceError` when it is no count."""
+    value = (result.get(where) if where else result) or {}
+    v = value.get(key) if isinstance(value, Mapping) else None
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0 and v == int(v)):
+        name = f"{where}.{key}" if where else key
+        raise SequenceError(f"{path}: {name} = {shown(v)}: must be a whole number >= 0 (a count of frames)")
+    return int(v)
+
+
+def _disagreement(run_dir: Path, run: RunFolder) -> str:
+    """Why the files of ``run`` (read from ``run_dir``) disagree with each other; "" when they agree.
+
+    ``trajectory.txt`` holds a pose for each frame ``timing.csv`` marks ``init`` or ``ok`` (for a
+    ``timing.csv`` without statuses: no more poses than it has rows); ``result.json``'s
+    ``frames``, ``first_frame``, ``last_frame``, ``status_counts``, ``ok`` and ``lost`` (the
+    summary of every run of this project, :meth:`floorvo.runner.RunResult.summary`) are those of
+    ``timing.csv``, and its ``placed`` (an external program's run) and the placed frames of its
+    ``status_counts`` the trajectory's poses. A run whose ``result.json`` records a sub-range of the
+    sequence (``--frames``) agrees: its ``timing.csv`` lists that range. A value that is not a
+    count is a :class:`SequenceError`.
+    """
+    n_poses = len(run.timestamps_s)
+    poses = f"{TRAJECTORY} holds {n_poses} pose(s)"
+    timing, result = run.timing, run.result
+    statuses = run.statuses
+    rp = run_dir / RESULT
+    frames: np.ndarray | None = None
+    if timing is not None and "frame" in timing:
+        frames = np.asarray(timing["frame"]).astype(int)
+        if statuses is not None:
+            placed = sum(s in _PLACED for s in statuses)
+            if placed != n_poses:
+                return f"{poses}, and {TIMING} marks {placed} frame(s) init or ok: a pose for each frame tracked, and no other"
+        elif len(frames) < n_poses:
+            return f"{poses}, and {TIMING} lists {len(frames)} frame(s): a row for each frame the run saw"
+    if not result:
+        return ""
+    n_frames = _count(rp, result, "frames")
+    if frames is not None:
+        if n_frames is not None and n_frames != len(frames):
+            return f"{RESULT} says the run saw {n_frames} frame(s) ('frames'), and {TIMING} lists {len(frames)}: a row for each"
+        for key, value in (("first_frame", frames[0]), ("last_frame", frames[-1])):
+            recorded = _count(rp, result, key)
+            if recorded is not None and recorded != int(value):
+                return f"{RESULT} says the run's {key} was {recorded}, and {TIMING}'s is {int(value)}"
+    elif n_frames is not None and n_poses > n_frames:
+        return f"{poses}, and {RESULT} says the run saw {n_frames} frame(s) ('frames'): a pose for each frame tracked, and no other"
+    counts = {s: _count(rp, result, s, "status_counts") for s in STATUSES}
+    if statuses is not None:
+        marked = {s: statuses.count(s) for s in STATUSES}
+        for key, where in [(s, "status_counts") for s in STATUSES] + [("ok", ""), ("lost", "")]:
+            recorded = counts[key] if where else _count(rp, result, key)
+            if recorded is not None and recorded != marked[key]:
+                name = f"{where}.{key}" if where else key
+                return f"{RESULT} counts {recorded} frame(s) {key} ('{name}'), and {TIMING} marks {marked[key]}"
+    elif counts["init"] is not None and counts["ok"] is not None and counts["init"] + counts["ok"] != n_poses:
+        placed = counts["init"] + counts["ok"]
+        return f"{poses}, and {RESULT} counts {placed} frame(s) init or ok ('status_counts'): a pose for each frame tracked, and no other"
+    n_placed = _count(rp, result, "placed")
+    if n_placed is not None and n_placed != n_poses:
+        return f"{poses}, and {RESULT} says the run placed {n_placed} ('placed')"
+    return ""
 
 
 def _column_cells(column: str, values: Any) -> list[str]:
@@ -245,11 +333,13 @@ def timing_table(columns: Mapping[str, np.ndarray]) -> tuple[list[str], list[tup
 
 
 def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
-    """Columns of ``timing.csv``, or None if the file is missing; ``{}`` when it has no rows.
+    """Columns of ``timing.csv``, or None if the file is missing.
 
-    ``frame``, the ``*_ms`` and the ``n_*`` columns must be numbers (empty cells read as
-    NaN; ``frame`` must be a whole number); ``status`` must be one of :data:`STATUSES`;
-    any other column that is not all numbers (such as ``reason``) stays text.
+    A header line and a row for each frame: a file with no row (empty, a header alone, a
+    line of anything else) or without a ``frame`` column is refused, as is a cell that
+    breaks its column's rule. ``frame``, the ``*_ms`` and the ``n_*`` columns must be numbers
+    (empty cells read as NaN; ``frame`` must be a whole number); ``status`` must be one of
+    :data:`STATUSES`; any other column that is not all numbers (such as ``reason``) stays text.
     """
     path = Path(path)
     if not path.is_file():
@@ -260,7 +350,12 @@ def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
     except csv.Error as exc:  # a NUL byte, a field beyond the csv module's limit
         raise SequenceError(f"{path}: not a readable CSV file ({shorten(str(exc))})") from None
     if not rows:
-        return {}
+        raise SequenceError(f"{path}: holds no row; a header line, then a row for each frame the run saw")
+    if "frame" not in rows[0]:
+        raise SequenceError(
+            f"{path}: has no 'frame' column (header {shown(','.join(str(k) for k in rows[0]))}); "
+            f"a row for each frame, its index in 'frame' ({','.join(TIMING_COLUMNS)})"
+        )
     if any(None in r or None in r.values() for r in rows):
         raise SequenceError(f"{path}: a row has another number of cells than the header")
     cols: dict[str, np.ndarray] = {}

@@ -87,6 +87,85 @@ def test_a_new_run_into_a_folder_removes_the_old_runs_score_and_match_samples(sm
     assert not (run / "score.json").exists() and not (run / "result.json").exists()
 
 
+def _cut(path, lines: int) -> None:
+    """Keep the first ``lines`` lines of ``path``: a file cut short at a line boundary."""
+    path.write_text("".join(path.read_text().splitlines(keepends=True)[:lines]))
+
+
+@pytest.mark.parametrize(
+    "damage, words",
+    [
+        (
+            lambda r: _cut(r / "trajectory.txt", 3),
+            "trajectory.txt holds 2 pose(s), and timing.csv marks 3 frame(s) init or ok",
+        ),
+        (lambda r: _cut(r / "trajectory.txt", 0), "trajectory.txt holds 0 pose(s), and timing.csv marks 3 frame(s)"),
+        (
+            lambda r: (_cut(r / "trajectory.txt", 3), (r / "timing.csv").unlink()),
+            "trajectory.txt holds 2 pose(s), and result.json counts 3 frame(s) init or ok ('status_counts')",
+        ),
+        (lambda r: _cut(r / "timing.csv", 3), "trajectory.txt holds 3 pose(s), and timing.csv marks 2 frame(s)"),
+        (
+            lambda r: (_cut(r / "trajectory.txt", 3), _cut(r / "timing.csv", 3)),
+            "result.json says the run saw 3 frame(s) ('frames'), and timing.csv lists 2",
+        ),
+        (lambda r: (r / "timing.csv").write_text("garbage\n"), "timing.csv: holds no row"),
+        (lambda r: _cut(r / "timing.csv", 0), "timing.csv: holds no row"),
+        (lambda r: (r / "timing.csv").write_text("garbage\n1\n"), "timing.csv: has no 'frame' column"),
+        # a malformed line: floorvo plot said only "not a run folder with poses"
+        (lambda r: (r / "trajectory.txt").write_text("# h\n0.1 1 2\n"), "trajectory.txt:2: a TUM line has 8 numbers"),
+    ],
+    ids=[
+        "trajectory-cut",
+        "trajectory-empty",
+        "no-timing",
+        "timing-cut",
+        "both-cut",
+        "garbage",
+        "empty",
+        "no-frame",
+        "bad-line",
+    ],
+)
+def test_a_run_folder_cut_short_or_whose_files_disagree_is_refused_by_every_reader(
+    small_seq, tmp_path, capsys, damage, words
+):
+    """A trajectory.txt cut at a line boundary was scored over the poses it still held ("tracked
+    100.0 %", exit 0) beside a result.json and timing.csv of every frame; an empty one as "poses: 0,
+    tracked 100.0 %"; floorvo calibrate fitted a scale from it; a timing.csv cut short gave the
+    timing of the frames it still held, one of `garbage` or empty was ignored without a word."""
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    damage(run)
+    for argv in (
+        ["score", str(run), "--gt", str(small_seq)],
+        ["calibrate", str(run), "--gt", str(small_seq), "-o", str(tmp_path / "scale.json")],
+        ["plot", str(run), "--gt", str(small_seq), "-o", str(tmp_path / "plot.png")],
+    ):
+        capsys.readouterr()
+        assert floorvo_main(argv) == 1, argv
+        assert words in _one_line(capsys, "floorvo"), argv
+    assert not {"score.json", "scale.json", "plot.png"} & {p.name for p in [*run.iterdir(), *tmp_path.iterdir()]}
+
+
+def test_a_run_over_a_range_of_frames_is_read_and_refused_when_cut_short(small_seq, tmp_path):
+    """A run whose result.json records a sub-range of the sequence (frames 1-2 of 0-2) agrees with its
+    files; cut short, it is refused as a whole run is."""
+    from floorvo.errors import SequenceError
+    from floorvo.run import run_estimator
+    from floorvo.runfolder import RunFolder
+    from floorvo.scoring import score_run
+
+    run = tmp_path / "run"
+    run_estimator(small_seq, "phase-corr", run, frames=[1, 2])
+    back = RunFolder.read(run)
+    assert back.result["frames"] == 2 and back.result["first_frame"] == 1 and len(back.timestamps_s) == 2
+    assert score_run(run, small_seq).n_est == 2
+    _cut(run / "trajectory.txt", 2)
+    with pytest.raises(SequenceError, match=r"trajectory.txt holds 1 pose\(s\), and timing.csv marks 2 frame"):
+        score_run(run, small_seq)
+
+
 def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")

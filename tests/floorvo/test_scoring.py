@@ -8,6 +8,7 @@ from test_metrics import line_traj
 
 from floorvo import metric_defs as md
 from floorvo import scoring as S
+from floorvo.errors import SequenceError
 from floorvo.estimators.base import RESTART_NOTE
 from floorvo.geometry import T_world_cam_down
 from floorvo.tum import write_tum
@@ -161,11 +162,13 @@ def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_pat
     assert s.tracking["lost_frames"] == 25 and s.tracking["wrong_ok_steps"] == 0
     assert s.tracking["lost_reasons"] == {"weak correlation peak #": 25} and s.flat()["wrong_ok_steps"] == 0
     assert s.tracking["wrong_ok_steps_footprint"] == 0
-    # A trajectory that does not fit its timing.csv (a program's run): not scored, no number.
+    # A trajectory that does not fit its timing.csv (cut short at a line boundary): refused in one
+    # line (it was scored over the poses it still held, its ok steps left unscored).
     seq, run = _fake_run(_dir(tmp_path / "e"), scale=1.0)
     lines = (run / "trajectory.txt").read_text().splitlines()
     (run / "trajectory.txt").write_text("\n".join(lines[:-1]) + "\n")
-    assert "wrong_ok_steps" not in S.score_run(run, seq).tracking
+    with pytest.raises(SequenceError, match=r"trajectory.txt holds 23 pose\(s\), and timing.csv marks 24 frame"):
+        S.score_run(run, seq)
 
 
 # ----------------------------------------------------------------------------- metric names
