@@ -20,7 +20,7 @@ from floorvo.errors import FloorbenchError
 from floorvo.io import atomic_write_bytes
 from floorvo.metrics import associate, translation_error_along_path
 from floorvo.runfolder import RunFolder, check_run_of_sequence
-from floorvo.tum import read_tum
+from floorvo.sequence import read_groundtruth
 
 __all__ = ["PlotRun", "pyplot", "draw_trajectories", "draw_errors", "load_plot_run", "plot_runs"]
 
@@ -126,7 +126,8 @@ def plot_runs(
     ``groundtruth``: a sequence folder (its ``groundtruth.txt``) or a TUM file, or None. A run
     folder without poses is refused, and one that cannot be read with the reader's reason
     (:meth:`~floorvo.runfolder.RunFolder.read`, as ``floorvo score`` gives it), as is a ground truth
-    that shares no timestamp with any run.
+    that does not fit its sequence (:func:`~floorvo.sequence.read_groundtruth`) or shares no
+    timestamp with any run.
     """
     runs = []
     for d in run_dirs:
@@ -141,7 +142,7 @@ def plot_runs(
         gt = Path(groundtruth)
         for d, r in zip(run_dirs, runs):
             check_run_of_sequence(d, r.result, gt)
-        reference = read_tum(gt / "groundtruth.txt" if gt.is_dir() else gt)
+        _, reference = read_groundtruth(gt, "plot")
     plt = pyplot()
     panels = 2 if reference is not None else 1
     fig, axes = plt.subplots(panels, 1, figsize=(7.5, 4 * panels), squeeze=False)

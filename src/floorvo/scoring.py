@@ -43,7 +43,7 @@ from floorvo.metrics import (
     wrong_steps,
 )
 from floorvo.runfolder import RunFolder, check_run_of_sequence
-from floorvo.sequence import Sequence
+from floorvo.sequence import Sequence, read_groundtruth
 from floorvo.tum import read_tum
 
 log = logging.getLogger(__name__)
@@ -258,7 +258,9 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
 
     ``seq_dir`` is a sequence folder (its ``groundtruth.txt``) or a TUM file; ``purpose``
     ("score", "calibrate") words the error when there is no ground truth. A run that records
-    another sequence than ``seq_dir`` is refused (:func:`~floorvo.runfolder.check_run_of_sequence`).
+    another sequence than ``seq_dir`` is refused (:func:`~floorvo.runfolder.check_run_of_sequence`),
+    as are a run whose files disagree (:meth:`~floorvo.runfolder.RunFolder.read`) and a sequence's
+    ground truth that does not fit its frames (:func:`~floorvo.sequence.read_groundtruth`).
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
@@ -266,7 +268,7 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
         raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
     run = RunFolder.read(run_dir)
     check_run_of_sequence(run_dir, run.result, seq_dir)
-    ref = read_tum(gt_path)
+    _, ref = read_groundtruth(seq_dir, purpose)
     return gt_path, ref, run
 
 

@@ -101,6 +101,7 @@ __all__ = [
     "check_heights",
     "check_attitude",
     "check_groundtruth_times",
+    "read_groundtruth",
     "read_height_csv",
     "read_attitude_csv",
     "read_frame_csv",
@@ -611,6 +612,15 @@ class Sequence:
         return None if a is None else a.copy()
 
     @property
+    def simulated(self) -> bool:
+        """Whether the sequence was rendered by floorsim (``sequence.json``'s ``versions`` name
+        ``floorsim``, as every render writes them) or drawn by :mod:`floorvo.synthetic` (its
+        ``synthetic`` block). Such a sequence's ground truth holds one pose per frame, exactly;
+        an imported recording's (``source``) may be at another rate."""
+        versions = self.meta.get("versions")
+        return (isinstance(versions, dict) and "floorsim" in versions) or isinstance(self.meta.get("synthetic"), dict)
+
+    @property
     def has_stereo(self) -> bool:
         return bool(self.meta.get("stereo"))
 
@@ -712,12 +722,20 @@ class Sequence:
         :data:`GROUNDTRUTH_MAX_DIFF_S`: a ``sequence.json`` whose ``fps`` disagrees with
         ``groundtruth.txt`` is refused in one line instead of pairing frames with the wrong
         poses (``floorvo score`` scored 11 of 21 poses of such a sequence with exit code 0).
-        Ground truth at another rate (a motion-capture system) is paired by time.
+        Ground truth at another rate (a motion-capture system) is paired by time; a rendered
+        (or synthetic, :attr:`simulated`) sequence's is refused in one line unless it holds one
+        pose per frame: one cut short was scored over the frames it still held, with exit code 0.
         """
         p = self.root / "groundtruth.txt"
         if not p.is_file():
             return None
         ts_gt, T = read_tum(p)
+        if len(ts_gt) != self.frame_count and self.simulated:
+            how = "rendered by floorsim" if "synthetic" not in self.meta else "drawn by floorvo.synthetic"
+            raise SequenceError(
+                f"{p}: {len(ts_gt)} pose(s) for {self.frame_count} frame(s) (frame_count in sequence.json): the ground "
+                f"truth of a sequence {how} holds one pose per frame (a file cut short?)"
+            )
         if len(ts_gt) == self.frame_count:
             stamps = self.root / TIMESTAMPS_FILE
             source = stamps if stamps.is_file() else f"fps = {self.fps:g} Hz in {self.root / 'sequence.json'}"
@@ -752,6 +770,22 @@ class Sequence:
     def _check_index(self, index: int) -> None:
         if not 0 <= index < self.frame_count:
             raise SequenceError(f"{self.root}: frame index {index} out of range 0..{self.frame_count - 1}")
+
+
+def read_groundtruth(source: str | os.PathLike, purpose: str) -> tuple[Path, tuple[np.ndarray, np.ndarray]]:
+    """``(path, (timestamps_s (N,), T_world_cam (N, 4, 4) mm))`` of the ground truth to ``purpose``
+    ("score", "calibrate", "plot") a run against: ``source`` is a sequence folder (read through
+    :meth:`Sequence.groundtruth`, which checks it against the sequence's frames), a folder holding a
+    ``groundtruth.txt`` alone, or a TUM file. A missing one is a one-line :class:`SequenceError`."""
+    source = Path(source)
+    path = source / "groundtruth.txt" if source.is_dir() else source
+    if not path.is_file():
+        raise SequenceError(f"{path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+    if source.is_dir() and (source / "sequence.json").is_file():
+        gt = Sequence.open(source).groundtruth()
+        if gt is not None:
+            return path, gt
+    return path, read_tum(path)
 
 
 def _read_timestamps(path: Path) -> np.ndarray:

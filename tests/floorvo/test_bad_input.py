@@ -166,6 +166,41 @@ def test_a_run_over_a_range_of_frames_is_read_and_refused_when_cut_short(small_s
         score_run(run, small_seq)
 
 
+def test_a_rendered_sequences_ground_truth_cut_short_is_refused(small_seq, tmp_path, capsys):
+    """A rendered sequence's groundtruth.txt cut to its first poses was scored over them ("10 matched
+    of 10 ground truth", exit 0), calibrated on and benched. floorsim and floorvo.synthetic write a
+    pose per frame; an imported recording's ground truth may be at another rate and is kept."""
+    import shutil
+
+    from floorvo.errors import SequenceError
+    from floorvo.sequence import Sequence
+
+    seq = shutil.copytree(small_seq, tmp_path / "seq")
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    _cut(seq / "groundtruth.txt", 2)
+    words = "groundtruth.txt: 2 pose(s) for 3 frame(s) (frame_count in sequence.json): the ground truth of a sequence"
+    for argv in (
+        ["score", str(run), "--gt", str(seq)],
+        ["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "scale.json")],
+        ["plot", str(run), "--gt", str(seq), "-o", str(tmp_path / "plot.png")],
+        ["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run2")],
+    ):
+        capsys.readouterr()
+        assert floorvo_main(argv) == 1, argv
+        assert words + " drawn by floorvo.synthetic holds one pose per frame" in _one_line(capsys, "floorvo"), argv
+    assert floorsim_main(["bench", str(seq), "--estimators", "phase-corr", "-o", str(tmp_path / "bench")]) == 1
+    assert words in _one_line(capsys, "floorsim") and not (tmp_path / "bench").exists()
+    # as floorsim renders it (sequence.json's versions name floorsim), and as an import (no such mark)
+    meta = json.loads((seq / "sequence.json").read_text())
+    del meta["synthetic"]
+    (seq / "sequence.json").write_text(json.dumps({**meta, "versions": {"floorsim": "0.1.0"}}))
+    with pytest.raises(SequenceError, match="a sequence rendered by floorsim holds one pose per frame"):
+        Sequence.open(seq).groundtruth()
+    (seq / "sequence.json").write_text(json.dumps({**meta, "source": {"format": "tum"}}))
+    assert len(Sequence.open(seq).groundtruth()[0]) == 2
+
+
 def test_an_unreadable_output_folder_is_one_line(small_seq, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")

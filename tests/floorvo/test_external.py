@@ -380,11 +380,16 @@ def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(lin
     from floorvo.tum import write_tum
 
     write_tum(shifted / "groundtruth.txt", t + 1000.0, T)
-    score = score_run(tmp_path / "r", shifted)
+    score = score_run(tmp_path / "r", shifted / "groundtruth.txt")
     assert score.ground_truth.startswith("the estimate shares no timestamp with the ground truth")
     assert "ate_se2_rmse_mm" not in score.flat() and score.flat()["tracked_fraction"] == 1.0
-    assert floorvo_main(["score", str(tmp_path / "r"), "--gt", str(shifted), "-o", str(tmp_path / "s.json")]) == 0
+    gt_file = str(shifted / "groundtruth.txt")
+    assert floorvo_main(["score", str(tmp_path / "r"), "--gt", gt_file, "-o", str(tmp_path / "s.json")]) == 0
     assert "accuracy (ATE, RPE, drift, segments): the estimate shares no timestamp" in capsys.readouterr().out
+    # in its sequence folder that ground truth is refused (a pose per frame, not at the frames' times),
+    # as `floorvo run` refuses it: scoring reads it through the sequence (Sequence.groundtruth)
+    assert floorvo_main(["score", str(tmp_path / "r"), "--gt", str(shifted), "-o", str(tmp_path / "s.json")]) == 1
+    assert "the frame times and the ground truth disagree" in capsys.readouterr().err
     # the same with a bare TUM file as the ground truth: it read sequence.json beside no folder and failed
     bare = tmp_path / "bare"
     bare.mkdir()

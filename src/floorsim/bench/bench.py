@@ -445,6 +445,9 @@ def run_bench(
     notes: list[str] = []
     for p in scene_paths:
         if is_sequence_folder(p):
+            # bad input is refused before anything runs: its sequence.json, and its ground truth
+            # (a rendered sequence's cut short: Sequence.groundtruth)
+            Sequence.open(p).groundtruth()
             scenes.append((Path(p), None, []))
             continue
         scene = load_scene(p, dict(scene_overrides or {}))
