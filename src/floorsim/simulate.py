@@ -321,6 +321,11 @@ def render_sequence(
     scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)
     traj = _trajectory_of(scene)
     cam = scene.camera_model()
+    # The environment's settings before anything is written: the tile cache (FLOORSIM_CACHE,
+    # FLOORSIM_CACHE_MAX_MB) and the backend (FLOORSIM_VARIANT) are refused here, not after
+    # sequence.json and groundtruth.txt were written into a folder that then held no frame.
+    tile_cache = default_cache()
+    renderer = FloorRenderer(cam)
     T_all = traj.T_world_cam
     ts = traj.timestamps_s
     spacing = scene.floor_spacing_mm()
@@ -367,13 +372,11 @@ def render_sequence(
     sensor_meta = _sensor_meta(scene)
     if sensor_meta is not None:  # written only when the sensor is not a global shutter of fixed exposure
         meta["sensor"] = sensor_meta
-    writer = SequenceWriter(out_dir, meta, overwrite=overwrite)
+    # Deferred: the folder is checked now, but sequence.json and groundtruth.txt are written (and a
+    # sequence being overwritten deleted) only once the exposure is chosen, so a render refused for a
+    # black first frame leaves the folder as it found it (a folder it created is removed again).
+    writer = SequenceWriter(out_dir, meta, overwrite=overwrite, defer=True)
     root = writer.root
-    writer.write_groundtruth(ts, T_all)
-    if scene.range_sensor.enabled:
-        writer.write_heights(range_sensor_heights(T_all, scene.range_sensor, scene.seed), "simulated range sensor")
-    if scene.attitude_sensor.enabled:
-        writer.write_attitude(attitude_sensor_angles(T_all, scene.attitude_sensor, scene.seed), "simulated IMU")
     missing = writer.missing_frames()
     need_flat = scene.render.flatfield and not all(
         writer.has_calib(name) for name in ("cam0_flatfield", "cam1_flatfield")[: 2 if T_01 is not None else 1]
@@ -382,12 +385,12 @@ def render_sequence(
     if on_frame:
         on_frame(total - len(missing), total)
     if not missing and not need_flat:
+        _write_signals(writer, scene, ts, T_all)
         return root
 
-    renderer = FloorRenderer(cam)
     sensor_path = root / "calib" / "sensor.json"
     gain = scene.sensor.exposure_gain
-    if gain <= 0 and sensor_path.is_file():
+    if gain <= 0 and writer.resumed and sensor_path.is_file():
         try:
             gain = float(read_json(sensor_path, ConfigError)["gain_e_per_unit"])
         except (ConfigError, KeyError, TypeError, ValueError) as exc:
@@ -419,7 +422,7 @@ def render_sequence(
         # Exposure from the first frame's radiance (rendered again here if it is on disk), on the first
         # tile of the plan, which stays loaded for its frames; frame 0's render is kept for frame 0.
         loaded_box = tiles[0][1]
-        _load_tile(renderer, scene, loaded_box, spacing)
+        _load_tile(renderer, scene, loaded_box, spacing, tile_cache)
         rad0 = rad_first = _render_frame(renderer, scene, traj, 0, None, scene.seed)
         vig0 = vignetting_factor(cam, scene.camera.vignetting)
         rad0 = rad0 if vig0 is None else rad0 * vig0
@@ -428,6 +431,7 @@ def render_sequence(
             raise ConfigError(
                 f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
             )
+    _write_signals(writer, scene, ts, T_all)  # sequence.json first (the writer's begin), then the ground truth
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
     sensor = sensor_first = scene.sensor.model(gain)
     ae = None
@@ -452,7 +456,7 @@ def render_sequence(
         if not todo:
             continue
         if box != loaded_box:
-            _load_tile(renderer, scene, box, spacing)
+            _load_tile(renderer, scene, box, spacing, tile_cache)
             loaded_box = box
         for i in todo:
             if ae is not None:
@@ -494,6 +498,18 @@ def render_sequence(
             )
     log.info("rendered %d frames in %.1f s into %s", len(missing), time.perf_counter() - t0, root)
     return root
+
+
+def _write_signals(writer: SequenceWriter, scene: Scene, ts: np.ndarray, T_all: np.ndarray) -> None:
+    """The files of a render known before its first frame: ``sequence.json`` (the writer's
+    :meth:`~floorvo.sequence.SequenceWriter.begin`), ``groundtruth.txt`` and the simulated
+    ``height.csv`` / ``attitude.csv``."""
+    writer.begin()
+    writer.write_groundtruth(ts, T_all)
+    if scene.range_sensor.enabled:
+        writer.write_heights(range_sensor_heights(T_all, scene.range_sensor, scene.seed), "simulated range sensor")
+    if scene.attitude_sensor.enabled:
+        writer.write_attitude(attitude_sensor_angles(T_all, scene.attitude_sensor, scene.seed), "simulated IMU")
 
 
 #: Per-frame exposure of an auto-exposure sequence (relative to the sequence folder).

@@ -161,6 +161,13 @@ class SequenceWriter:
         Replace an existing sequence with different metadata: the files the format names
         (:func:`sequence_files`) are deleted; anything else in the folder (a user's notes,
         subfolders) stays.
+    defer:
+        Check the folder now but change nothing in it until :meth:`begin` (or the first
+        ``write_*`` call, which calls it): an existing sequence to overwrite is deleted and
+        ``sequence.json`` written only then. A writer that may still refuse its work after
+        opening (a render whose first frame turns out black) so leaves the folder as it was,
+        and a folder it created empty, removed with the lock. Until then, frames of a
+        sequence to be overwritten count as missing (:meth:`missing_frames`).
 
     Opening a folder locks it (:func:`floorvo.locking.lock_folder`): a second writer of
     the same folder, in another process, is refused in one line naming the holder's pid,
@@ -170,7 +177,15 @@ class SequenceWriter:
     (:data:`floorvo.locking.LOCK_FILE`) is not a file of the format.
     """
 
-    def __init__(self, root: str | os.PathLike, meta: dict, *, resume: bool = True, overwrite: bool = False):
+    def __init__(
+        self,
+        root: str | os.PathLike,
+        meta: dict,
+        *,
+        resume: bool = True,
+        overwrite: bool = False,
+        defer: bool = False,
+    ):
         self.root = checked_output_path(root)
         meta = _canonical({"schema_version": SCHEMA_VERSION, "format": SEQUENCE_FORMAT, **meta})
         _check_meta(meta, self.root / "sequence.json")
@@ -179,8 +194,12 @@ class SequenceWriter:
             raise SequenceError(f"{self.root}: output path exists and is not a folder")
         self._lock = lock_folder(self.root, "sequence folder")
         self._release = weakref.finalize(self, self._lock.release)
+        #: What :meth:`begin` still has to do: delete the sequence being overwritten, write sequence.json.
+        self._replace_old = self._write_meta = False
         try:
             self._open(meta, resume, overwrite)
+            if not defer:
+                self.begin()
         except BaseException as exc:
             self._release.detach()
             self._lock.release(refused=isinstance(exc, FloorbenchError))
@@ -218,18 +237,27 @@ class SequenceWriter:
             same = stable_meta(old) == stable_meta(meta)
             if same and resume:
                 self.resumed = True
-                if old.get("schema_version") != SCHEMA_VERSION:  # an older version of the same sequence
-                    atomic_write_json(meta_path, meta)
+                self._write_meta = old.get("schema_version") != SCHEMA_VERSION  # an older version of the same sequence
                 return
             if not overwrite:
                 raise SequenceError(
                     f"{self.root}: holds a different sequence (other scene, seed or settings); "
                     "choose another output folder or pass --overwrite"
                 )
+            self._replace_old = True
+        self.resumed = False
+        self._write_meta = True
+
+    def begin(self) -> None:
+        """Make the folder this writer's: delete the sequence it overwrites and write
+        ``sequence.json`` (what a deferred writer, ``defer``, has put off; nothing when done already)."""
+        if self._replace_old:
             for f in sequence_files(self.root):
                 f.unlink(missing_ok=True)
-        self.resumed = False
-        atomic_write_json(meta_path, meta)
+            self._replace_old = False
+        if self._write_meta:
+            atomic_write_json(self.root / "sequence.json", self.meta)
+            self._write_meta = False
 
     # ----------------------------------------------------------------- paths
     def frame_path(self, index: int, cam: str = "cam0") -> Path:
@@ -253,13 +281,14 @@ class SequenceWriter:
 
         Writes are atomic, so a file of ours is complete; a file damaged afterwards (cut short
         by a copy, a full disk or a crash of the file system) does not count, and a resume
-        renders the frame again.
+        renders the frame again. Nor do the files of a sequence a deferred writer (``defer``) is
+        about to overwrite.
         """
-        return all(_decodes(p) for p in self.required_paths(index))
+        return not self._replace_old and all(_decodes(p) for p in self.required_paths(index))
 
     def has_calib(self, name: str) -> bool:
-        """True if ``calib/NAME.png`` is on disk and decodes."""
-        return _decodes(self.root / "calib" / f"{name}.png")
+        """True if ``calib/NAME.png`` is on disk and decodes (and is not about to be overwritten)."""
+        return not self._replace_old and _decodes(self.root / "calib" / f"{name}.png")
 
     def missing_frames(self) -> list[int]:
         """Indices of the frames whose files are not all on disk and readable (logged when a file is damaged)."""
@@ -275,10 +304,12 @@ class SequenceWriter:
     # ----------------------------------------------------------------- writing
     def write_frame(self, index: int, image: np.ndarray, cam: str = "cam0") -> None:
         """Write a uint8/uint16 mono image as ``cam/NNNNNN.png`` (atomic)."""
+        self.begin()
         write_png(self.frame_path(index, cam), image)
 
     def write_depth(self, index: int, depth_mm: np.ndarray) -> None:
         """Write a depth map (H, W) in mm; 0 or NaN = no measurement."""
+        self.begin()
         path = self.depth_path(index)
         d = np.asarray(depth_mm, dtype=np.float64)
         if path.suffix == ".npy":
@@ -293,15 +324,18 @@ class SequenceWriter:
 
     def write_calib(self, name: str, image: np.ndarray) -> None:
         """Write a calibration image as ``calib/NAME.png`` (e.g. ``cam0_flatfield``)."""
+        self.begin()
         write_png(self.root / "calib" / f"{name}.png", image)
 
     def write_groundtruth(self, timestamps_s: np.ndarray, T_world_cam: np.ndarray) -> None:
         """Write ``groundtruth.txt`` (TUM, metres) for cam0."""
+        self.begin()
         write_tum(self.root / "groundtruth.txt", timestamps_s, T_world_cam)
 
     def write_timestamps(self, timestamps_s: np.ndarray) -> None:
         """Write ``timestamps.txt``: the time (s) of each of the ``frame_count`` frames, increasing."""
         ts = check_timestamps(np.asarray(timestamps_s, dtype=float), int(self.meta["frame_count"]), "timestamps")
+        self.begin()
         lines = ["# timestamp_s of each frame, in frame order (cam0/000000.png first)"]
         lines += [f"{t:.9f}" for t in ts]
         atomic_write_text(self.root / TIMESTAMPS_FILE, "\n".join(lines) + "\n")
@@ -323,6 +357,7 @@ class SequenceWriter:
 
     def _write_frame_csv(self, name: str, columns: tuple[str, ...], comment: str, values: np.ndarray, fmt: str) -> None:
         """A per-frame CSV (:func:`read_frame_csv`'s format): ``# comment``, the header, a row per frame."""
+        self.begin()
         lines = [f"# {comment}", ",".join(("frame", *columns))]
         lines += [
             ",".join([str(i), *("" if np.isnan(v) else fmt.format(v) for v in row)]) for i, row in enumerate(values)

@@ -233,6 +233,46 @@ def test_cli_render_refuses_empty_root_and_foreign_folders(tmp_path, monkeypatch
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["mine", "thesis.tex"]
 
 
+@pytest.mark.parametrize(
+    "env, override, rule",
+    [
+        ({"FLOORSIM_CACHE": "relative/dir"}, [], "FLOORSIM_CACHE = 'relative/dir': must be an absolute path"),
+        ({"FLOORSIM_CACHE_MAX_MB": "abc"}, [], "FLOORSIM_CACHE_MAX_MB = 'abc': must be a number of megabytes"),
+        ({"FLOORSIM_VARIANT": "bogus"}, [], "mitsuba variant 'bogus' is not available"),
+        ({}, ["--set", "lights.power=0"], "the first frame is black"),
+    ],
+)
+def test_a_refused_render_leaves_no_half_made_sequence_folder(tmp_path, monkeypatch, capsys, env, override, rule):
+    """A bad environment setting, or a first frame too black to choose the exposure from, left a
+    folder holding sequence.json and groundtruth.txt but no frame. Refused before anything is written:
+    the folder the command would have created is not left behind, an empty one given stays empty, and
+    a sequence that --overwrite would have replaced is kept whole."""
+    import floorsim.render as fr
+    from floorsim.cli import main
+
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    if "FLOORSIM_VARIANT" in env:
+        monkeypatch.setattr(fr, "_MI", None)  # the backend this process already set up is asked for again
+    tiny = ["--scale", "0.25", "--spp", "1"]
+    empty, kept = tmp_path / "empty", tmp_path / "kept"
+    empty.mkdir()
+    with monkeypatch.context() as clean:  # the sequence to keep, rendered with the environment as it was
+        for key in env:
+            clean.delenv(key)
+        clean.setattr(fr, "_MI", None)  # set up for this render, None again after it
+        assert main(["-q", "render", "demo", "-o", str(kept), *tiny, "--frames", "2", "--seed", "7"]) == 0
+    before = {p: p.read_bytes() for p in kept.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    for out, more in ((tmp_path / "new" / "seq", []), (empty, []), (kept, ["--overwrite"])):
+        assert main(["render", "demo", "-o", str(out), *tiny, "--frames", "1", *override, *more]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and rule in err[0], err
+    assert not (tmp_path / "new").exists()
+    assert list(empty.iterdir()) == []
+    assert {p: p.read_bytes() for p in kept.rglob("*") if p.is_file()} == before
+
+
 def test_cli_render_unwritable_and_summary(tmp_path):
     ro = tmp_path / "ro"
     ro.write_text("a file, not a folder")
