@@ -320,6 +320,14 @@ def render_sequence(
     checked_output_path(out_dir)  # before any work: "" and "/" are refused (the writer checks the rest)
     scene = prepare_scene(scene, frames=frames, scale=scale, spp=spp, seed=seed)
     traj = _trajectory_of(scene)
+    if frames is not None and frames > traj.frame_count:  # all were rendered, and nothing said so
+        log.warning(
+            "%s: --frames = %d, but the trajectory has only %d frames; rendering those %d",
+            scene.name,
+            frames,
+            traj.frame_count,
+            traj.frame_count,
+        )
     cam = scene.camera_model()
     # The environment's settings before anything is written: the tile cache (FLOORSIM_CACHE,
     # FLOORSIM_CACHE_MAX_MB) and the backend (FLOORSIM_VARIANT) are refused here, not after

@@ -273,6 +273,17 @@ def test_a_refused_render_leaves_no_half_made_sequence_folder(tmp_path, monkeypa
     assert {p: p.read_bytes() for p in kept.rglob("*") if p.is_file()} == before
 
 
+def test_more_frames_asked_than_the_trajectory_has_says_so(tmp_path, caplog):
+    """--frames 100000 on a 2-frame trajectory rendered its 2 frames without a word."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="floorsim.simulate"):
+        seq = Sequence.open(render_sequence(tiny_scene(), tmp_path / "seq", frames=100000, scale=0.5, spp=1))
+    assert seq.frame_count == 2
+    said = [r.getMessage() for r in caplog.records if "--frames" in r.getMessage()]
+    assert said == ["tiny: --frames = 100000, but the trajectory has only 2 frames; rendering those 2"], said
+
+
 def test_cli_render_unwritable_and_summary(tmp_path):
     ro = tmp_path / "ro"
     ro.write_text("a file, not a folder")
