@@ -726,7 +726,14 @@ class Sequence:
                     f"{path}: depth map is {stated[0]}x{stated[1]}, sequence.json says "
                     f"{self.camera.width_px}x{self.camera.height_px}"
                 )
-            depth = read_png(path).astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
+            raw = read_png(path)
+            if raw.dtype != np.uint16 or raw.ndim != 2:  # an 8-bit one read as 1/100 mm: depths of 0-2.55 mm
+                bits = f"{8 * raw.dtype.itemsize}-bit" + (f" with {raw.shape[2]} channels" if raw.ndim == 3 else "")
+                raise SequenceError(
+                    f"{path}: depth map is {bits}, sequence.json says depth format png16 "
+                    "(one channel of 16 bits, 1/100 mm)"
+                )
+            depth = raw.astype(np.float32) / np.float32(DEPTH_PNG_SCALE_PER_MM)
         cam = self.camera
         if depth.shape != (cam.height_px, cam.width_px):  # as a frame of another size is refused (image)
             size = f"{depth.shape[1]}x{depth.shape[0]}" if depth.ndim == 2 else f"of shape {depth.shape}"

@@ -579,6 +579,32 @@ def test_a_depth_map_of_another_size_is_refused_like_a_frame(tmp_path, capsys):
     assert f"{path}: depth map has shape (60, 80) and dtype float32: sequence.json says 160x120" in err
 
 
+@pytest.mark.parametrize("kind", ["8-bit", "16-bit with 3 channels"])
+def test_a_png16_depth_map_of_another_bit_depth_is_refused_like_a_frame(tmp_path, capsys, kind):
+    """An 8-bit PNG in a png16 depth folder was read as 1/100 mm (depths of 0-2.55 mm): orb-icp lost
+    its frames and exited 0. A frame of another bit depth is refused in one line, and so is it."""
+    from floorvo.io import write_png
+    from floorvo.sequence import DEPTH_PNG_SCALE_PER_MM
+
+    cam = CameraModel.from_sensor(160, 120, 29.97, 6.0)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0, depth=True)
+    meta = json.loads((seq / "sequence.json").read_text())
+    meta["depth"]["format"] = "png16"
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    for npy in sorted((seq / "depth").glob("*.npy")):  # the same depths as 16-bit PNGs in 1/100 mm
+        write_png(npy.with_suffix(".png"), np.round(np.load(npy) * DEPTH_PNG_SCALE_PER_MM).astype(np.uint16))
+        npy.unlink()
+    run = ["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run0")]
+    assert floorvo_main(run) == 0
+    capsys.readouterr()
+    path = seq / "depth" / "000001.png"
+    depth = np.full((120, 160), 100, np.uint8)
+    write_png(path, depth if kind == "8-bit" else np.dstack([depth.astype(np.uint16) * 100] * 3))
+    assert floorvo_main(run[:-1] + [str(tmp_path / "run1")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert f"{path}: depth map is {kind}, sequence.json says depth format png16 (one channel of 16 bits" in err
+
+
 def _npy_header(shape: tuple[int, ...], descr: str = "<f4") -> bytes:
     """The header of a .npy file stating ``shape``, followed by a few bytes of data only."""
     buf = io.BytesIO()
