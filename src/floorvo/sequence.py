@@ -680,14 +680,11 @@ class Sequence:
         cam_model = self.camera_model(cam)
         size = f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
         img = read_png(self.image_path(index, cam), cam_model.size, size)  # another size: refused before decoding
-        if img.ndim == 3:
-            import cv2
-
-            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        if img.shape != (cam_model.height_px, cam_model.width_px):
+        if img.shape != (cam_model.height_px, cam_model.width_px):  # a colour frame too: the format's are mono
+            channels = f" with {img.shape[2]} channels" if img.ndim == 3 else ""
             raise SequenceError(
-                f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}, "
-                f"sequence.json says {cam_model.width_px}x{cam_model.height_px}"
+                f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}{channels}, "
+                f"sequence.json says a mono {cam_model.width_px}x{cam_model.height_px}"
             )
         stated = self.meta.get("bit_depth")
         if stated is not None:

@@ -552,6 +552,20 @@ def test_a_frame_of_another_bit_depth_than_frame_0_is_refused_where_none_is_stat
     assert f"{path}: image is 16-bit, frame 0 is 8-bit (sequence.json states no bit_depth" in err
 
 
+def test_a_colour_frame_in_a_sequence_is_refused_not_turned_grey(tmp_path, capsys):
+    """A 3-channel frame in a sequence folder was silently converted to grey, although a frame of
+    another channel count than the camera's is refused (README); floorvo import converts colour."""
+    from floorvo.io import read_png, write_png
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    path = seq / "cam0" / "000001.png"
+    write_png(path, np.dstack([read_png(path)] * 3))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    err = _one_line(capsys, "floorvo")
+    assert f"{path}: image is {cam.width_px}x{cam.height_px} with 3 channels, sequence.json says a mono" in err
+
+
 @pytest.mark.parametrize("name", ["", "..", " "])
 def test_an_output_file_path_that_names_no_file_is_one_line(small_seq, tmp_path, monkeypatch, capsys, name):
     """floorvo score/plot/calibrate -o "" said '.: Device or resource busy (errno 16)'."""
