@@ -22,6 +22,12 @@ _HOLD = (
 )
 
 
+def cli(prog: str) -> list[str]:
+    """The command line that runs the CLI ``prog`` (``floorvo`` or ``floorsim``) of this checkout
+    in a child (with :func:`child_env`); its arguments follow."""
+    return [sys.executable, "-c", f"import sys; from {prog}.cli import main; sys.exit(main())"]
+
+
 def child_env() -> dict[str, str]:
     """This environment, with this checkout's ``src`` first on PYTHONPATH."""
     return {**os.environ, "PYTHONPATH": os.pathsep.join([SRC, os.environ.get("PYTHONPATH", "")])}

@@ -129,3 +129,23 @@ def test_a_name_given_twice_in_name_value_options_is_refused(tmp_path, monkeypat
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err and "is given twice" in err, err
     assert not (tmp_path / "OUT").exists()
+
+
+def test_a_path_that_is_not_utf8_is_printed_escaped_by_run_and_score(tmp_path):
+    """Under a C or C.UTF-8 locale Python's standard output lets a lone surrogate through as its raw
+    byte (surrogateescape): floorvo run and score printed the byte 0xff of an output folder's name
+    in their summaries, where the README promises the escape \\udcff."""
+    import os
+    import subprocess
+    from pathlib import Path
+
+    from _procs import child_env, cli
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    run = Path(os.fsdecode(bytes(tmp_path) + b"/\xff")) / "run"
+    env = {**child_env(), "PYTHONIOENCODING": "utf-8:surrogateescape"}  # as a C locale sets it
+    for argv in (["run", str(seq), "-e", "phase-corr", "-o", str(run)], ["score", str(run), "--gt", str(seq)]):
+        r = subprocess.run([*cli("floorvo"), "-q", *argv], capture_output=True, env=env)
+        assert r.returncode == 0, r.stderr
+        assert b"\xff" not in r.stdout and b"/\\udcff/run" in r.stdout, r.stdout

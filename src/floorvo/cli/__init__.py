@@ -121,9 +121,11 @@ def describe_os_error(exc: OSError) -> str:
 def _printable_streams() -> None:
     """Let standard output print a path that is not UTF-8 (a byte Python holds as a lone
     surrogate) as standard error does, escaped (``\\udcff``): ``floorvo import`` into such a
-    folder imported it and then ended in a UnicodeEncodeError traceback printing its summary."""
+    folder imported it and then ended in a UnicodeEncodeError traceback printing its summary
+    (``strict``), and under a C or C.UTF-8 locale (``surrogateescape``) ``floorvo run`` and
+    ``score`` printed the raw byte in theirs, which is no text in the terminal's encoding."""
     for stream in (sys.stdout, sys.stderr):
-        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+        if getattr(stream, "errors", None) in ("strict", "surrogateescape") and hasattr(stream, "reconfigure"):
             try:
                 stream.reconfigure(errors="backslashreplace")
             except (ValueError, OSError):  # a stream that cannot change now
