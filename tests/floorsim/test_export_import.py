@@ -145,6 +145,29 @@ def test_a_euroc_cam1_row_without_a_cam0_frame_is_refused(tmp_path, original, ca
     assert len(err) == 1 and f"cam1/data.csv: the row at {stamp} ns has no cam0 frame (1 cam1 row(s)" in err[0]
 
 
+@pytest.mark.parametrize("header", [True, False])
+def test_a_euroc_groundtruth_row_cut_mid_line_is_refused(tmp_path, original, capsys, header):
+    """A ground-truth row of 10 of the header's 17 cells (a copy or a recording that stopped
+    mid-line) was imported as a pose; so was one shorter than the rows before it in a file without
+    a header. Refused in one line naming the file, the row and the rule."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    gt = exported / "mav0" / "state_groundtruth_estimate0" / "data.csv"
+    lines = gt.read_text().splitlines()
+    assert lines[0].startswith("#timestamp") and len(lines[0].split(",")) == 17
+    if not header:
+        del lines[0]
+    row = len(lines)
+    lines[-1] = ",".join(lines[-1].split(",")[:10])  # the last row cut after its 10th cell
+    gt.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "imported"
+    assert main(["import", str(exported), "-o", str(out), "--height-mm", "100"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    names = "the header (line 1) names 17" if header else "the first row (line 1) has 17"
+    assert len(err) == 1 and f"{gt}:{row}: a row of 10 cells, where {names}: every row has a cell" in err[0], err
+    assert not out.exists()
+
+
 def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     seq, _ = original
     exported = export_sequence(seq.root, "rosbag2", tmp_path / "exported")

@@ -29,14 +29,24 @@ TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 def _rows(path: Path, what: str) -> list[tuple[int, list[str]]]:
     """``(line number, fields)`` of the data lines of a text file (``#`` and blank lines skipped)."""
+    return _rows_and_header(path, what)[0]
+
+
+def _rows_and_header(path: Path, what: str) -> tuple[list[tuple[int, list[str]]], tuple[int, list[str]] | None]:
+    """:func:`_rows`, and the ``(line number, cells)`` of the CSV header: the last ``#`` line with a
+    comma before the first data line (``#timestamp [ns], p_RS_R_x [m], ...``: its cells split at the
+    commas alone, for a column's name holds spaces), or None."""
     text = read_text(path, SequenceError, label=f"{what} {path}", what="a text file")
-    out = []
+    out: list[tuple[int, list[str]]] = []
+    header = None
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         fields = line.replace(",", " ").split()
         if fields and not line.startswith("#"):  # a line of commas alone holds no field either
             out.append((lineno, fields))
-    return out
+        elif line.startswith("#") and "," in line and not out:
+            header = (lineno, line[1:].split(","))
+    return out, header
 
 
 def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray:
@@ -64,14 +74,27 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
     """EuRoC/ASL pose CSV: ``(timestamps_s (N,), T_world_body (N, 4, 4) mm)``.
 
     Columns: ``timestamp [ns], p_x, p_y, p_z [m], q_w, q_x, q_y, q_z``, then anything
-    (velocities, biases). Quaternions are normalised; a zero one is refused, and so are
-    timestamps that do not increase (:func:`floorvo.tum.check_increasing`).
+    (velocities, biases). Every row has a cell for each column the header names (EuRoC's
+    ``#timestamp, p_RS_R_x [m], ...``: 17), or without a header as many as the first row: a row
+    cut short (a copy or a recording that stopped mid-line) is refused, naming it. Quaternions
+    are normalised; a zero one is refused, and so are timestamps that do not increase
+    (:func:`floorvo.tum.check_increasing`).
     """
     path = Path(path)
     if not path.is_file():
         raise SequenceError(f"ground-truth file {path}: does not exist")
     ts, Ts, linenos = [], [], []
-    for lineno, f in _rows(path, "ground-truth file"):
+    rows, header = _rows_and_header(path, "ground-truth file")
+    if header is not None:
+        cells, names = len(header[1]), f"the header (line {header[0]}) names"
+    elif rows:
+        cells, names = len(rows[0][1]), f"the first row (line {rows[0][0]}) has"
+    for lineno, f in rows:
+        if len(f) != cells:
+            raise SequenceError(
+                f"{path}:{lineno}: a row of {len(f)} cells, where {names} {cells}: every row has a cell "
+                "for each column (a row cut short?)"
+            )
         if len(f) < 8:
             raise SequenceError(f"{path}:{lineno}: a EuRoC pose row has >= 8 fields (t_ns px py pz qw qx qy qz)")
         try:
