@@ -149,3 +149,70 @@ def test_a_path_that_is_not_utf8_is_printed_escaped_by_run_and_score(tmp_path):
         r = subprocess.run([*cli("floorvo"), "-q", *argv], capture_output=True, env=env)
         assert r.returncode == 0, r.stderr
         assert b"\xff" not in r.stdout and b"/\\udcff/run" in r.stdout, r.stdout
+
+
+def _truncated_png_sequence(tmp_path):
+    """A synthetic sequence whose frame 1 is cut short (its PNG stops mid-stream)."""
+    cam = CameraModel.from_sensor().scaled(0.1)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), seed=0)
+    frame = seq / "cam0" / "000001.png"
+    frame.write_bytes(frame.read_bytes()[:300])
+    return seq, frame
+
+
+@pytest.mark.parametrize("prog", ["floorvo", "floorsim"])
+def test_a_truncated_png_is_one_line_without_opencvs_warning(tmp_path, capfd, prog):
+    """OpenCV printed '[ WARN:0@0.29] global grfmt_png.cpp:793 ... PNG input buffer is incomplete'
+    on standard error before the CLI's one-line error. The CLIs silence OpenCV's own log while a
+    command runs, and give its level back after (a library user keeps OpenCV's defaults)."""
+    import cv2
+
+    seq, frame = _truncated_png_sequence(tmp_path)
+    level = cv2.utils.logging.getLogLevel()
+    if prog == "floorvo":
+        assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    else:
+        assert floorsim_main(["export", str(seq), "--format", "euroc", "-o", str(tmp_path / "euroc")]) == 1
+    err = capfd.readouterr().err
+    assert err.splitlines() == [f"{prog}: error: {frame}: not a readable PNG (corrupt or truncated)"], err
+    assert cv2.utils.logging.getLogLevel() == level
+
+
+def test_a_truncated_video_is_one_line_without_ffmpegs_messages_and_v_shows_them(tmp_path):
+    """FFmpeg printed '[mov,mp4,m4a,3gp,3g2,mj2 @ 0x...] moov atom not found' before the one-line
+    error (OPENCV_FFMPEG_LOGLEVEL is read once, when a process first opens a video: a child each)."""
+    import subprocess
+
+    import cv2
+    import numpy as np
+
+    from _procs import child_env, cli
+
+    video = tmp_path / "clip.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10, (64, 48), False)
+    for i in range(5):
+        writer.write(np.random.default_rng(i).integers(0, 255, (48, 64), np.uint8))
+    writer.release()
+    video.write_bytes(video.read_bytes()[:2000])  # the index (moov) at the end is gone
+    env = {k: v for k, v in child_env().items() if k != "OPENCV_FFMPEG_LOGLEVEL"}
+    argv = ["import", str(video), "-o", str(tmp_path / "rec"), "--fx", "100", "--fy", "100", "--cx", "32", "--cy", "24"]
+    r = subprocess.run([*cli("floorvo"), *argv], capture_output=True, text=True, env=env)
+    assert r.returncode == 1 and r.stderr.splitlines() == [f"floorvo: error: {video}: not a video OpenCV can decode"]
+    r = subprocess.run([*cli("floorvo"), "-v", *argv], capture_output=True, text=True, env=env)
+    assert r.returncode == 1 and "moov atom not found" in r.stderr, r.stderr
+
+
+def test_a_program_an_estimator_starts_keeps_the_environment_the_cli_was_given(monkeypatch):
+    """What the CLI sets to silence FFmpeg is for its own process, not an external estimator's."""
+    import os
+
+    from floorvo.io import environ_for_programs, quiet_native_logs
+
+    monkeypatch.delenv("OPENCV_FFMPEG_LOGLEVEL", raising=False)
+    with quiet_native_logs():
+        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == "-8"
+        assert "OPENCV_FFMPEG_LOGLEVEL" not in environ_for_programs()
+    assert "OPENCV_FFMPEG_LOGLEVEL" not in os.environ
+    monkeypatch.setenv("OPENCV_FFMPEG_LOGLEVEL", "32")  # the user's own wins
+    with quiet_native_logs():
+        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == "32" and environ_for_programs()["OPENCV_FFMPEG_LOGLEVEL"] == "32"

@@ -194,8 +194,14 @@ def run_cli(
     for name in PACKAGE_LOGGERS:
         logging.getLogger(name).setLevel(level)
     log.debug("%s %s: debug logging on", prog, args.command)
+    # OpenCV (and numpy) load here, after the parse: --help and a mistyped flag answer without them.
+    from floorvo.io import quiet_native_logs
+
+    # OpenCV's and FFmpeg's own warnings (a truncated PNG, a damaged video) went to standard error
+    # before the one-line error that says what is wrong; -v shows them.
+    native_logs = contextlib.nullcontext() if level <= logging.DEBUG else quiet_native_logs()
     try:
-        with _sigterm_interrupts():
+        with _sigterm_interrupts(), native_logs:
             return int(args.func(args) or 0)
     except FloorbenchError as exc:
         # One line whatever the message holds (values are cut where they are formatted,
