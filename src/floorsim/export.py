@@ -57,7 +57,14 @@ from floorvo.errors import FloorbenchError, FolderLockedError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
 from floorvo.importers.euroc import ATTITUDE_SENSOR, CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
-from floorvo.io import TEMP_SUFFIX, atomic_write_bytes, atomic_write_csv, atomic_write_text, checked_output_path
+from floorvo.io import (
+    TEMP_SUFFIX,
+    atomic_write_bytes,
+    atomic_write_csv,
+    atomic_write_text,
+    checked_output_path,
+    make_folders,
+)
 from floorvo.locking import lock_folder
 from floorvo.sequence import Sequence
 
@@ -148,7 +155,7 @@ def _staged(final: Path) -> Iterator[Path]:
     export writes, so that a killed export's (it stayed behind, hidden, for good) is removed by
     the next export to the same path (:func:`_remove_stale_stages`) and a running one's is not.
     Of two exports to one path the second to finish is refused (output exists)."""
-    final.parent.mkdir(parents=True, exist_ok=True)
+    make_folders(final.parent)
     _remove_stale_stages(final)
     while True:
         stage = final.parent / f".{final.name}.{secrets.token_hex(4)}{TEMP_SUFFIX}"

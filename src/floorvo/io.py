@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import hashlib
 import io
 import json
@@ -52,6 +53,9 @@ __all__ = [
     "ensure_writable_dir",
     "remove_stale_temporaries",
     "checked_output_path",
+    "checked_output_file",
+    "file_in_the_way",
+    "make_folders",
     "file_name_problem",
     "png_size",
     "png_header_size",
@@ -139,7 +143,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     path = Path(path)
     tmp = None
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        make_folders(path.parent)
         fd, tmp = _create_temporary(path)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -633,9 +637,11 @@ def json_sha256(obj: Any) -> str:
 
 
 def checked_output_path(path: str | os.PathLike, error: type[Exception] = SequenceError) -> Path:
-    """``path`` as a Path, refusing the empty path and the root of a file system (one line, ``error``).
+    """``path`` as a Path, refusing the empty path, the root of a file system and a path under a
+    file (one line, ``error``).
 
-    ``-o ""`` would write into the current folder and ``-o /`` into the file-system root.
+    ``-o ""`` would write into the current folder and ``-o /`` into the file-system root;
+    ``-o FILE/out`` can never be created (:func:`file_in_the_way`).
     """
     raw = os.fspath(path)
     if str(raw).strip() == "":
@@ -644,7 +650,54 @@ def checked_output_path(path: str | os.PathLike, error: type[Exception] = Sequen
     resolved = p.resolve()
     if resolved == Path(resolved.anchor):
         raise error(f"{raw}: is the root of a file system; name a folder below it")
+    _refuse_file_in_the_way(p, error)
     return p
+
+
+def checked_output_file(path: str | os.PathLike, error: type[Exception] = SequenceError) -> Path:
+    """``path`` as the Path of an output file, refused in one line (``error``) before any work when
+    it names no file (``""``, ``.``, ``..``), is a folder, or lies under a file
+    (``--save-baseline FILE/base.json`` was found out only after the whole bench had run)."""
+    raw = os.fspath(path)
+    if not str(raw).strip() or Path(raw).name in ("", ".", ".."):
+        raise error(f"output file {shown(raw)}: names no file; give a file name")
+    p = Path(raw)
+    if p.is_dir():
+        raise error(f"{raw}: is a folder; give a file name")
+    _refuse_file_in_the_way(p, error)
+    return p
+
+
+def file_in_the_way(path: str | os.PathLike) -> Path | None:
+    """The file (anything but a folder) that stands where a folder above ``path`` would have to
+    be, or None: the nearest existing folder above ``path`` is what the path needs."""
+    p = Path(os.path.abspath(path)).parent
+    while True:
+        if p.exists():
+            return None if p.is_dir() else p
+        if p == p.parent:
+            return None
+        p = p.parent
+
+
+def _refuse_file_in_the_way(path: Path, error: type[Exception]) -> None:
+    blocker = file_in_the_way(path)
+    if blocker is not None:
+        raise error(f"{os.fspath(path)}: not a directory ({blocker} is a file)")
+
+
+def make_folders(path: str | os.PathLike) -> Path:
+    """Create the folder ``path`` and its missing parents (``mkdir -p``). A path that is, or lies
+    under, a file raises :class:`NotADirectoryError` (errno 20) naming ``path``, as opening such a
+    path does: ``Path.mkdir(exist_ok=True)`` said ``File exists (errno 17)`` of ``FILE/out``."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        if not (path.exists() and not path.is_dir()) and file_in_the_way(path) is None:
+            raise  # something else: a folder made and removed again meanwhile
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(path)) from None
+    return path
 
 
 def file_name_problem(name: str) -> str:
@@ -663,7 +716,7 @@ def ensure_writable_dir(path: str | os.PathLike) -> Path:
     """Create ``path`` (and parents) and check that files can be written there."""
     path = Path(path)
     try:
-        path.mkdir(parents=True, exist_ok=True)
+        make_folders(path)
         fd, tmp = _create_temporary(path / "write-test")
         os.close(fd)
         os.unlink(tmp)

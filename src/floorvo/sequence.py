@@ -70,6 +70,7 @@ from floorvo.io import (
     atomic_write_text,
     checked_output_path,
     ensure_writable_dir,
+    file_in_the_way,
     plain,
     png_size,
     read_json,
@@ -553,7 +554,12 @@ class Sequence:
         root = Path(root)
         meta_path = root / "sequence.json"
         if not root.is_dir():
-            raise SequenceError(f"{root}: sequence folder does not exist")
+            if root.exists():  # `floorvo run FILE` said the folder did not exist
+                raise SequenceError(f"{root}: is a file, not a sequence folder")
+            blocker = file_in_the_way(root)
+            raise SequenceError(
+                f"{root}: sequence folder does not exist" + (f" ({blocker} is a file)" if blocker is not None else "")
+            )
         if not meta_path.is_file():
             raise SequenceError(f"{root}: not a sequence (no sequence.json)")
         meta = read_json(meta_path, SequenceError)

@@ -253,3 +253,25 @@ def test_a_repeat_count_out_of_range_is_refused_before_it_renders(tmp_path, doub
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--repeat {repeat}: must be from 1 to 1000 (renders per scene)" in err
     assert not D.RENDER_CALLS and not (tmp_path / "o").exists()
+
+
+def _refused_before_it_renders(capsys, argv, words, out):
+    """``floorsim bench ARGV`` exits 1 with one line holding ``words``, renders nothing, leaves no ``out``."""
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and words in err, err
+    assert not D.RENDER_CALLS and not out.exists()
+
+
+def test_a_save_baseline_path_that_cannot_be_written_is_refused_before_it_renders(tmp_path, doubles, capsys):
+    """--save-baseline FILE/base.json ran the whole bench, then said 'File exists (errno 17)'."""
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    out = tmp_path / "out"
+    argv = ["bench", str(scene), "--estimators", "scaled", "--no-report", "-o", str(out), "--save-baseline"]
+    for path, words in (
+        (afile / "base.json", f"--save-baseline {afile / 'base.json'}: not a directory ({afile} is a file)"),
+        (tmp_path, f"--save-baseline {tmp_path}: is a folder; give a file name"),
+    ):
+        _refused_before_it_renders(capsys, [*argv, str(path)], words, out)

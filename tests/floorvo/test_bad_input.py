@@ -581,6 +581,27 @@ def test_an_output_file_path_that_names_no_file_is_one_line(small_seq, tmp_path,
     assert list(work.iterdir()) == []
 
 
+def test_an_output_path_under_a_file_says_not_a_directory(small_seq, tmp_path, capsys):
+    """-o FILE/x.json said 'FILE/x.json: File exists (errno 17)'; floorvo run FILE said the
+    sequence folder did not exist; floorsim export -o FILE/out said 'FILE: File exists'."""
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    for command in ("score", "plot", "calibrate"):
+        capsys.readouterr()
+        out = afile / "sub" / "x.json" if command == "plot" else afile / "x.json"
+        assert floorvo_main([command, str(run), "--gt", str(small_seq), "-o", str(out)]) == 1
+        assert f"{out}: Not a directory (errno 20)" in _one_line(capsys, "floorvo")
+    assert floorsim_main(["export", str(small_seq), "--format", "euroc", "-o", str(afile / "e")]) == 1
+    assert f"{afile / 'e'}: not a directory ({afile} is a file)" in _one_line(capsys, "floorsim")
+    assert floorvo_main(["run", str(afile), "-e", "phase-corr", "-o", str(tmp_path / "r")]) == 1
+    assert f"{afile}: is a file, not a sequence folder" in _one_line(capsys, "floorvo")
+    assert floorvo_main(["run", str(afile / "s"), "-e", "phase-corr", "-o", str(tmp_path / "r")]) == 1
+    assert f"{afile / 's'}: sequence folder does not exist ({afile} is a file)" in _one_line(capsys, "floorvo")
+    assert afile.read_text() == "x" and not (tmp_path / "r").exists()
+
+
 def test_a_depth_map_of_another_size_is_refused_like_a_frame(tmp_path, capsys):
     """A depth map of 80x60 in a 160x120 sequence was taken as a lost frame ('depth image is 80x60
     px') and orb-icp ran on with exit code 0; a frame of another size is refused in one line."""

@@ -71,7 +71,7 @@ from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_json, read_json
+from floorvo.io import atomic_write_json, checked_output_file, read_json
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
@@ -441,6 +441,11 @@ def run_bench(
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
     baseline_data = load_baseline(baseline) if baseline is not None else None
+    if save_baseline_to is not None:  # found out only after the whole bench had run
+        try:
+            checked_output_file(save_baseline_to, ConfigError)
+        except ConfigError as exc:
+            raise ConfigError(f"--save-baseline {exc}") from None
     scenes: list[tuple[Path, Any, list[BenchProtocol]]] = []
     notes: list[str] = []
     for p in scene_paths:
