@@ -275,3 +275,28 @@ def test_a_save_baseline_path_that_cannot_be_written_is_refused_before_it_render
         (tmp_path, f"--save-baseline {tmp_path}: is a folder; give a file name"),
     ):
         _refused_before_it_renders(capsys, [*argv, str(path)], words, out)
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        # rendered, ran, and wrote a row 'failed: scaled.foo: unknown config key', exit 0
+        (["--estimators", "scaled", "--est-set", "scaled.foo=1"], "--est-set scaled.foo: unknown config key"),
+        (["--est-set", "scaled.foo=1"], "--est-set scaled.foo: unknown config key"),
+        # a config of an estimator that does not run was ignored
+        (
+            ["--estimators", "scaled", "--est-set", "lossy.x=1"],
+            "--est-set lossy: 'lossy' is not among --estimators (scaled), so its config would be ignored",
+        ),
+        (["--est-set", "nope.x=1"], "--est-set nope: unknown estimator (known: lossy, needs_depth, scaled)"),
+        # ran nothing, printed 'results: DIR/results.csv' and wrote none, exit 0
+        (["--estimators", ",,"], "--estimators: names no estimator; name at least one"),
+        (["--estimators", ""], "--estimators: names no estimator; name at least one"),
+    ],
+)
+def test_an_estimator_choice_that_cannot_run_as_given_is_refused_before_it_renders(
+    tmp_path, doubles, capsys, args, words
+):
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    out = tmp_path / "out"
+    _refused_before_it_renders(capsys, ["bench", str(scene), *args, "--no-report", "-o", str(out)], words, out)

@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from floorsim import __version__ as floorsim_version
-from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
+from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner, check_estimator_choice
 from floorsim.bench.gates import GateResult, compare, load_baseline, save_baseline
 from floorsim.bench.protocols import (
     PROTOCOLS,
@@ -431,13 +431,8 @@ def run_bench(
     cache_dir = Path(cache_dir) if cache_dir is not None else out_dir / "sequences"
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
     known = runner.names()
+    check_estimator_choice(runner, estimators, est_over)  # what a study checks of its estimators too
     if estimators is not None:
-        for n in list(estimators) + list(est_over):
-            if not runner.known(n):
-                raise ConfigError(f"--estimators {n!r}: unknown estimator (known: {', '.join(sorted(known))})")
-        twice = sorted({n for n in estimators if list(estimators).count(n) > 1})
-        if twice:  # it ran twice into one run folder, two rows of one run
-            raise ConfigError(f"--estimators: {', '.join(map(repr, twice))} given twice; give each estimator once")
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
     baseline_data = load_baseline(baseline) if baseline is not None else None

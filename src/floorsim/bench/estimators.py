@@ -18,20 +18,21 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Iterable, Mapping
+from collections.abc import Sequence as SequenceT
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration
-from floorvo.errors import ConfigError, FloorbenchError
+from floorvo.errors import ConfigError, FloorbenchError, shown
 from floorvo.estimators import EstimatorSource, estimator_source, get_estimator, list_estimators, make_config
 from floorvo.external import ExternalEstimator, run_external
 from floorvo.memory import PeakRss
 from floorvo.run import build_estimator, run_estimator
 from floorvo.sequence import Sequence
 
-__all__ = ["DEFAULT_RUNNER", "EstimatorRunner", "RUN_FIGURES", "PeakRss"]
+__all__ = ["DEFAULT_RUNNER", "EstimatorRunner", "RUN_FIGURES", "PeakRss", "check_estimator_choice"]
 
 #: Columns every run adds to its row: wall-clock ms per sequence frame (the whole run, frame
 #: reading or program start-up included) and peak resident memory (MiB).
@@ -151,3 +152,51 @@ class EstimatorRunner:
 
 
 DEFAULT_RUNNER = EstimatorRunner()
+
+
+def check_estimator_choice(
+    runner: EstimatorRunner,
+    estimators: SequenceT[str] | None,
+    configs: Mapping[str, Mapping[str, Any]],
+    *,
+    names_label: str = "--estimators",
+    config_label: str = "--est-set ",
+) -> None:
+    """Refuse, before any render or run, an estimator choice that would make runs fail or be
+    ignored: the one check of the bench (``--estimators``, ``--est-set``) and of studies
+    (``estimators``, ``[estimator_config.NAME]``).
+
+    ``estimators``: the names asked for (None: every estimator a sequence supports); the
+    runner's external programs run in either case. Refused, in one line
+    (:class:`~floorvo.errors.ConfigError`): a list naming no estimator, an unknown or repeated
+    name, a config for an unknown estimator or for one that does not run, and config keys or
+    values the estimator does not take. ``names_label`` names the list in the refusal
+    (``--estimators``, ``study.toml: estimators``); ``config_label`` is put before the
+    estimator's ``NAME.KEY`` (``--est-set ``, ``study.toml: estimator_config.``).
+    """
+    known = ", ".join(sorted(runner.names()))
+    if estimators is not None:
+        if not estimators:
+            raise ConfigError(
+                f"{names_label}: names no estimator; name at least one (or leave it out for every estimator "
+                "the sequence supports)"
+            )
+        for n in estimators:
+            if not runner.known(n):
+                raise ConfigError(f"{names_label}: {shown(n)}: unknown estimator (known: {known})")
+        twice = sorted({n for n in estimators if list(estimators).count(n) > 1})
+        if twice:  # it ran twice into one run folder, two rows of one run
+            raise ConfigError(f"{names_label}: {', '.join(map(repr, twice))} given twice; give each estimator once")
+    for name, cfg in configs.items():
+        if not runner.known(name):
+            raise ConfigError(f"{config_label}{name}: unknown estimator (known: {known})")
+        running = None if estimators is None else [*estimators, *(n for n in runner.externals if n not in estimators)]
+        if running is not None and name not in running:  # its config was silently ignored
+            raise ConfigError(
+                f"{config_label}{name}: {shown(name)} is not among {names_label} ({', '.join(running)}), "
+                "so its config would be ignored"
+            )
+        try:
+            runner.check_config(name, cfg)
+        except ConfigError as exc:
+            raise ConfigError(f"{config_label}{exc}") from None

@@ -56,7 +56,7 @@ from floorsim.bench.bench import (
     source_columns,
     supported_estimators,
 )
-from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner
+from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner, check_estimator_choice
 from floorsim.bench.results import read_results_csv, write_results_csv
 from floorsim.bench.search import (
     Bracket,
@@ -391,15 +391,13 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
     keys, scene keys or values the scene refuses, a search key that is not a number.
     Returns the base scene (the ``[set]`` overrides applied), None for sequence folders alone."""
     where = spec.path.name if spec.path is not None else spec.name
-    for name in (spec.estimators or []) + list(spec.estimator_config):
-        if not runner.known(name):
-            known = ", ".join(sorted(runner.names()))
-            raise ConfigError(f"{where}: estimators: {shown(name)}: unknown estimator (known: {known})")
-    for name, cfg in spec.estimator_config.items():
-        try:
-            runner.check_config(name, cfg)
-        except ConfigError as exc:
-            raise ConfigError(f"{where}: estimator_config.{exc}") from None
+    check_estimator_choice(
+        runner,
+        spec.estimators,
+        spec.estimator_config,
+        names_label=f"{where}: estimators",
+        config_label=f"{where}: estimator_config.",
+    )
     if spec.base is None:
         return None
     base = load_scene(spec.base, dict(spec.fixed))

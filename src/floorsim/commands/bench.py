@@ -142,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
     if not scenes:
         raise ConfigError("bench: give scene files, sequence folders or --suite NAME")
 
-    estimators = [e.strip() for e in args.estimators.split(",") if e.strip()] if args.estimators else None
+    # --estimators ",," (or "") names no estimator: refused by run_bench, not taken for "every estimator"
+    estimators = None if args.estimators is None else [e.strip() for e in args.estimators.split(",") if e.strip()]
     with progress_callback("render", "frame") as bar:
         res = run_bench(
             scenes,
