@@ -300,3 +300,23 @@ def test_an_estimator_choice_that_cannot_run_as_given_is_refused_before_it_rende
     scene = D.write_scene(tmp_path / "a.toml", name="a")
     out = tmp_path / "out"
     _refused_before_it_renders(capsys, ["bench", str(scene), *args, "--no-report", "-o", str(out)], words, out)
+
+
+def test_a_bench_where_no_estimator_ran_is_an_error_saying_why(tmp_path, doubles, capsys):
+    """Every estimator skipped (depth needed on a mono sequence): it printed 'results: DIR/results.csv',
+    wrote none, and exited 0."""
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec")), tmp_path / "rec")
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    for inputs, out in (([rec], tmp_path / "o1"), ([rec, scene], tmp_path / "o2")):
+        argv = ["bench", *map(str, inputs), "--estimators", "needs_depth", "--no-report", "-o", str(out)]
+        assert main(argv) == 1
+        captured = capsys.readouterr()
+        assert "results:" not in captured.out and "Traceback" not in captured.err
+        (line,) = [x for x in captured.err.splitlines() if x.startswith("floorsim: error: ")]
+        why = "rec: needs_depth needs depth" + ("; a: needs_depth needs depth" if scene in inputs else "")
+        assert (
+            line == f"floorsim: error: bench: no estimator ran on any scene: every estimator was skipped ({why}); "
+            "nothing to score"
+        )
+        assert not (out / "results.csv").exists()
+    assert not (tmp_path / "o1").exists()  # a sequence folder alone: nothing was written

@@ -475,6 +475,7 @@ def run_bench(
             write_results_csv(results_csv, rows)
 
     scene_runs: list[tuple[SceneRun, list[BenchProtocol]]] = []
+    skips: list[str] = []  # "SCENE: ESTIMATOR why" of each estimator skipped on a scene
     for path, scene, protocols in scenes:
         recorded = scene is None
         label = path.resolve().name if recorded else scene.name
@@ -498,6 +499,7 @@ def run_bench(
             if first is None:
                 first = SceneRun(label, path, scene, seq_dir, seed, names, [])
                 for n, why in skipped.items():
+                    skips.append(f"{label}: {n} {why}")
                     notes.append(f"{label}: {n} skipped ({why})")
                     log.warning("scene %s: estimator %s skipped: %s", label, n, why)
             for name in names:
@@ -550,6 +552,9 @@ def run_bench(
         if asking:
             add(protocol.run_bench(ctx, asking))
 
+    if not rows:  # it exited 0 and named a results.csv it never wrote
+        why = f"every estimator was skipped ({'; '.join(skips)})" if skips else "no estimator to run"
+        raise FloorbenchError(f"bench: no estimator ran on any scene: {why}; nothing to score")
     res = BenchResult(rows, records, results_csv, notes=notes)
     gate_text = None
     if baseline_data is not None:
