@@ -211,3 +211,34 @@ def test_a_sweep_whose_workers_do_not_start_leaves_no_study_record(tmp_path, mon
     with pytest.raises(FloorbenchError, match="cannot connect"):
         run_sweep(_sweep_file(tmp_path), out, scheduler="tcp://127.0.0.1:1")
     assert not out.exists()
+
+
+def test_a_bench_and_a_sweep_refuse_each_others_results_folder(tmp_path, capsys):
+    """A sweep into a bench's folder merged the bench's row into the study's results and report
+    ('2 job(s) run ... 3 row(s)'); a bench into a study's folder replaced its results.csv."""
+    from floorsim.cli import main
+
+    D.reset()
+    sweep = _sweep_file(tmp_path)
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    bench_dir, study_dir = tmp_path / "bench", tmp_path / "study"
+    assert (
+        main(["bench", str(scene), "--estimators", "scaled", "-o", str(bench_dir)], collaborators=D.COLLABORATORS) == 0
+    )
+    run_sweep(sweep, study_dir, workers=1, processes=False)
+    before = {d: sorted(p.name for p in d.iterdir()) for d in (bench_dir, study_dir)}
+    csvs = {d: (d / "results.csv").read_bytes() for d in (bench_dir, study_dir)}
+    capsys.readouterr()
+    renders = len(D.RENDER_CALLS)
+    assert main(["sweep", str(sweep), "-o", str(bench_dir)], collaborators=D.COLLABORATORS) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{bench_dir}: holds a bench's results (results.csv without a study.json)" in err
+    bench = ["bench", str(scene), "--estimators", "scaled", "-o", str(study_dir)]
+    assert main(bench, collaborators=D.COLLABORATORS) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.count("\n") == 1 and f"{study_dir}: holds a study's results (study.json, written by floorsim sweep)" in err
+    )
+    assert len(D.RENDER_CALLS) == renders
+    for d in (bench_dir, study_dir):  # nothing written
+        assert sorted(p.name for p in d.iterdir()) == before[d] and (d / "results.csv").read_bytes() == csvs[d]

@@ -65,7 +65,7 @@ from floorsim.bench.protocols import (
     protocols_for_scene,
 )
 from floorsim.bench.report import Report, RunRecord, build_bench_report
-from floorsim.bench.results import write_results_csv
+from floorsim.bench.results import RESULTS_CSV, other_results_problem, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
 from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
@@ -428,6 +428,9 @@ def run_bench(
             )
         given.add(Path(p).resolve())
     out_dir = Path(out_dir)
+    problem = other_results_problem(out_dir, "bench")
+    if problem:
+        raise ConfigError(problem)
     cache_dir = Path(cache_dir) if cache_dir is not None else out_dir / "sequences"
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
     known = runner.names()
@@ -464,7 +467,7 @@ def run_bench(
     rows: list[dict[str, Any]] = []
     records: list[RunRecord] = []
     sections: list[Callable[[Report], None]] = []
-    results_csv = out_dir / "results.csv"
+    results_csv = out_dir / RESULTS_CSV
 
     def add(out: ProtocolOutput) -> None:
         rows.extend(out.rows)

@@ -20,7 +20,21 @@ from typing import Any
 from floorvo.errors import SequenceError, shorten, shown
 from floorvo.io import atomic_write_csv, read_text
 
-__all__ = ["ID_COLUMNS", "TEXT_COLUMNS", "write_results_csv", "read_results_csv"]
+__all__ = [
+    "ID_COLUMNS",
+    "TEXT_COLUMNS",
+    "RESULTS_CSV",
+    "STUDY_RECORD",
+    "write_results_csv",
+    "read_results_csv",
+    "other_results_problem",
+]
+
+#: The rows of a bench or a study, in its output folder.
+RESULTS_CSV = "results.csv"
+#: The record a study writes into its folder before any job (:func:`floorsim.bench.study.write_study_record`):
+#: a folder holding it is a study's; a ``results.csv`` without it, a bench's.
+STUDY_RECORD = "study.json"
 
 #: Leading columns of results.csv; metric columns follow.
 ID_COLUMNS = [
@@ -106,3 +120,22 @@ def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
             d["repetition"] = int(rep)
         out.append(d)
     return out
+
+
+def other_results_problem(out_dir: str | os.PathLike, writer: str) -> str:
+    """Why ``writer`` (``"bench"`` or ``"sweep"``) must not write into ``out_dir``: it holds the
+    results of the other kind; "" when it does not. A sweep into a bench's folder merged the
+    bench's rows into the study's results and report; a bench into a study's folder replaced
+    the study's ``results.csv`` with its own."""
+    out = Path(out_dir)
+    if writer == "bench" and (out / STUDY_RECORD).is_file():
+        return (
+            f"{out}: holds a study's results ({STUDY_RECORD}, written by floorsim sweep); a bench writes a "
+            "folder of its own: choose another output folder"
+        )
+    if writer == "sweep" and (out / RESULTS_CSV).is_file() and not (out / STUDY_RECORD).is_file():
+        return (
+            f"{out}: holds a bench's results ({RESULTS_CSV} without a {STUDY_RECORD}); a sweep writes a folder "
+            "of its own: choose another output folder"
+        )
+    return ""

@@ -64,6 +64,7 @@ from pathlib import Path
 from typing import Any
 
 from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder
+from floorsim.bench.results import STUDY_RECORD
 from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
 from floorsim.simulate import package_versions as render_versions
@@ -405,7 +406,7 @@ def resume_problem(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict
     from this one in :data:`RESULT_KEYS`), "" when it holds none or this study's. A sweep into
     the folder of another study (another base scene, fixed keys, render settings, estimators)
     kept that study's rows for every job name the two shared, and reported them as its own."""
-    path = Path(out_dir) / "study.json"
+    path = Path(out_dir) / STUDY_RECORD
     if not path.is_file():
         return ""
     try:
@@ -473,6 +474,6 @@ def write_study_record(
     if spec.path is not None:
         atomic_write_bytes(out / "study.toml", spec.path.read_bytes())
     record = study_record(spec, base_scene, externals)
-    path = out / "study.json"
+    path = out / STUDY_RECORD
     atomic_write_json(path, record)
     return path

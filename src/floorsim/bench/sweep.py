@@ -57,7 +57,7 @@ from floorsim.bench.bench import (
     supported_estimators,
 )
 from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner, check_estimator_choice
-from floorsim.bench.results import read_results_csv, write_results_csv
+from floorsim.bench.results import RESULTS_CSV, other_results_problem, read_results_csv, write_results_csv
 from floorsim.bench.search import (
     Bracket,
     EstimatorBreakingPoint,
@@ -651,14 +651,14 @@ def run_sweep(
     out_dir.mkdir(parents=True, exist_ok=True)
     base_scene = base.to_dict() if base is not None else None
     programs = {x.name: x.source.command_sha256 for x in externals}
-    problem = resume_problem(spec, out_dir, base_scene, programs)
+    problem = other_results_problem(out_dir, "sweep") or resume_problem(spec, out_dir, base_scene, programs)
     if problem:
         raise ConfigError(problem)
     recorded_before = (out_dir / "study.json").exists()
     record = write_study_record(spec, out_dir, base_scene, programs)
     # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
     cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
-    results_csv = out_dir / "results.csv"
+    results_csv = out_dir / RESULTS_CSV
     rows = read_results_csv(results_csv)
     done_before = {r.get("job") for r in rows}
     errors: list[str] = []
