@@ -242,3 +242,37 @@ def test_a_bench_and_a_sweep_refuse_each_others_results_folder(tmp_path, capsys)
     assert len(D.RENDER_CALLS) == renders
     for d in (bench_dir, study_dir):  # nothing written
         assert sorted(p.name for p in d.iterdir()) == before[d] and (d / "results.csv").read_bytes() == csvs[d]
+
+
+def test_a_sweep_refuses_what_the_bench_refuses_before_any_job(tmp_path, capsys):
+    """--cache FILE ran every job into a failed row ('not a directory'), exit 0; a sequence folder
+    of an unknown schema version a failed row, exit 0. Both are refused up front, as the bench
+    refuses them (before it renders a scene given beside)."""
+    import json
+
+    from floorsim.cli import main
+
+    D.reset()
+    sweep = _sweep_file(tmp_path)
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec")), tmp_path / "rec")
+    meta = json.loads((rec / "sequence.json").read_text())
+    (rec / "sequence.json").write_text(json.dumps({**meta, "schema_version": 3}))
+    D.reset()
+    unsupported = f"{rec / 'sequence.json'}: schema_version 3 is not supported"
+    scene = D.write_scene(tmp_path / "a.toml", name="a")
+    with_rec = tmp_path / "with_rec.toml"
+    with_rec.write_text(sweep.read_text().replace("[vary]", 'sequences = ["rec"]\n\n[vary]'))
+    out = tmp_path / "out"
+    for argv, words in (
+        (["sweep", str(sweep), "--cache", str(afile)], f"--cache {afile}: is a file, not a folder"),
+        (["sweep", str(sweep), "--cache", str(afile / "c")], f"--cache {afile / 'c'}: not a directory ({afile} is"),
+        (["bench", str(scene), "--cache", str(afile)], f"--cache {afile}: is a file, not a folder"),
+        (["sweep", str(with_rec)], f"with_rec.toml: sequences: {unsupported}"),
+        (["bench", str(scene), str(rec)], unsupported),
+    ):
+        assert main([*argv, "-o", str(out)], collaborators=D.COLLABORATORS) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err, err
+        assert not out.exists() and not D.RENDER_CALLS

@@ -71,7 +71,7 @@ from floorsim.simulate import render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_json, checked_output_file, read_json
+from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, read_json
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose
 from floorvo.runfolder import write_match_sample
@@ -83,6 +83,8 @@ log = logging.getLogger(__name__)
 
 __all__ = [
     "BenchResult",
+    "check_cache_dir",
+    "check_sequence_folder",
     "is_sequence_folder",
     "render_cached",
     "run_bench",
@@ -191,6 +193,27 @@ def _render_into_cache(
         marker, {"key": key, "scene": scene.name, "seed": seed, "frames": frames, "scale": scale, "spp": spp}
     )
     return out
+
+
+def check_cache_dir(cache_dir: str | os.PathLike) -> Path:
+    """Refuse, before any render, a ``--cache`` that cannot hold sequence folders (a file, a path
+    under a file, ``""``, ``/``): the bench's first render, and every job of a study, failed there.
+    The one check of ``floorsim bench --cache`` and ``floorsim sweep --cache``."""
+    path = Path(cache_dir)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"--cache {path}: is a file, not a folder (of rendered sequences)")
+    try:
+        return checked_output_path(path, ConfigError)
+    except ConfigError as exc:
+        raise ConfigError(f"--cache {exc}") from None
+
+
+def check_sequence_folder(path: str | os.PathLike) -> None:
+    """Refuse, before any render or run, a sequence folder the runs cannot read (what
+    :meth:`floorvo.sequence.Sequence.open` refuses: a ``sequence.json`` of an unknown schema
+    version, bad timestamps; and its ground truth, :meth:`~floorvo.sequence.Sequence.groundtruth`:
+    a rendered sequence's cut short): the one check of the bench's sequence folders and a study's."""
+    Sequence.open(path).groundtruth()
 
 
 def is_sequence_folder(path: str | os.PathLike) -> bool:
@@ -431,7 +454,7 @@ def run_bench(
     problem = other_results_problem(out_dir, "bench")
     if problem:
         raise ConfigError(problem)
-    cache_dir = Path(cache_dir) if cache_dir is not None else out_dir / "sequences"
+    cache_dir = check_cache_dir(cache_dir) if cache_dir is not None else out_dir / "sequences"
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
     known = runner.names()
     check_estimator_choice(runner, estimators, est_over)  # what a study checks of its estimators too
@@ -448,9 +471,7 @@ def run_bench(
     notes: list[str] = []
     for p in scene_paths:
         if is_sequence_folder(p):
-            # bad input is refused before anything runs: its sequence.json, and its ground truth
-            # (a rendered sequence's cut short: Sequence.groundtruth)
-            Sequence.open(p).groundtruth()
+            check_sequence_folder(p)  # before any scene renders
             scenes.append((Path(p), None, []))
             continue
         scene = load_scene(p, dict(scene_overrides or {}))

@@ -50,6 +50,8 @@ from typing import Any
 from floorsim.bench.bench import (
     RenderFn,
     SceneLoader,
+    check_cache_dir,
+    check_sequence_folder,
     render_cached,
     run_one,
     scene_seed,
@@ -398,6 +400,11 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
         names_label=f"{where}: estimators",
         config_label=f"{where}: estimator_config.",
     )
+    for q in spec.sequences:
+        try:
+            check_sequence_folder(q)  # as the bench checks its sequence folders
+        except FloorbenchError as exc:
+            raise ConfigError(f"{where}: sequences: {exc}") from None
     if spec.base is None:
         return None
     base = load_scene(spec.base, dict(spec.fixed))
@@ -647,6 +654,8 @@ def run_sweep(
         raise ConfigError(f"--scheduler {scheduler!r}: {problem}")
     spec = load_sweep(sweep_path)
     base = _check_study(spec, load_scene, runner)
+    if cache_dir is not None:
+        cache_dir = check_cache_dir(cache_dir)  # as the bench checks it: every job failed there
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     base_scene = base.to_dict() if base is not None else None
