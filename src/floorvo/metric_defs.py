@@ -9,7 +9,10 @@ name, so no other module spells one with an f-string.
 
 ``lower_is_better``: True for errors, losses and times; False for tracking fraction and
 frames per second; None where neither direction is better (path length, the signed
-distance error, whose magnitude is what counts).
+distance error, whose magnitude is what counts). ``low`` / ``high``: the range of values the
+metric can take (errors, counts, lengths and times are never negative; the tracked fraction
+is at most 1; a signed error has no bound), so a bound outside it (a study's criterion
+``end_drift_pct = -1``, which every run would fail) is refused.
 """
 
 from __future__ import annotations
@@ -53,13 +56,24 @@ __all__ = [
 class MetricDef:
     """One scored metric. ``name``: its key (results.csv column); ``unit``: mm, deg, %,
     deg/m, frames, ms, 1/s or "" (a fraction or a count); ``label``: a short table header;
-    ``lower_is_better``: the direction of improvement (None: neither); ``description``."""
+    ``lower_is_better``: the direction of improvement (None: neither); ``description``;
+    ``low`` / ``high``: the smallest and largest value it can take (None: unbounded)."""
 
     name: str
     unit: str
     label: str
     lower_is_better: bool | None
     description: str
+    low: float | None = 0.0
+    high: float | None = None
+
+    def range_text(self) -> str:
+        """The range in words (``>= 0``, ``from 0 to 1``, ``any number``)."""
+        if self.low is not None and self.high is not None:
+            return f"from {self.low:g} to {self.high:g}"
+        if self.low is not None:
+            return f">= {self.low:g}"
+        return f"<= {self.high:g}" if self.high is not None else "any number"
 
     def __str__(self) -> str:
         return self.name
@@ -129,6 +143,7 @@ DISTANCE_ERROR = MetricDef(
     "distance error %",
     None,
     "measured minus true start-to-end distance, in % of the true one (signed: its magnitude counts)",
+    low=None,
 )
 PATH_LENGTH = MetricDef("path_length_mm", "mm", "path mm", None, "length of the reference path")
 MEASURED = MetricDef("measured_mm", "mm", "measured mm", None, "estimated start-to-end distance")
@@ -140,6 +155,7 @@ TURN_ERROR = MetricDef(
     None,
     "measured minus true turn over the steps reported ok, in % of the true turn (signed: the yaw's scale "
     "error); empty under 10 degrees of turn",
+    low=None,
 )
 
 
@@ -162,7 +178,7 @@ SEG_MEAN_R_ERR = MetricDef(
 )
 LOST_FRAMES = MetricDef("lost_frames", "frames", "lost", True, "frames the estimator reported lost")
 LOSS_EVENTS = MetricDef("loss_events", "", "loss events", True, "runs of consecutive lost frames")
-TRACKED_FRACTION = MetricDef("tracked_fraction", "", "tracked", False, "fraction of frames tracked")
+TRACKED_FRACTION = MetricDef("tracked_fraction", "", "tracked", False, "fraction of frames tracked", high=1.0)
 WRONG_OK_STEPS = MetricDef(
     "wrong_ok_steps",
     "steps",

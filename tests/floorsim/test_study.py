@@ -166,9 +166,16 @@ def test_criterion_reads_directions_from_the_metric_declarations():
         ({"drift": 1.0}, "criterion.drift: not a declared metric"),
         ({"path_length_mm": 10.0}, "criterion.path_length_mm: length of the reference path has no better direction"),
         ({"lost_frames": "two"}, "criterion.lost_frames = 'two': must be a finite number"),
+        # a bound outside the metric's range: every run failed end_drift_pct = -1, exit 0
+        ({"end_drift_pct": -1}, r"criterion.end_drift_pct = -1: must be >= 0, the range of end-point error"),
+        ({"lost_frames": -0.5}, r"criterion.lost_frames = -0.5: must be >= 0"),
+        ({"tracked_fraction": 1.5}, r"criterion.tracked_fraction = 1.5: must be from 0 to 1"),
+        ({"fps": -30}, r"criterion.fps = -30: must be >= 0"),
     ]:
         with pytest.raises(ConfigError, match=message):
             parse_criterion(table)
+    # the ends of the range are bounds: no frame lost, every frame tracked
+    assert parse_criterion({"lost_frames": 0, "tracked_fraction": 1}) is not None
 
 
 def test_margin_to_the_nearest_breaking_point_along_a_key():

@@ -234,7 +234,8 @@ def parse_criterion(table: dict[str, Any]) -> Criterion | None:
     """The ``[criterion]`` table as a :class:`Criterion` (None when empty).
 
     Every key must be a metric declared in :mod:`floorvo.metric_defs` with a direction;
-    every bound a finite number. Refusals name ``criterion.KEY``.
+    every bound a finite number within the metric's declared range (``low``, ``high``:
+    ``end_drift_pct = -1`` failed every run). Refusals name ``criterion.KEY``.
     """
     bounds = []
     for name, limit in table.items():
@@ -257,6 +258,13 @@ def parse_criterion(table: dict[str, Any]) -> Criterion | None:
         ):
             raise ConfigFieldError(
                 f"criterion.{shorten(name)}", f" = {shown(limit)}: must be a finite number ({d.unit or 'no unit'})"
+            )
+        if (d.low is not None and limit < d.low) or (d.high is not None and limit > d.high):
+            # end_drift_pct = -1: a bound no run can meet (or, past the other end, that none can fail)
+            raise ConfigFieldError(
+                f"criterion.{shorten(name)}",
+                f" = {shown(limit)}: must be {d.range_text()}, the range of {d.description} (a bound outside "
+                "it fails every run, or none)",
             )
         bounds.append(Bound(name, float(limit), bool(d.lower_is_better), d.unit))
     return Criterion(tuple(bounds)) if bounds else None
