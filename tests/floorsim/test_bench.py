@@ -320,3 +320,20 @@ def test_a_bench_where_no_estimator_ran_is_an_error_saying_why(tmp_path, doubles
         )
         assert not (out / "results.csv").exists()
     assert not (tmp_path / "o1").exists()  # a sequence folder alone: nothing was written
+
+
+def test_a_scene_override_given_with_sequence_folders_is_refused_or_said_to_skip_them(tmp_path, doubles, capsys):
+    """--set with a sequence folder (run as recorded, not rendered) was silently ignored."""
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec", height=2.0)), tmp_path / "rec")
+    D.reset()
+    out = tmp_path / "out"
+    argv = ["bench", "--estimators", "scaled", "--set", "lights.height_mm=5", "--no-report", "-o", str(out)]
+    words = f"--set lights.height_mm=5: sets keys of scene files, and {rec} is a sequence folder (run as recorded"
+    _refused_before_it_renders(capsys, [*argv, str(rec)], words, out)
+    # beside a scene file it applies to the scene: a note says the folder runs as recorded
+    scene = D.write_scene(tmp_path / "a.toml", name="a", height=3.0)
+    assert main([*argv, str(rec), str(scene)]) == 0
+    note = f"--set lights.height_mm=5: applies to the scene files only, not to the sequence folder(s) {rec}"
+    assert note in capsys.readouterr().out.splitlines()
+    drift = {r["scene"]: r["end_drift_pct"] for r in read_results_csv(out / "results.csv")}
+    assert drift == pytest.approx({"rec": 0.2, "a": 0.5}, rel=1e-4)  # 0.1 % per mm of the LED height

@@ -469,6 +469,18 @@ def run_bench(
             raise ConfigError(f"--save-baseline {exc}") from None
     scenes: list[tuple[Path, Any, list[BenchProtocol]]] = []
     notes: list[str] = []
+    folders_given = [Path(p) for p in scene_paths if is_sequence_folder(p)]
+    if scene_overrides and folders_given:  # a sequence folder is run as recorded: --set was silently ignored
+        sets = "--set " + " ".join(f"{k}={v}" for k, v in scene_overrides.items())
+        folders = ", ".join(shorten(str(p)) for p in folders_given)
+        if len(folders_given) == len(scene_paths):
+            raise ConfigError(
+                f"{shorten(sets)}: sets keys of scene files, and {folders} "
+                f"{'is a sequence folder' if len(folders_given) == 1 else 'are sequence folders'} (run as recorded, "
+                "not rendered); leave --set out"
+            )
+        notes.append(f"{shorten(sets)}: applies to the scene files only, not to the sequence folder(s) {folders}")
+        log.warning("%s", notes[-1])
     for p in scene_paths:
         if is_sequence_folder(p):
             check_sequence_folder(p)  # before any scene renders

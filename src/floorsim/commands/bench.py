@@ -75,7 +75,7 @@ def add_parser(subparsers) -> None:
         dest="scene_set",
         action="append",
         metavar="KEY=VALUE",
-        help="override a scene key, e.g. lights.height_mm=5",
+        help="override a scene key of the scene files, e.g. lights.height_mm=5 (sequence folders run as recorded)",
     )
     p.add_argument("--est-set", action="append", metavar="NAME.KEY=VALUE", help="override an estimator config key")
     p.add_argument("--frames", type=int, default=None, help="render only the first N frames")
