@@ -3,7 +3,16 @@
 :func:`run_bench` is the library function behind ``floorsim bench``. It takes scene files and
 sequence folders (anything with a ``sequence.json``: a recording made with ``floorvo import``,
 a sequence rendered before); a sequence folder is used as it is (no render, no protocols, one
-repetition) and gets the same runs, scores, report and gates. For each scene file:
+repetition) and gets the same runs, scores, report and gates.
+
+Before anything renders, the inputs are checked, each refusal one line
+(:class:`floorvo.errors.ConfigError` and kin): the estimators and their ``--est-set`` configs
+(:func:`floorsim.bench.estimators.check_estimator_choice`), every sequence folder
+(:func:`check_sequence_folder`), ``--cache`` (:func:`check_cache_dir`), the baseline and the
+``--save-baseline`` path, ``--set`` given with sequence folders alone, and an output folder
+holding a study's results (:func:`floorsim.bench.results.other_results_problem`); the sweep
+uses the same checks. A bench in which no estimator ran on any scene is an error. For each
+scene file:
 
 1. load it (``floorsim.scene.load_scene`` with the ``--set`` overrides) and render it
    through :func:`render_cached`, which keys the sequence folder by a hash of the

@@ -390,7 +390,9 @@ def _scene_value(scene: Any, key: str) -> Any:
 
 def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunner) -> Any:
     """Refuse, before any job, what would make every job fail: unknown estimators or config
-    keys, scene keys or values the scene refuses, a search key that is not a number.
+    keys (:func:`floorsim.bench.estimators.check_estimator_choice`, the bench's check), a
+    sequence folder that cannot be read (:func:`floorsim.bench.bench.check_sequence_folder`),
+    scene keys or values the scene refuses, a search key that is not a number.
     Returns the base scene (the ``[set]`` overrides applied), None for sequence folders alone."""
     where = spec.path.name if spec.path is not None else spec.name
     check_estimator_choice(
