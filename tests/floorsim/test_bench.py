@@ -328,8 +328,11 @@ def test_a_scene_override_given_with_sequence_folders_is_refused_or_said_to_skip
     D.reset()
     out = tmp_path / "out"
     argv = ["bench", "--estimators", "scaled", "--set", "lights.height_mm=5", "--no-report", "-o", str(out)]
-    words = f"--set lights.height_mm=5: sets keys of scene files, and {rec} is a sequence folder (run as recorded"
+    words = f"--set lights.height_mm=5: sets how scene files are rendered, and {rec} is a sequence folder (run as"
     _refused_before_it_renders(capsys, [*argv, str(rec)], words, out)
+    # the render settings too (--frames, --scale, --spp were as silently ignored)
+    words = f"--frames 3, --spp 2: set how scene files are rendered, and {rec} is a sequence folder (run as recorded"
+    _refused_before_it_renders(capsys, [*argv[:3], "--frames", "3", "--spp", "2", *argv[5:], str(rec)], words, out)
     # beside a scene file it applies to the scene: a note says the folder runs as recorded
     scene = D.write_scene(tmp_path / "a.toml", name="a", height=3.0)
     assert main([*argv, str(rec), str(scene)]) == 0

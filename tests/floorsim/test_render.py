@@ -293,7 +293,7 @@ def test_cli_render_unwritable_and_summary(tmp_path):
         text=True,
     )
     assert r.returncode == 1 and "Traceback" not in r.stderr
-    assert "not writable" in r.stderr.strip().splitlines()[-1]
+    assert f"not a directory ({ro} is a file)" in r.stderr.strip().splitlines()[-1]
     r = subprocess.run(
         [
             sys.executable,

@@ -479,14 +479,22 @@ def run_bench(
     scenes: list[tuple[Path, Any, list[BenchProtocol]]] = []
     notes: list[str] = []
     folders_given = [Path(p) for p in scene_paths if is_sequence_folder(p)]
-    if scene_overrides and folders_given:  # a sequence folder is run as recorded: --set was silently ignored
-        sets = "--set " + " ".join(f"{k}={v}" for k, v in scene_overrides.items())
+    # What only a render uses: a sequence folder is run as recorded, and these were silently ignored.
+    render_flags = [
+        f"{flag} {value}"
+        for flag, value in (("--frames", frames), ("--scale", scale), ("--spp", spp))
+        if value is not None
+    ]
+    if scene_overrides:
+        render_flags.insert(0, "--set " + " ".join(f"{k}={v}" for k, v in scene_overrides.items()))
+    if render_flags and folders_given:
+        sets = ", ".join(render_flags)
         folders = ", ".join(shorten(str(p)) for p in folders_given)
         if len(folders_given) == len(scene_paths):
             raise ConfigError(
-                f"{shorten(sets)}: sets keys of scene files, and {folders} "
-                f"{'is a sequence folder' if len(folders_given) == 1 else 'are sequence folders'} (run as recorded, "
-                "not rendered); leave --set out"
+                f"{shorten(sets)}: {'sets' if len(render_flags) == 1 else 'set'} how scene files are rendered, and "
+                f"{folders} {'is a sequence folder' if len(folders_given) == 1 else 'are sequence folders'} (run as "
+                "recorded, not rendered); leave them out"
             )
         notes.append(f"{shorten(sets)}: applies to the scene files only, not to the sequence folder(s) {folders}")
         log.warning("%s", notes[-1])
