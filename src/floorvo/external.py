@@ -75,7 +75,7 @@ from floorvo.errors import (
 )
 from floorvo.estimators.base import NEEDS
 from floorvo.estimators.registry import EstimatorSource
-from floorvo.io import atomic_write_text, ensure_writable_dir, environ_for_programs, read_toml
+from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
 from floorvo.locking import locks_folder
 from floorvo.memory import PeakRss
 from floorvo.metrics import associate
@@ -450,7 +450,7 @@ def run_external(
         "python": sys.executable,
     }
     argv = [arg.format_map(values) for arg in spec.command]
-    env = {**environ_for_programs(), **spec.env}
+    env = {**os.environ, **spec.env}
     log.info("%s: running %s", name, shlex.join(argv))
 
     def fail(reason: str) -> ExternalEstimatorError:

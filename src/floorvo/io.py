@@ -65,47 +65,25 @@ __all__ = [
     "MAX_IMAGE_PIXELS",
     "TEMP_SUFFIX",
     "quiet_native_logs",
-    "environ_for_programs",
 ]
-
-#: FFmpeg's log level that OpenCV's video reader sets from this variable (-8, AV_LOG_QUIET: nothing).
-_FFMPEG_LOG_ENV = "OPENCV_FFMPEG_LOGLEVEL"
-#: The variables :func:`quiet_native_logs` put into this process's environment (for itself, not its programs).
-_QUIET_ENV_ADDED: set[str] = set()
 
 
 @contextlib.contextmanager
 def quiet_native_logs() -> Iterator[None]:
-    """For the block, OpenCV's own log and FFmpeg's through it are silent.
+    """For the block, OpenCV's own log is silent.
 
     A truncated PNG made OpenCV print ``[ WARN:0@0.29] global grfmt_png.cpp:793 ... PNG input
-    buffer is incomplete``, a damaged video FFmpeg ``[mjpeg @ 0x...] overread 8`` or ``[mov,mp4,...
-    @ 0x...] moov atom not found``, on standard error before the reader's own one-line error: the
-    CLIs run their commands in this block (``-v`` leaves the logs on). OpenCV's level is set with
-    ``cv2.utils.logging.setLogLevel`` and given back after; FFmpeg's is read from
-    ``OPENCV_FFMPEG_LOGLEVEL`` (unless set already) when OpenCV first opens a video, so it holds for
-    the rest of the process. A library user who calls none of this keeps OpenCV's defaults, and a
-    program started meanwhile (an external estimator) gets the environment without it
-    (:func:`environ_for_programs`)."""
+    buffer is incomplete`` on standard error before the reader's own one-line error: the CLIs run
+    their commands in this block (``-v`` leaves the log on). OpenCV's level is set with
+    ``cv2.utils.logging.setLogLevel`` and given back after; a library user who calls none of this
+    keeps OpenCV's defaults. FFmpeg's messages (a damaged video's) are the video reader's to take:
+    it reads them and says what they mean (:mod:`floorvo.importers.video`)."""
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    added = _FFMPEG_LOG_ENV not in os.environ
-    if added:
-        os.environ[_FFMPEG_LOG_ENV] = "-8"
-        _QUIET_ENV_ADDED.add(_FFMPEG_LOG_ENV)
     try:
         yield
     finally:
         cv2.utils.logging.setLogLevel(level)
-        if added:
-            os.environ.pop(_FFMPEG_LOG_ENV, None)
-            _QUIET_ENV_ADDED.discard(_FFMPEG_LOG_ENV)
-
-
-def environ_for_programs() -> dict[str, str]:
-    """This process's environment as a program it starts should see it: without what
-    :func:`quiet_native_logs` added for this process alone."""
-    return {k: v for k, v in os.environ.items() if k not in _QUIET_ENV_ADDED}
 
 
 #: Suffix of the temporary files of :func:`atomic_write_bytes`.

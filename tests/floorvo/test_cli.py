@@ -178,41 +178,49 @@ def test_a_truncated_png_is_one_line_without_opencvs_warning(tmp_path, capfd, pr
     assert cv2.utils.logging.getLogLevel() == level
 
 
-def test_a_truncated_video_is_one_line_without_ffmpegs_messages_and_v_shows_them(tmp_path):
-    """FFmpeg printed '[mov,mp4,m4a,3gp,3g2,mj2 @ 0x...] moov atom not found' before the one-line
-    error (OPENCV_FFMPEG_LOGLEVEL is read once, when a process first opens a video: a child each)."""
-    import subprocess
-
+def _video(path, n=5, codec="mp4v"):
     import cv2
     import numpy as np
 
-    from _procs import child_env, cli
-
-    video = tmp_path / "clip.mp4"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10, (64, 48), False)
-    for i in range(5):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*codec), 10, (64, 48), False)
+    for i in range(n):
         writer.write(np.random.default_rng(i).integers(0, 255, (48, 64), np.uint8))
     writer.release()
+    return path
+
+
+def test_a_truncated_video_is_one_line_with_ffmpegs_reason_and_v_logs_it(tmp_path):
+    """FFmpeg printed '[mov,mp4,m4a,3gp,3g2,mj2 @ 0x...] moov atom not found' before the one-line
+    error; the reader takes FFmpeg's messages and gives the reason in its own line."""
+    import subprocess
+
+    from _procs import child_env, cli
+
+    video = _video(tmp_path / "clip.mp4")
     video.write_bytes(video.read_bytes()[:2000])  # the index (moov) at the end is gone
     env = {k: v for k, v in child_env().items() if k != "OPENCV_FFMPEG_LOGLEVEL"}
     argv = ["import", str(video), "-o", str(tmp_path / "rec"), "--fx", "100", "--fy", "100", "--cx", "32", "--cy", "24"]
     r = subprocess.run([*cli("floorvo"), *argv], capture_output=True, text=True, env=env)
-    assert r.returncode == 1 and r.stderr.splitlines() == [f"floorvo: error: {video}: not a video OpenCV can decode"]
+    assert r.returncode == 1 and r.stderr.splitlines() == [
+        f"floorvo: error: {video}: not a video OpenCV can decode (FFmpeg: [mov,mp4,m4a,3gp,3g2,mj2] moov atom not found)"
+    ], r.stderr
     r = subprocess.run([*cli("floorvo"), "-v", *argv], capture_output=True, text=True, env=env)
-    assert r.returncode == 1 and "moov atom not found" in r.stderr, r.stderr
+    assert r.returncode == 1 and "FFmpeg: [mov,mp4,m4a,3gp,3g2,mj2] moov atom not found" in r.stderr, r.stderr
 
 
-def test_a_program_an_estimator_starts_keeps_the_environment_the_cli_was_given(monkeypatch):
-    """What the CLI sets to silence FFmpeg is for its own process, not an external estimator's."""
-    import os
+def test_a_video_cut_inside_its_last_frame_is_refused_naming_the_frame(tmp_path, capfd):
+    """An MJPEG video whose end was cut inside its last frame imported 5 frames with exit code 0,
+    the last half decoded; FFmpeg's 'overread' on standard error was the only sign."""
+    from floorvo.cli import main
 
-    from floorvo.io import environ_for_programs, quiet_native_logs
-
-    monkeypatch.delenv("OPENCV_FFMPEG_LOGLEVEL", raising=False)
-    with quiet_native_logs():
-        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == "-8"
-        assert "OPENCV_FFMPEG_LOGLEVEL" not in environ_for_programs()
-    assert "OPENCV_FFMPEG_LOGLEVEL" not in os.environ
-    monkeypatch.setenv("OPENCV_FFMPEG_LOGLEVEL", "32")  # the user's own wins
-    with quiet_native_logs():
-        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == "32" and environ_for_programs()["OPENCV_FFMPEG_LOGLEVEL"] == "32"
+    video = _video(tmp_path / "clip.avi", codec="MJPG")
+    whole = video.read_bytes()
+    argv = ["--fx", "100", "--fy", "100", "--cx", "32", "--cy", "24"]
+    assert main(["import", str(video), "-o", str(tmp_path / "ok"), *argv]) == 0  # the whole file imports
+    capfd.readouterr()
+    video.write_bytes(whole[:-400])  # into the last frame's JPEG (the index after it is gone too)
+    assert main(["import", str(video), "-o", str(tmp_path / "cut"), *argv]) == 1
+    err = capfd.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{video}: frame 4 did not decode cleanly (FFmpeg: [mjpeg] " in err[0], err
+    assert "1 of its 5 frames gave decoder errors: the file is damaged or truncated" in err[0]
+    assert not (tmp_path / "cut").exists()

@@ -197,8 +197,8 @@ def run_cli(
     # OpenCV (and numpy) load here, after the parse: --help and a mistyped flag answer without them.
     from floorvo.io import quiet_native_logs
 
-    # OpenCV's and FFmpeg's own warnings (a truncated PNG, a damaged video) went to standard error
-    # before the one-line error that says what is wrong; -v shows them.
+    # OpenCV's own warnings (a truncated PNG) went to standard error before the one-line error that
+    # says what is wrong; -v shows them. (FFmpeg's, a damaged video's, the video reader takes.)
     native_logs = contextlib.nullcontext() if level <= logging.DEBUG else quiet_native_logs()
     try:
         with _sigterm_interrupts(), native_logs:

@@ -10,12 +10,26 @@ recorded at, with exit code 0. A frame size the container states beyond
 :data:`floorvo.io.MAX_IMAGE_PIXELS` is refused before a frame is decoded. Frames are
 converted to mono (8-bit). The file is decoded twice (counting, then writing), so a long
 video is never held in memory.
+
+FFmpeg reports a damaged stream only in its log (OpenCV still returns the frame): a video whose
+end was cut inside its last frame gave that frame half decoded, with exit code 0, and FFmpeg's
+``[mjpeg @ 0x...] overread 8`` on standard error. The reader takes FFmpeg's messages while it
+opens and decodes (:func:`_ffmpeg_messages`: they are written to the process's standard error,
+file descriptor 2, by C code) and refuses a video whose frames gave any, naming the first frame
+and the message; a file it cannot open is refused with FFmpeg's reason (``moov atom not found``).
+With ``-v`` each message is logged too. FFmpeg's level is OpenCV's default (errors) unless
+``OPENCV_FFMPEG_LOGLEVEL`` sets another.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-from collections.abc import Iterator
+import os
+import re
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import cv2
@@ -37,12 +51,49 @@ def detect(source: Path) -> bool:
     return source.is_file() and source.suffix.lower() in VIDEO_SUFFIXES
 
 
-def _open(source: Path) -> cv2.VideoCapture:
+@contextlib.contextmanager
+def _ffmpeg_messages(source: Path) -> Iterator[Callable[[], list[str]]]:
+    """For the block, what is written to standard error (file descriptor 2: FFmpeg's log, through
+    OpenCV) goes to a temporary file; yields a function that returns the lines written since it was
+    last called (the decoder's address left out). Each is logged at debug level once the block
+    ends (a log record written in the block would be taken as FFmpeg's): the block holds only
+    OpenCV's calls."""
+    sys.stderr.flush()
+    said: list[str] = []
+    with tempfile.TemporaryFile() as sink:
+        saved = os.dup(2)
+        os.dup2(sink.fileno(), 2)
+        seen = 0
+
+        def taken() -> list[str]:
+            nonlocal seen
+            sink.seek(seen)
+            data = sink.read()
+            seen += len(data)
+            text = data.decode("utf-8", "replace").splitlines()
+            lines = [re.sub(r" @ 0x[0-9a-fA-F]+\]", "]", " ".join(x.split())) for x in text]
+            said.extend(x for x in lines if x)
+            return [x for x in lines if x]
+
+        try:
+            yield taken
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            taken()
+    for line in said:
+        log.debug("%s: FFmpeg: %s", source, line)
+
+
+def _open(source: Path, messages: Callable[[], list[str]]) -> cv2.VideoCapture:
+    """``source`` opened (within :func:`_ffmpeg_messages`, whose ``messages`` give FFmpeg's reason)."""
     if not source.is_file():
         raise SequenceError(f"{source}: video file does not exist")
     cap = cv2.VideoCapture(str(source))
     if not cap.isOpened():
-        raise SequenceError(f"{source}: not a video OpenCV can decode")
+        why = messages()
+        raise SequenceError(f"{source}: not a video OpenCV can decode" + (f" (FFmpeg: {why[0]})" if why else ""))
+    messages()  # what opening a good file said (a stream's details) is no damage
     w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
     problem = image_size_problem((int(w), int(h))) if np.isfinite(w) and np.isfinite(h) else None
     if problem:  # before a frame is decoded: a small file can state frames of gigabytes
@@ -53,20 +104,26 @@ def _open(source: Path) -> cv2.VideoCapture:
 
 def read(source: Path, options=None) -> Recording:
     """Count the frames of ``source`` and take their times; the images are decoded again when written."""
-    cap = _open(source)
-    fps = float(cap.get(cv2.CAP_PROP_FPS))
-    stated = cap.get(cv2.CAP_PROP_FRAME_COUNT)  # the container's count (0 or less: it states none)
-    times_ms, size = [], None
-    try:
-        while True:
-            ok, img = cap.read()
-            if not ok:
-                break
-            times_ms.append(float(cap.get(cv2.CAP_PROP_POS_MSEC)))
-            if size is None:
-                size = (img.shape[1], img.shape[0])
-    finally:
-        cap.release()
+    damaged: list[tuple[int, str]] = []  # (frame, FFmpeg's first message) of each frame that gave any
+    with _ffmpeg_messages(source) as messages:
+        cap = _open(source, messages)
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+        stated = cap.get(cv2.CAP_PROP_FRAME_COUNT)  # the container's count (0 or less: it states none)
+        times_ms: list[float] = []
+        size: tuple[int, int] | None = None
+        try:
+            while True:
+                ok, img = cap.read()
+                said = messages()
+                if not ok:
+                    break
+                if said:
+                    damaged.append((len(times_ms), said[0]))
+                times_ms.append(float(cap.get(cv2.CAP_PROP_POS_MSEC)))
+                if size is None:
+                    size = (img.shape[1], img.shape[0])
+        finally:
+            cap.release()
     if not times_ms or size is None:
         raise SequenceError(f"{source}: no frame could be decoded")
     n = len(times_ms)
@@ -75,6 +132,12 @@ def read(source: Path, options=None) -> Recording:
         raise SequenceError(
             f"{source}: {n} of the {int(stated)} frames the container states could be decoded "
             "(the file is truncated or damaged; the last frame decoded may be incomplete)"
+        )
+    if damaged:
+        k, first = damaged[0]
+        raise SequenceError(
+            f"{source}: frame {k} did not decode cleanly (FFmpeg: {first}); {len(damaged)} of its {n} frames gave "
+            "decoder errors: the file is damaged or truncated"
         )
     fps_ok = np.isfinite(fps) and fps > 0
     ts = np.round(np.array(times_ms) * 1000.0) / 1e6  # to the microsecond: decoders add float noise
@@ -97,12 +160,16 @@ def read(source: Path, options=None) -> Recording:
             )
 
     def frames() -> Iterator[FrameImages]:
-        cap2 = _open(source)
+        with _ffmpeg_messages(source) as messages2:
+            cap2 = _open(source, messages2)
         try:
             for i in range(n):
-                ok, img = cap2.read()
-                if not ok:
-                    raise SequenceError(f"{source}: frame {i} of {n} could not be decoded the second time")
+                with _ffmpeg_messages(source) as messages2:
+                    ok, img = cap2.read()
+                    said = messages2()
+                if not ok or said:
+                    why = f" (FFmpeg: {said[0]})" if said else ""
+                    raise SequenceError(f"{source}: frame {i} of {n} could not be decoded the second time{why}")
                 yield FrameImages(to_mono(img, f"{source} frame {i}"))
         finally:
             cap2.release()
