@@ -154,6 +154,27 @@ def test_frame_of_the_wrong_size_or_channels_is_refused(tmp_path, name, shape, r
 
 
 @pytest.mark.parametrize("name", MONO)
+@pytest.mark.parametrize("first", [True, False], ids=["first frame", "later frame"])
+def test_a_float_frame_with_nan_or_inf_is_lost_with_a_reason(tmp_path, name, first):
+    """A float frame holding NaN raised 'cannot convert float NaN to integer' from inside
+    phase-corr; it is lost with a reason, and tracking goes on from the good frames."""
+    seq = _sequence(tmp_path, [(0.0, 0.0, 0.0), (2.0, 0.0, 0.0)])
+    est = get_estimator(name)(make_config(name), CAM, height_mm=100.0, flatfield=seq.flatfield())
+    state = est.start()
+    bad = seq.image(1).astype(np.float32)
+    bad[100:110, 200:260] = np.nan
+    bad[300, 300] = np.inf
+    frames = [bad, seq.image(0), seq.image(1)] if first else [seq.image(0), bad, seq.image(1)]
+    results = [est.step(state, Frame(i, i / 30.0, f)) for i, f in enumerate(frames)]
+    k = 0 if first else 1
+    assert results[k].status == "lost" and results[k].T_prev_cur is None
+    assert "frame has 601 pixel(s) that are NaN or infinite: finite values are expected" in results[k].reason
+    assert results[2].status == "ok", results[2].reason
+    T_true = invert_T(seq.groundtruth()[1][0]) @ seq.groundtruth()[1][1]
+    assert _within_bound(results[2].T_prev_cur, T_true), _step_error(results[2].T_prev_cur, T_true)
+
+
+@pytest.mark.parametrize("name", MONO)
 def test_tracking_restarts_after_lost_frames(tmp_path, name):
     """The rig is carried to unrelated floor (a kidnap): the frames there are lost against the
     last good one, then tracking restarts from the current frame (``restart_after_lost``) and

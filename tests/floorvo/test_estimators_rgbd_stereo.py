@@ -114,7 +114,20 @@ def test_lost_frames_give_status_and_the_run_goes_on():
     # A frame with an unrelated texture: no consistent matches -> lost, with a reason.
     other, _, _ = frame_pair(CAM, T_true, seed=9)
     r = est.step(st, Frame(4, 0.4, other, depth_mm=depth))
-    assert r.status == "lost" and r.reason
+    assert r.status == "lost" and r.reason and "restarts" not in r.reason
+    # ... and the next frame is measured against the last good one (frame 3): the lost frame had
+    # become the reference, unsaid, and the next step was chained as if from frame 3
+    r = est.step(st, Frame(5, 0.5, cur, depth_mm=depth))
+    assert r.status == "ok" and np.abs(r.T_prev_cur - np.eye(4)).max() < 0.02, r.reason
+    # two unrelated frames in a row: tracking restarts from the second, and says so
+    est.step(st, Frame(6, 0.6, other, depth_mm=depth))
+    r = est.step(st, Frame(7, 0.7, frame_pair(CAM, T_true, seed=11)[0], depth_mm=depth))
+    assert r.status == "lost" and r.reason.endswith("; tracking restarts from this frame"), r.reason
+    # a NaN where the depth image has no measurement is no measurement, as 0 is
+    holes = depth.copy()
+    holes[:40] = np.nan
+    r = est.step(st, Frame(8, 0.8, prev, depth_mm=holes))
+    assert r.status in ("ok", "lost") and "NaN" not in r.reason
 
     (L0, R0), (L1, R1), flat2, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
     ss = get_estimator("stereo-sift")(
@@ -124,6 +137,32 @@ def test_lost_frames_give_status_and_the_run_goes_on():
     ss.step(st, Frame(0, 0.0, L0, image_right=R0))
     r = ss.step(st, Frame(1, 0.1, L1, image_right=np.zeros_like(R1)))
     assert r.status == "lost" and "empty" in r.reason
+
+
+def test_a_first_frame_with_nan_is_lost_not_taken_as_the_start():
+    """orb-icp and stereo-sift took a NaN-laden float first frame as 'init', and lost the next
+    good frame against it."""
+    T_true = _motion(2.0, 0.0, 0.0)
+    prev, cur, flat = frame_pair(CAM, T_true)
+    depth = flat_floor_depth(CAM)
+    bad = prev.astype(np.float32)
+    bad[10, 10] = np.nan
+    est = get_estimator("orb-icp")(make_config("orb-icp"), CAM, height_mm=100.0, flatfield=flat)
+    st = est.start()
+    r = est.step(st, Frame(0, 0.0, bad, depth_mm=depth))
+    assert r.status == "lost" and "1 pixel(s) that are NaN or infinite" in r.reason
+    assert est.step(st, Frame(1, 0.1, prev, depth_mm=depth)).status == "init"
+    _check(est.step(st, Frame(2, 0.2, cur, depth_mm=depth)), T_true, "orb-icp")
+    (L0, R0), (L1, R1), flat2, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0)
+    ss = get_estimator("stereo-sift")(
+        make_config("stereo-sift"), CAM, height_mm=100.0, camera_right=CAM, T_cam0_cam1=T01
+    )
+    st = ss.start()
+    bad_right = R0.astype(np.float32)
+    bad_right[5, 5] = np.inf
+    r = ss.step(st, Frame(0, 0.0, L0, image_right=bad_right))
+    assert r.status == "lost" and "right frame has 1 pixel(s) that are NaN or infinite" in r.reason
+    assert ss.step(st, Frame(1, 0.1, L0, image_right=R0)).status == "init"
 
 
 def test_frames_of_the_wrong_size_are_refused_with_a_reason():

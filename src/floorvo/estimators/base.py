@@ -175,13 +175,16 @@ class Estimator(Protocol):
     def step(self, state: Any, frame: Frame) -> StepResult: ...
 
 
-def frame_problem(image: np.ndarray | None, camera: CameraModel, what: str = "frame") -> str:
+def frame_problem(image: np.ndarray | None, camera: CameraModel, what: str = "frame", *, finite: bool = True) -> str:
     """Why ``image`` cannot be a frame of ``camera`` ('' when it can).
 
     A frame is a 2-D (H, W) mono image (integer or float) of the camera's size; an
-    (H, W, C) array (colour, or a single channel kept as an axis), another size or an
-    empty array is refused, so an estimator reports its step ``lost`` with this reason
-    instead of measuring a wrong motion.
+    (H, W, C) array (colour, or a single channel kept as an axis), another size, an
+    empty array or a float image with a NaN or infinite pixel is refused, so an estimator
+    reports its step ``lost`` with this reason instead of measuring a wrong motion (a NaN
+    frame raised from inside phase-corr, and orb-icp and stereo-sift took one as their first).
+    ``finite=False`` lets NaN and infinite values pass (a depth image, where they mean no
+    measurement, as 0 does).
     """
     if image is None:
         return f"{what} has no image"
@@ -194,6 +197,9 @@ def frame_problem(image: np.ndarray | None, camera: CameraModel, what: str = "fr
         return f"{what} is {w}x{h} px: the camera is {camera.width_px}x{camera.height_px}"
     if a.dtype.kind not in "uif":
         return f"{what} has pixels of type {a.dtype}: numbers are expected"
+    if finite and a.dtype.kind == "f" and not np.isfinite(a).all():
+        bad = int(np.count_nonzero(~np.isfinite(a)))
+        return f"{what} has {bad} pixel(s) that are NaN or infinite: finite values are expected"
     return ""
 
 

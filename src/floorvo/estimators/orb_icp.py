@@ -29,10 +29,16 @@ Per frame (section numbers and equations of paper 001):
    times the 100 mm depth becomes a shift.
 
 The estimator needs depth (``requires = {"depth"}``); a run refuses a sequence without it.
+A lost frame is never the reference: the next frame is matched against the last good one, and
+after ``restart_after_lost`` lost frames in a row tracking restarts from the current frame, said
+in its reason (``RESTART_NOTE``), as the other estimators do. (Every frame with depth keypoints
+became the reference, lost or not, and the next step was chained as if measured from the last
+good frame: a frame of another floor made the one after it 2 mm off, reported ok.)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -41,7 +47,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, param, with_defaults
-from floorvo.estimators.base import Frame, StepResult, frame_is_blank, frame_problem, stage_timing_ms
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_is_blank, frame_problem, stage_timing_ms
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -86,6 +92,9 @@ class OrbIcpConfig(Config):
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
     seed: int = param(0, min=0, max=MAX_SEED, doc="seeds OpenCV's RNG before each FLANN-LSH match")
+    restart_after_lost: int = param(
+        2, min=1, doc="lost frames in a row after which tracking restarts from the current frame"
+    )
     update: str = param(
         "plane",
         choices=("plane", "icp"),
@@ -124,6 +133,7 @@ class _State:
     xyz: np.ndarray | None = None  # (N, 3) mm, camera frame; NaN where no depth
     img8: np.ndarray | None = None  # normalised previous frame
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the previous frame, camera frame
+    n_lost: int = 0  # frames lost in a row since the reference
 
 
 class OrbIcp:
@@ -209,30 +219,60 @@ class OrbIcp:
         img = np.asarray(frame.image)
         if frame.depth_mm is None:
             return StepResult("lost", reason="frame has no depth image", timing_ms=stage_timing_ms(t0, t0, t0, t0))
-        bad = frame_problem(img, self.camera) or frame_problem(frame.depth_mm, self.camera, "depth image")
+        bad = frame_problem(img, self.camera) or frame_problem(frame.depth_mm, self.camera, "depth image", finite=False)
         if bad:
             return StepResult("lost", reason=bad, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
+        depth_mm = np.asarray(frame.depth_mm)
+        if depth_mm.dtype.kind == "f" and not np.isfinite(depth_mm).all():  # NaN, inf: no measurement, as 0
+            depth_mm = np.where(np.isfinite(depth_mm), depth_mm, 0.0).astype(depth_mm.dtype)
         if frame_is_blank(img):
             return StepResult(
                 "lost", reason="empty frame (no texture)", timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter())
             )
-        uv, desc, xyz, img8 = self._features(frame.image, frame.depth_mm)
-        plane = self.floor_plane(frame.depth_mm) if self.config.update == "plane" else None
+        uv, desc, xyz, img8 = self._features(frame.image, depth_mm)
+        plane = self.floor_plane(depth_mm) if self.config.update == "plane" else None
         t1 = time.perf_counter()
-        first = state.kps is None
-        prev = (state.kps, state.desc, state.xyz, state.img8)
-        plane_prev = state.plane
         n_depth = int(np.isfinite(xyz).all(axis=1).sum())
-        if (n_depth >= self.config.min_matches and (plane is not None or self.config.update != "plane")) or first:
-            # A frame is kept as the next reference only if it is usable (else: the last good one).
-            state.kps, state.desc, state.xyz, state.img8, state.plane = uv, desc, xyz, img8, plane
-        if first:
+        usable = n_depth >= self.config.min_matches and (plane is not None or self.config.update != "plane")
+        current = (uv, desc, xyz, img8, plane)
+        if state.kps is None:
+            state.kps, state.desc, state.xyz, state.img8, state.plane = current
             return StepResult(
                 "init",
                 reason="first frame",
                 n_keypoints=len(uv),
                 timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
+        res = self._measured(state, current, depth_mm, n_depth, t0, t1)
+        # The next frame is matched against the last good one; after restart_after_lost lost
+        # frames in a row, against the current one, said (RESTART_NOTE: the motion over the gap is
+        # unknown). Every frame with depth keypoints became the reference, lost or not, and the
+        # next step was chained onto the last good frame's pose as if measured from it.
+        if res.status == "ok":
+            state.kps, state.desc, state.xyz, state.img8, state.plane = current
+            state.n_lost = 0
+            return res
+        state.n_lost += 1
+        if state.n_lost >= self.config.restart_after_lost and usable:
+            state.kps, state.desc, state.xyz, state.img8, state.plane = current
+            state.n_lost = 0
+            res = dataclasses.replace(res, reason=f"{res.reason}; {RESTART_NOTE}")
+        return res
+
+    def _measured(
+        self,
+        state: _State,
+        current: tuple,
+        depth_mm: np.ndarray,
+        n_depth: int,
+        t0: float,
+        t1: float,
+    ) -> StepResult:
+        """The step from the reference frame of ``state`` to the ``current`` one (its keypoints (N, 2)
+        px, descriptors, 3-D points (N, 3) mm, normalised image and floor plane), ok or lost."""
+        uv, desc, xyz, img8, plane = current
+        prev = (state.kps, state.desc, state.xyz, state.img8)
+        plane_prev = state.plane
         if len(uv) < self.config.min_matches:
             return StepResult(
                 "lost",
@@ -317,7 +357,7 @@ class OrbIcp:
             p1 = p1.reshape(-1, 2).astype(np.float64)
             good = (st.ravel() == 1) & (np.linalg.norm(p1 - uv_cur, axis=1) < 1.5)
             uv_prev, uv_cur, P_prev = uv_prev[good], p1[good], P_prev[good]
-            P_cur = self._depth_xyz(frame.depth_mm, uv_cur)
+            P_cur = self._depth_xyz(depth_mm, uv_cur)
         if self.config.update == "plane":
             if plane is None or plane_prev is None:
                 return lost("too few depth pixels to fit the floor plane")
