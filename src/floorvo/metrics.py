@@ -21,6 +21,10 @@ Conventions
     (Umeyama in the floor plane, :func:`floorvo.geometry.rigid_fit`; z untouched): the
     natural gauge of floor odometry;
   - ``se3``: the least-squares rigid motion in 3D (Umeyama, no scale; evo's ``--align``).
+    Positions on one straight line leave the turn about that line free (evo refuses them:
+    "Degenerate covariance rank"; the SVD's pick was arbitrary, 0-180 degrees of rotation error
+    for an estimate off by a constant offset): the least rotation that lays the estimate's line
+    on the reference's is taken (:func:`_line_alignment`).
 
 * RPE follows evo's definition: for index pairs (i, j), ``E = (ref_i^-1 ref_j)^-1
   (est_i^-1 est_j)``; the translation error is ``|t(E)|`` (mm), the rotation error is the
@@ -157,7 +161,8 @@ def align(T_ref: np.ndarray, T_est: np.ndarray, method: str) -> tuple[np.ndarray
     if method == "origin" or (method in ("se2", "se3") and degenerate) or (method == "se3" and len(A) < 3):
         T_align = A[0] @ invert_T(B[0])
     elif method == "se3":
-        R, t = rigid_fit(B[:, :3, 3], A[:, :3, 3])
+        line = _line_alignment(B[:, :3, 3], A[:, :3, 3])
+        R, t = line if line is not None else rigid_fit(B[:, :3, 3], A[:, :3, 3])
         T_align[:3, :3], T_align[:3, 3] = R, t
     elif method == "se2":
         R2, t2 = rigid_fit(B[:, :2, 3], A[:, :2, 3])
@@ -166,6 +171,51 @@ def align(T_ref: np.ndarray, T_est: np.ndarray, method: str) -> tuple[np.ndarray
 
 
 # ----------------------------------------------------------------------------- helpers
+#: Positions whose second principal extent is under this share of the first lie on one line.
+LINE_EXTENT_RATIO = 1e-9
+
+
+def _line_alignment(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The least-squares rigid motion ``dst ~ R src + t`` of positions (N, 3) mm of which one set
+    lies on a straight line (None otherwise: :func:`~floorvo.geometry.rigid_fit` decides).
+
+    The fit maximises ``trace(R W)``, ``W = sum_i c_i(src) c_i(dst)^T`` of the centred points; with
+    one set on a line (direction ``v``) ``W`` has rank 1 and any ``R`` that turns the other set's
+    ``m = sum_i c_i (c'_i . v)`` onto ``v`` is a best fit, whatever it turns about ``v``: of those,
+    the least rotation (the shortest arc from ``m`` to ``v``; the identity for a straight estimate
+    off by a constant offset). ``t`` lays the centroids on each other."""
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    cs, cd = src - mu_s, dst - mu_d
+
+    def direction(c: np.ndarray) -> np.ndarray | None:
+        _, sv, vt = np.linalg.svd(c, full_matrices=False)
+        return vt[0] if sv[0] > 0 and sv[1] <= LINE_EXTENT_RATIO * sv[0] else None
+
+    v, u = direction(cd), direction(cs)
+    if v is None and u is None:
+        return None
+    if v is not None:  # the reference on a line: turn the estimate's m onto it
+        a, b = cs.T @ (cd @ v), v
+    else:  # the estimate on a line: turn it onto the reference's m
+        assert u is not None
+        a, b = u, cd.T @ (cs @ u)
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    R = np.eye(3)
+    if na > 0 and nb > 0:
+        a, b = a / na, b / nb
+        axis = np.cross(a, b)
+        sin, cos = float(np.linalg.norm(axis)), float(np.clip(a @ b, -1.0, 1.0))
+        if sin > 1e-15:
+            k = axis / sin
+            K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+            R = np.eye(3) + sin * K + (1.0 - cos) * (K @ K)  # Rodrigues: the shortest arc from a to b
+        elif cos < 0:  # opposite: half a turn about an axis across them
+            k = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+            k /= np.linalg.norm(k)
+            R = 2.0 * np.outer(k, k) - np.eye(3)
+    return R, mu_d - R @ mu_s
+
+
 def path_distances_mm(T: np.ndarray) -> np.ndarray:
     """(N,) distance travelled along the path of poses ``T`` (N, 4, 4) up to each pose (mm)."""
     p = np.asarray(T, dtype=float)[:, :3, 3]
@@ -231,11 +281,13 @@ def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float) -> np.ndarray:
     """(K, 2) pairs ``(i, j)``: j is the first pose where the reference path is >= delta_mm past i.
 
     Every pose ``i`` that has such a ``j`` starts a pair, so the pairs overlap. evo's
-    ``evo_rpe --delta D --delta_unit m`` (``filters.filter_pairs_by_path``, ``all_pairs``
-    off) uses the same rule for the end of a pair but chains the pairs from pose 0, each
-    starting where the previous one ended: its pairs are a subset of these, the errors on
-    them are equal, and the statistics over all pairs differ by the sampling alone (a test
-    checks both against evo).
+    ``evo_rpe --delta D --delta_unit m --pairs_from_reference`` (``filters.filter_pairs_by_path``
+    on the reference, ``all_pairs`` off) uses the same rule for the end of a pair but chains the
+    pairs from pose 0, each starting where the previous one ended: its pairs are a subset of
+    these, the errors on them are equal, and the statistics over all pairs differ by the
+    sampling alone (a test checks both against evo's pair filter on the reference). Without
+    ``--pairs_from_reference`` evo measures the distance along the estimate's path: other pairs
+    wherever the estimate's steps are off in length.
     """
     if delta_mm <= 0:
         raise ValueError(f"rpe delta_mm = {delta_mm}: must be > 0")

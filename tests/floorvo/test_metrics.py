@@ -62,6 +62,31 @@ def test_ate_alignments_remove_exactly_their_gauge_and_keep_inputs():
     assert M.ate(ref, up, "se3")["trans_mm"]["rmse"] < 1e-9
 
 
+def test_se3_alignment_of_a_straight_path_takes_the_least_rotation():
+    """Points on one line leave the turn about it free: the SVD's pick gave an estimate off by a
+    constant offset 0-180 degrees of rotation error (median 90; evo refuses such input). The least
+    rotation that fits is taken: none for an offset, the turn itself for a turned copy, and a
+    bent estimate is fitted as well as the SVD fits it."""
+    ref = line_traj(n=31)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        est = ref.copy()
+        est[:, :3, 3] += rng.normal(0.0, 5.0, 3)
+        a = M.ate(ref, est, "se3")
+        assert a["trans_mm"]["rmse"] < 1e-9 and a["rot_deg"]["max"] < 1e-9, a
+    turned = np.einsum("ij,njk->nik", make_T(rot_z(np.radians(10.0)), [5.0, -3.0, 2.0]), ref)
+    assert M.ate(ref, turned, "se3")["rot_deg"]["max"] < 1e-9
+    bent = ref.copy()
+    bent[:, 1, 3] += 0.01 * np.arange(31) ** 2
+    aligned, _ = M.align(ref, bent, "se3")
+    from floorvo.geometry import rigid_fit
+
+    R, t = rigid_fit(bent[:, :3, 3], ref[:, :3, 3])
+    svd = np.linalg.norm(bent[:, :3, 3] @ R.T + t - ref[:, :3, 3], axis=1)
+    ours = np.linalg.norm(aligned[:, :3, 3] - ref[:, :3, 3], axis=1)
+    assert np.sqrt(np.mean(ours**2)) == pytest.approx(np.sqrt(np.mean(svd**2)), rel=1e-9)
+
+
 def test_origin_alignment_maps_first_pose_onto_reference():
     ref = wiggly_traj()
     est = np.einsum("ij,njk->nik", make_T(rot_z(-0.2), [1, 2, 3]), ref)
