@@ -423,10 +423,9 @@ def run_external(
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)
     name = spec.name
-    if "depth" in spec.needs and not seq.has_depth:
-        raise FloorbenchError(f"{name} needs depth images, and {seq.root} has none")
-    if "stereo" in spec.needs and not seq.has_stereo:
-        raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
+    lacking = seq.lacks(spec.needs, name)
+    if lacking:
+        raise FloorbenchError(lacking)
     out = ensure_writable_dir(run_dir)
     program_dir = out / "program"
     for stale in ("trajectory.txt", "timing.csv", "result.json"):  # a rerun must not read an older run's files

@@ -78,11 +78,9 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
     cls = get_estimator(name)
     require_opencv4(name)
     cfg = make_config(name, overrides)
-    req = set(getattr(cls, "requires", ()))
-    if "depth" in req and not seq.has_depth:
-        raise FloorbenchError(f"{name} needs depth images, and {seq.root} has none (render it with depth enabled)")
-    if "stereo" in req and not seq.has_stereo:
-        raise FloorbenchError(f"{name} needs a stereo sequence (cam1), and {seq.root} is mono")
+    lacking = seq.lacks(getattr(cls, "requires", ()), name)
+    if lacking:
+        raise FloorbenchError(lacking)
     height = camera_height_mm(seq)
     rig: dict = {}
     if seq.has_stereo:
@@ -95,7 +93,12 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
         rig["led_positions_cam_mm"] = seq.led_positions_cam_mm
     flat = seq.flatfield()
     with estimator_faults(name, "__init__"):
-        return cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig), cfg
+        est = cls(cfg, seq.camera, height_mm=height, flatfield=flat, **rig)
+    # what an instance needs beyond its class's (map-fused: its odometry's, known once configured)
+    lacking = seq.lacks(getattr(est, "requires", ()), name)
+    if lacking:
+        raise FloorbenchError(lacking)
+    return est, cfg
 
 
 @locks_folder("out_dir", "run folder")

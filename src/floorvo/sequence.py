@@ -55,7 +55,7 @@ import logging
 import os
 import re
 import weakref
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -668,6 +668,16 @@ class Sequence:
     @property
     def has_depth(self) -> bool:
         return bool(self.meta.get("depth"))
+
+    def lacks(self, needs: Iterable[str], who: str) -> str:
+        """Why this sequence cannot give ``who`` (an estimator, a program) what it ``needs``
+        (``depth``, ``stereo``: an estimator's ``requires``, a program's ``needs``); "" when it can."""
+        needs = set(needs)
+        if "depth" in needs and not self.has_depth:
+            return f"{who} needs depth images, and {self.root} has none (render it with depth enabled)"
+        if "stereo" in needs and not self.has_stereo:
+            return f"{who} needs a stereo sequence (cam1), and {self.root} is mono"
+        return ""
 
     @property
     def height_mm(self) -> float | None:

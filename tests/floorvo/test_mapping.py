@@ -182,7 +182,7 @@ def test_map_round_trip_and_refusals(tmp_path, lane):
 
 
 # --------------------------------------------------------------------------- CLI, estimator
-def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_texture, lane):
+def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_texture, lane, capsys):
     from floorvo.cli import main
     from floorvo.run import run_estimator
     from floorvo.sequence import SequenceWriter
@@ -244,6 +244,22 @@ def test_cli_map_and_localize_and_fused_estimator(tmp_path, texture, other_textu
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "keyframes.nope=1"]) == 1
     assert main(["map", str(tmp_path / "mapseq"), "-o", str(tmp_path / "m3"), "--set", "poses=survey"]) == 1
     assert MapConfig.from_overrides({"poses": "chain"}).poses == "chain"
+    # an odometry the sequence cannot feed (orb-icp without depth) lost every step between fixes,
+    # exit 0; odometry_set with no odometry was taken and ignored
+    for argv, words in (
+        (["--odometry", "orb-icp"], "--odometry orb-icp needs depth images, and"),
+        (["--set", "odometry_set=garbage"], "map-fused.odometry_set = 'garbage': set with no odometry"),
+    ):
+        out = tmp_path / "r5"
+        capsys.readouterr()
+        assert main(["localize", str(tmp_path / "live"), "--map", str(tmp_path / "map"), *argv, "-o", str(out)]) == 1
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1 and words in err[0], err
+        assert not out.exists()
+    with pytest.raises(FloorbenchError, match="map-fused needs depth images"):
+        run_estimator(
+            tmp_path / "live", "map-fused", tmp_path / "r6", {"map": str(tmp_path / "map"), "odometry": "orb-icp"}
+        )
 
 
 def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, lane):
@@ -283,6 +299,32 @@ def test_map_fused_bridges_with_odometry_and_resets_at_fixes(tmp_path, texture, 
     assert run.fixes == 3 and run.fixed.tolist() == [i % 4 == 0 for i in range(10)]
     assert run.placed.all()
     np.testing.assert_allclose(run.T_world_cam, np.stack(chain), atol=1e-6)
+
+
+def test_map_fused_never_places_a_frame_after_its_odometry_restarts_off_the_map(tmp_path, texture, lane):
+    """A kidnap to floor the map does not hold: the odometry loses two frames and restarts on the
+    second; its later steps, from that frame, were chained onto the last frame placed before the
+    kidnap and reported ok 100 mm off. They are lost until a map fix places the rig again."""
+    from floorvo.estimators import Frame, get_estimator, make_config
+    from floorvo.runner import run_frames
+
+    _, _, m = lane
+    save_map(m, tmp_path / "map")
+    cfg = make_config("map-fused", {"map": str(tmp_path / "map"), "odometry": "phase-corr"})
+    est = get_estimator("map-fused")(cfg, CAM, height_mm=H_MM)
+    Ts = [T_world_cam_down(-30.0 + 3.0 * i, 0.0, H_MM) for i in range(4)]  # on the mapped lane
+    Ts += [T_world_cam_down(3.0 * i, 100.0, H_MM) for i in range(6)]  # carried off the map, moving on
+    Ts += [T_world_cam_down(10.0, 0.0, H_MM)]  # and back
+    frames = [
+        Frame(i, i / 30.0, syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(500 + i)))
+        for i, T in enumerate(Ts)
+    ]
+    run = run_frames(est, frames, T_world_start=np.eye(4))
+    assert run.placed.tolist() == [True] * 4 + [False] * 6 + [True], list(zip(run.status, run.reason))
+    assert "tracking restarts" in run.reason[5] and "which the map did not place" in run.reason[6], run.reason
+    for k in np.flatnonzero(run.placed):
+        d, a = _se2_err(run.T_world_cam[k], Ts[k])
+        assert d < 0.2 and a < 2e-3, (k, d, a)
 
 
 def test_map_fused_localiser_defaults_are_the_localizers():

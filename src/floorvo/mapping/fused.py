@@ -26,7 +26,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, parse_set_args
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import Frame, StepResult
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
 from floorvo.estimators.registry import get_estimator, make_config
 from floorvo.geometry import invert_T
 from floorvo.mapping.localize import LocalizeConfig, Localizer
@@ -52,6 +52,9 @@ class _State:
     odo_state: object = None
     T_world: np.ndarray | None = None  # belief of the last good frame
     last_fix: object = None  # floorvo.mapping.localize.Localization
+    # belief of the frame the odometry measures its next step from (its last ok frame, or the one
+    # it restarted on); None while that frame has no belief (the odometry restarted off the map)
+    T_odo_ref: np.ndarray | None = None
 
 
 class MapFused:
@@ -92,6 +95,8 @@ class MapFused:
             )
         self.localizer = Localizer(self.map, config, flatfield=flatfield)  # a MapFusedConfig is a LocalizeConfig
         self.odometry = None
+        #: What the sequence must have: the odometry's (orb-icp's depth; :meth:`floorvo.sequence.Sequence.lacks`).
+        self.requires: frozenset[str] = frozenset()
         if config.odometry != "none":
             if config.odometry == self.name:
                 raise ConfigError(f"{where['odometry']} = 'map-fused': must be another estimator or 'none'")
@@ -100,6 +105,9 @@ class MapFused:
             self.odometry = get_estimator(config.odometry)(
                 odo_cfg, camera, height_mm=height_mm, flatfield=flatfield, **rig
             )
+            self.requires = frozenset(getattr(self.odometry, "requires", ()))
+        elif config.odometry_set.strip():  # taken and ignored without a word
+            raise ConfigError(f"map-fused.odometry_set = {config.odometry_set!r}: set with no odometry ('none')")
 
     def start(self) -> _State:
         return _State(odo_state=self.odometry.start() if self.odometry else None)
@@ -120,17 +128,25 @@ class MapFused:
             timing_ms=timing,
         )
         prev = state.T_world
+        bridged = ""  # why an ok odometry step placed nothing
         if fix is not None and fix.ok:
             new = fix.T_world_cam
             state.last_fix = fix
-        elif prev is not None and odo is not None and odo.ok:
-            new = prev @ odo.T_prev_cur
+        elif odo is not None and odo.ok and state.T_odo_ref is not None:
+            # The odometry's step is from its own reference frame: the last frame it measured ok or
+            # restarted on, not the last frame placed here (a fix it lost, or a frame it restarted on
+            # after a kidnap: steps chained from the last placed frame reported 273 mm off as ok).
+            new = state.T_odo_ref @ odo.T_prev_cur
         else:
             new = None
+            if odo is not None and odo.ok:
+                bridged = "odometry: its step is from the frame it restarted on, which the map did not place"
+        if prev is None and new is None and odo is not None and odo.status == "init" and fix is None:
+            new = np.eye(4)  # the first frame: anchored at the identity until a fix places the run
+        if odo is not None and (odo.ok or odo.status == "init" or RESTART_NOTE in (odo.reason or "")):
+            state.T_odo_ref = new  # the odometry's next step is from this frame
         if prev is None:
             # First frame (or no pose yet): anchor at the fix, or wait for one.
-            if new is None and odo is not None and odo.status == "init" and fix is None:
-                new = np.eye(4)
             if new is None:
                 why = fix.reason if fix is not None else "no map fix yet"
                 return StepResult("lost", reason=f"not localised: {why}", **counts)
@@ -146,7 +162,9 @@ class MapFused:
             parts = []
             if fix is not None:
                 parts.append(f"map: {fix.reason}")
-            if odo is not None:
+            if bridged:
+                parts.append(bridged)
+            elif odo is not None:
                 parts.append(f"odometry: {odo.reason or odo.status}")
             return StepResult("lost", reason="; ".join(parts) or "no fix and no odometry", **counts)
         state.T_world = new

@@ -75,6 +75,9 @@ def localize_sequence(
     est = MapFused(
         cfg, seq.camera, height_mm=height, flatfield=seq.flatfield(), labels={"map": "--map", "odometry": "--odometry"}
     )
+    lacking = seq.lacks(est.requires, f"--odometry {odometry}")
+    if lacking:  # --odometry orb-icp on a mono sequence lost every step between fixes ('no depth image')
+        raise ConfigError(lacking)
     out = ensure_writable_dir(out_dir)
     name = "map-fused" if odometry != "none" else "relocalise"
     n = seq.frame_count
