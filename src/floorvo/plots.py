@@ -10,7 +10,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence as SequenceT
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +66,21 @@ def _plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotRun |
     return PlotRun(name, run.timestamps_s, run.T_world_cam, dict(run.result))
 
 
+#: The formats :func:`plot_runs` writes, by the output file's suffix.
+PLOT_FORMATS = ("png", "pdf", "svg")
+
+
+def _styles(n: int) -> list[tuple[Any, str]]:
+    """(colour, line style) of each of ``n`` runs, all different: matplotlib's ten colours, then
+    twenty, each with three line styles (beyond ten runs the default cycle drew two runs alike)."""
+    import matplotlib
+
+    if n <= 10:
+        return [(matplotlib.colormaps["tab10"](i), "-") for i in range(n)]
+    cmap = matplotlib.colormaps["tab20"]
+    return [(cmap(i % 20), ("-", "--", ":")[(i // 20) % 3]) for i in range(n)]
+
+
 def draw_trajectories(ax: Any, runs: SequenceT[PlotRun], reference: tuple[np.ndarray, np.ndarray] | None) -> bool:
     """x-y of each run (and of the ground truth ``reference = (t_s, T_world_cam)``) on ``ax``, in mm,
     no alignment; a nearly straight path keeps unequal axes so its lateral error stays visible.
@@ -75,8 +90,8 @@ def draw_trajectories(ax: Any, runs: SequenceT[PlotRun], reference: tuple[np.nda
     if reference is not None:
         T_ref = reference[1]
         ax.plot(T_ref[:, 0, 3], T_ref[:, 1, 3], "k-", lw=2.5, alpha=0.5, label="ground truth")
-    for r in runs:
-        ax.plot(r.T_world_cam[:, 0, 3], r.T_world_cam[:, 1, 3], ".-", ms=3, lw=1, label=r.label)
+    for r, (colour, ls) in zip(runs, _styles(len(runs)), strict=True):
+        ax.plot(r.T_world_cam[:, 0, 3], r.T_world_cam[:, 1, 3], ".", ls=ls, color=colour, ms=3, lw=1, label=r.label)
     ax.set_xlabel("x [mm]")
     xy = (reference[1] if reference is not None else np.concatenate([r.T_world_cam for r in runs]))[:, :2, 3]
     ext = np.ptp(xy, axis=0)
@@ -98,12 +113,12 @@ def draw_errors(
     run (poses associated by time within ``max_diff_s``). Returns whether anything was drawn."""
     drawn = False
     t_ref, T_ref = reference
-    for r in runs:
+    for r, (colour, ls) in zip(runs, _styles(len(runs)), strict=True):
         i_ref, i_est = associate(t_ref, r.t_s, max_diff_s)
         if len(i_ref) < 2:
             continue
         d, e = translation_error_along_path(T_ref[i_ref], r.T_world_cam[i_est], "none")
-        ax.plot(d, e, ".-", ms=3, lw=1, label=r.label)
+        ax.plot(d, e, ".", ls=ls, color=colour, ms=3, lw=1, label=r.label)
         drawn = True
     ax.set_xlabel("distance travelled [mm]")
     ax.set_ylabel("translation error [mm]")
@@ -129,6 +144,11 @@ def plot_runs(
     that does not fit its sequence (:func:`~floorvo.sequence.read_groundtruth`) or shares no
     timestamp with any run.
     """
+    fmt = Path(out_png).suffix.lower().lstrip(".")
+    if fmt not in PLOT_FORMATS:  # '-o out.pdf' wrote PNG bytes under that name
+        raise FloorbenchError(
+            f"{out_png}: the plot is written as {', '.join(PLOT_FORMATS)}, by the file's suffix: name it FILE.png"
+        )
     runs = []
     for d in run_dirs:
         r = _plot_run(d)  # a damaged run folder: the reader's one line, as floorvo score gives it
@@ -137,6 +157,11 @@ def plot_runs(
         runs.append(r)
     if not runs:
         raise FloorbenchError("floorvo plot: give at least one run folder")
+    # Runs of one estimator (a calibrated and an uncalibrated one) had the same legend entry.
+    names = [r.label for r in runs]
+    for k, (r, d) in enumerate(zip(runs, run_dirs, strict=True)):
+        if names.count(r.label) > 1:
+            runs[k] = replace(r, label=f"{r.label} ({d})")
     reference = None
     if groundtruth is not None:
         gt = Path(groundtruth)
@@ -147,7 +172,10 @@ def plot_runs(
     panels = 2 if reference is not None else 1
     fig, axes = plt.subplots(panels, 1, figsize=(7.5, 4 * panels), squeeze=False)
     draw_trajectories(axes[0, 0], runs, reference)
-    axes[0, 0].set_title(title or "estimated against true trajectory, seen from above (no alignment)")
+    # the title as it was typed: matplotlib reads '$...$' as math ('drift $x_$' raised from inside it)
+    axes[0, 0].set_title(
+        title.replace("$", r"\$") or "estimated against true trajectory, seen from above (no alignment)"
+    )
     if reference is not None:
         if not draw_errors(axes[1, 0], runs, reference):
             plt.close(fig)
@@ -158,7 +186,7 @@ def plot_runs(
         axes[1, 0].set_title("translation error against distance travelled (no alignment)")
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
+    fig.savefig(buf, format=fmt, dpi=100)
     plt.close(fig)
     atomic_write_bytes(out_png, buf.getvalue())
     return Path(out_png)

@@ -359,6 +359,35 @@ def test_floorvo_plot_draws_runs_against_ground_truth(line_sequence, tmp_path, c
     assert "shares two timestamps" in capsys.readouterr().err
 
 
+def test_floorvo_plot_takes_its_title_as_typed_tells_runs_apart_and_writes_the_format_asked(
+    line_sequence, tmp_path, capsys, monkeypatch
+):
+    """A title with '$...$' was read as math and raised from inside matplotlib (a 61-line
+    traceback); two runs of one estimator had one legend entry; '-o out.pdf' wrote PNG bytes."""
+    from floorvo.plots import _styles, load_plot_run
+
+    spec = load_estimator_file(EXAMPLE / "fft-vo.toml")
+    run_external(line_sequence, spec, tmp_path / "a")
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    png = tmp_path / "plot.png"
+    argv = ["plot", str(tmp_path / "a"), str(tmp_path / "b"), "--gt", str(line_sequence), "--title", "drift $x_$"]
+    import floorvo.plots as plots
+
+    drawn, draw = [], plots.draw_trajectories
+    monkeypatch.setattr(plots, "draw_trajectories", lambda ax, runs, ref: drawn.extend(runs) or draw(ax, runs, ref))
+    assert floorvo_main([*argv, "-o", str(png)]) == 0, capsys.readouterr().err
+    assert [r.label for r in drawn] == [f"fft-vo ({tmp_path / 'a'})", f"fft-vo ({tmp_path / 'b'})"]
+    assert cv2.imread(str(png)) is not None
+    assert load_plot_run(tmp_path / "a").label == "fft-vo"
+    pdf = tmp_path / "plot.pdf"
+    assert floorvo_main([*argv, "-o", str(pdf)]) == 0 and pdf.read_bytes().startswith(b"%PDF")
+    capsys.readouterr()
+    assert floorvo_main([*argv, "-o", str(tmp_path / "plot.jpeg")]) == 1
+    assert "plot.jpeg: the plot is written as png, pdf, svg, by the file's suffix" in capsys.readouterr().err
+    styles = _styles(25)  # beyond ten runs matplotlib's cycle drew two alike
+    assert len({(tuple(c), ls) for c, ls in styles}) == 25
+
+
 def test_score_warns_instead_of_scoring_a_run_outside_the_ground_truth_frame(line_sequence, tmp_path, capsys):
     from floorvo.scoring import score_run
 

@@ -15,7 +15,7 @@ def add_parser(sub) -> None:
     p.add_argument("runs", metavar="RUN", nargs="+", type=Path, help="run folders (trajectory.txt)")
     p.add_argument("--gt", type=Path, default=None, help="sequence folder (its groundtruth.txt) or a TUM file")
     p.add_argument("--title", default="", help="title of the trajectory plot")
-    add_output_argument(p, "PNG file to write", metavar="FILE", type=Path)
+    add_output_argument(p, "image file to write: FILE.png (or .pdf, .svg)", metavar="FILE", type=Path)
     p.set_defaults(func=run)
 
 
