@@ -344,6 +344,10 @@ def _run_steps(
     name, and each step's sequence frames ``(from (K,), to (K,))`` (None: unknown, a run without
     ``timing.csv``, or a bare ground-truth file)."""
     gt, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
+    if len(run.timestamps_s) < 2:  # a run that lost every frame: said as such, not as a timing mismatch
+        raise SequenceError(
+            f"{run_dir}/trajectory.txt: holds {len(run.timestamps_s)} pose(s): the run measured no step to calibrate with"
+        )
     i_ref, i_est = associate(t_ref, run.timestamps_s, max_diff_s)
     if len(i_ref) < 2:
         raise SequenceError(f"{run_dir}/trajectory.txt: fewer than 2 poses match {gt} in time (within {max_diff_s} s)")

@@ -234,6 +234,15 @@ def test_one_calibration_from_a_straight_run_and_a_spin(tmp_path, capsys):
     assert "--gt: given 2 times for 3 runs" in capsys.readouterr().err
 
 
+def test_a_run_that_lost_every_frame_is_said_to_have_no_step(tmp_path, capsys):
+    """It was refused as 'fewer than 2 poses match ... in time', which points at the timestamps."""
+    straight = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(6)])
+    run, seq = hand_run(tmp_path / "a", straight, straight, "phase-corr", lost_after=1)
+    assert floorvo_main(["calibrate", str(run), "--gt", str(seq), "-o", str(tmp_path / "cal.json")]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"floorvo: error: {run}/trajectory.txt: holds 1 pose(s): the run measured no step to calibrate with"]
+
+
 @pytest.mark.parametrize("value, words", [("-1", "must be >= 0.0 mm"), ("nan", "must be a finite number")])
 def test_an_impossible_min_travel_is_refused(tmp_path, capsys, value, words):
     """floorvo calibrate --min-travel-mm nan kept every axis 'not observed' at scale 1, exit 0."""
