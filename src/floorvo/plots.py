@@ -145,7 +145,8 @@ def plot_runs(
     timestamp with any run.
     """
     fmt = Path(out_png).suffix.lower().lstrip(".")
-    if fmt not in PLOT_FORMATS:  # '-o out.pdf' wrote PNG bytes under that name
+    named = str(out_png).strip() and Path(out_png).name not in ("", ".", "..")  # else: the writer says why
+    if named and fmt not in PLOT_FORMATS:  # '-o out.pdf' wrote PNG bytes under that name
         raise FloorbenchError(
             f"{out_png}: the plot is written as {', '.join(PLOT_FORMATS)}, by the file's suffix: name it FILE.png"
         )
@@ -186,7 +187,7 @@ def plot_runs(
         axes[1, 0].set_title("translation error against distance travelled (no alignment)")
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format=fmt, dpi=100)
+    fig.savefig(buf, format=fmt if fmt in PLOT_FORMATS else "png", dpi=100)
     plt.close(fig)
     atomic_write_bytes(out_png, buf.getvalue())
     return Path(out_png)

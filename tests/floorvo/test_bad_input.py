@@ -590,7 +590,7 @@ def test_an_output_path_under_a_file_says_not_a_directory(small_seq, tmp_path, c
     afile.write_text("x")
     for command in ("score", "plot", "calibrate"):
         capsys.readouterr()
-        out = afile / "sub" / "x.json" if command == "plot" else afile / "x.json"
+        out = afile / "sub" / "x.png" if command == "plot" else afile / "x.json"
         assert floorvo_main([command, str(run), "--gt", str(small_seq), "-o", str(out)]) == 1
         assert f"{out}: Not a directory (errno 20)" in _one_line(capsys, "floorvo")
     assert floorsim_main(["export", str(small_seq), "--format", "euroc", "-o", str(afile / "e")]) == 1
