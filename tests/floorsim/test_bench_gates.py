@@ -76,6 +76,10 @@ def test_direction_comes_from_the_metric_declaration():
     assert "allowed down to 0.99" in r.summary()
     up = compare([{**row, "fps": 300.0}], baseline)
     assert up.ok and up.improved == ["s/e: fps 300 (baseline 100)"]
+    # with no tolerance the limit is the baseline: still 'down to' for a higher-is-better metric
+    exact = _baseline({"tracked_fraction": {"abs": 0.0, "rel": 0.0}}, {"s/e": {"tracked_fraction": 0.9}})
+    r = compare([{**row, "tracked_fraction": 0.8}], exact)
+    assert "tracked_fraction got worse: 0.8 against baseline 0.9 (allowed down to 0.9)" in r.summary(), r.summary()
 
 
 def test_bad_baseline_files_are_refused_by_name(tmp_path):

@@ -276,3 +276,44 @@ def test_a_sweep_refuses_what_the_bench_refuses_before_any_job(tmp_path, capsys)
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and words in err, err
         assert not out.exists() and not D.RENDER_CALLS
+
+
+def test_results_csv_read_and_written_again_keeps_its_bytes(tmp_path):
+    """A resumed sweep reads its results.csv and writes the earlier rows back: every number came
+    back a float, so an integer column (the seed, an integer [vary] key) went from 7 to 7.0."""
+    rows = [
+        {
+            "scene": "s",
+            "estimator": "e",
+            "job": "a",
+            "seed": 7,
+            "repetition": 0,
+            "lights.count": 2,
+            "end_drift_pct": 0.25,
+        },
+        {
+            "scene": "s",
+            "estimator": "e",
+            "job": "b",
+            "seed": 8,
+            "repetition": 1,
+            "lights.count": 4,
+            "end_drift_pct": 1.0,
+        },
+        {
+            "scene": "s",
+            "estimator": "f",
+            "job": "c",
+            "seed": 9,
+            "repetition": 0,
+            "lights.count": 4,
+            "end_drift_pct": None,
+        },
+    ]
+    first, again = tmp_path / "a.csv", tmp_path / "b.csv"
+    write_results_csv(first, rows)
+    back = read_results_csv(first)
+    write_results_csv(again, back)
+    assert again.read_bytes() == first.read_bytes()
+    assert back[0]["seed"] == 7 and isinstance(back[0]["seed"], int) and back[1]["end_drift_pct"] == 1.0
+    assert isinstance(back[1]["end_drift_pct"], float) and back[2]["end_drift_pct"] is None

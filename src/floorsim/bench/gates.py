@@ -243,11 +243,14 @@ class Regression:
     baseline: float
     value: float
     allowed: float
+    higher_is_better: bool = False
 
     def describe(self) -> str:
         if not math.isfinite(self.value):
             return f"{self.key}: {self.metric} is missing now (baseline {self.baseline:.6g})"
-        bound = "down to" if self.allowed < self.baseline else "up to"
+        # by the metric's direction: with no tolerance the limit is the baseline itself, and
+        # comparing the two said 'up to' of a higher-is-better one's lower limit
+        bound = "down to" if self.higher_is_better else "up to"
         return (
             f"{self.key}: {self.metric} got worse: {self.value:.6g} against baseline {self.baseline:.6g} "
             f"(allowed {bound} {self.allowed:.6g})"
@@ -329,7 +332,7 @@ def compare(
             allowed = t.allowed(base, higher)
             res.checked += 1
             if not math.isfinite(value) or (value < allowed if higher else value > allowed):
-                res.regressions.append(Regression(key, metric, base, value, allowed))
+                res.regressions.append(Regression(key, metric, base, value, allowed, higher))
             elif (value > base) if higher else (value < base):
                 res.improved.append(f"{key}: {metric} {value:.6g} (baseline {base:.6g})")
     return res

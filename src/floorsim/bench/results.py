@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from collections.abc import Mapping
 from collections.abc import Sequence as SequenceT
 from pathlib import Path
@@ -86,8 +87,15 @@ def write_results_csv(
     atomic_write_csv(path, cols, ([r.get(c) for c in cols] for r in rows))
 
 
+#: A cell that is a whole number as written (no point, no exponent): read back as an int.
+_WHOLE = re.compile(r"[+-]?[0-9]+")
+
+
 def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Rows of a results.csv; numeric cells become floats (empty cells None), ``repetition`` an int.
+    """Rows of a results.csv; numeric cells become numbers (empty cells None), ``repetition`` an int:
+    a cell written as a whole number (``7``, a seed) an int, any other (``7.0``, ``0.25``, ``nan``)
+    a float, so that rows read and written again keep their text (a resumed sweep wrote the
+    earlier rows' seed 7 back as 7.0).
 
     A file that is not CSV text, or a ``repetition`` that is not a whole number, is a
     one-line :class:`~floorvo.errors.SequenceError` (a sweep that resumes reads its results.csv).
@@ -108,6 +116,8 @@ def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
                 d[k] = v
             elif v == "":
                 d[k] = None
+            elif _WHOLE.fullmatch(v):
+                d[k] = int(v)
             else:
                 try:
                     d[k] = float(v)
@@ -115,7 +125,7 @@ def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
                     d[k] = v
         rep = d.get("repetition")
         if rep is not None:
-            if not isinstance(rep, float) or not rep.is_integer() or rep < 0:
+            if not isinstance(rep, (int, float)) or not float(rep).is_integer() or rep < 0:
                 raise SequenceError(f"{path}:{lineno}: repetition = {shown(rep)}: must be a whole number >= 0")
             d["repetition"] = int(rep)
         out.append(d)
