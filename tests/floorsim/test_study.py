@@ -106,6 +106,11 @@ def test_search_grid_neighbours_are_within_the_tolerance():
     assert g[0] == 0.01 and g[-1] == 4.0 and max(np.array(g[1:]) / np.array(g[:-1])) <= 1.25 + 1e-9
     assert search_grid(1, 8, 3, integer=True) == [1.0, 4.0, 7.0, 8.0]
     assert search_grid(1, 2, 0.4, integer=True) == [1.0, 2.0]  # 1, 1.4, 1.8, 2 rounded
+    # neighbours no further apart than the tolerance (rounding the real grid gave 0, 2, 5, 8, 10)
+    assert search_grid(0, 10, 2.5, integer=True) == [0.0, 2.0, 4.0, 6.0, 8.0, 10.0]
+    log = search_grid(1, 64, 0.3, scale="log", integer=True)
+    assert log[0] == 1.0 and log[-1] == 64.0
+    assert all(b <= a * 1.3 or b == a + 1 for a, b in zip(log, log[1:])), log
 
 
 @pytest.mark.parametrize("fails_below", [True, False])

@@ -123,21 +123,33 @@ def search_grid(low: float, high: float, tolerance: float, scale: str = "linear"
     ``scale="linear"``: ``low + k * tolerance`` for k = 0, 1, ... while below ``high``,
     then ``high``: N + 1 values, N = ceil((high - low) / tolerance), neighbours at most
     ``tolerance`` apart (key units). ``"log"``: ``low * (1 + tolerance)**k``, then ``high``
-    (``low`` > 0): neighbours' ratio at most ``1 + tolerance``. ``integer``: values rounded
-    to whole numbers (duplicates dropped), for an integer key.
+    (``low`` > 0): neighbours' ratio at most ``1 + tolerance``. ``integer``: whole numbers from
+    ``round(low)`` to ``round(high)``, each as far from the one before as the tolerance allows and
+    at least 1 (an integer key resolves no less), so
+    neighbours are at most ``max(tolerance, 1)`` apart (log: their ratio at most ``1 + tolerance``
+    or they are 1 apart).
     """
     if not (high > low) or tolerance <= 0:
         raise ValueError(f"search grid: need low < high and tolerance > 0 (got {low}, {high}, {tolerance})")
+    if scale == "log" and low <= 0:
+        raise ValueError(f"search grid: a log scale needs low > 0 (got {low})")
+    if integer:
+        # Whole numbers from low to high, each the furthest from the one before that the tolerance
+        # allows (at least 1 on: the least an integer key resolves). The grid below rounded put
+        # 0 .. 10 at 2.5 at 0, 2, 5, 8, 10: 3 apart, a bracket wider than the tolerance.
+        lo_i, hi_i = float(round(low)), float(round(high))
+        grid = [lo_i]
+        while grid[-1] < hi_i:
+            a = grid[-1]
+            reach = a * (1.0 + tolerance) if scale == "log" else a + tolerance
+            grid.append(min(hi_i, max(a + 1.0, float(math.floor(reach + 1e-9)))))
+        return grid
     if scale == "log":
-        if low <= 0:
-            raise ValueError(f"search grid: a log scale needs low > 0 (got {low})")
         n = max(1, math.ceil(math.log(high / low) / math.log1p(tolerance) - 1e-9))
         values = [low * (1.0 + tolerance) ** k for k in range(n)] + [high]
     else:
         n = max(1, math.ceil((high - low) / tolerance - 1e-9))
         values = [low + k * tolerance for k in range(n)] + [high]
-    if integer:
-        return sorted({float(round(v)) for v in values})
     return [_round(v) for v in values]
 
 
