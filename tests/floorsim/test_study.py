@@ -155,7 +155,8 @@ def test_mean_interval_is_the_student_t_interval():
     # s = 0.763763, t(0.975, 2 dof) = 4.302653 (tables): half width 1.897293
     assert m == pytest.approx(5.416667, abs=1e-6)
     assert (lo, hi) == pytest.approx((5.416667 - 1.897293, 5.416667 + 1.897293), abs=1e-5)
-    assert mean_interval([2.0], 0.95) == (2.0, 2.0, 2.0)
+    m1, lo1, hi1 = mean_interval([2.0, float("nan")], 0.95)  # one seed with a value: no interval, not a zero-wide one
+    assert m1 == 2.0 and math.isnan(lo1) and math.isnan(hi1)
     assert all(math.isnan(v) for v in mean_interval([float("nan")], 0.95))
 
 

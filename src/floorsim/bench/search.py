@@ -221,7 +221,8 @@ def mean_interval(values: SequenceT[float], confidence: float = 0.95) -> tuple[f
     """``(mean, low, high)``: the mean of the finite ``values`` and its two-sided Student-t
     confidence interval at ``confidence`` (mean +- t_{(1+c)/2, n-1} s / sqrt(n)).
 
-    One value gives an interval of zero width at it; none gives NaNs.
+    One value gives no interval (NaNs: a Student-t interval needs two; it was shown as zero
+    wide, '95 % interval 11-11' over one seed); none gives NaNs throughout.
     """
     from scipy import stats  # scipy.stats is slow to import; only studies need it
 
@@ -231,7 +232,7 @@ def mean_interval(values: SequenceT[float], confidence: float = 0.95) -> tuple[f
         return float("nan"), float("nan"), float("nan")
     m = float(v.mean())
     if v.size == 1:
-        return m, m, m
+        return m, float("nan"), float("nan")
     half = float(stats.t.ppf(0.5 + confidence / 2, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
     return m, m - half, m + half
 
@@ -243,7 +244,7 @@ class BreakingPoint:
     ``state``: ``"found"`` (every seed found a bracket), ``"works_everywhere"`` /
     ``"fails_everywhere"`` (every seed), ``"mixed"`` (seeds disagree: some found one, some
     not), ``"open"`` (a search did not finish: a job failed). ``value``: mean of the seeds'
-    breaking values; ``interval``: its confidence interval (``value, value`` for one seed);
+    breaking values; ``interval``: its confidence interval (NaNs for one seed: :func:`mean_interval`);
     ``bracket``: the lowest and highest value of the seeds' brackets (fail side to work
     side, ascending); ``noisy``: the seeds disagree (their brackets differ, or some found
     none), i.e. the criterion is noisy near the breaking point at the grid's resolution.
@@ -359,9 +360,11 @@ class SearchResult:
         text = f"fails {side} {self.value_text(bp.value)} (bracket {bp.bracket[0]:.4g}-{bp.bracket[1]:.4g}"
         if bp.seeds > 1:
             found = sum(b.state == "found" for b in p.brackets)
-            if bp.noisy:
+            if bp.noisy and math.isfinite(bp.interval[0]):
                 pct = round(100 * self.confidence)
                 text += f"; {pct} % interval {bp.interval[0]:.4g}-{bp.interval[1]:.4g} over {found} of {bp.seeds} seeds"
+            elif bp.noisy:  # one seed found it: no interval
+                text += f"; found by {found} of {bp.seeds} seeds"
             else:
                 text += f"; every one of {bp.seeds} seeds in this bracket"
         text += ")"

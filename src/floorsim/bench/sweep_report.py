@@ -153,8 +153,9 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
                 m, lo, hi = mean_interval(per_seed, spec.confidence)
                 curves[metric].append((m, lo, hi))
                 row[metric] = m
-                row[metric + ":ci"] = _fmt_interval(lo, hi) if len(per_seed) > 1 else "-"
-                banded |= len(per_seed) > 1
+                # an interval where two seeds have a value (one seed's was shown as zero wide)
+                row[metric + ":ci"] = _fmt_interval(lo, hi) if np.isfinite(lo) else "-"
+                banded |= bool(np.isfinite(lo))
             if spec.criterion is not None:
                 row["fails"] = f"{sum(spec.criterion.failure(r) is not None for r in sel)}/{len(sel)}"
             table.append(row)
