@@ -76,6 +76,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
+from floorsim.bench.bench import is_sequence_folder  # noqa: E402
 from floorsim.bench.material_calibration import (  # noqa: E402
     FULL_SPIN_RAD,
     TURNED_HEADINGS_DEG,
@@ -148,7 +149,7 @@ def main() -> None:
         scenes,
         estimators,
         args.output,
-        scale=args.scale,
+        scale=render_scale(scenes, args.scale),
         cache_dir=args.cache,
         report=True,
         estimator_overrides=est_sets,
@@ -245,6 +246,12 @@ def _calibrated_cells(row: dict | None, stands: dict, mark: str, calibration_cel
     ]
 
 
+def render_scale(paths: list[Path], scale: float | None) -> float | None:
+    """``--scale`` for a bench of ``paths``: None when every one is a sequence folder (``--from-cache``:
+    rendered already; the bench refuses a render setting given with folders alone)."""
+    return None if all(is_sequence_folder(p) for p in paths) else scale
+
+
 def _cached(cache: Path, name: str) -> Path | None:
     """The newest finished ``CACHE/NAME-*`` sequence of a bench's render cache, or None."""
     cands = sorted(cache.glob(f"{name}-*"), key=lambda p: p.stat().st_mtime)
@@ -278,7 +285,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
         cal_scenes,
         estimators,
         out / "runs",
-        scale=args.scale,
+        scale=render_scale(cal_scenes, args.scale),
         cache_dir=args.cache,
         report=False,
         estimator_overrides=est_sets,
@@ -379,7 +386,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
                 group,
                 with_cal,
                 out / f"suite-{tag}{m}",
-                scale=args.scale,
+                scale=render_scale(group, args.scale),
                 cache_dir=args.cache,
                 report=False,
                 scale_calibrations={e: found[(m, e)] for e in with_cal},

@@ -45,7 +45,7 @@ from floorsim.scene import Scene, load_scene, resolve_scene_path  # noqa: E402
 from floorvo.calibration import save_scale_calibration  # noqa: E402
 
 # The suite's cache lookup and cells (run as a script: this folder is on the path).
-from motion_suite import _cached, _fmt, _no_cache, _scene_name  # noqa: E402
+from motion_suite import _cached, _fmt, _no_cache, _scene_name, render_scale  # noqa: E402
 
 
 def _fast_straight(scene: Scene, material_run: Scene) -> bool:
@@ -98,11 +98,12 @@ def main() -> None:
                 if fit.straight is not None:
                     fits[kind][e] = out / sc.name / f"{e}--{kind}.json"
                     save_scale_calibration(fit.straight, fits[kind][e])
-        plain = {r["estimator"]: r for r in run_bench([seq], estimators, out / f"{sc.name}/plain", **kw).rows}
+        on_seq = {**kw, "scale": render_scale([seq], args.scale)}  # a cached sequence folder: rendered already
+        plain = {r["estimator"]: r for r in run_bench([seq], estimators, out / f"{sc.name}/plain", **on_seq).rows}
         calibrated: dict[str, dict[str, dict]] = {}
         for kind, files in fits.items():
             if files:
-                res = run_bench([seq], sorted(files), out / f"{sc.name}/{kind}", scale_calibrations=files, **kw)
+                res = run_bench([seq], sorted(files), out / f"{sc.name}/{kind}", scale_calibrations=files, **on_seq)
                 calibrated[kind] = {r["estimator"]: r for r in res.rows}
         for e in estimators:
             r = plain.get(e, {})
