@@ -497,10 +497,16 @@ def translation_error_along_path(
 
 
 # ----------------------------------------------------------------------------- tracking and timing
+#: The note a lost frame's reason ends with when the runner chains the motion through it (an
+#: attitude signal that leaves the frame unplaced: :mod:`floorvo.runner`); a note, not a cause.
+CHAINED_NOTE = "the motion is chained through this frame"
+
+
 def reason_kind(reason: str) -> str:
     """The kind of a lost step's ``reason``, for counting reasons over a run.
 
-    The last ``"; "``-separated clause that is not the restart note (the cause; an earlier
+    The last ``"; "``-separated clause that is no note (the restart note, :data:`CHAINED_NOTE`:
+    every attitude reason was counted as 'the motion is chained through this frame'; the cause: an earlier
     clause says what was tried first, such as a brute-force fallback), without its
     parenthesised details, numbers replaced by ``#``: ``"weak correlation peak 0.012"``
     -> ``"weak correlation peak #"``; ``"guided prediction doubtful (...): matched by brute
@@ -512,7 +518,8 @@ def reason_kind(reason: str) -> str:
         if cut == text:
             break
         text = cut
-    clauses = [c.strip() for c in text.split("; ") if c.strip() and not c.strip().startswith("tracking restarts")]
+    notes = ("tracking restarts", CHAINED_NOTE)
+    clauses = [c.strip() for c in text.split("; ") if c.strip() and not c.strip().startswith(notes)]
     text = clauses[-1] if clauses else ""
     text = re.sub(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", text)
     text = re.sub(r"\s+", " ", text).strip(" :;,")

@@ -62,7 +62,7 @@ from floorvo.geometry import (
     yaw_of_R,
 )
 from floorvo.imaging import mean_orientation, texture_orientation
-from floorvo.metrics import WRONG_STEP_FRACTION, WRONG_STEP_MM, lost_reasons
+from floorvo.metrics import CHAINED_NOTE, WRONG_STEP_FRACTION, WRONG_STEP_MM, lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
@@ -87,7 +87,7 @@ _STAGES = tuple(c[: -len("_ms")] for c in TIMING_MS_COLUMNS)  # detect, match, e
 _PLACED = ("init", "ok")
 #: The reason of a frame whose step was measured but that has no attitude reading (a dropout
 #: of ``attitude.csv``) in a run whose poses the attitude signal makes 6-DoF.
-NO_ATTITUDE = "no attitude reading (attitude.csv): no 6-DoF pose; the motion is chained through this frame"
+NO_ATTITUDE = f"no attitude reading (attitude.csv): no 6-DoF pose; {CHAINED_NOTE}"
 
 
 @dataclass(frozen=True)
@@ -395,7 +395,7 @@ def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_
         return ""
     return (
         f"attitude signal too noisy for the step: {sigmas:g} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
-        f"x height {height_mm:.1f} mm = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; the motion is chained through this frame"
+        f"x height {height_mm:.1f} mm = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; {CHAINED_NOTE}"
     )
 
 

@@ -143,6 +143,15 @@ def test_lost_steps_are_counted_per_kind_of_reason():
     t = M.tracking_stats(statuses, 7, 2, reasons)
     assert t["lost_frames"] == 5 and sum(t["lost_reasons"].values()) == 5
     assert "lost_reasons" not in M.tracking_stats(statuses, 7, 2)
+    # the runner's note that it chains the motion through a frame is no cause: every attitude
+    # reason was counted as 'the motion is chained through this frame'
+    from floorvo.runner import NO_ATTITUDE
+
+    noisy = f"attitude signal too noisy for the step: 0.150 mm > bound 0.130 mm; {M.CHAINED_NOTE}"
+    assert M.lost_reasons(["lost", "lost", "lost"], [NO_ATTITUDE, noisy, noisy]) == {
+        "attitude signal too noisy for the step: # mm > bound # mm": 2,
+        "no attitude reading: no #-DoF pose": 1,
+    }
 
 
 def test_rpe_and_drift_of_a_scale_error_are_hand_computable():
