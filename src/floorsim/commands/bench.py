@@ -118,7 +118,9 @@ def parse_estimator_sets(items: list[str] | None) -> dict[str, dict[str, str]]:
         colon = key.find(":")
         dot = key.find(".", colon + 1 if colon >= 0 else 0)
         if dot <= 0:
-            raise ConfigError(f"--est-set {key}={value}: expected NAME.KEY=VALUE (e.g. akaze.threshold=0.001)")
+            raise ConfigError(
+                f"--est-set {key}={value}: expected NAME.KEY=VALUE (e.g. akaze-guided.akaze_threshold=0.001, map-fused.map=MAP)"
+            )
         name, k = key[:dot], key[dot + 1 :]
         out.setdefault(name, {})[k] = value
     return out

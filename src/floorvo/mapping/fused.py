@@ -61,7 +61,10 @@ class MapFused:
     """Odometry between keyframe-map fixes (paper 003 relocalisation)."""
 
     name = "map-fused"
-    description = "keyframe-map relocalisation (paper 003) fused with an odometry estimator; needs --est-set map=MAP"
+    description = (
+        "keyframe-map relocalisation (paper 003) fused with an odometry estimator; needs its map: "
+        "--set map=MAP (floorvo run), --est-set map-fused.map=MAP (floorsim bench)"
+    )
     Config = MapFusedConfig
     requires: frozenset[str] = frozenset()
 
@@ -80,7 +83,8 @@ class MapFused:
         where = {"map": "map-fused.map", "odometry": "map-fused.odometry", **(labels or {})}
         if not config.map:
             raise ConfigError(
-                f"{where['map']} = '': set the map folder (e.g. --set map=MAP), built with `floorvo map SEQ -o MAP`"
+                f"{where['map']} = '': set the map folder (floorvo run: --set map=MAP; floorsim bench: "
+                "--est-set map-fused.map=MAP), built with `floorvo map SEQ -o MAP`"
             )
         self.config = config
         self.map = load_map(config.map)
