@@ -76,6 +76,8 @@ def test_kidnap_scene_is_relocalised_on_the_map_of_the_lawnmower_scene(tmp_path,
         ("paper003_kidnap", "map-fused"),
     }
     reloc = rows[("paper003_kidnap", "relocalise")]
+    # every row says where its estimator came from (these two rows had an empty source)
+    assert all(r["source"] == "built-in" and r["source_detail"] for r in rows.values())
     # 81 mapping frames (two 60 mm lanes and a 40 mm turn at 2 mm/frame); the 50 % rule keeps a few
     assert reloc["status"] == "ok" and reloc["map_scene"] == "paper003_map"
     assert 2 <= reloc["keyframes"] <= 20

@@ -42,6 +42,7 @@ from floorsim.bench.protocols.base import (
 )
 from floorsim.bench.report import Report, RunRecord, _plt
 from floorvo.errors import FloorbenchError
+from floorvo.estimators import estimator_source
 from floorvo.io import atomic_write_json
 from floorvo.locking import lock_folder
 from floorvo.mapping.localize_run import localize_sequence
@@ -207,6 +208,8 @@ def run_paper003(
             **dict(row_base or {}),
             "scene": kidnap_label,
             "estimator": name,
+            # where it came from, as every row says (relocalise is map-fused without odometry)
+            **estimator_source("map-fused").row(),
             "repetition": 0,
             "sequence": str(kidnap_seq),
             "run_dir": str(run_dir),
