@@ -285,7 +285,19 @@ class SequenceWriter:
         renders the frame again. Nor do the files of a sequence a deferred writer (``defer``) is
         about to overwrite.
         """
-        return not self._replace_old and all(_decodes(p) for p in self.required_paths(index))
+        return not self._replace_old and all(_decodes(p, self._expected_dtype(p)) for p in self.required_paths(index))
+
+    def _expected_dtype(self, path: Path) -> np.dtype | None:
+        """What a frame file of this sequence must hold: a png16 depth map 16-bit mono, a camera
+        frame the ``bit_depth`` that ``sequence.json`` states, mono (None: any mono image)."""
+        if path.suffix != ".png":
+            return None
+        if path.parent.name == "depth":
+            return np.dtype(np.uint16)
+        bits = self.meta.get("bit_depth")
+        if bits == 8:
+            return np.dtype(np.uint8)
+        return np.dtype(np.uint16) if bits == 16 else None
 
     def has_calib(self, name: str) -> bool:
         """True if ``calib/NAME.png`` is on disk and decodes (and is not about to be overwritten)."""
@@ -298,8 +310,8 @@ class SequenceWriter:
             if not self.has_frame(i):
                 missing.append(i)
                 for p in self.required_paths(i):
-                    if p.is_file() and not _decodes(p):
-                        log.warning("%s: damaged (does not decode); writing it again", p)
+                    if p.is_file() and not _decodes(p, self._expected_dtype(p)):
+                        log.warning("%s: damaged (does not decode as this sequence's frame); writing it again", p)
         return missing
 
     # ----------------------------------------------------------------- writing
@@ -416,8 +428,10 @@ def _read_own_meta(meta_path: Path) -> dict:
     return old
 
 
-def _decodes(path: Path) -> bool:
-    """True if ``path`` is a file that reads as a frame (PNG, or ``.npy`` for depth)."""
+def _decodes(path: Path, dtype: np.dtype | None = None) -> bool:
+    """True if ``path`` is a file that reads as a frame (PNG, or ``.npy`` for depth): a mono
+    image, of ``dtype`` where given (a resumed render took an 8-bit PNG where its 16-bit depth
+    map should be as present, and a colour one as a frame)."""
     if not path.is_file():
         return False
     if path.suffix == ".npy":
@@ -431,10 +445,10 @@ def _decodes(path: Path) -> bool:
             fh.seek(-12, os.SEEK_END)
             if fh.read() != _PNG_END:  # cut short: no need to decode (libpng would complain on stderr)
                 return False
-        read_png(path)
+        img = read_png(path)
     except (OSError, SequenceError):
         return False
-    return True
+    return img.ndim == 2 and (dtype is None or img.dtype == dtype)
 
 
 def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> None:

@@ -134,6 +134,22 @@ def test_resume_rewrites_damaged_frames(tmp_path):
     assert w2.has_frame(0) and not w2.has_frame(1)
 
 
+def test_resume_writes_again_a_frame_of_another_type(tmp_path):
+    """A resumed render took an 8-bit PNG where its 16-bit depth map should be, or a colour PNG
+    where a mono frame should be, as present (floorvo run refused the sequence after)."""
+    import cv2
+
+    root = tmp_path / "seq"
+    w = SequenceWriter(root, _meta(3, depth={"format": "png16"}, bit_depth=8))
+    for i in range(3):
+        w.write_frame(i, _frame(i))
+        w.write_depth(i, np.full((30, 40), 100.0 + i))
+    cv2.imwrite(str(root / "depth" / "000001.png"), np.full((30, 40), 100, np.uint8))  # 8-bit depth
+    cv2.imwrite(str(root / "cam0" / "000002.png"), np.dstack([_frame(2)] * 3))  # colour
+    w2 = SequenceWriter(root, _meta(3, depth={"format": "png16"}, bit_depth=8))
+    assert w2.resumed and w2.missing_frames() == [1, 2]
+
+
 def test_resume_removes_stale_temporaries(tmp_path):
     root = tmp_path / "seq"
     w = SequenceWriter(root, _meta())
