@@ -224,3 +224,48 @@ def test_a_video_cut_inside_its_last_frame_is_refused_naming_the_frame(tmp_path,
     assert len(err) == 1 and f"{video}: frame 4 did not decode cleanly (FFmpeg: [mjpeg] " in err[0], err
     assert "1 of its 5 frames gave decoder errors: the file is damaged or truncated" in err[0]
     assert not (tmp_path / "cut").exists()
+
+
+#: The console script (floorvo.launch / floorsim.launch) with a signal sent to itself the moment the
+#: module ``argv[2]`` is imported, while the CLI loads.
+_SIGNAL_WHILE_LOADING = """
+import os, signal, sys
+sig, target, prog = getattr(signal, sys.argv[1]), sys.argv[2], sys.argv[3]
+class Hook:
+    fired = False
+    def find_spec(self, name, path=None, target_=None):
+        if name == target and not Hook.fired:
+            Hook.fired = True
+            os.kill(os.getpid(), sig)
+        return None
+sys.meta_path.insert(0, Hook())
+sys.argv = [prog, "list"]
+if prog == "floorsim":
+    from floorsim.launch import main
+else:
+    from floorvo.launch import floorvo_main as main
+sys.exit(main())
+"""
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize(("prog", "module"), [("floorvo", "floorvo.cli.score"), ("floorsim", "cv2")])
+def test_an_interrupt_while_the_cli_loads_is_one_line(sig, prog, module):
+    """A Ctrl-C in the 0.1-0.5 s a CLI takes to import its modules and build its parser was
+    Python's KeyboardInterrupt traceback (exit code -2), a SIGTERM an end without a word."""
+    import signal
+    import subprocess
+    import sys
+
+    from _procs import child_env
+
+    r = subprocess.run(
+        [sys.executable, "-c", _SIGNAL_WHILE_LOADING, sig, module, prog],
+        capture_output=True,
+        text=True,
+        env=child_env(),
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as a terminal's foreground job
+    )
+    how = "interrupted (SIGTERM)" if sig == "SIGTERM" else "interrupted"
+    assert r.returncode == 128 + getattr(signal, sig), r.stderr
+    assert r.stderr.splitlines() == [f"{prog}: {how}; what was written is kept, run the same command again to resume"]

@@ -34,6 +34,7 @@ from typing import Any, NoReturn
 
 from floorvo import __version__
 from floorvo.errors import ConfigError, FloorbenchError, shorten
+from floorvo.launch import hand_back
 
 __all__ = ["COMMANDS", "Terminated", "build_parser", "run_cli", "describe_os_error", "main"]
 
@@ -194,15 +195,17 @@ def run_cli(
     for name in PACKAGE_LOGGERS:
         logging.getLogger(name).setLevel(level)
     log.debug("%s %s: debug logging on", prog, args.command)
-    # OpenCV (and numpy) load here, after the parse: --help and a mistyped flag answer without them.
-    from floorvo.io import quiet_native_logs
-
-    # OpenCV's own warnings (a truncated PNG) went to standard error before the one-line error that
-    # says what is wrong; -v shows them. (FFmpeg's, a damaged video's, the video reader takes.)
-    native_logs = contextlib.nullcontext() if level <= logging.DEBUG else quiet_native_logs()
     try:
-        with _sigterm_interrupts(), native_logs:
-            return int(args.func(args) or 0)
+        hand_back()  # the console script's answer while the CLI loaded (floorvo.launch): ours from here
+        with _sigterm_interrupts():
+            # OpenCV (and numpy) load here, after the parse (--help and a mistyped flag answer
+            # without them), and where an interrupt is answered in one line.
+            from floorvo.io import quiet_native_logs
+
+            # OpenCV's own warnings (a truncated PNG) went to standard error before the one-line error
+            # that says what is wrong; -v shows them. (FFmpeg's, a damaged video's, the video reader takes.)
+            with contextlib.nullcontext() if level <= logging.DEBUG else quiet_native_logs():
+                return int(args.func(args) or 0)
     except FloorbenchError as exc:
         # One line whatever the message holds (values are cut where they are formatted,
         # errors.shown; this keeps the contract for a path or a name read from a file too).
