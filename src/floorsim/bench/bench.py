@@ -554,7 +554,6 @@ def run_bench(
                 for n, why in skipped.items():
                     skips.append(f"{label}: {n} {why}")
                     notes.append(f"{label}: {n} skipped ({why})")
-                    log.warning("scene %s: estimator %s skipped: %s", label, n, why)
             for name in names:
                 run_dir = out_dir / "runs" / label / name / f"rep{rep}"
                 row: dict[str, Any] = {
@@ -608,6 +607,8 @@ def run_bench(
     if not rows:  # it exited 0 and named a results.csv it never wrote
         why = f"every estimator was skipped ({'; '.join(skips)})" if skips else "no estimator to run"
         raise FloorbenchError(f"bench: no estimator ran on any scene: {why}; nothing to score")
+    for skip in skips:  # once something ran (else the error above names them, in its one line)
+        log.warning("estimator skipped: %s", skip)
     res = BenchResult(rows, records, results_csv, notes=notes)
     gate_text = None
     if baseline_data is not None:
