@@ -105,7 +105,11 @@ def test_a_broken_plugin_is_listed_unavailable_and_breaks_nothing(line_sequence,
         "broken-est = no_such_module_for_floorvo_tests:Estimator\n"
         "not-an-estimator = json:JSONDecoder\n"
         "phase-corr = no_such_module_for_floorvo_tests:PhaseCorr\n"
+        "exits = exits_on_import_for_floorvo_tests:Estimator\n"
     )
+    # a module that ends the process on import (one that parses sys.argv when imported): it ended
+    # `floorvo list` with its message and no list
+    (site / "exits_on_import_for_floorvo_tests.py").write_text("import sys\nsys.exit('parses sys.argv on import')\n")
     monkeypatch.syspath_prepend(str(site))
     refresh_plugins()
     try:
@@ -115,6 +119,7 @@ def test_a_broken_plugin_is_listed_unavailable_and_breaks_nothing(line_sequence,
         assert reasons["broken-est"] == "ModuleNotFoundError: No module named 'no_such_module_for_floorvo_tests'"
         assert reasons["not-an-estimator"] == "TypeError: estimator 'JSONDecoder' lacks 'name'"
         assert "named like a built-in" in reasons["phase-corr"]
+        assert reasons["exits"] == "SystemExit: parses sys.argv on import"
         assert estimator_source("phase-corr").kind == "built-in"  # the built-in keeps its name
         with pytest.raises(
             EstimatorLoadError,
@@ -125,6 +130,13 @@ def test_a_broken_plugin_is_listed_unavailable_and_breaks_nothing(line_sequence,
         out = capsys.readouterr().out.splitlines()
         assert any(line.startswith("phase-corr ") and "unavailable" not in line for line in out)
         assert any(line.split()[:2] == ["broken-est", "unavailable:"] for line in out)
+        # --config of such a plugin says why, not 'no such configuration'
+        assert floorvo_main(["list", "--config", "broken-est"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [
+            "floorvo: error: --config 'broken-est': the plugin is unavailable: ModuleNotFoundError: "
+            "No module named 'no_such_module_for_floorvo_tests'"
+        ], err
         # a run with the broken plugin is one line and exit code 1, not a traceback
         assert floorvo_main(["run", str(line_sequence), "-e", "broken-est", "-o", str(tmp_path / "r")]) == 1
         err = capsys.readouterr().err.strip().splitlines()

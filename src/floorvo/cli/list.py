@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
 
 def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
     """(config class, heading, keys left out) for ``floorvo list --config NAME``."""
-    from floorvo.estimators import get_estimator, list_estimators
+    from floorvo.estimators import get_estimator, list_estimators, unavailable_estimators
 
     if name == "map":
         from floorvo.mapping.map import MapConfig
@@ -45,6 +45,9 @@ def _config_class(name: str) -> tuple[type, str, tuple[str, ...]]:
 
         return SequenceMeta, COMMAND_CONFIGS[name], ()
     if name not in list_estimators() and ":" not in name:
+        failed = unavailable_estimators()
+        if name in failed:  # an installed plugin that does not load: why, as `floorvo list` says
+            raise ConfigError(f"--config {name!r}: the plugin is unavailable: {failed[name]}")
         known = ", ".join([*list_estimators(), *COMMAND_CONFIGS])
         raise ConfigError(f"--config {name!r}: no such configuration (known: {known})")
     cls = get_estimator(name)

@@ -255,9 +255,10 @@ def get_estimator(name: str) -> type[Estimator]:
     if ep is None and ":" not in name:
         raise _unknown(name)
     try:
-        # Third-party code: any exception while importing it makes it unavailable, never a crash.
+        # Third-party code: any exception while importing it makes it unavailable, never a crash;
+        # SystemExit too (a module that parses sys.argv on import ended `floorvo list`).
         cls = _checked(ep.load(), name) if ep is not None else _checked(_import_reference(name))
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         if ep is None:
             raise EstimatorLoadError(f"estimator {name!r}: cannot be imported: {_one_line(exc)}") from None
         _FAILED[name] = _one_line(exc)
