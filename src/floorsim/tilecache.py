@@ -152,7 +152,8 @@ class TileCache:
     def get(self, key: str, shape: tuple[int, int]) -> TileArrays | None:
         """(height (ny, nx), albedo (ny, nx), normals (ny, nx, 3)) float32 of tile ``key``, or None.
 
-        A file that does not hold those arrays (damaged, cut short) is a miss, logged."""
+        A file that does not hold those arrays (damaged, cut short), or holds a value that is not
+        finite, is a miss, logged."""
         p = self.path(key)
         if not p.is_file():
             return None
@@ -167,6 +168,10 @@ class TileCache:
             log.warning("damaged tile in the cache: %s; building it again", exc)
             return None
         h, a, n = z["height_mm"], z["albedo"], z["normals"]
+        bad = [k for k, v in (("height_mm", h), ("albedo", a), ("normals", n)) if not np.isfinite(v).all()]
+        if bad:  # well formed, values damaged: a NaN height raised from inside the renderer
+            log.warning("damaged tile in the cache: %s: %s not finite; building it again", p, ", ".join(bad))
+            return None
         try:
             os.utime(p)  # recently used: evicted last
         except OSError:

@@ -122,6 +122,21 @@ def test_a_damaged_tile_is_built_again(tmp_path, caplog):
     assert cache.get(key, (41, 50)) is None  # a tile of another shape is not served
 
 
+def test_a_tile_with_values_that_are_not_finite_is_built_again(tmp_path, caplog):
+    """A well-formed tile holding NaN heights was served, and the render raised 'cannot convert
+    float NaN to integer' from inside the renderer."""
+    cache = TileCache(tmp_path)
+    key = "f" * 64
+    h, a, n = _arrays(0)
+    h = h.copy()
+    h[3, 4] = np.nan
+    cache.put(key, (h, a, n))
+    assert cache.get(key, (40, 50)) is None
+    assert "damaged tile in the cache" in caplog.text and "height_mm not finite" in caplog.text
+    got = cache.load_or_build(key, (40, 50), lambda: _arrays(0))
+    assert np.isfinite(got[0]).all() and cache.get(key, (40, 50)) is not None
+
+
 def test_concurrent_writers_of_one_tile_leave_one_whole_tile(tmp_path):
     cache = TileCache(tmp_path)
     key = "e" * 64
