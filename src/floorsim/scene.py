@@ -396,6 +396,12 @@ class Scene(Config):
                 f" = {self.sensor.readout_ms} ms: a rolling shutter reads out within a frame period "
                 f"(1000 / fps = {1000.0 / self.fps:.4g} ms)",
             )
+        if self.sensor.exposure_ms > 1000.0 / self.fps:  # 1 s at 30 fps rendered, exit 0
+            raise ConfigFieldError(
+                "sensor.exposure_ms",
+                f" = {self.sensor.exposure_ms} ms: an exposure fits within a frame period "
+                f"(1000 / fps = {1000.0 / self.fps:.4g} ms)",
+            )
         _, across_mm, _ = self.lights.emitter_size_mm()
         if across_mm / 2 >= self.lights.height_mm:
             which = "lights.bar_window_mm" if self.lights.emitter == "bar" else "the LED size"

@@ -165,6 +165,8 @@ def test_fixed_pattern_is_the_same_in_every_frame(tmp_path):
     "over, message",
     [
         ({"sensor.readout_ms": 40.0}, "sensor.readout_ms = 40.0 ms: a rolling shutter reads out within a frame period"),
+        # a 1 s exposure at 30 fps rendered, exit 0
+        ({"sensor.exposure_ms": 1000.0}, "sensor.exposure_ms = 1000.0 ms: an exposure fits within a frame period"),
         ({"sensor.exposure_mode": "auto", "sensor.target_level": 0.0}, "sensor.target_level = 0.0: auto exposure"),
         ({"sensor.exposure_mode": "manual"}, "sensor.exposure_mode = 'manual': must be one of"),
         ({"sensor.gamma": 0.0}, "sensor.gamma = 0.0"),
