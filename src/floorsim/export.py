@@ -35,7 +35,10 @@ and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height
 IMU's ``attitude.csv`` likewise as ``mav0/attitude0/data.csv`` (``#timestamp [ns],roll
 [rad],pitch [rad]``). So
 both formats carry the whole sequence (``calib/`` beyond the flat fields aside: a render's
-``sensor.json`` and ``exposure.csv``), and ``floorvo import`` gives it back.
+``sensor.json`` and ``exposure.csv``), and ``floorvo import`` gives it back; but for what one
+format has no place for, said in a warning line: the bag leaves out ``attitude.csv``, the EuRoC
+layout the depth images (``/cam0/depth`` in the bag; the EuRoC export dropped them without a word,
+and ``orb-icp`` could not run on what came back).
 """
 
 from __future__ import annotations
@@ -420,6 +423,10 @@ def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
 
 def _write_euroc(seq: Sequence, out: Path) -> None:
     """The folders of :func:`export_euroc` under ``out``."""
+    if seq.has_depth:  # the layout has no depth stream
+        log.warning(
+            "%s: the depth images are left out of the EuRoC export (export --format rosbag2 carries them)", seq.root
+        )
     mav = out / "mav0"
     stamps = seq.timestamps_s
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])

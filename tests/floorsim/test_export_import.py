@@ -325,3 +325,14 @@ def test_a_euroc_export_carries_the_attitude_back_and_a_bag_says_it_left_it_out(
     caplog.clear()
     export_sequence(root, "rosbag2", tmp_path / "bag")
     assert any("attitude.csv is left out of the ROS 2 bag" in r.getMessage() for r in caplog.records)
+
+
+def test_a_euroc_export_says_it_leaves_the_depth_images_out(tmp_path, original, caplog):
+    """The EuRoC layout has no depth stream: the export dropped depth/ without a word, and orb-icp
+    could not run on what came back. The bag carries it (/cam0/depth)."""
+    seq, _ = original
+    export_sequence(seq.root, "euroc", tmp_path / "e")
+    assert any("depth images are left out of the EuRoC export" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    export_sequence(seq.root, "rosbag2", tmp_path / "b")
+    assert not any("depth" in r.getMessage() for r in caplog.records)
