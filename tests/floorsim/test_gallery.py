@@ -5,7 +5,7 @@ import pytest
 
 from floorsim.gallery import AE_FRAMES, LIGHTING_VARIANTS, render_gallery
 from floorsim.materials import MATERIALS
-from floorsim.scene import load_scene
+from floorsim.scene import list_scenes, load_scene
 from floorvo.io import read_png
 
 
@@ -46,8 +46,9 @@ def test_gallery_sheet_has_a_tile_per_material_and_variant(gallery):
     _, path = gallery
     sheet = read_png(path)
     n = len(MATERIALS) + len(LIGHTING_VARIANTS) + 1  # + the auto-exposure strip
-    tile_h, tile_w = 62 + 22, 81  # demo at quarter scale plus the label band
     rows = -(-n // 4)
+    tile_h, tile_w = (sheet.shape[0] - 6) // rows - 6, 81  # demo at quarter scale plus the label band
+    assert tile_h > 62 + 12  # a band of at least one line of text
     assert sheet.shape == (rows * (tile_h + 6) + 6, 4 * (tile_w + 6) + 6)
     # Each tile differs from the others (no material or variant renders the same picture).
     tiles = [
@@ -76,6 +77,9 @@ def test_gallery_auto_exposure_tile_spans_frames_of_changing_exposure(gallery):
     from floorvo.sequence import Sequence
 
     out, path = gallery
+    sheet = read_png(path)
+    rows = -(-(len(MATERIALS) + len(LIGHTING_VARIANTS) + 1) // 4)
+    tile_h = (sheet.shape[0] - 6) // rows - 6
     (seq_dir,) = [p for p in (out / "frames").iterdir() if "auto_exposure" in p.name]
     seq = Sequence.open(seq_dir)
     gains, levels = read_exposure_log(seq_dir / "calib" / "exposure.csv")
@@ -83,7 +87,116 @@ def test_gallery_auto_exposure_tile_spans_frames_of_changing_exposure(gallery):
     assert max(gains) / min(gains) > 1.02  # the loop reacted to the flicker
     n = len(MATERIALS) + len(LIGHTING_VARIANTS)  # the AE tile is the last
     r, c = divmod(n, 4)
-    tile = read_png(path)[6 + r * (62 + 22 + 6) :][:62, 6 + c * (81 + 6) :][:, :81]
+    tile = sheet[6 + r * (tile_h + 6) :][:62, 6 + c * (81 + 6) :][:, :81]
     edges = np.linspace(0, 81, AE_FRAMES + 1).astype(int)
     k = AE_FRAMES - 1  # the last slice, below the exposure line (drawn in the top third)
     np.testing.assert_array_equal(tile[40:, edges[k] : edges[k + 1]], seq.image(k)[40:, edges[k] : edges[k + 1]])
+
+
+@pytest.mark.render
+def test_gallery_labels_tell_every_tile_apart(gallery):
+    """Labels were cut to max(8, width // 7) characters: at quarter scale two tiles read
+    'material: c' and three 'vinyl, LEDs'. Each label band now differs from every other."""
+    _, path = gallery
+    sheet = read_png(path)
+    n = len(MATERIALS) + len(LIGHTING_VARIANTS) + 1
+    rows = -(-n // 4)
+    tile_h = (sheet.shape[0] - 6) // rows - 6
+    bands = [
+        sheet[6 + r * (tile_h + 6) + 62 : 6 + r * (tile_h + 6) + tile_h, 6 + c * 87 : 6 + c * 87 + 81].astype(int)
+        for r in range(rows)
+        for c in range(4)
+    ][:n]
+    for i in range(n):
+        for j in range(i + 1, n):
+            assert np.abs(bands[i] - bands[j]).sum() > 0, (i, j)
+
+
+def _base(tmp_path, name, replace):
+    """The demo scene with ``replace`` (old line -> new line) applied, written to tmp_path/NAME.toml."""
+    text = load_scene_text("demo")
+    for old, new in replace.items():
+        assert old in text
+        text = text.replace(old, new, 1)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def load_scene_text(name):
+    from floorsim.scene import resolve_scene_path
+
+    return resolve_scene_path(name).read_text()
+
+
+@pytest.mark.parametrize("name", [p.stem for p in list_scenes()])
+def test_every_shipped_scene_can_be_the_gallery_base(name):
+    """7 of the 17 shipped scenes failed as --base: the gallery set trajectory.type = "uniform" and
+    kept the base's other trajectory keys ("paper001_line.toml: trajectory.length_mm: unknown key")."""
+    from floorsim.gallery import gallery_scenes
+
+    tiles = gallery_scenes(name, scale=0.25)
+    assert len(tiles) == len(MATERIALS) + len(LIGHTING_VARIANTS) + 1
+    for _, scene, frames in tiles:
+        assert scene.trajectory["type"] == "uniform" and scene.build_trajectory().frame_count >= frames
+
+
+@pytest.mark.render
+def test_gallery_fits_its_variants_to_the_base(tmp_path, capsys):
+    """A 60 fps base failed after 16 renders on its own 30 ms rolling shutter, and a camera 25 mm
+    up after 10 on its own 30 mm LEDs, leaving the tiles rendered so far. The readout now stays within
+    the base's frame period and the raised LEDs below its camera, and the labels say the values used."""
+    from floorsim.cli import main
+    from floorsim.gallery import gallery_scenes
+
+    base = _base(tmp_path, "fast_low", {"fps = 30.0": "fps = 60.0", "height_mm = 100.0": "height_mm = 25.0"})
+    tiles = {label: scene for label, scene, _ in gallery_scenes(base, scale=0.25)}
+    shutter = [s for label, s in tiles.items() if "rolling shutter" in label]
+    assert len(shutter) == 1 and 0 < shutter[0].sensor.readout_ms <= 1000.0 / 60
+    assert all(s.lights.height_mm < 25.0 for s in tiles.values())
+    assert "vinyl, rolling shutter 16.6 ms" in tiles and "vinyl, LEDs 15 mm" in tiles
+    out = tmp_path / "g"
+    assert main(["gallery", "-o", str(out), "--base", str(base), "--scale", "0.25"]) == 0, capsys.readouterr().err
+    assert (out / "gallery.png").is_file()
+    assert len(list((out / "frames").iterdir())) == len(tiles)
+
+
+def test_gallery_refuses_a_base_a_tile_cannot_use_before_writing(tmp_path, capsys):
+    """A tile the base cannot take (LEDs 0.5 mm up under LEDs 2 mm tall) is refused in one line naming
+    the base, the tile and the rule, before any tile is rendered or the output folder made."""
+    from floorsim.cli import main
+
+    base = _base(tmp_path, "big_leds", {"[lights]\n": "[lights]\nled_size_mm = 2.0\nled_size_z_mm = 2.0\n"})
+    out = tmp_path / "g"
+    assert main(["gallery", "-o", str(out), "--base", str(base), "--scale", "0.25"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert "big_leds.toml: gallery tile 'vinyl, LEDs 0.5 mm': lights.height_mm = 0.5 mm" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.render
+def test_gallery_overwrite_replaces_tiles_of_other_settings(tmp_path, capsys):
+    """Re-running with another --scale said "... pass --overwrite", which gallery did not take
+    (unrecognized arguments). The same settings still reuse the tiles; --overwrite replaces them."""
+    from floorsim.cli import main
+
+    out = tmp_path / "g"
+    assert main(["gallery", "-o", str(out), "--scale", "0.2"]) == 0
+    sheet = (out / "gallery.png").read_bytes()
+    capsys.readouterr()
+    assert main(["gallery", "-o", str(out), "--scale", "0.2"]) == 0  # re-running reuses them
+    assert (out / "gallery.png").read_bytes() == sheet
+    capsys.readouterr()
+    assert main(["gallery", "-o", str(out), "--scale", "0.25"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds a different sequence" in err and "--overwrite" in err, err
+    assert read_png(out / "gallery.png").shape == read_png_bytes_shape(sheet)  # the old sheet is kept
+    assert main(["gallery", "-o", str(out), "--scale", "0.25", "--overwrite"]) == 0, capsys.readouterr().err
+    assert read_png(out / "gallery.png").shape[1] == 4 * (81 + 6) + 6  # the quarter-scale demo's tiles
+
+
+def read_png_bytes_shape(data):
+    import cv2
+
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED).shape
