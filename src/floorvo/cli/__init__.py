@@ -34,7 +34,7 @@ from typing import Any, NoReturn
 
 from floorvo import __version__
 from floorvo.errors import ConfigError, FloorbenchError, shorten
-from floorvo.launch import hand_back
+from floorvo.interrupts import hand_back
 
 __all__ = ["COMMANDS", "Terminated", "build_parser", "run_cli", "describe_os_error", "main"]
 
@@ -196,7 +196,7 @@ def run_cli(
         logging.getLogger(name).setLevel(level)
     log.debug("%s %s: debug logging on", prog, args.command)
     try:
-        hand_back()  # the console script's answer while the CLI loaded (floorvo.launch): ours from here
+        hand_back()  # the console script's answer while the CLI loaded (floorvo.interrupts): ours from here
         with _sigterm_interrupts():
             # OpenCV (and numpy) load here, after the parse (--help and a mistyped flag answer
             # without them), and where an interrupt is answered in one line.
