@@ -90,6 +90,7 @@ __all__ = [
     "fit_plane",
     "plane_fit_precision",
     "depth_floor_plane",
+    "least_rotation",
     "level_rotation",
     "rays_to_plane",
     "plane_step_T",
@@ -894,21 +895,32 @@ def depth_floor_plane(
     return n, d
 
 
-def level_rotation(n: np.ndarray) -> np.ndarray:
-    """The least rotation ``Q`` (3, 3) with ``Q n = +z``: camera axes -> the levelled frame's.
-
-    Rodrigues' formula about the axis ``n x z`` (the identity for ``n = +z``). ``n``: (3,)
-    unit normal with a positive z component (a floor in front of the camera).
-    """
-    n = np.asarray(n, dtype=float).reshape(3)
-    n = n / np.linalg.norm(n)
-    v = np.cross(n, [0.0, 0.0, 1.0])
-    c = float(n[2])
+def least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The least rotation ``Q`` (3, 3) with ``Q a = b`` for unit vectors ``a``, ``b`` (3,): Rodrigues'
+    formula about the axis ``a x b`` (the identity for ``a = b``; for ``a = -b``, half a turn
+    about an axis across them)."""
+    a = np.asarray(a, dtype=float).reshape(3)
+    b = np.asarray(b, dtype=float).reshape(3)
+    v = np.cross(a, b)
+    c = float(a @ b)
     s2 = float(v @ v)
     if s2 < 1e-30:
-        return np.eye(3)
+        if c > 0:
+            return np.eye(3)
+        k = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        k /= np.linalg.norm(k)
+        return 2.0 * np.outer(k, k) - np.eye(3)
     vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     return np.eye(3) + vx + vx @ vx * ((1.0 - c) / s2)
+
+
+def level_rotation(n: np.ndarray) -> np.ndarray:
+    """The least rotation ``Q`` (3, 3) with ``Q n = +z``: camera axes -> the levelled frame's
+    (:func:`least_rotation`). ``n``: (3,) unit normal with a positive z component (a floor in
+    front of the camera).
+    """
+    n = np.asarray(n, dtype=float).reshape(3)
+    return least_rotation(n / np.linalg.norm(n), np.array([0.0, 0.0, 1.0]))
 
 
 def rays_to_plane(uv_px: np.ndarray, camera: CameraModel, n: np.ndarray, d_mm: float) -> np.ndarray:

@@ -49,7 +49,7 @@ import numpy as np
 
 from floorvo.config import Rule
 from floorvo.errors import ConfigError
-from floorvo.geometry import invert_T, rigid_fit, yaws_of_T
+from floorvo.geometry import invert_T, least_rotation, rigid_fit, yaws_of_T
 
 __all__ = [
     "ALIGNMENTS",
@@ -200,19 +200,7 @@ def _line_alignment(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.nd
         assert u is not None
         a, b = u, cd.T @ (cs @ u)
     na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-    R = np.eye(3)
-    if na > 0 and nb > 0:
-        a, b = a / na, b / nb
-        axis = np.cross(a, b)
-        sin, cos = float(np.linalg.norm(axis)), float(np.clip(a @ b, -1.0, 1.0))
-        if sin > 1e-15:
-            k = axis / sin
-            K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-            R = np.eye(3) + sin * K + (1.0 - cos) * (K @ K)  # Rodrigues: the shortest arc from a to b
-        elif cos < 0:  # opposite: half a turn about an axis across them
-            k = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-            k /= np.linalg.norm(k)
-            R = 2.0 * np.outer(k, k) - np.eye(3)
+    R = least_rotation(a / na, b / nb) if na > 0 and nb > 0 else np.eye(3)
     return R, mu_d - R @ mu_s
 
 

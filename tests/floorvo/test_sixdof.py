@@ -15,6 +15,7 @@ from floorvo.geometry import (
     fit_plane,
     floor_plane_step,
     invert_T,
+    least_rotation,
     level_rotation,
     plane_homography_motion,
     plane_step_T,
@@ -69,6 +70,17 @@ def test_level_rotation_takes_the_normal_to_z_by_the_least_rotation():
     # The least rotation turns about an axis in the plane of n and z: the angle is that between them.
     assert np.linalg.norm(Rotation.from_matrix(Q).as_rotvec()) == pytest.approx(np.arccos(n[2]), rel=1e-12)
     np.testing.assert_array_equal(level_rotation(np.array([0.0, 0.0, 1.0])), np.eye(3))
+    # the general case, a onto b: and half a turn for opposite vectors
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        a, b = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+        Q = least_rotation(a, b)
+        np.testing.assert_allclose(Q @ a, b, atol=1e-12)
+        assert np.linalg.norm(Rotation.from_matrix(Q).as_rotvec()) == pytest.approx(np.arccos(a @ b), rel=1e-9)
+    a = np.array([0.0, 0.6, 0.8])
+    Q = least_rotation(a, -a)
+    np.testing.assert_allclose(Q @ a, -a, atol=1e-15)
+    assert np.linalg.det(Q) == pytest.approx(1.0)
 
 
 def test_rays_meet_the_plane_at_the_floor_points():
