@@ -276,7 +276,7 @@ def _disagreement(run_dir: Path, run: RunFolder) -> str:
     statuses = run.statuses
     rp = run_dir / RESULT
     frames: np.ndarray | None = None
-    if timing is not None and "frame" in timing:
+    if timing is not None:  # read_timing_csv refuses one without a frame column
         frames = np.asarray(timing["frame"]).astype(int)
         if statuses is not None:
             placed = sum(s in _PLACED for s in statuses)
@@ -375,17 +375,16 @@ def read_timing_csv(path: str | os.PathLike) -> dict[str, np.ndarray] | None:
             cols[key] = np.array(vals, dtype=object)
             continue
         _check_numbers(path, key, vals, cols[key])
-    frame = cols.get("frame")
-    if frame is not None:
-        if not all(math.isfinite(f) and f == int(f) and 0 <= f <= MAX_FRAME_INDEX for f in frame):
-            raise SequenceError(f"{path}: column 'frame' must hold frame indices (whole numbers >= 0)")
-        back = np.nonzero(np.diff(frame) <= 0)[0]
-        if len(back):
-            i = int(back[0]) + 1
-            raise SequenceError(
-                f"{path}: frame {int(frame[i])} (row {i + 1}) follows frame {int(frame[i - 1])}; "
-                "a run sees each frame once, in increasing order"
-            )
+    frame = cols["frame"]  # the column is there (refused above otherwise)
+    if not all(math.isfinite(f) and f == int(f) and 0 <= f <= MAX_FRAME_INDEX for f in frame):
+        raise SequenceError(f"{path}: column 'frame' must hold frame indices (whole numbers >= 0)")
+    back = np.nonzero(np.diff(frame) <= 0)[0]
+    if len(back):
+        i = int(back[0]) + 1
+        raise SequenceError(
+            f"{path}: frame {int(frame[i])} (row {i + 1}) follows frame {int(frame[i - 1])}; "
+            "a run sees each frame once, in increasing order"
+        )
     return cols
 
 

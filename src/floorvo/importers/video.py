@@ -71,9 +71,9 @@ def _ffmpeg_messages(source: Path) -> Iterator[Callable[[], list[str]]]:
             data = sink.read()
             seen += len(data)
             text = data.decode("utf-8", "replace").splitlines()
-            lines = [re.sub(r" @ 0x[0-9a-fA-F]+\]", "]", " ".join(x.split())) for x in text]
-            said.extend(x for x in lines if x)
-            return [x for x in lines if x]
+            lines = [re.sub(r" @ 0x[0-9a-fA-F]+\]", "]", " ".join(x.split())) for x in text if x.strip()]
+            said.extend(lines)
+            return lines
 
         try:
             yield taken
