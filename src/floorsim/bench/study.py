@@ -467,7 +467,7 @@ def study_record(spec: SweepSpec, base_scene: dict | None = None, externals: dic
 
 def remove_study_record(out_dir: str | os.PathLike) -> None:
     """Remove ``DIR/study.toml`` and ``DIR/study.json`` (:func:`write_study_record`'s), where they are."""
-    for name in ("study.toml", "study.json"):
+    for name in ("study.toml", STUDY_RECORD):
         (Path(out_dir) / name).unlink(missing_ok=True)
 
 

@@ -59,7 +59,13 @@ from floorsim.bench.bench import (
     supported_estimators,
 )
 from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner, check_estimator_choice
-from floorsim.bench.results import RESULTS_CSV, other_results_problem, read_results_csv, write_results_csv
+from floorsim.bench.results import (
+    RESULTS_CSV,
+    STUDY_RECORD,
+    other_results_problem,
+    read_results_csv,
+    write_results_csv,
+)
 from floorsim.bench.search import (
     Bracket,
     EstimatorBreakingPoint,
@@ -665,7 +671,7 @@ def run_sweep(
     problem = other_results_problem(out_dir, "sweep") or resume_problem(spec, out_dir, base_scene, programs)
     if problem:
         raise ConfigError(problem)
-    recorded_before = (out_dir / "study.json").exists()
+    recorded_before = (out_dir / STUDY_RECORD).exists()
     record = write_study_record(spec, out_dir, base_scene, programs)
     # Absolute paths: a Dask worker runs in another folder (on a cluster: a shared file system).
     cache = str((Path(cache_dir) if cache_dir is not None else out_dir / "sequences").resolve())
