@@ -30,7 +30,8 @@ HERE = Path(__file__).resolve().parents[1]
 
 
 def _render(scene: Path, out: Path, cache: Path, args, src: Path) -> float:
-    env = {**os.environ, "FLOORSIM_CACHE": str(cache), "PYTHONPATH": str(src)}
+    path = os.pathsep.join(p for p in (str(src), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, "FLOORSIM_CACHE": str(cache), "PYTHONPATH": path}
     if args.variant:
         env["FLOORSIM_VARIANT"] = args.variant
     cmd = [sys.executable, "-m", "floorsim.cli", "-q", "render", str(scene), "-o", str(out)]
