@@ -359,6 +359,19 @@ class _HeightGrid:
     corners: Any
     skip_max: Any
 
+    @property
+    def edge_slack(self) -> float:
+        """How far (in cells) outside a triangle a computed crossing still counts as on it.
+
+        A ray's cell coordinates are float32 numbers up to the grid's size, rounded by a few units
+        in their last place (1.2e-4 of a cell at 1600 cells): a ray through a triangle's edge
+        could land outside both triangles beside it and go through the floor (3 depth pixels in a
+        648x494 frame over a 3862 x 1815 tile had no hit at a fixed 1e-5). Eight such units of
+        the largest coordinate, at least 1e-5 of a cell; at the rig's 0.0617 mm cells under
+        0.5 um, and a crossing counted that far outside lies on the neighbouring plane within
+        its slope times that."""
+        return max(1e-5, 8.0 * float(np.finfo(np.float32).eps) * max(self.nx, self.ny))
+
     @staticmethod
     def of(mi, xs, ys, height_mm, albedo, normals) -> _HeightGrid | None:
         """The grid of a tile whose vertex columns ``xs`` and rows ``ys`` are evenly spaced (to 0.1 % of
@@ -1007,11 +1020,12 @@ class FloorRenderer:
         cells = int(np.floor(1.01 * max(run[0] / g.sx, run[1] / g.sy))) + 2
         return cells if cells <= self.MAX_GRID_CELLS else None
 
-    def _cell_triangles(self, cell, i, j, active, u0, w0, du, dw, oz, dz) -> list:
+    def _cell_triangles(self, cell, i, j, active, u0, w0, du, dw, oz, dz, eps) -> list:
         """The rays' crossings of the two triangles of grid cell (i, j) (``cell`` = i (nx - 1) + j):
         [(upper, t, on), ...] for the lower and the upper triangle, t the ray parameter where the ray
         meets the triangle's plane and ``on`` whether that point lies on the triangle (edges included,
-        with 1e-5 of a cell to spare, so that no ray slips between two triangles).
+        with ``eps`` of a cell to spare, :attr:`_HeightGrid.edge_slack`, so that no ray slips between
+        two triangles).
 
         The ray in the grid's cell units: u = u0 + t du along x, w = w0 + t dw along y (u0, w0 the
         origin's, counted from vertex (0, 0)), z = oz + t dz (mm). On the cell, (u, w) - (j, i) in
@@ -1023,7 +1037,6 @@ class FloorRenderer:
         assert g is not None
         z00, z01, z10, z11 = dr.gather(mi.Array4f, g.corners, cell, active)  # one packet: the cell's corners
         uc, wc = u0 - mi.Float(j), w0 - mi.Float(i)  # the origin in this cell's (u, w)
-        eps = 1e-5
         out = []
         for upper in (False, True):
             A, B = (z11 - z10, z10 - z00) if upper else (z01 - z00, z11 - z01)
@@ -1066,8 +1079,8 @@ class FloorRenderer:
         g = self._grid
         assert g is not None
         o, d, maxt = ray.o, ray.d, ray.maxt
-        x0, y0, inv_sx, inv_sy, z_max, s_min = self._opaque(
-            [g.x0, g.y0, 1.0 / g.sx, 1.0 / g.sy, g.z_max, min(g.sx, g.sy)]
+        x0, y0, inv_sx, inv_sy, z_max, s_min, eps = self._opaque(
+            [g.x0, g.y0, 1.0 / g.sx, 1.0 / g.sy, g.z_max, min(g.sx, g.sy), g.edge_slack]
         )
         nx = dr.opaque(mi.Int32, g.nx)
         ny = dr.opaque(mi.Int32, g.ny)
@@ -1096,7 +1109,7 @@ class FloorRenderer:
                 done |= clear & rising & (z + dt * d.z > z_max)
             walking &= ~done
             test = walking & (step == 0)
-            for _, t_hit, on in self._cell_triangles(cell, i, j, test, u0, w0, du, dw, o.z, d.z):
+            for _, t_hit, on in self._cell_triangles(cell, i, j, test, u0, w0, du, dw, o.z, d.z, eps):
                 occluded |= test & on & (t_hit > 0) & (t_hit < maxt)
             # Where the ray leaves the cell (plus a thousandth of a cell, so that it enters the next one).
             u_exit = mi.Float(j) + dr.select(du > 0, 1.0, 0.0)
@@ -1131,7 +1144,9 @@ class FloorRenderer:
         mi, dr = self.mi, self.dr
         g = self._grid
         assert g is not None
-        x0, y0, inv_sx, inv_sy, z_min, z_max = self._opaque([g.x0, g.y0, 1.0 / g.sx, 1.0 / g.sy, g.z_min, g.z_max])
+        x0, y0, inv_sx, inv_sy, z_min, z_max, eps = self._opaque(
+            [g.x0, g.y0, 1.0 / g.sx, 1.0 / g.sy, g.z_min, g.z_max, g.edge_slack]
+        )
         nx = dr.opaque(mi.Int32, g.nx)
         ny = dr.opaque(mi.Int32, g.ny)
         # Cell coordinates (u along x, w along y) of the origin and their rates along the ray.
@@ -1151,7 +1166,7 @@ class FloorRenderer:
                 inside = (i >= 0) & (j >= 0) & (i < ny - 1) & (j < nx - 1)
                 a = dr.select(inside, i * nx + j, 0)
                 cell = dr.select(inside, i * (nx - 1) + j, 0)
-                for upper, t, on in self._cell_triangles(cell, i, j, inside, u0, w0, du, dw, o.z, d.z):
+                for upper, t, on in self._cell_triangles(cell, i, j, inside, u0, w0, du, dw, o.z, d.z, eps):
                     hit = inside & on & (t > 0) & (t < t_best)
                     t_best = dr.select(hit, t, t_best)
                     cell_best = dr.select(hit, a, cell_best)

@@ -62,6 +62,31 @@ def test_primary_hits_on_the_grid_are_embrees_hits():
     assert np.abs(albedo.numpy() - albedo_embree.numpy()).max() < 1e-4
 
 
+def test_rays_through_a_triangle_edge_far_out_on_a_long_tile_hit_the_floor():
+    """On a tile of the default 240 mm (3900 cells), a ray's cell coordinates near the far end are
+    float32 numbers about 3000, rounded by 2.4e-4 of a cell: rays aimed at the diagonal edge between
+    a cell's two triangles all hit, at the point they were aimed at (a fixed slack of 1e-5 of a cell
+    let 0.5 % of them through the floor: depth pixels without a hit in full-size frames)."""
+    xs = np.arange(3900) * SPACING_MM
+    ys = np.arange(80) * SPACING_MM
+    height, albedo = sample_material("concrete", xs, ys, 5)
+    r = FloorRenderer(CameraModel.from_sensor())
+    r.load_heightfield(xs[0], ys[0], SPACING_MM, height, albedo)
+    mi = r.mi
+    rng = np.random.default_rng(2)
+    n = 100_000
+    i, j, f = rng.integers(10, 70, n), rng.integers(3000, 3890, n), rng.uniform(0.05, 0.95, n)
+    z = height[i, j] + f * (height[i + 1, j + 1] - height[i, j])  # on the diagonal (i, j)-(i+1, j+1)
+    target = np.stack([xs[j] + f * SPACING_MM, ys[i] + f * SPACING_MM, z], 1) - r.origin_mm
+    tilt, azimuth = rng.uniform(0.05, 0.35, n), rng.uniform(0, 2 * np.pi, n)
+    d = np.stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), -np.cos(tilt)], 1)
+    o = target - 100.0 * d
+    ray = mi.Ray3f(mi.Point3f(*o.T.astype(np.float32)), mi.Vector3f(*d.T.astype(np.float32)))
+    valid, t = (x.numpy() for x in r._intersect_grid(ray.o, ray.d, 8)[:2])
+    assert np.all(valid)
+    assert np.abs(t - 100.0).max() < 1e-4  # mm: where it was aimed
+
+
 def test_shadow_rays_on_the_grid_are_occluded_where_embree_says():
     """Shadow rays from floor points to LEDs 3 mm up and 20-60 mm away (grazing, through the relief):
     the grid walk answers as Embree's ray_test on the same mesh, and the relief does shadow a good part."""
