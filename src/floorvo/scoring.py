@@ -42,7 +42,7 @@ from floorvo.metrics import (
     turn_error,
     wrong_steps,
 )
-from floorvo.runfolder import RunFolder, check_run_of_sequence
+from floorvo.runfolder import TIMING, TRAJECTORY, RunFolder, check_run_of_sequence
 from floorvo.sequence import Sequence, read_groundtruth
 from floorvo.tum import read_tum
 
@@ -260,7 +260,8 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     ("score", "calibrate") words the error when there is no ground truth. A run that records
     another sequence than ``seq_dir`` is refused (:func:`~floorvo.runfolder.check_run_of_sequence`),
     as are a run whose files disagree (:meth:`~floorvo.runfolder.RunFolder.read`) and a sequence's
-    ground truth that does not fit its frames (:func:`~floorvo.sequence.read_groundtruth`).
+    ground truth that does not fit its frames (:func:`~floorvo.sequence.read_groundtruth`), and a
+    run whose poses do not sit at the frames it marks placed (:func:`check_poses_at_their_frames`).
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
@@ -268,8 +269,53 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
         raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
     run = RunFolder.read(run_dir)
     check_run_of_sequence(run_dir, run.result, seq_dir)
+    check_poses_at_their_frames(run_dir, run, seq_dir)
     _, ref = read_groundtruth(seq_dir, purpose)
     return gt_path, ref, run
+
+
+def check_poses_at_their_frames(run_dir: str | os.PathLike, run: RunFolder, seq_dir: str | os.PathLike) -> None:
+    """One-line :class:`SequenceError` when the run's k-th pose (``trajectory.txt``) is not at the
+    time of the k-th frame its ``timing.csv`` marks ``init`` or ``ok``: the sequence frame nearest
+    to the pose's time must be that frame. Or when ``timing.csv`` lists a frame the sequence does
+    not have.
+
+    The steps a run reported ok are scored by frame (:func:`ok_step_poses`: pose k against the
+    true pose of the k-th placed frame), the trajectory by time: poses written at other times than
+    their frames (a program's own clock, a run of another frame range) paired each step with
+    another frame's truth and counted right steps wrong. Nothing is checked where ``seq_dir`` is
+    not a sequence folder (a TUM file: no frame times), for a ``timing.csv`` without frames or
+    statuses, or when the counts differ (:meth:`RunFolder.read` refuses that where it applies).
+    """
+    seq_dir = Path(seq_dir)
+    statuses = run.statuses
+    if not (seq_dir / "sequence.json").is_file() or not statuses or not run.timing or "frame" not in run.timing:
+        return
+    frames = np.asarray(run.timing["frame"], dtype=int)
+    t_seq = Sequence.open(seq_dir).timestamps_s
+    beyond = frames[(frames < 0) | (frames >= len(t_seq))]
+    if len(beyond):
+        raise SequenceError(
+            f"{Path(run_dir) / TIMING}: lists frame {int(beyond[0])}, and {seq_dir} has frames 0-{len(t_seq) - 1}; "
+            "give the sequence the run was made on"
+        )
+    placed = frames[[i for i, st in enumerate(statuses) if st in ("init", "ok")]]
+    t_pose = np.asarray(run.timestamps_s, dtype=float)
+    if len(placed) != len(t_pose) or not len(t_seq):
+        return
+    if len(t_seq) == 1:
+        nearest = np.zeros(len(t_pose), dtype=int)
+    else:
+        after = np.clip(np.searchsorted(t_seq, t_pose), 1, len(t_seq) - 1)
+        nearest = np.where(np.abs(t_seq[after - 1] - t_pose) <= np.abs(t_seq[after] - t_pose), after - 1, after)
+    off = np.flatnonzero(nearest != placed)
+    if len(off):
+        k = int(off[0])
+        raise SequenceError(
+            f"{Path(run_dir) / TRAJECTORY}: pose {k + 1} is at {t_pose[k]:.6f} s, nearest to frame {int(nearest[k])} "
+            f"of {seq_dir}, and {TIMING} marks frame {int(placed[k])} ({t_seq[placed[k]]:.6f} s) as the run's "
+            f"placed frame {k + 1}: a pose at the time of each frame marked init or ok"
+        )
 
 
 def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01) -> Score:

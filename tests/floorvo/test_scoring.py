@@ -171,6 +171,30 @@ def test_wrong_ok_steps_are_scored_from_the_frame_each_was_measured_from(tmp_pat
         S.score_run(run, seq)
 
 
+def test_a_run_whose_poses_sit_at_other_frames_than_it_marks_is_refused(tmp_path, capsys):
+    """Frames 7 and 8 lost: the run's 24 poses belong at the times of frames 0-6 and 9-25. A program
+    that wrote them at its own consecutive times (frames 0-23) has the right counts; its steps were
+    paired by frame with their truth and its trajectory by time with another frame's: refused in
+    one line, by ``score`` (exit 1) as by the library, naming the first pose that is off."""
+    from floorvo.cli import main
+
+    seq, run = _fake_run(_dir(tmp_path / "a"), scale=1.0)
+    assert S.score_run(run, seq).tracking["wrong_ok_steps"] == 0  # the run as written: its poses at its frames
+    est = line_traj(26)[[i for i in range(26) if i not in (7, 8)]]
+    write_tum(run / "trajectory.txt", np.arange(24) / 10.0, est)
+    with pytest.raises(SequenceError, match=r"pose 8 is at 0.700000 s, nearest to frame 7 .* marks frame 9 "):
+        S.score_run(run, seq)
+    assert main(["score", str(run), "--gt", str(seq)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a pose at the time of each frame marked init or ok" in err[0]
+    # A timing.csv listing a frame the sequence does not have (26 frames: 0-25).
+    seq, run = _fake_run(_dir(tmp_path / "b"), scale=1.0)
+    rows = (run / "timing.csv").read_text().replace("\n25,", "\n26,")
+    (run / "timing.csv").write_text(rows)
+    with pytest.raises(SequenceError, match=r"timing.csv: lists frame 26, and .* has frames 0-25"):
+        S.score_run(run, seq)
+
+
 # ----------------------------------------------------------------------------- metric names
 def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(tmp_path):
     """The column names results.csv has always had (written out by hand), now all from metric_defs."""
