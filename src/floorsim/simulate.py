@@ -526,13 +526,14 @@ _EXPOSURE_HEADER = ("frame", "gain_e_per_unit", "level")
 
 
 def _sensor_meta(scene: Scene) -> dict | None:
-    """The ``sensor`` block of sequence.json: shutter timing and exposure mode (None for a
+    """The ``sensor`` block of sequence.json: shutter timing, exposure mode and, for a render with
+    motion blur, its exposure time, centred on each row's time (None for an instantaneous
     global shutter with a fixed exposure, so such sequences keep the older metadata)."""
     ss = scene.sensor
-    if ss.readout_ms <= 0 and ss.exposure_mode == "fixed":
+    if ss.readout_ms <= 0 and ss.exposure_mode == "fixed" and ss.exposure_ms <= 0:
         return None
     h = scene.camera.height_px
-    return {
+    block = {
         "shutter": "rolling" if ss.readout_ms > 0 else "global",
         "readout_ms": ss.readout_ms,
         "row_time": "t_frame + (r - (height_px - 1) / 2) * readout_ms / (height_px - 1)",
@@ -540,6 +541,9 @@ def _sensor_meta(scene: Scene) -> dict | None:
         "exposure_mode": ss.exposure_mode,
         "exposure_file": EXPOSURE_FILE if ss.exposure_mode == "auto" else None,
     }
+    if ss.exposure_ms > 0:  # the renders before this key had none; theirs stay the same sequence
+        block["exposure_ms"] = ss.exposure_ms
+    return block
 
 
 def read_exposure_log(path: Path, initial_gain: float | None = None) -> tuple[list[float], list[float]]:

@@ -155,6 +155,12 @@ class SensorBlock(Config):
     groundtruth_row: float | None = param(None, min=0, doc="image row whose pose groundtruth.txt holds")
     exposure_mode: str = param("fixed", choices=("fixed", "auto"), doc="one exposure, or one per frame")
     exposure_file: str | None = param(None, doc="per-frame exposure (frame, gain_e_per_unit, level) CSV")
+    exposure_ms: float | None = param(
+        None,
+        unit="ms",
+        min=0,
+        doc="exposure time, centred on the frame time (each row's time under a rolling shutter); none: not recorded",
+    )
 
     def row_offsets_s(self, height_px: int) -> np.ndarray:
         """(H,) exposure time of each row relative to the frame time (s) (:func:`rolling_row_offsets_s`)."""

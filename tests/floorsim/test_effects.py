@@ -9,6 +9,7 @@ from _tiny import tiny_scene
 from floorsim.depthnoise import DepthNoise, apply_depth_noise
 from floorsim.simulate import render_sequence
 from floorvo.sequence import Sequence
+from floorvo.sequence_meta import check_sequence_meta
 
 render = pytest.mark.render
 
@@ -70,6 +71,11 @@ def test_motion_blur_smears_along_the_motion_not_across(tmp_path):
     across = energy(blur, 0) / energy(sharp, 0)
     assert along < 0.5
     assert along < 0.6 * across
+    # sequence.json says so: the exposure time, centred on the frame time; an instantaneous
+    # global shutter keeps the older metadata (no sensor block).
+    block = check_sequence_meta(blur.meta).sensor_block
+    assert block.exposure_ms == 20.0 and block.shutter == "global" and block.exposure_mode == "fixed"
+    assert "sensor" not in sharp.meta and check_sequence_meta(sharp.meta).sensor_block.exposure_ms is None
 
 
 def test_depth_noise_follows_its_formula():
