@@ -1,7 +1,7 @@
 """A labelled contact sheet: one frame per floor material and per lighting variant.
 
 ``floorsim gallery -o DIR`` renders (small, quick) the first frame of a base scene for
-every registered material under the paper rig's lighting, and the vinyl floor under each
+every registered material under the base's own lighting, and the vinyl floor under each
 lighting and sensor variant, then lays them out as ``DIR/gallery.png`` with a label under each tile,
 so a person can judge the realism at a glance. The frames are kept as sequences under
 ``DIR/frames/`` (re-running reuses them).
@@ -32,9 +32,10 @@ from floorvo.sequence import Sequence
 
 __all__ = ["LIGHTING_VARIANTS", "AE_FRAMES", "AE_VARIANT", "gallery_scenes", "render_gallery"]
 
-#: Lighting variants on the vinyl floor: label -> scene overrides.
+#: Lighting variants on the vinyl floor: label -> scene overrides. The first is the base scene's own
+#: lighting, labelled with its bars and LED height (:func:`_base_label`; the paper rig's for demo).
 LIGHTING_VARIANTS: dict[str, dict[str, str]] = {
-    "paper rig: both bars, LEDs 3 mm": {},
+    "base lighting": {},
     "left bar only": {"lights.side": "left"},
     "LEDs 0.5 mm": {"lights.height_mm": "0.5"},
     "LEDs 30 mm": {"lights.height_mm": "30"},
@@ -130,6 +131,14 @@ def _labelled(tiles: list[tuple[np.ndarray, str]]) -> list[np.ndarray]:
     return out
 
 
+def _base_label(base: Scene) -> str:
+    """The label of the base's own lighting: its lit bars and LED height (the tile said "paper rig:
+    both bars, LEDs 3 mm" whatever the base's lights were)."""
+    lights = base.lights
+    bars = "both bars" if lights.side == "both" else f"{lights.side} bar only"
+    return f"base lighting: {bars}, LEDs {lights.height_mm:g} mm"
+
+
 def _fitted(label: str, over: dict[str, str], base: Scene) -> tuple[str, dict[str, str]]:
     """The variant ``label: over`` with values the base scene cannot take brought within its rules:
     a rolling shutter's readout within the base's frame period, raised LEDs below its camera."""
@@ -172,7 +181,7 @@ def gallery_scenes(base: str | os.PathLike = "demo", scale: float = 1.0) -> list
     for name in sorted(MATERIALS):
         jobs.append((f"material: {name}", {"floor.material": f'"{name}"', "floor.params": "{}"}, 1))
     for label, over in LIGHTING_VARIANTS.items():
-        label, over = _fitted(label, over, plain)
+        label, over = _fitted(label if over else _base_label(plain), over, plain)
         jobs.append((f"vinyl, {label}", {"floor.material": '"vinyl"', **over}, 1))
     ae_label, ae_over = AE_VARIANT
     jobs.append((f"vinyl, {ae_label}, {AE_FRAMES} frames", {"floor.material": '"vinyl"', **ae_over}, AE_FRAMES))

@@ -141,6 +141,20 @@ def test_every_shipped_scene_can_be_the_gallery_base(name):
         assert scene.trajectory["type"] == "uniform" and scene.build_trajectory().frame_count >= frames
 
 
+def test_the_base_lighting_tile_is_labelled_with_the_base_scenes_lights(tmp_path):
+    """The first lighting tile is the base's own lighting: it was labelled "paper rig: both bars,
+    LEDs 3 mm" over a base with one bar lit 5 mm up. Its label now says what it shows."""
+    from floorsim.gallery import gallery_scenes
+
+    labels = [label for label, _, _ in gallery_scenes("demo", scale=0.25)]
+    assert "vinyl, base lighting: both bars, LEDs 3 mm" in labels
+    base = _base(tmp_path, "left5", {"[lights]\nheight_mm = 3.0": '[lights]\nside = "left"\nheight_mm = 5.0'})
+    tiles = {label: scene for label, scene, _ in gallery_scenes(base, scale=0.25)}
+    scene = tiles["vinyl, base lighting: left bar only, LEDs 5 mm"]
+    assert scene.lights.side == "left" and scene.lights.height_mm == 5.0
+    assert not any("paper rig" in label for label in tiles)
+
+
 @pytest.mark.render
 def test_gallery_fits_its_variants_to_the_base(tmp_path, capsys):
     """A 60 fps base failed after 16 renders on its own 30 ms rolling shutter, and a camera 25 mm

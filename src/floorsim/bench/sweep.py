@@ -437,7 +437,7 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
 
 
 def _operating_value(spec: SweepSpec, key: str, base: Any) -> Any:
-    """The paper rig's value of ``key``: the study's ``[operating_point]``, else the base scene's."""
+    """The operating point's value of ``key``: the study's ``[operating_point]``, else the base scene's."""
     if key in spec.operating_point:
         return spec.operating_point[key]
     try:

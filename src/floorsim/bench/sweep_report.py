@@ -170,9 +170,9 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
         axes, (md.END_DRIFT.name, md.LOST_FRAMES.name), ("end-point drift [% of distance]", "lost frames")
     ):
         if op is not None and as_override(op) in pos:
-            ax.axvline(pos[as_override(op)], color="k", ls="--", lw=1, label="paper rig")
+            ax.axvline(pos[as_override(op)], color="k", ls="--", lw=1, label="operating point")
         elif op is not None and numeric and _is_number(op):
-            ax.axvline(float(op), color="k", ls="--", lw=1, label="paper rig")
+            ax.axvline(float(op), color="k", ls="--", lw=1, label="operating point")
         if metric in bounds:
             ax.axhline(bounds[metric].limit, color="r", ls=":", lw=1, label="criterion bound")
         top = max(
@@ -285,7 +285,7 @@ def _search_section(rep: Report, spec: SweepSpec, search: SearchResult, ops: Map
             if math.isfinite(p.point.value):
                 ax.plot([p.point.value] * 2, [y - spec.repetitions - 0.3, y - 0.7], color="k", lw=1)
         if _is_number(op):
-            ax.axvline(float(op), color="k", ls="--", lw=1, label="paper rig")
+            ax.axvline(float(op), color="k", ls="--", lw=1, label="operating point")
         ax.set_yticks(yticks, ylabels)
         ax.set_ylim(-0.7, y - 0.3)
         if s.scale == "log":
@@ -349,7 +349,7 @@ def _search_envelope(rep: Report, spec: SweepSpec, s: SearchResult, ops: Mapping
             }
         )
     if op_v is not None and _is_number(op_s) and as_override(op_v) in xpos:
-        ax.plot([xpos[as_override(op_v)]], [float(op_s)], "k*", ms=14, label="paper rig")
+        ax.plot([xpos[as_override(op_v)]], [float(op_s)], "k*", ms=14, label="operating point")
     if not numeric:
         ax.set_xticks(range(len(values)), [str(v) for v in values])
     ax.set_xlabel(vkey)
@@ -421,7 +421,7 @@ def _envelope_section(rep: Report, spec: SweepSpec, rows: SequenceT[Row], ops: M
                 ax.contour(np.arange(len(xs)), np.arange(len(ys)), w, levels=[0.5], colors=[c], linewidths=2)
             ax.plot([], [], color=c, lw=2, label=f"{est} ({int(np.sum(w >= 0.5))} of {w.size} cells work)")
         if ox is not None and oy is not None:
-            ax.plot([ox], [oy], "k*", ms=14, label="paper rig")
+            ax.plot([ox], [oy], "k*", ms=14, label="operating point")
         ax.set_xticks(range(len(xs)), [as_override(v) for v in xs], rotation=45 if not xnum else 0, fontsize=8)
         ax.set_yticks(range(len(ys)), [as_override(v) for v in ys], fontsize=8)
         ax.set_xlim(-0.5, len(xs) - 0.5)
