@@ -10,8 +10,10 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
 * ``/cam0/image_raw``, ``/cam1/image_raw`` (sensor_msgs/Image, mono8 or mono16)
 * ``/cam0/camera_info``, ``/cam1/camera_info`` (sensor_msgs/CameraInfo, plumb_bob)
 * ``/cam0/depth`` (sensor_msgs/Image, 32FC1, metres) when the sequence has depth
-* ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0)
-* ``/tf`` (world -> cam0 per frame), ``/tf_static`` (cam0 -> cam1 for stereo)
+* ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0) and ``/tf`` (world -> cam0): one
+  message each per ground-truth pose, stamped with the pose's own time (a recording's ground truth
+  may be at another rate than its frames: each frame's message held the pose of the same index,
+  stamped with the frame's time); ``/tf_static`` (cam0 -> cam1 for stereo)
 * ``/cam0/flatfield``, ``/cam1/flatfield`` (sensor_msgs/Image, one message at the first frame's
   stamp): the flat-field frames, when the sequence has them
 * ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
@@ -229,9 +231,11 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
         T["tf2_msgs/msg/TFMessage"],
     )
 
-    def header(t_s: float, frame: str):
-        ns = _ns(t_s)
+    def header_ns(ns: int, frame: str):
         return Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame)
+
+    def header(t_s: float, frame: str):
+        return header_ns(_ns(t_s), frame)
 
     def transform(T44: np.ndarray):
         xyz_mm, q = xyz_quat_from_T(T44)
@@ -339,27 +343,22 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
                 put(f"/{c}/camera_info", t_s, cam_info(cam, t_s, c, tx))
             if seq.has_depth:
                 put("/cam0/depth", t_s, image_msg((seq.depth_mm(i) / 1000.0).astype(np.float32), t_s, "cam0"))
-            if gt is not None:
-                Tw = gt[1][i]
+        if gt is not None:  # each pose at its own time (a recording's may be at another rate than the frames)
+            for ns, Tw in zip(_stamps_ns(gt[0], stamps), gt[1]):
                 tr = transform(Tw)
-                put(
-                    "/groundtruth/pose",
-                    t_s,
-                    PoseStamped(
-                        header=header(t_s, "world"),
-                        pose=Pose(
-                            position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z),
-                            orientation=tr.rotation,
-                        ),
-                    ),
+                pose = Pose(
+                    position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z),
+                    orientation=tr.rotation,
                 )
-                put(
-                    "/tf",
-                    t_s,
-                    TFMessage(
-                        transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]
-                    ),
+                w.write(
+                    conns["/groundtruth/pose"],
+                    ns,
+                    ts.serialize_cdr(PoseStamped(header=header_ns(ns, "world"), pose=pose), PoseStamped.__msgtype__),
                 )
+                tf = TFMessage(
+                    transforms=[TransformStamped(header=header_ns(ns, "world"), child_frame_id="cam0", transform=tr)]
+                )
+                w.write(conns["/tf"], ns, ts.serialize_cdr(tf, TFMessage.__msgtype__))
 
 
 def _frame_sidecar(

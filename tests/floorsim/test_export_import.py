@@ -336,3 +336,52 @@ def test_a_euroc_export_says_it_leaves_the_depth_images_out(tmp_path, original, 
     caplog.clear()
     export_sequence(seq.root, "rosbag2", tmp_path / "b")
     assert not any("depth" in r.getMessage() for r in caplog.records)
+
+
+def _recording(root, gt_times_s, frame_times_s=None):
+    """An imported-like sequence folder (not simulated: its ground truth may be at another rate than
+    its 8 frames, 16-bit, stereo): frames at ``frame_times_s`` (default about 30 Hz at a Unix time,
+    unevenly spaced), a distinct pose at each of ``gt_times_s``. Returns the sequence."""
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.sequence import SequenceWriter
+
+    cam = CameraModel(40, 30, 50.0, 51.0, 19.5, 14.5)
+    ts = 1_700_000_000.0 + np.cumsum([0.0, 0.0333, 0.0334, 0.05, 0.0331, 0.0333, 0.0335, 0.0333])
+    ts = ts if frame_times_s is None else np.asarray(frame_times_s)
+    meta = {
+        "camera": cam.to_dict(),
+        "fps": 30.0,
+        "frame_count": 8,
+        "bit_depth": 16,
+        "stereo": True,
+        "cameras": {"cam1": cam.to_dict()},
+        "rig": {"height_mm": 100.0, "T_cam0_cam1": [[1, 0, 0, 20.0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+        "source": {"format": "euroc"},
+    }
+    rng = np.random.default_rng(3)
+    with SequenceWriter(root, meta) as w:
+        w.write_timestamps(ts)
+        for i in range(8):
+            for c in ("cam0", "cam1"):
+                w.write_frame(i, rng.integers(0, 65536, (30, 40), dtype=np.uint16), c)
+        T = [T_world_cam_down(7.0 * k, -3.0 * k, 100.0 + k, 0.01 * k) for k in range(len(gt_times_s))]
+        w.write_groundtruth(np.asarray(gt_times_s), np.stack(T))
+    return Sequence.open(root)
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+@pytest.mark.parametrize("gt_rate", ["200 Hz over part of the run", "10 Hz"])
+def test_ground_truth_at_another_rate_than_the_frames_comes_back_as_it_was(tmp_path, fmt, gt_rate):
+    """A recording's ground truth at its own rate (a motion-capture system): the bag held one pose
+    per frame, the pose of the frame's index stamped with the frame's time (poses 0-7 of 200 Hz
+    ground truth put at the frames' times, 30 Hz apart, with exit code 0), and ended in an
+    IndexError where there were fewer poses than frames. Each pose goes at its own time."""
+    t0 = 1_700_000_000.0
+    t_gt = t0 + 0.02 + 0.005 * np.arange(30) if gt_rate.startswith("200") else t0 + 0.1 * np.arange(3)
+    seq = _recording(tmp_path / "seq", t_gt)
+    exported = export_sequence(seq.root, fmt, tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    t_back, T_back = Sequence.open(tmp_path / "imported").groundtruth()
+    t_ref, T_ref = seq.groundtruth()
+    np.testing.assert_array_equal(np.round(t_back * 1e6), np.round(t_ref * 1e6))  # TUM holds microseconds
+    np.testing.assert_allclose(T_back, T_ref, rtol=0, atol=1e-6)
