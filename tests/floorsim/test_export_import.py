@@ -385,3 +385,53 @@ def test_ground_truth_at_another_rate_than_the_frames_comes_back_as_it_was(tmp_p
     t_ref, T_ref = seq.groundtruth()
     np.testing.assert_array_equal(np.round(t_back * 1e6), np.round(t_ref * 1e6))  # TUM holds microseconds
     np.testing.assert_allclose(T_back, T_ref, rtol=0, atol=1e-6)
+
+
+def _euroc_stamps(folder, cam="cam0"):
+    """The stamps (ns) of a EuRoC folder's camera ``data.csv``, as written."""
+    rows = (folder / "mav0" / cam / "data.csv").read_text().splitlines()[1:]
+    return [int(r.split(",")[0]) for r in rows]
+
+
+@pytest.mark.parametrize("via", ["euroc", "rosbag2"])
+def test_a_recordings_nanosecond_stamps_come_back_to_the_nanosecond(tmp_path, via):
+    """EuRoC and ROS stamp frames in integer nanoseconds; a float of seconds holds a Unix time only
+    to about 240 ns. An import wrote ``f"{t:.9f}"`` of such a float and an export stamped
+    ``round(t * 1e9)`` of one: each pass moved every stamp by 256 ns (1403636579763555584 ->
+    1403636579763555840). A EuRoC recording imported, exported (as EuRoC, or as a bag imported
+    again) and exported as EuRoC has its own stamps, file names and ground-truth rows."""
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0])
+    src = export_sequence(seq.root, "euroc", tmp_path / "src")
+    stamps = [1403636579763555584 + 33_333_333 * k + 7 * k * k for k in range(8)]  # odd nanoseconds
+    for cam in ("cam0", "cam1"):
+        old = _euroc_stamps(src, cam)
+        for a, b in zip(old, stamps):
+            (src / "mav0" / cam / "data" / f"{a}.png").rename(src / "mav0" / cam / "data" / f"{b}.png")
+        (src / "mav0" / cam / "data.csv").write_text(
+            "#timestamp [ns],filename\n" + "".join(f"{b},{b}.png\n" for b in stamps)
+        )
+    gt = src / "mav0" / "state_groundtruth_estimate0" / "data.csv"
+    header, row = gt.read_text().splitlines()[:2]
+    gt.write_text(header + "\n" + "".join(f"{b}," + row.split(",", 1)[1] + "\n" for b in stamps[1:4]))
+    assert main(["import", str(src), "-o", str(tmp_path / "imp")]) == 0
+    again = tmp_path / "imp"
+    if via == "rosbag2":
+        export_sequence(again, "rosbag2", tmp_path / "bag")
+        assert main(["import", str(tmp_path / "bag"), "-o", str(tmp_path / "imp2")]) == 0
+        again = tmp_path / "imp2"
+    out = export_sequence(again, "euroc", tmp_path / "out")
+    assert _euroc_stamps(out) == stamps and _euroc_stamps(out, "cam1") == stamps
+    assert sorted(p.name for p in (out / "mav0" / "cam0" / "data").iterdir()) == sorted(f"{b}.png" for b in stamps)
+    rows = (out / "mav0" / "state_groundtruth_estimate0" / "data.csv").read_text().splitlines()[1:]
+    assert [int(r.split(",")[0]) for r in rows] == stamps[1:4]  # at their frames' stamps
+
+
+def test_frame_times_given_in_microseconds_are_exported_to_the_microsecond(tmp_path):
+    """A timestamps file in seconds with six decimals at a Unix time: ``timestamps.txt`` held
+    ``f"{t:.9f}"`` of the float (1700000000.066600084) and the export stamped those 84 ns; it holds
+    the shortest decimal of the float (1700000000.0666), and the export stamps what was given."""
+    given = [f"1700000000.{k * 33300 + 17:06d}" for k in range(8)]
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0], [float(t) for t in given])
+    assert (seq.root / "timestamps.txt").read_text().splitlines()[1:] == [t.rstrip("0") for t in given]
+    out = export_sequence(seq.root, "euroc", tmp_path / "out")
+    assert _euroc_stamps(out) == [int(t.replace(".", "")) * 1000 for t in given]

@@ -534,6 +534,7 @@ def read(source: Path, options=None) -> Recording:
         bit_depth=8 * np.dtype(dtype).itemsize,
         frames=frames,
         timestamps_s=frames_ns * 1e-9,
+        timestamps_ns=frames_ns,
         calibration=cal,
         has_right=has_right,
         has_depth=has_depth,
