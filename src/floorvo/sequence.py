@@ -483,25 +483,35 @@ def _depth_dtype_problem(shape: tuple[int, ...], dtype: np.dtype) -> str | None:
 _PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
-def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
-    """``ts`` if it holds ``frame_count`` finite, strictly increasing times; else a one-line SequenceError.
+def check_timestamps(
+    ts: np.ndarray, frame_count: int | None, what: str, linenos: list[int] | None = None
+) -> np.ndarray:
+    """``ts`` if it holds ``frame_count`` (None: any number of) finite, strictly increasing times;
+    else a one-line SequenceError naming ``what`` and, where ``linenos`` gives the line of each time
+    in the file ``what`` names, the line (``times.txt:4: ...``: an error that named no file left the
+    user to find which of the files given held the time).
 
     Increasing as ``timestamps.txt`` stores them, to the nanosecond: frames closer than that
     (an import at --fps 1e12) were written as equal times that the sequence's reader refused.
     """
-    if ts.ndim != 1 or len(ts) != frame_count:
+    if ts.ndim != 1 or (frame_count is not None and len(ts) != frame_count):
         raise SequenceError(f"{what}: {len(ts)} timestamp(s) for {frame_count} frame(s); need one per frame")
+
+    def at(k: int) -> str:
+        return what if linenos is None else f"{what}:{linenos[k]}"
+
     if not np.isfinite(ts).all():
-        raise SequenceError(f"{what}: timestamp of frame {int(np.argmin(np.isfinite(ts)))} is not a finite number")
+        k = int(np.argmin(np.isfinite(ts)))
+        raise SequenceError(f"{at(k)}: timestamp of frame {k} is not a finite number")
     far = np.nonzero(np.abs(ts) > MAX_TIME_S)[0]
     if len(far):
-        raise SequenceError(f"{what}: timestamp of frame {int(far[0])} {time_problem(float(ts[far[0]]))}")
+        raise SequenceError(f"{at(int(far[0]))}: timestamp of frame {int(far[0])} {time_problem(float(ts[far[0]]))}")
     bad = np.nonzero(np.diff(np.round(ts, 9)) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
         ns = " (to the nanosecond, as timestamps.txt holds them)" if ts[k] > ts[k - 1] else ""
         raise SequenceError(
-            f"{what}: timestamps must increase{ns}, frame {k} at {shown_number(ts[k], '.9f')} s follows {shown_number(ts[k - 1], '.9f')} s"
+            f"{at(k)}: timestamps must increase{ns}, frame {k} at {shown_number(ts[k], '.9f')} s follows {shown_number(ts[k - 1], '.9f')} s"
         )
     return ts
 

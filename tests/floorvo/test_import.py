@@ -960,3 +960,32 @@ def test_import_writes_an_imus_attitude(tmp_path, synth, capsys):
     )
     assert "--attitude-file: roll_rad of frame 0 = 1.5: must be a finite number of radians within +-0.5" in err
     assert not (tmp_path / "imp2" / "attitude.csv").exists()
+
+
+def test_times_that_do_not_increase_are_refused_naming_the_file_and_line(tmp_path, synth, capsys):
+    """A timestamps file (or an image list's times) with a repeated or decreasing time, or one in
+    another unit: the error said 'timestamps (timestamps file): ... frame 3 ...', naming neither
+    the file nor its line (comments and blank lines make frame 3 another line). A file with a
+    byte-order mark, CRLF line ends, comments and blank lines is read as it is."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:4]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    base = ["import", str(src), "-o", str(tmp_path / "out"), *FLAGS, "--timestamps"]
+    times = tmp_path / "times.txt"
+    times.write_text("# t [s]\n\n1700000000.1\n1700000000.2\n\n# pause\n1700000000.2\n1700000000.3\n")
+    err = _one_line_error(capsys, [*base, str(times)])
+    assert f"{times}:7: timestamps must increase, frame 2 at" in err, err
+    times.write_text("1700000000.1\n1700000000.3\n1700000000.2\n1700000000.4\n")
+    assert f"{times}:3: timestamps must increase, frame 2 at" in _one_line_error(capsys, [*base, str(times)])
+    times.write_text("# ns\n1700000000100000000\n1700000000200000000\n1700000000300000000\n1700000000400000000\n")
+    err = _one_line_error(capsys, [*base, str(times)])
+    assert f"{times}:2: timestamp of frame 0 = 1.7e+18 s is beyond 1e+10 s" in err, err
+    listed = tmp_path / "list.txt"
+    listed.write_text("".join(f"{t} frames/{i}.png\n" for i, t in enumerate([1.0, 1.1, 1.1, 1.2])))
+    err = _one_line_error(capsys, ["import", str(listed), "-o", str(tmp_path / "out"), *FLAGS])
+    assert f"{listed}:3: timestamps must increase, frame 2 at" in err, err
+    times.write_bytes(b"\xef\xbb\xbf# t [s]\r\n\r\n" + b"".join(b"170000000%d.5\r\n" % i for i in range(4)))
+    assert main([*base, str(times)]) == 0
+    np.testing.assert_array_equal(Sequence.open(tmp_path / "out").timestamps_s, 1.7e9 + np.arange(4) + 0.5)
