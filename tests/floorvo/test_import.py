@@ -989,3 +989,27 @@ def test_times_that_do_not_increase_are_refused_naming_the_file_and_line(tmp_pat
     times.write_bytes(b"\xef\xbb\xbf# t [s]\r\n\r\n" + b"".join(b"170000000%d.5\r\n" % i for i in range(4)))
     assert main([*base, str(times)]) == 0
     np.testing.assert_array_equal(Sequence.open(tmp_path / "out").timestamps_s, 1.7e9 + np.arange(4) + 0.5)
+
+
+def test_a_euroc_ground_truth_file_with_a_byte_order_mark_is_read_as_euroc(tmp_path, synth, capsys):
+    """``--groundtruth gt.txt`` whose first line is EuRoC's ``#timestamp [ns], ...`` header behind a
+    byte-order mark was taken for TUM: its rows ``t_ns px py pz qw qx qy qz`` were read as
+    ``t tx ty tz qx qy qz qw`` (a time of 1e8 s for 0.1 s in ns, w taken for x)."""
+    _, frames, T = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    rows = []
+    for i, Ti in enumerate(T):
+        xyz, q = xyz_quat_from_T(Ti)
+        cells = [100_000_000 * i, *(xyz / 1000.0), q[3], q[0], q[1], q[2]]
+        rows.append(",".join(str(c) for c in cells))
+    gt = tmp_path / "gt.txt"
+    header = "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []"
+    gt.write_bytes(b"\xef\xbb\xbf" + "\r\n".join([header, *rows, ""]).encode())
+    out = tmp_path / "out"
+    assert main(["import", str(src), "-o", str(out), *FLAGS, "--fps", "10", "--groundtruth", str(gt)]) == 0
+    t_gt, T_gt = Sequence.open(out).groundtruth()
+    np.testing.assert_allclose(t_gt, np.arange(len(T)) * 0.1, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(T_gt, T, rtol=0, atol=1e-6)

@@ -122,10 +122,13 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
 
 
 def _is_euroc_csv(path: Path) -> bool:
+    """Whether ``path`` is a EuRoC CSV: a ``.csv`` file, or one whose first line is a ``#`` header
+    naming ``[ns]``. A byte-order mark before it (Windows editors write one) is not part of it: such a
+    file was read as TUM, its ``t_ns px py pz qw qx qy qz`` rows as ``t tx ty tz qx qy qz qw``."""
     if path.suffix.lower() == ".csv":
         return True
     try:
-        with open(path) as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             head = fh.readline()
     except OSError:
         return False
