@@ -18,8 +18,9 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
   stamp): the flat-field frames, when the sequence has them
 * ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
   (``height.csv``)
-* the rig height in the bag's ``custom_data`` (``metadata.yaml``), key
-  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY`, mm
+* the rig height and the frame rate in the bag's ``custom_data`` (``metadata.yaml``), keys
+  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY` (mm) and ``FPS_KEY`` (Hz; a bag has no field
+  for it)
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
@@ -305,6 +306,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             conns["/cam0/height"] = w.add_connection("/cam0/height", Range.__msgtype__, typestore=ts)
         if seq.height_mm is not None:
             w.set_custom_data(bag_reader.CAMERA_HEIGHT_KEY, repr(float(seq.height_mm)))
+        w.set_custom_data(bag_reader.FPS_KEY, repr(float(seq.fps)))
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)

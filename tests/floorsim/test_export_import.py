@@ -435,3 +435,24 @@ def test_frame_times_given_in_microseconds_are_exported_to_the_microsecond(tmp_p
     assert (seq.root / "timestamps.txt").read_text().splitlines()[1:] == [t.rstrip("0") for t in given]
     out = export_sequence(seq.root, "euroc", tmp_path / "out")
     assert _euroc_stamps(out) == [int(t.replace(".", "")) * 1000 for t in given]
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_the_frame_rate_comes_back_as_it_was(tmp_path, fmt, capsys):
+    """A bag has no field for the frame rate: a 30 Hz recording with uneven frame times came back at
+    the 30.03 Hz of their median spacing. The bag carries it in its custom data (EuRoC in
+    ``rate_hz``); one there that is no rate is refused in one line."""
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0])
+    exported = export_sequence(seq.root, fmt, tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    assert Sequence.open(tmp_path / "imported").fps == 30.0
+    if fmt == "rosbag2":
+        meta = exported / "metadata.yaml"
+        meta.write_text(meta.read_text().replace("floorbench.fps: '30.0'", "floorbench.fps: '-30'"))
+        capsys.readouterr()
+        assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.endswith(
+            "metadata.yaml: custom_data floorbench.fps = '-30': must be a number of Hz > 0 and at most 1e+06"
+        )
+        assert not (tmp_path / "bad").exists()
