@@ -1013,3 +1013,47 @@ def test_a_euroc_ground_truth_file_with_a_byte_order_mark_is_read_as_euroc(tmp_p
     t_gt, T_gt = Sequence.open(out).groundtruth()
     np.testing.assert_allclose(t_gt, np.arange(len(T)) * 0.1, rtol=0, atol=1e-9)
     np.testing.assert_allclose(T_gt, T, rtol=0, atol=1e-6)
+
+
+def test_a_bag_with_two_different_ground_truth_poses_at_one_stamp_is_refused(tmp_path, synth, capsys):
+    """The bag reader kept the first of poses sharing a stamp, whichever it was (a TUM or EuRoC file
+    with two poses at one time is refused); a pose sent twice alike is still one pose."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    _, frames, T = synth
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    M = ts.types
+    Header, Time, Image = M["std_msgs/msg/Header"], M["builtin_interfaces/msg/Time"], M["sensor_msgs/msg/Image"]
+    PoseStamped, Pose = M["geometry_msgs/msg/PoseStamped"], M["geometry_msgs/msg/Pose"]
+    Point, Quat = M["geometry_msgs/msg/Point"], M["geometry_msgs/msg/Quaternion"]
+    stamps = [1_700_000_000_000_000_000 + 100_000_000 * i for i in range(3)]
+
+    def bag(path, second_x_m):
+        with Writer(path, version=9) as w:
+            c_img = w.add_connection("/cam/image_raw", Image.__msgtype__, typestore=ts)
+            c_gt = w.add_connection("/groundtruth", PoseStamped.__msgtype__, typestore=ts)
+            for i, ns in enumerate(stamps):
+                h = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="cam")
+                img = frames[i]
+                msg = Image(
+                    header=h,
+                    height=img.shape[0],
+                    width=img.shape[1],
+                    encoding="mono8",
+                    is_bigendian=0,
+                    step=img.shape[1],
+                    data=img.ravel(),
+                )
+                w.write(c_img, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+                for x in (0.001 * i, 0.001 * i if i != 1 else second_x_m):  # each pose sent twice
+                    p = Pose(position=Point(x=x, y=0.0, z=0.1), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0))
+                    w.write(c_gt, ns, ts.serialize_cdr(PoseStamped(header=h, pose=p), PoseStamped.__msgtype__))
+
+    bag(tmp_path / "same", 0.001)
+    assert main(["import", str(tmp_path / "same"), "-o", str(tmp_path / "a"), *FLAGS, "--height-mm", "100"]) == 0
+    np.testing.assert_allclose(Sequence.open(tmp_path / "a").groundtruth()[1][:, 0, 3], [0.0, 1.0, 2.0])
+    bag(tmp_path / "two", 0.005)
+    err = _one_line_error(capsys, ["import", str(tmp_path / "two"), "-o", str(tmp_path / "b"), *FLAGS])
+    assert f"two /groundtruth: two different poses stamped {stamps[1]} ns: ground truth holds one pose per time" in err
+    assert not (tmp_path / "b").exists()

@@ -14,7 +14,9 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   (left frame -> right frame) or else from the right projection matrix (``P[0,3] = -fx B``);
 * ``groundtruth``: ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
   ``TransformStamped`` or ``nav_msgs/Odometry`` (its pose is taken as the camera's,
-  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame);
+  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame); a pose sent
+  twice with one stamp is one pose, two different poses with one stamp are refused (the first
+  was taken, as a TUM or EuRoC file with two is refused);
 * ``flatfield``, ``right_flatfield``: an image topic named ``flatfield`` in the image's (the
   right image's) namespace (``/cam0/flatfield``): its first message is the camera's flat-field
   frame (never taken for a camera's images);
@@ -471,9 +473,15 @@ def read(source: Path, options=None) -> Recording:
     if gt_t:
         t_arr = np.asarray(gt_t, dtype=np.int64)
         order = np.argsort(t_arr, kind="stable")
-        t_sorted = t_arr[order]
+        t_sorted, T_sorted = t_arr[order], np.stack(gt_T)[order]
         first = np.concatenate([[True], np.diff(t_sorted) > 0])
-        gt = (t_sorted[first] * 1e-9, np.stack(gt_T)[order][first])
+        for j in np.nonzero(~first)[0].tolist():  # the same pose sent twice is one pose; two poses at one time are none
+            if not np.allclose(T_sorted[j], T_sorted[j - 1], rtol=0, atol=1e-6):
+                raise SequenceError(
+                    f"{source} {topics['groundtruth']}: two different poses stamped {int(t_sorted[j])} ns: "
+                    "ground truth holds one pose per time (give another topic with --topic groundtruth=NAME)"
+                )
+        gt = (t_sorted[first] * 1e-9, T_sorted[first])
     has_right = "right" in topics
     has_depth = "depth" in topics
     heights = None
