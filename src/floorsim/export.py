@@ -10,19 +10,25 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
 * ``/cam0/image_raw``, ``/cam1/image_raw`` (sensor_msgs/Image, mono8 or mono16)
 * ``/cam0/camera_info``, ``/cam1/camera_info`` (sensor_msgs/CameraInfo, plumb_bob)
 * ``/cam0/depth`` (sensor_msgs/Image, 32FC1, metres) when the sequence has depth
-* ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0)
-* ``/tf`` (world -> cam0 per frame), ``/tf_static`` (cam0 -> cam1 for stereo)
+* ``/groundtruth/pose`` (geometry_msgs/PoseStamped, T_world_cam0) and ``/tf`` (world -> cam0): one
+  message each per ground-truth pose, stamped with the pose's own time (a recording's ground truth
+  may be at another rate than its frames: each frame's message held the pose of the same index,
+  stamped with the frame's time); ``/tf_static`` (cam0 -> cam1 for stereo)
 * ``/cam0/flatfield``, ``/cam1/flatfield`` (sensor_msgs/Image, one message at the first frame's
   stamp): the flat-field frames, when the sequence has them
 * ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
   (``height.csv``)
-* the rig height in the bag's ``custom_data`` (``metadata.yaml``), key
-  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY`, mm
+* the rig height and the frame rate in the bag's ``custom_data`` (``metadata.yaml``), keys
+  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY` (mm) and ``FPS_KEY`` (Hz; a bag has no field
+  for it)
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
-finite differences, biases zero). Ground-truth rows carry the image stamps of their
-frames, to the nanosecond (``groundtruth.txt`` holds microseconds). ``sensor.yaml``'s
+finite differences, biases zero). Frames are stamped with the nanoseconds of ``timestamps.txt``
+exactly (:attr:`floorvo.sequence.Sequence.timestamps_ns`; a float of seconds holds a Unix time only
+to about 240 ns, and each export and import moved a recording's stamps by 256 ns). Ground-truth
+rows carry the image stamps of their frames, to the nanosecond, and other rows their microsecond
+(``groundtruth.txt`` holds microseconds); the bag's poses likewise. ``sensor.yaml``'s
 ``distortion_coefficients`` are EuRoC's radial-tangential (k1, k2, p1, p2), followed by
 k3 when the camera has one (OpenCV's order): a reader that takes only four would model
 another lens.
@@ -82,8 +88,11 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
-def _ns(t_s: float) -> int:
-    return int(round(t_s * 1e9))
+def _ns_of_groundtruth(t_s: float) -> int:
+    """The nanosecond stamp of a ground-truth time: ``groundtruth.txt`` (TUM) holds microseconds, and
+    a float of seconds a Unix time only to about 240 ns (``round(t * 1e9)`` of one was some hundred
+    nanoseconds off the file's microsecond)."""
+    return int(round(t_s * 1e6)) * 1000
 
 
 #: The times (s) each format can stamp: a ROS 2 ``builtin_interfaces/Time`` holds int32 seconds
@@ -229,8 +238,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
         T["tf2_msgs/msg/TFMessage"],
     )
 
-    def header(t_s: float, frame: str):
-        ns = _ns(t_s)
+    def header(ns: int, frame: str):
         return Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame)
 
     def transform(T44: np.ndarray):
@@ -240,13 +248,13 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             translation=Vector3(x=xyz[0], y=xyz[1], z=xyz[2]), rotation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])
         )
 
-    def cam_info(cam, t_s: float, frame: str, baseline_tx_m: float = 0.0):
+    def cam_info(cam, ns: int, frame: str, baseline_tx_m: float = 0.0):
         K = cam.K
         P = np.zeros((3, 4))
         P[:, :3] = K
         P[0, 3] = -cam.fx_px * baseline_tx_m
         return CameraInfo(
-            header=header(t_s, frame),
+            header=header(ns, frame),
             height=cam.height_px,
             width=cam.width_px,
             distortion_model="plumb_bob",
@@ -259,7 +267,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
         )
 
-    def image_msg(img: np.ndarray, t_s: float, frame: str):
+    def image_msg(img: np.ndarray, ns: int, frame: str):
         if img.dtype == np.uint8:
             enc, step, data = "mono8", img.shape[1], img
         elif img.dtype == np.uint16:
@@ -267,7 +275,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
         else:
             enc, step, data = "32FC1", img.shape[1] * 4, img.astype("<f4")
         return Image(
-            header=header(t_s, frame),
+            header=header(ns, frame),
             height=img.shape[0],
             width=img.shape[1],
             encoding=enc,
@@ -277,7 +285,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
         )
 
     gt = seq.groundtruth()
-    stamps = seq.timestamps_s
+    stamps, stamps_ns = seq.timestamps_s, seq.timestamps_ns  # the nanoseconds exactly as timestamps.txt has them
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
     if seq.attitude_signal_rad is not None:  # no message of the bag carries it yet (the EuRoC export does)
         log.warning("%s: attitude.csv is left out of the ROS 2 bag (export --format euroc carries it)", seq.root)
@@ -298,6 +306,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             conns["/cam0/height"] = w.add_connection("/cam0/height", Range.__msgtype__, typestore=ts)
         if seq.height_mm is not None:
             w.set_custom_data(bag_reader.CAMERA_HEIGHT_KEY, repr(float(seq.height_mm)))
+        w.set_custom_data(bag_reader.FPS_KEY, repr(float(seq.fps)))
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
@@ -307,80 +316,75 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             tfs = TFMessage(
                 transforms=[
                     TransformStamped(
-                        header=header(stamps[0], "cam0"), child_frame_id="cam1", transform=transform(T_cam0_cam1)
+                        header=header(stamps_ns[0], "cam0"), child_frame_id="cam1", transform=transform(T_cam0_cam1)
                     )
                 ]
             )
-            w.write(conns["/tf_static"], _ns(stamps[0]), ts.serialize_cdr(tfs, TFMessage.__msgtype__))
+            w.write(conns["/tf_static"], stamps_ns[0], ts.serialize_cdr(tfs, TFMessage.__msgtype__))
 
-        def put(topic: str, t_s: float, msg) -> None:
-            w.write(conns[topic], _ns(t_s), ts.serialize_cdr(msg, msg.__msgtype__))
+        def put(topic: str, ns: int, msg) -> None:
+            w.write(conns[topic], ns, ts.serialize_cdr(msg, msg.__msgtype__))
 
         for c, flat in flats.items():
             if flat is not None:
                 topic = f"/{c}/{bag_reader.FLATFIELD_TOPIC_NAME}"
-                put(topic, float(stamps[0]), image_msg(flat, float(stamps[0]), c))
+                put(topic, stamps_ns[0], image_msg(flat, stamps_ns[0], c))
         for i in range(seq.frame_count):
-            t_s = float(stamps[i])
+            t_ns = stamps_ns[i]
             if heights is not None and np.isfinite(heights[i]):
                 reading = Range(
-                    header=header(t_s, "cam0"),
+                    header=header(t_ns, "cam0"),
                     radiation_type=1,  # INFRARED: a range sensor's kind is not recorded; a reading is a reading
                     field_of_view=0.0,
                     min_range=0.0,
                     max_range=float("inf"),
                     range=float(heights[i]) / 1000.0,
                 )
-                put("/cam0/height", t_s, reading)
+                put("/cam0/height", t_ns, reading)
             for c in cams:
                 cam = seq.camera_model(c)
                 tx = 0.0 if c == "cam0" or T_cam0_cam1 is None else float(T_cam0_cam1[0, 3]) / 1000.0
-                put(f"/{c}/image_raw", t_s, image_msg(seq.image(i, c), t_s, c))
-                put(f"/{c}/camera_info", t_s, cam_info(cam, t_s, c, tx))
+                put(f"/{c}/image_raw", t_ns, image_msg(seq.image(i, c), t_ns, c))
+                put(f"/{c}/camera_info", t_ns, cam_info(cam, t_ns, c, tx))
             if seq.has_depth:
-                put("/cam0/depth", t_s, image_msg((seq.depth_mm(i) / 1000.0).astype(np.float32), t_s, "cam0"))
-            if gt is not None:
-                Tw = gt[1][i]
+                put("/cam0/depth", t_ns, image_msg((seq.depth_mm(i) / 1000.0).astype(np.float32), t_ns, "cam0"))
+        if gt is not None:  # each pose at its own time (a recording's may be at another rate than the frames)
+            for ns, Tw in zip(_stamps_ns(gt[0], stamps, stamps_ns), gt[1]):
                 tr = transform(Tw)
-                put(
-                    "/groundtruth/pose",
-                    t_s,
-                    PoseStamped(
-                        header=header(t_s, "world"),
-                        pose=Pose(
-                            position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z),
-                            orientation=tr.rotation,
-                        ),
-                    ),
+                pose = Pose(
+                    position=Point(x=tr.translation.x, y=tr.translation.y, z=tr.translation.z),
+                    orientation=tr.rotation,
                 )
-                put(
-                    "/tf",
-                    t_s,
-                    TFMessage(
-                        transforms=[TransformStamped(header=header(t_s, "world"), child_frame_id="cam0", transform=tr)]
-                    ),
+                w.write(
+                    conns["/groundtruth/pose"],
+                    ns,
+                    ts.serialize_cdr(PoseStamped(header=header(ns, "world"), pose=pose), PoseStamped.__msgtype__),
                 )
+                tf = TFMessage(
+                    transforms=[TransformStamped(header=header(ns, "world"), child_frame_id="cam0", transform=tr)]
+                )
+                w.write(conns["/tf"], ns, ts.serialize_cdr(tf, TFMessage.__msgtype__))
 
 
 def _frame_sidecar(
     folder: Path,
     columns: list[str],
     values: np.ndarray,
-    stamps: np.ndarray,
+    stamps_ns: list[int],
     sensor_type: str,
     comment: str,
     fps: float,
 ) -> None:
     """A EuRoC-style sensor folder of one reading per cam0 frame: ``data.csv`` (``#timestamp
-    [ns]`` at each frame's stamp ``stamps`` (N,) s, then the ``columns`` of ``values`` (N,) or
+    [ns]`` at each frame's stamp ``stamps_ns`` (N), then the ``columns`` of ``values`` (N,) or
     (N, k), a NaN written empty: no reading) and ``sensor.yaml`` (``sensor_type``, ``comment``,
     the frame rate)."""
     folder.mkdir(parents=True, exist_ok=True)
-    rows = np.asarray(values, dtype=float).reshape(len(stamps), -1)
+    rows = np.asarray(values, dtype=float).reshape(len(stamps_ns), -1)
     atomic_write_csv(
         folder / "data.csv",
         ["#timestamp [ns]", *columns],
-        [(_ns(float(stamps[i])), *(None if np.isnan(v) else float(v) for v in row)) for i, row in enumerate(rows)],
+        [(stamps_ns[i], *(None if np.isnan(v) else float(v) for v in row)) for i, row in enumerate(rows)],
     )
     _yaml_dump(folder / "sensor.yaml", {"sensor_type": sensor_type, "comment": comment, "rate_hz": float(fps)})
 
@@ -397,18 +401,20 @@ def euroc_distortion(distortion) -> list[float]:
     return k if k[4] != 0.0 else k[:4]
 
 
-def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray) -> list[int]:
-    """Nanosecond stamps of ``t_s``; a stamp within 1 us of a frame's (TUM files hold microseconds) gets the frame's.
+def _stamps_ns(t_s: np.ndarray, frame_stamps_s: np.ndarray, frame_stamps_ns: list[int]) -> list[int]:
+    """Nanosecond stamps of the ground-truth times ``t_s``: a time within 1 us of a frame's (TUM files
+    hold microseconds) gets the frame's stamp ``frame_stamps_ns``, another its microsecond
+    (:func:`_ns_of_groundtruth`).
 
-    ``frame_stamps_s`` (M,) increasing.
+    ``frame_stamps_s`` (M,) increasing; ``frame_stamps_ns`` the same times in ns (:attr:`Sequence.timestamps_ns`).
     """
     t_s = np.asarray(t_s, dtype=float)
     f = np.asarray(frame_stamps_s, dtype=float)
     if f.size == 0:
-        return [_ns(float(t)) for t in t_s]
+        return [_ns_of_groundtruth(float(t)) for t in t_s]
     j = np.clip(np.searchsorted(f, t_s), 1, max(1, f.size - 1)) if f.size > 1 else np.zeros(t_s.shape, int)
     k = np.where(np.abs(f[j - 1] - t_s) <= np.abs(f[j] - t_s), j - 1, j) if f.size > 1 else j
-    return [_ns(float(f[kk])) if abs(f[kk] - t) <= 1e-6 else _ns(float(t)) for t, kk in zip(t_s, k)]
+    return [frame_stamps_ns[kk] if abs(f[kk] - t) <= 1e-6 else _ns_of_groundtruth(float(t)) for t, kk in zip(t_s, k)]
 
 
 def export_euroc(seq: Sequence, out: str | os.PathLike) -> Path:
@@ -428,14 +434,14 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             "%s: the depth images are left out of the EuRoC export (export --format rosbag2 carries them)", seq.root
         )
     mav = out / "mav0"
-    stamps = seq.timestamps_s
+    stamps, stamps_ns = seq.timestamps_s, seq.timestamps_ns  # the nanoseconds exactly as timestamps.txt has them
     cams = ["cam0"] + (["cam1"] if seq.has_stereo else [])
     for c in cams:
         d = mav / c / "data"
         d.mkdir(parents=True, exist_ok=True)
         rows = []
         for i in range(seq.frame_count):
-            ns = _ns(float(stamps[i]))
+            ns = stamps_ns[i]
             src = seq.image_path(i, c)
             seq.image(i, c)  # validates the frame before it is copied
             atomic_write_bytes(d / f"{ns}.png", src.read_bytes())
@@ -472,7 +478,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             mav / HEIGHT_SENSOR,
             ["height [mm]"],
             heights,
-            stamps,
+            stamps_ns,
             "range",
             "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
             seq.fps,
@@ -483,7 +489,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             mav / ATTITUDE_SENSOR,
             ["roll [rad]", "pitch [rad]"],
             attitude,
-            stamps,
+            stamps_ns,
             "attitude",
             "floorbench: cam0's roll and pitch against gravity (rad, floorvo.sequence's attitude.csv) "
             "at each cam0 frame; empty = no reading",
@@ -497,7 +503,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
         p = Ts[:, :3, 3] / 1000.0
         v = np.gradient(p, t, axis=0) if len(t) > 1 else np.zeros_like(p)
         gt_rows: list[list[object]] = []
-        for k, ns in enumerate(_stamps_ns(t, stamps)):
+        for k, ns in enumerate(_stamps_ns(t, stamps, stamps_ns)):
             _, q = xyz_quat_from_T(Ts[k])
             gt_rows.append(
                 [

@@ -57,6 +57,7 @@ import re
 import weakref
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from decimal import ROUND_HALF_EVEN, Decimal
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +107,9 @@ __all__ = [
     "read_height_csv",
     "read_attitude_csv",
     "read_frame_csv",
+    "time_text",
+    "time_text_ns",
+    "time_ns_of_text",
     "DEPTH_PNG_SCALE_PER_MM",
 ]
 
@@ -345,12 +349,20 @@ class SequenceWriter:
         self.begin()
         write_tum(self.root / "groundtruth.txt", timestamps_s, T_world_cam)
 
-    def write_timestamps(self, timestamps_s: np.ndarray) -> None:
-        """Write ``timestamps.txt``: the time (s) of each of the ``frame_count`` frames, increasing."""
+    def write_timestamps(self, timestamps_s: np.ndarray, timestamps_ns: Iterable[int] | None = None) -> None:
+        """Write ``timestamps.txt``: the time (s) of each of the ``frame_count`` frames, increasing
+        (:func:`time_text`). ``timestamps_ns``: the same times in integer nanoseconds where the
+        source stamps so (EuRoC, ROS): written exactly, so that an export gives back those stamps."""
         ts = check_timestamps(np.asarray(timestamps_s, dtype=float), int(self.meta["frame_count"]), "timestamps")
+        if timestamps_ns is None:
+            texts = [time_text(float(t)) for t in ts]
+        else:
+            ns = [int(n) for n in timestamps_ns]
+            if len(ns) != len(ts) or not np.allclose(np.array(ns, dtype=float) * 1e-9, ts, rtol=0, atol=1e-6):
+                raise ValueError("write_timestamps: timestamps_ns are not the times of timestamps_s")
+            texts = [time_text_ns(n) for n in ns]
         self.begin()
-        lines = ["# timestamp_s of each frame, in frame order (cam0/000000.png first)"]
-        lines += [f"{t:.9f}" for t in ts]
+        lines = ["# timestamp_s of each frame, in frame order (cam0/000000.png first)", *texts]
         atomic_write_text(self.root / TIMESTAMPS_FILE, "\n".join(lines) + "\n")
 
     def write_heights(self, height_mm: np.ndarray, source: str = "range sensor") -> None:
@@ -471,25 +483,35 @@ def _depth_dtype_problem(shape: tuple[int, ...], dtype: np.dtype) -> str | None:
 _PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
-def check_timestamps(ts: np.ndarray, frame_count: int, what: str) -> np.ndarray:
-    """``ts`` if it holds ``frame_count`` finite, strictly increasing times; else a one-line SequenceError.
+def check_timestamps(
+    ts: np.ndarray, frame_count: int | None, what: str, linenos: list[int] | None = None
+) -> np.ndarray:
+    """``ts`` if it holds ``frame_count`` (None: any number of) finite, strictly increasing times;
+    else a one-line SequenceError naming ``what`` and, where ``linenos`` gives the line of each time
+    in the file ``what`` names, the line (``times.txt:4: ...``: an error that named no file left the
+    user to find which of the files given held the time).
 
     Increasing as ``timestamps.txt`` stores them, to the nanosecond: frames closer than that
     (an import at --fps 1e12) were written as equal times that the sequence's reader refused.
     """
-    if ts.ndim != 1 or len(ts) != frame_count:
+    if ts.ndim != 1 or (frame_count is not None and len(ts) != frame_count):
         raise SequenceError(f"{what}: {len(ts)} timestamp(s) for {frame_count} frame(s); need one per frame")
+
+    def at(k: int) -> str:
+        return what if linenos is None else f"{what}:{linenos[k]}"
+
     if not np.isfinite(ts).all():
-        raise SequenceError(f"{what}: timestamp of frame {int(np.argmin(np.isfinite(ts)))} is not a finite number")
+        k = int(np.argmin(np.isfinite(ts)))
+        raise SequenceError(f"{at(k)}: timestamp of frame {k} is not a finite number")
     far = np.nonzero(np.abs(ts) > MAX_TIME_S)[0]
     if len(far):
-        raise SequenceError(f"{what}: timestamp of frame {int(far[0])} {time_problem(float(ts[far[0]]))}")
+        raise SequenceError(f"{at(int(far[0]))}: timestamp of frame {int(far[0])} {time_problem(float(ts[far[0]]))}")
     bad = np.nonzero(np.diff(np.round(ts, 9)) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
         ns = " (to the nanosecond, as timestamps.txt holds them)" if ts[k] > ts[k - 1] else ""
         raise SequenceError(
-            f"{what}: timestamps must increase{ns}, frame {k} at {shown_number(ts[k], '.9f')} s follows {shown_number(ts[k - 1], '.9f')} s"
+            f"{at(k)}: timestamps must increase{ns}, frame {k} at {shown_number(ts[k], '.9f')} s follows {shown_number(ts[k - 1], '.9f')} s"
         )
     return ts
 
@@ -642,6 +664,18 @@ class Sequence:
             else:
                 self._timestamps_s = np.arange(self.frame_count) / self.fps
         return self._timestamps_s.copy()
+
+    @property
+    def timestamps_ns(self) -> list[int]:
+        """The frame times of :attr:`timestamps_s` in integer nanoseconds, as ``timestamps.txt``
+        writes them (:func:`time_ns_of_text`: exactly, where a float of seconds holds a Unix time
+        only to about 240 ns), else ``i / fps`` rounded to the nanosecond: the stamps an export
+        gives the frames."""
+        ts = self.timestamps_s  # checked
+        path = self.root / TIMESTAMPS_FILE
+        if not path.is_file():
+            return [int(round(float(t) * 1e9)) for t in ts]
+        return [time_ns_of_text(text) for _, text in _timestamp_lines(path)]
 
     @property
     def height_signal_mm(self) -> np.ndarray | None:
@@ -857,18 +891,43 @@ def read_groundtruth(source: str | os.PathLike, purpose: str) -> tuple[Path, tup
     return path, read_tum(path)
 
 
+def _timestamp_lines(path: Path) -> list[tuple[int, str]]:
+    """``(line number, text)`` of the times of a ``timestamps.txt`` (``#`` comments and blank lines skipped)."""
+    lines = read_text(path, SequenceError, what="a text file").splitlines()
+    return [(k, t) for k, t in ((k, line.strip()) for k, line in enumerate(lines, 1)) if t and not t.startswith("#")]
+
+
 def _read_timestamps(path: Path) -> np.ndarray:
     """The numbers of a ``timestamps.txt`` (one per line; ``#`` comments and blank lines skipped)."""
     out = []
-    for lineno, line in enumerate(read_text(path, SequenceError, what="a text file").splitlines(), 1):
-        line = line.strip()
-        if not line or line.startswith("#"):
-            continue
+    for lineno, line in _timestamp_lines(path):
         try:
             out.append(float(line))
         except ValueError:
             raise SequenceError(f"{path}:{lineno}: not a timestamp in seconds: {shown(line)}") from None
     return np.array(out, dtype=float)
+
+
+def time_text(t_s: float) -> str:
+    """A time (s) as ``timestamps.txt`` holds it: the shortest decimal that reads back as the float
+    ``t_s``, rounded to the nanosecond (``1700000000.0666``; ``f"{t:.9f}"`` wrote the
+    ``1700000000.066600084`` of its binary value, and an export stamped those 84 ns)."""
+    return np.format_float_positional(float(t_s), precision=9, unique=True, trim="0")
+
+
+def time_text_ns(ns: int) -> str:
+    """A time in integer nanoseconds (what EuRoC and ROS stamp) as ``timestamps.txt`` holds it:
+    seconds with nine decimals, exactly. A float of seconds holds a Unix time only to about 240 ns:
+    ``f"{t:.9f}"`` of one wrote other nanoseconds than the recording's (each import and export moved
+    a EuRoC stamp by 256 ns)."""
+    n = int(ns)
+    return f"{'-' if n < 0 else ''}{abs(n) // 1_000_000_000}.{abs(n) % 1_000_000_000:09d}"
+
+
+def time_ns_of_text(text: str) -> int:
+    """The integer nanoseconds of a time in seconds written as text (:func:`time_text_ns`), exactly
+    (decimals beyond the ninth rounded half to even)."""
+    return int(Decimal(text.strip()).scaleb(9).to_integral_value(ROUND_HALF_EVEN))
 
 
 def read_height_csv(path: str | os.PathLike) -> np.ndarray:

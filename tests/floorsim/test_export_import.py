@@ -336,3 +336,123 @@ def test_a_euroc_export_says_it_leaves_the_depth_images_out(tmp_path, original, 
     caplog.clear()
     export_sequence(seq.root, "rosbag2", tmp_path / "b")
     assert not any("depth" in r.getMessage() for r in caplog.records)
+
+
+def _recording(root, gt_times_s, frame_times_s=None):
+    """An imported-like sequence folder (not simulated: its ground truth may be at another rate than
+    its 8 frames, 16-bit, stereo): frames at ``frame_times_s`` (default about 30 Hz at a Unix time,
+    unevenly spaced), a distinct pose at each of ``gt_times_s``. Returns the sequence."""
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.sequence import SequenceWriter
+
+    cam = CameraModel(40, 30, 50.0, 51.0, 19.5, 14.5)
+    ts = 1_700_000_000.0 + np.cumsum([0.0, 0.0333, 0.0334, 0.05, 0.0331, 0.0333, 0.0335, 0.0333])
+    ts = ts if frame_times_s is None else np.asarray(frame_times_s)
+    meta = {
+        "camera": cam.to_dict(),
+        "fps": 30.0,
+        "frame_count": 8,
+        "bit_depth": 16,
+        "stereo": True,
+        "cameras": {"cam1": cam.to_dict()},
+        "rig": {"height_mm": 100.0, "T_cam0_cam1": [[1, 0, 0, 20.0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+        "source": {"format": "euroc"},
+    }
+    rng = np.random.default_rng(3)
+    with SequenceWriter(root, meta) as w:
+        w.write_timestamps(ts)
+        for i in range(8):
+            for c in ("cam0", "cam1"):
+                w.write_frame(i, rng.integers(0, 65536, (30, 40), dtype=np.uint16), c)
+        T = [T_world_cam_down(7.0 * k, -3.0 * k, 100.0 + k, 0.01 * k) for k in range(len(gt_times_s))]
+        w.write_groundtruth(np.asarray(gt_times_s), np.stack(T))
+    return Sequence.open(root)
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+@pytest.mark.parametrize("gt_rate", ["200 Hz over part of the run", "10 Hz"])
+def test_ground_truth_at_another_rate_than_the_frames_comes_back_as_it_was(tmp_path, fmt, gt_rate):
+    """A recording's ground truth at its own rate (a motion-capture system): the bag held one pose
+    per frame, the pose of the frame's index stamped with the frame's time (poses 0-7 of 200 Hz
+    ground truth put at the frames' times, 30 Hz apart, with exit code 0), and ended in an
+    IndexError where there were fewer poses than frames. Each pose goes at its own time."""
+    t0 = 1_700_000_000.0
+    t_gt = t0 + 0.02 + 0.005 * np.arange(30) if gt_rate.startswith("200") else t0 + 0.1 * np.arange(3)
+    seq = _recording(tmp_path / "seq", t_gt)
+    exported = export_sequence(seq.root, fmt, tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    t_back, T_back = Sequence.open(tmp_path / "imported").groundtruth()
+    t_ref, T_ref = seq.groundtruth()
+    np.testing.assert_array_equal(np.round(t_back * 1e6), np.round(t_ref * 1e6))  # TUM holds microseconds
+    np.testing.assert_allclose(T_back, T_ref, rtol=0, atol=1e-6)
+
+
+def _euroc_stamps(folder, cam="cam0"):
+    """The stamps (ns) of a EuRoC folder's camera ``data.csv``, as written."""
+    rows = (folder / "mav0" / cam / "data.csv").read_text().splitlines()[1:]
+    return [int(r.split(",")[0]) for r in rows]
+
+
+@pytest.mark.parametrize("via", ["euroc", "rosbag2"])
+def test_a_recordings_nanosecond_stamps_come_back_to_the_nanosecond(tmp_path, via):
+    """EuRoC and ROS stamp frames in integer nanoseconds; a float of seconds holds a Unix time only
+    to about 240 ns. An import wrote ``f"{t:.9f}"`` of such a float and an export stamped
+    ``round(t * 1e9)`` of one: each pass moved every stamp by 256 ns (1403636579763555584 ->
+    1403636579763555840). A EuRoC recording imported, exported (as EuRoC, or as a bag imported
+    again) and exported as EuRoC has its own stamps, file names and ground-truth rows."""
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0])
+    src = export_sequence(seq.root, "euroc", tmp_path / "src")
+    stamps = [1403636579763555584 + 33_333_333 * k + 7 * k * k for k in range(8)]  # odd nanoseconds
+    for cam in ("cam0", "cam1"):
+        old = _euroc_stamps(src, cam)
+        for a, b in zip(old, stamps):
+            (src / "mav0" / cam / "data" / f"{a}.png").rename(src / "mav0" / cam / "data" / f"{b}.png")
+        (src / "mav0" / cam / "data.csv").write_text(
+            "#timestamp [ns],filename\n" + "".join(f"{b},{b}.png\n" for b in stamps)
+        )
+    gt = src / "mav0" / "state_groundtruth_estimate0" / "data.csv"
+    header, row = gt.read_text().splitlines()[:2]
+    gt.write_text(header + "\n" + "".join(f"{b}," + row.split(",", 1)[1] + "\n" for b in stamps[1:4]))
+    assert main(["import", str(src), "-o", str(tmp_path / "imp")]) == 0
+    again = tmp_path / "imp"
+    if via == "rosbag2":
+        export_sequence(again, "rosbag2", tmp_path / "bag")
+        assert main(["import", str(tmp_path / "bag"), "-o", str(tmp_path / "imp2")]) == 0
+        again = tmp_path / "imp2"
+    out = export_sequence(again, "euroc", tmp_path / "out")
+    assert _euroc_stamps(out) == stamps and _euroc_stamps(out, "cam1") == stamps
+    assert sorted(p.name for p in (out / "mav0" / "cam0" / "data").iterdir()) == sorted(f"{b}.png" for b in stamps)
+    rows = (out / "mav0" / "state_groundtruth_estimate0" / "data.csv").read_text().splitlines()[1:]
+    assert [int(r.split(",")[0]) for r in rows] == stamps[1:4]  # at their frames' stamps
+
+
+def test_frame_times_given_in_microseconds_are_exported_to_the_microsecond(tmp_path):
+    """A timestamps file in seconds with six decimals at a Unix time: ``timestamps.txt`` held
+    ``f"{t:.9f}"`` of the float (1700000000.066600084) and the export stamped those 84 ns; it holds
+    the shortest decimal of the float (1700000000.0666), and the export stamps what was given."""
+    given = [f"1700000000.{k * 33300 + 17:06d}" for k in range(8)]
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0], [float(t) for t in given])
+    assert (seq.root / "timestamps.txt").read_text().splitlines()[1:] == [t.rstrip("0") for t in given]
+    out = export_sequence(seq.root, "euroc", tmp_path / "out")
+    assert _euroc_stamps(out) == [int(t.replace(".", "")) * 1000 for t in given]
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_the_frame_rate_comes_back_as_it_was(tmp_path, fmt, capsys):
+    """A bag has no field for the frame rate: a 30 Hz recording with uneven frame times came back at
+    the 30.03 Hz of their median spacing. The bag carries it in its custom data (EuRoC in
+    ``rate_hz``); one there that is no rate is refused in one line."""
+    seq = _recording(tmp_path / "seq", [1_700_000_000.0])
+    exported = export_sequence(seq.root, fmt, tmp_path / "exported")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    assert Sequence.open(tmp_path / "imported").fps == 30.0
+    if fmt == "rosbag2":
+        meta = exported / "metadata.yaml"
+        meta.write_text(meta.read_text().replace("floorbench.fps: '30.0'", "floorbench.fps: '-30'"))
+        capsys.readouterr()
+        assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.endswith(
+            "metadata.yaml: custom_data floorbench.fps = '-30': must be a number of Hz > 0 and at most 1e+06"
+        )
+        assert not (tmp_path / "bad").exists()

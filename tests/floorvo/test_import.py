@@ -960,3 +960,100 @@ def test_import_writes_an_imus_attitude(tmp_path, synth, capsys):
     )
     assert "--attitude-file: roll_rad of frame 0 = 1.5: must be a finite number of radians within +-0.5" in err
     assert not (tmp_path / "imp2" / "attitude.csv").exists()
+
+
+def test_times_that_do_not_increase_are_refused_naming_the_file_and_line(tmp_path, synth, capsys):
+    """A timestamps file (or an image list's times) with a repeated or decreasing time, or one in
+    another unit: the error said 'timestamps (timestamps file): ... frame 3 ...', naming neither
+    the file nor its line (comments and blank lines make frame 3 another line). A file with a
+    byte-order mark, CRLF line ends, comments and blank lines is read as it is."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:4]):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    base = ["import", str(src), "-o", str(tmp_path / "out"), *FLAGS, "--timestamps"]
+    times = tmp_path / "times.txt"
+    times.write_text("# t [s]\n\n1700000000.1\n1700000000.2\n\n# pause\n1700000000.2\n1700000000.3\n")
+    err = _one_line_error(capsys, [*base, str(times)])
+    assert f"{times}:7: timestamps must increase, frame 2 at" in err, err
+    times.write_text("1700000000.1\n1700000000.3\n1700000000.2\n1700000000.4\n")
+    assert f"{times}:3: timestamps must increase, frame 2 at" in _one_line_error(capsys, [*base, str(times)])
+    times.write_text("# ns\n1700000000100000000\n1700000000200000000\n1700000000300000000\n1700000000400000000\n")
+    err = _one_line_error(capsys, [*base, str(times)])
+    assert f"{times}:2: timestamp of frame 0 = 1.7e+18 s is beyond 1e+10 s" in err, err
+    listed = tmp_path / "list.txt"
+    listed.write_text("".join(f"{t} frames/{i}.png\n" for i, t in enumerate([1.0, 1.1, 1.1, 1.2])))
+    err = _one_line_error(capsys, ["import", str(listed), "-o", str(tmp_path / "out"), *FLAGS])
+    assert f"{listed}:3: timestamps must increase, frame 2 at" in err, err
+    times.write_bytes(b"\xef\xbb\xbf# t [s]\r\n\r\n" + b"".join(b"170000000%d.5\r\n" % i for i in range(4)))
+    assert main([*base, str(times)]) == 0
+    np.testing.assert_array_equal(Sequence.open(tmp_path / "out").timestamps_s, 1.7e9 + np.arange(4) + 0.5)
+
+
+def test_a_euroc_ground_truth_file_with_a_byte_order_mark_is_read_as_euroc(tmp_path, synth, capsys):
+    """``--groundtruth gt.txt`` whose first line is EuRoC's ``#timestamp [ns], ...`` header behind a
+    byte-order mark was taken for TUM: its rows ``t_ns px py pz qw qx qy qz`` were read as
+    ``t tx ty tz qx qy qz qw`` (a time of 1e8 s for 0.1 s in ns, w taken for x)."""
+    _, frames, T = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"{i}.png"), img)
+    rows = []
+    for i, Ti in enumerate(T):
+        xyz, q = xyz_quat_from_T(Ti)
+        cells = [100_000_000 * i, *(xyz / 1000.0), q[3], q[0], q[1], q[2]]
+        rows.append(",".join(str(c) for c in cells))
+    gt = tmp_path / "gt.txt"
+    header = "#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []"
+    gt.write_bytes(b"\xef\xbb\xbf" + "\r\n".join([header, *rows, ""]).encode())
+    out = tmp_path / "out"
+    assert main(["import", str(src), "-o", str(out), *FLAGS, "--fps", "10", "--groundtruth", str(gt)]) == 0
+    t_gt, T_gt = Sequence.open(out).groundtruth()
+    np.testing.assert_allclose(t_gt, np.arange(len(T)) * 0.1, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(T_gt, T, rtol=0, atol=1e-6)
+
+
+def test_a_bag_with_two_different_ground_truth_poses_at_one_stamp_is_refused(tmp_path, synth, capsys):
+    """The bag reader kept the first of poses sharing a stamp, whichever it was (a TUM or EuRoC file
+    with two poses at one time is refused); a pose sent twice alike is still one pose."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    _, frames, T = synth
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    M = ts.types
+    Header, Time, Image = M["std_msgs/msg/Header"], M["builtin_interfaces/msg/Time"], M["sensor_msgs/msg/Image"]
+    PoseStamped, Pose = M["geometry_msgs/msg/PoseStamped"], M["geometry_msgs/msg/Pose"]
+    Point, Quat = M["geometry_msgs/msg/Point"], M["geometry_msgs/msg/Quaternion"]
+    stamps = [1_700_000_000_000_000_000 + 100_000_000 * i for i in range(3)]
+
+    def bag(path, second_x_m):
+        with Writer(path, version=9) as w:
+            c_img = w.add_connection("/cam/image_raw", Image.__msgtype__, typestore=ts)
+            c_gt = w.add_connection("/groundtruth", PoseStamped.__msgtype__, typestore=ts)
+            for i, ns in enumerate(stamps):
+                h = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="cam")
+                img = frames[i]
+                msg = Image(
+                    header=h,
+                    height=img.shape[0],
+                    width=img.shape[1],
+                    encoding="mono8",
+                    is_bigendian=0,
+                    step=img.shape[1],
+                    data=img.ravel(),
+                )
+                w.write(c_img, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+                for x in (0.001 * i, 0.001 * i if i != 1 else second_x_m):  # each pose sent twice
+                    p = Pose(position=Point(x=x, y=0.0, z=0.1), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0))
+                    w.write(c_gt, ns, ts.serialize_cdr(PoseStamped(header=h, pose=p), PoseStamped.__msgtype__))
+
+    bag(tmp_path / "same", 0.001)
+    assert main(["import", str(tmp_path / "same"), "-o", str(tmp_path / "a"), *FLAGS, "--height-mm", "100"]) == 0
+    np.testing.assert_allclose(Sequence.open(tmp_path / "a").groundtruth()[1][:, 0, 3], [0.0, 1.0, 2.0])
+    bag(tmp_path / "two", 0.005)
+    err = _one_line_error(capsys, ["import", str(tmp_path / "two"), "-o", str(tmp_path / "b"), *FLAGS])
+    assert f"two /groundtruth: two different poses stamped {stamps[1]} ns: ground truth holds one pose per time" in err
+    assert not (tmp_path / "b").exists()

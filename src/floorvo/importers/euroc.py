@@ -245,6 +245,7 @@ def read(source: Path, options=None) -> Recording:
         bit_depth=8 * first.itemsize,
         frames=frames,
         timestamps_s=st0 * 1e-9,
+        timestamps_ns=st0,
         fps=rate,
         calibration=cal,
         has_right=files1 is not None,

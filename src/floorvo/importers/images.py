@@ -3,7 +3,8 @@
 * A folder: every PNG, JPEG, TIFF or BMP file in it (not in subfolders), in natural order
   (``img_2.jpg`` before ``img_10.jpg``).
 * A list file (``.txt``): one image a line, a path relative to the list's folder, or
-  ``TIMESTAMP PATH`` (seconds, as in a TUM ``rgb.txt``), in frame order.
+  ``TIMESTAMP PATH`` (seconds, as in a TUM ``rgb.txt``), in frame order; times that do not
+  increase are refused naming the list and the line.
 
 Frames may be 8- or 16-bit; colour frames are converted to mono. The folder states no
 times: they come from the list, a ``--timestamps`` file or ``--fps``.
@@ -20,6 +21,7 @@ import numpy as np
 from floorvo.errors import SequenceError, shown
 from floorvo.importers.recording import FrameImages, Recording, natural_key, read_image_file, size_of
 from floorvo.io import read_text
+from floorvo.sequence import check_timestamps
 
 __all__ = ["IMAGE_SUFFIXES", "detect", "read", "list_images"]
 
@@ -48,7 +50,7 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
         return files, None
     if not source.is_file():
         raise SequenceError(f"{source}: does not exist")
-    files, times = [], []
+    files, times, linenos = [], [], []
     for lineno, line in enumerate(read_text(source, SequenceError, what="a text file").splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -57,6 +59,7 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
         if len(parts) == 2:
             try:
                 times.append(float(parts[0]))
+                linenos.append(lineno)
                 name = parts[1].strip()
             except ValueError:
                 name = line
@@ -74,7 +77,7 @@ def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
         raise SequenceError(f"{source}: lists no images")
     if times and len(times) != len(files):
         raise SequenceError(f"{source}: some lines have a timestamp and some do not (TIMESTAMP PATH or PATH)")
-    return files, (np.array(times) if times else None)
+    return files, (check_timestamps(np.array(times), None, str(source), linenos) if times else None)
 
 
 def read(source: Path, options=None) -> Recording:

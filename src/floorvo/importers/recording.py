@@ -82,6 +82,10 @@ class Recording:
         Called once, yields ``frame_count`` :class:`FrameImages` in time order.
     timestamps_s:
         (frame_count,) times the source states (s), or None when it states none.
+    timestamps_ns:
+        The same times in integer nanoseconds where the source stamps so (EuRoC, a ROS bag), or
+        None: ``timestamps.txt`` gets them exactly (a float of seconds holds a Unix time only to
+        about 240 ns), and an export gives back the source's stamps.
     fps:
         Nominal frame rate the source states (Hz), or None.
     calibration:
@@ -110,6 +114,7 @@ class Recording:
     bit_depth: int
     frames: Callable[[], Iterator[FrameImages]]
     timestamps_s: np.ndarray | None = None
+    timestamps_ns: np.ndarray | None = None
     fps: float | None = None
     calibration: CameraCalibration | None = None
     has_right: bool = False
@@ -400,7 +405,7 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"
         check_attitude(np.asarray(attitude, dtype=float), n, attitude_what)
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
-        writer.write_timestamps(ts)
+        writer.write_timestamps(ts, rec.timestamps_ns if time_source == rec.format else None)
         count = 0
         for i, fr in enumerate(rec.frames()):
             if i >= n:

@@ -14,7 +14,9 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   (left frame -> right frame) or else from the right projection matrix (``P[0,3] = -fx B``);
 * ``groundtruth``: ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
   ``TransformStamped`` or ``nav_msgs/Odometry`` (its pose is taken as the camera's,
-  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame);
+  ``T_world_cam0``), or ``/tf`` (the transforms whose child is the image's frame); a pose sent
+  twice with one stamp is one pose, two different poses with one stamp are refused (the first
+  was taken, as a TUM or EuRoC file with two is refused);
 * ``flatfield``, ``right_flatfield``: an image topic named ``flatfield`` in the image's (the
   right image's) namespace (``/cam0/flatfield``): its first message is the camera's flat-field
   frame (never taken for a camera's images);
@@ -25,7 +27,8 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   :data:`floorvo.camera.CAMERA_HEIGHT_RANGE_MM`, counted in one warning line).
 
 The rig height is the bag's ``custom_data`` entry :data:`CAMERA_HEIGHT_KEY` (mm) in
-``metadata.yaml``, as ``floorsim export --format rosbag2`` writes it.
+``metadata.yaml``, and the nominal frame rate its entry :data:`FPS_KEY` (Hz; without it, the rate
+of the median spacing of the frames), as ``floorsim export --format rosbag2`` writes them.
 
 Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
 some zero and some not is refused: two clocks).
@@ -54,8 +57,9 @@ from floorvo.geometry import T_from_xyz_quat, invert_T, position_problem
 from floorvo.importers.camera_files import CameraCalibration, camera_from_parts, distortion_from, load_yaml
 from floorvo.importers.recording import FrameImages, Recording, to_mono
 from floorvo.io import IMAGE_FORMATS, image_header_size, image_size_problem
+from floorvo.sequence_meta import MAX_FPS_HZ
 
-__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_TOPIC_NAME", "ROLES", "detect", "read", "decode_image"]
+__all__ = ["CAMERA_HEIGHT_KEY", "FPS_KEY", "FLATFIELD_TOPIC_NAME", "ROLES", "detect", "read", "decode_image"]
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +82,9 @@ RANGE_TYPE = "sensor_msgs/msg/Range"
 FLATFIELD_TOPIC_NAME = "flatfield"
 #: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the camera height above the floor, mm.
 CAMERA_HEIGHT_KEY = "floorbench.camera_height_mm"
+#: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the sequence's nominal frame rate, Hz
+#: (a bag has no field for it: 29.97 Hz frames came back at the 29.985 Hz of their median spacing).
+FPS_KEY = "floorbench.fps"
 POSE_TYPES = (
     "geometry_msgs/msg/PoseStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -466,9 +473,15 @@ def read(source: Path, options=None) -> Recording:
     if gt_t:
         t_arr = np.asarray(gt_t, dtype=np.int64)
         order = np.argsort(t_arr, kind="stable")
-        t_sorted = t_arr[order]
+        t_sorted, T_sorted = t_arr[order], np.stack(gt_T)[order]
         first = np.concatenate([[True], np.diff(t_sorted) > 0])
-        gt = (t_sorted[first] * 1e-9, np.stack(gt_T)[order][first])
+        for j in np.nonzero(~first)[0].tolist():  # the same pose sent twice is one pose; two poses at one time are none
+            if not np.allclose(T_sorted[j], T_sorted[j - 1], rtol=0, atol=1e-6):
+                raise SequenceError(
+                    f"{source} {topics['groundtruth']}: two different poses stamped {int(t_sorted[j])} ns: "
+                    "ground truth holds one pose per time (give another topic with --topic groundtruth=NAME)"
+                )
+        gt = (t_sorted[first] * 1e-9, T_sorted[first])
     has_right = "right" in topics
     has_depth = "depth" in topics
     heights = None
@@ -534,33 +547,39 @@ def read(source: Path, options=None) -> Recording:
         bit_depth=8 * np.dtype(dtype).itemsize,
         frames=frames,
         timestamps_s=frames_ns * 1e-9,
+        timestamps_ns=frames_ns,
+        fps=_custom_number(source, FPS_KEY, "Hz", MAX_FPS_HZ),
         calibration=cal,
         has_right=has_right,
         has_depth=has_depth,
         groundtruth=gt,
         details={"topics": dict(sorted(topics.items())), "camera_frame": frame_id},
-        height_mm=None if getattr(options, "height_mm", None) is not None else _camera_height_mm(source),
+        height_mm=None
+        if getattr(options, "height_mm", None) is not None
+        else _custom_number(source, CAMERA_HEIGHT_KEY, "mm"),
         flatfields=flatfields,
         height_signal_mm=heights,
     )
 
 
-def _camera_height_mm(source: Path) -> float | None:
-    """The bag's :data:`CAMERA_HEIGHT_KEY` (mm) from its ``metadata.yaml``'s ``custom_data``; None
-    when absent; a value that is not a number > 0 is a one-line error."""
+def _custom_number(source: Path, key: str, unit: str, most: float = np.inf) -> float | None:
+    """The bag's ``custom_data`` entry ``key`` (:data:`CAMERA_HEIGHT_KEY` in mm, :data:`FPS_KEY` in
+    Hz) from its ``metadata.yaml``; None when absent; a value that is not a number > 0 and at most
+    ``most`` is a one-line error."""
     path = (source.parent if source.is_file() else source) / "metadata.yaml"
     if not path.is_file():
         return None
     d = load_yaml(path, "ROS 2 bag metadata")
     info = d.get("rosbag2_bagfile_information") if isinstance(d, dict) else None
     custom = info.get("custom_data") if isinstance(info, dict) else None
-    if not isinstance(custom, dict) or CAMERA_HEIGHT_KEY not in custom:
+    if not isinstance(custom, dict) or key not in custom:
         return None
-    raw = custom[CAMERA_HEIGHT_KEY]
+    raw = custom[key]
     try:
         v = float(raw)
     except (TypeError, ValueError):
         v = float("nan")
-    if not np.isfinite(v) or v <= 0:
-        raise SequenceError(f"{path}: custom_data {CAMERA_HEIGHT_KEY} = {shown(raw)}: must be a number of mm > 0")
+    if not (np.isfinite(v) and 0 < v <= most):
+        bound = "" if most == np.inf else f" and at most {most:g}"
+        raise SequenceError(f"{path}: custom_data {key} = {shown(raw)}: must be a number of {unit} > 0{bound}")
     return v

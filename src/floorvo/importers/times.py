@@ -3,7 +3,8 @@
 * ``--timestamps FILE``: one frame a line, in frame order; the first number of each line
   (whitespace- or comma-separated, so a TUM ``rgb.txt`` or a EuRoC ``data.csv`` works as
   it is) is the frame's time in ``unit`` (``s``, ``ms``, ``us`` or ``ns``); ``#`` lines
-  and blank lines are skipped.
+  and blank lines are skipped. Times that do not increase, or beyond
+  :data:`floorvo.tum.MAX_TIME_S` (another unit), are refused naming the file and the line.
 * ``--groundtruth FILE``: TUM (``t tx ty tz qx qy qz qw``, seconds and metres) or EuRoC
   CSV (``t_ns, px, py, pz, qw, qx, qy, qz, ...``, nanoseconds and metres; a ``.csv`` file
   or one whose header names ``[ns]``). The pose is ``T_world_cam0``.
@@ -19,6 +20,7 @@ import numpy as np
 from floorvo.errors import ConfigError, SequenceError, shown
 from floorvo.geometry import T_from_xyz_quat, position_problem
 from floorvo.io import read_text
+from floorvo.sequence import check_timestamps
 from floorvo.tum import check_increasing, read_tum
 
 __all__ = ["TIME_UNITS_S", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
@@ -56,7 +58,7 @@ def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray
         raise ConfigError(f"--time-unit {unit!r}: unknown (known: {', '.join(TIME_UNITS_S)})")
     if not path.is_file():
         raise SequenceError(f"timestamps file {path}: does not exist")
-    vals = []
+    vals, linenos = [], []
     for lineno, fields in _rows(path, "timestamps file"):
         try:
             v = float(fields[0]) if unit != "ns" else int(fields[0]) * 1e-9
@@ -65,9 +67,10 @@ def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray
         if not np.isfinite(v):
             raise SequenceError(f"{path}:{lineno}: timestamp {shown(fields[0])} is not a finite number")
         vals.append(v if unit == "ns" else v * TIME_UNITS_S[unit])
+        linenos.append(lineno)
     if not vals:
         raise SequenceError(f"timestamps file {path}: holds no timestamps")
-    return np.array(vals, dtype=float)
+    return check_timestamps(np.array(vals, dtype=float), None, str(path), linenos)
 
 
 def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
@@ -119,10 +122,13 @@ def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndar
 
 
 def _is_euroc_csv(path: Path) -> bool:
+    """Whether ``path`` is a EuRoC CSV: a ``.csv`` file, or one whose first line is a ``#`` header
+    naming ``[ns]``. A byte-order mark before it (Windows editors write one) is not part of it: such a
+    file was read as TUM, its ``t_ns px py pz qw qx qy qz`` rows as ``t tx ty tz qx qy qz qw``."""
     if path.suffix.lower() == ".csv":
         return True
     try:
-        with open(path) as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             head = fh.readline()
     except OSError:
         return False
