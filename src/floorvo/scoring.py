@@ -356,7 +356,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     if timing and "frame" in timing and len(timing["frame"]):
         # The estimator saw only these frames: cut the reference to the poses taken at their times.
         frames = timing["frame"].astype(int)
-        t_frames = _frame_times_of(seq_dir, t_ref, frames)
+        t_frames = _frame_times_of(seq_dir, t_ref, frames, run)
         i_ref, _ = associate(t_ref, t_frames, max_diff_s)
         if len(i_ref) >= 2:
             keep = np.sort(i_ref)
@@ -564,7 +564,7 @@ def _ok_step_args(run: RunFolder, seq_dir: Path, t_ref: np.ndarray, T_ref: np.nd
     if not statuses or not run.timing or "frame" not in run.timing:
         return None
     frames = np.asarray(run.timing["frame"], dtype=int)
-    t_frames = _frame_times_of(seq_dir, t_ref, frames)
+    t_frames = _frame_times_of(seq_dir, t_ref, frames, run)
     if len(t_frames) != len(frames):
         return None
     T_per_frame = np.full((len(frames), 4, 4), np.nan)
@@ -596,12 +596,27 @@ def _score_without_groundtruth(run_dir: Path, seq_dir: Path, why: str) -> Score:
     return score
 
 
-def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray) -> np.ndarray:
-    """Times (s) of the sequence's ``frames``: from the sequence folder (``timestamps.txt`` or
-    ``i / fps``), or, for a bare ground-truth file, frame i at i over its median rate."""
+def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray, run: RunFolder) -> np.ndarray:
+    """Times (s) of the sequence's ``frames`` (the run's ``timing.csv`` frames): from the sequence
+    folder (``timestamps.txt`` or ``i / fps``). For a bare ground-truth file, which has no frame
+    times: a placed frame at its pose's time (``trajectory.txt``), the others linear in the frame
+    number between and beyond them; with fewer than two placed frames, frame i at i over the
+    ground truth's median rate (a recording's ground truth at Unix times then pairs with nothing,
+    as frame i at i / rate from 0 did for every run: its ok steps went unscored)."""
     if (seq_dir / "sequence.json").is_file():
         ts = Sequence.open(seq_dir).timestamps_s
         return ts[frames[(frames >= 0) & (frames < len(ts))]]
+    statuses = run.statuses or []
+    placed = np.array([f for f, st in zip(frames, statuses) if st in ("init", "ok")], dtype=float)
+    t_pose = np.asarray(run.timestamps_s, dtype=float)
+    if len(placed) >= 2 and len(placed) == len(t_pose):
+        s_per_frame = (t_pose[-1] - t_pose[0]) / (placed[-1] - placed[0])
+        inside = np.interp(frames, placed, t_pose)
+        return np.where(
+            frames < placed[0],
+            t_pose[0] + (frames - placed[0]) * s_per_frame,
+            np.where(frames > placed[-1], t_pose[-1] + (frames - placed[-1]) * s_per_frame, inside),
+        )
     d = np.diff(t_ref)
     fps = float(1.0 / np.median(d)) if len(d) else 1.0
     return frames / fps

@@ -195,6 +195,22 @@ def test_a_run_whose_poses_sit_at_other_frames_than_it_marks_is_refused(tmp_path
         S.score_run(run, seq)
 
 
+def test_ok_steps_are_scored_against_a_bare_groundtruth_file_at_unix_times(tmp_path):
+    """``floorvo score RUN --gt FILE`` with a recording's ground truth at Unix times: the frames have
+    no times of their own there, so they are placed at their poses' times (the lost ones between);
+    frame i had been put at i / rate from 0, paired with nothing, and the ok steps went unscored."""
+    t0 = 1_700_000_000.0
+    for scale, wrong in ((1.0, 0), (1.05, 23)):
+        seq, run = _fake_run(_dir(tmp_path / f"s{scale}"), scale=scale)
+        ts = t0 + np.arange(26) / 10.0
+        write_tum(seq / "groundtruth.txt", ts, line_traj(26))
+        keep = [i for i in range(26) if i not in (7, 8)]
+        write_tum(run / "trajectory.txt", ts[keep], line_traj(26, scale=scale)[keep])
+        s = S.score_run(run, seq / "groundtruth.txt")
+        assert s.tracking["ok_steps_scored"] == 23 and s.tracking["wrong_ok_steps"] == wrong
+        assert s.tracking["lost_frames"] == 2
+
+
 # ----------------------------------------------------------------------------- metric names
 def test_flat_names_are_the_declared_ones_and_the_results_csv_columns_of_before(tmp_path):
     """The column names results.csv has always had (written out by hand), now all from metric_defs."""
