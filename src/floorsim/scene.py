@@ -432,7 +432,7 @@ class Scene(Config):
         margin = 2.0 + 2.0 * spacing
         long_mm = max(self.floor.tile_length_mm, fp_w, fp_h) + 2 * margin
         short_mm = min(fp_w, fp_h) + 2 * margin + (self.stereo.baseline_mm if self.stereo.enabled else 0.0)
-        vertices = long_mm * short_mm / spacing**2
+        vertices = long_mm / spacing * (short_mm / spacing)  # spacing**2 of 1e-300 mm underflowed to 0
         if vertices > MAX_TILE_VERTICES:
             which = "floor.spacing_mm" if self.floor.spacing_mm is not None else "floor.spacing_mm (none: half the GSD)"
             raise ConfigFieldError(

@@ -51,6 +51,8 @@ def test_set_overrides():
         ({"camera.pixel_pitch_um": "1e308"}, r"camera.pixel_pitch_um = 1e\+308 um: must be <= 100000.0 um"),
         ({"camera.focal_length_mm": "1e-308"}, r"camera.focal_length_mm = 1e-308 mm: must be >= 0.1 mm"),
         ({"floor.spacing_mm": "1e-6"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-06 mm holds"),
+        # its square underflowed to 0: a ZeroDivisionError traceback
+        ({"floor.spacing_mm": "1e-300"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-300 mm holds inf mesh"),
         ({"trajectory.step_mm": "1e-9"}, r"trajectory: these parameters give 4e\+09 frames; at most 1000000"),
         # a frame rate whose frame times the files cannot hold: 1e7 Hz wrote ground-truth poses that all had
         # one time (TUM holds microseconds) and its reader refused them; 1e-300 Hz made both exports overflow
