@@ -38,6 +38,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.geometry import T_world_cam_down, position_problem
+from floorvo.sequence_meta import MAX_FPS_HZ
 
 __all__ = [
     "Trajectory",
@@ -65,19 +66,23 @@ class Disturbance(Config):
     Tilt: roll and pitch, each ``tilt_amp_rad * sin(2 pi tilt_freq_hz t + phase)``.
     Vibration: a seeded sum of sinusoids between ``vibration_band_hz`` with RMS
     ``vibration_rms_mm`` on x, y and z (continuous in time, so blur integrates it).
+    Frequencies are at most :data:`~floorvo.sequence_meta.MAX_FPS_HZ`, the highest frame
+    rate (1e308 Hz overflowed to a NaN pose, which ended the render in a traceback).
     """
 
     bounce_amp_mm: float = param(0.0, unit="mm", min=0.0, max=20.0, doc="amplitude of the height bounce (suspension)")
-    bounce_freq_hz: float = param(2.0, unit="Hz", gt=0, doc="frequency of the height bounce")
+    bounce_freq_hz: float = param(2.0, unit="Hz", gt=0, max=MAX_FPS_HZ, doc="frequency of the height bounce")
     tilt_amp_rad: float = param(0.0, unit="rad", min=0.0, max=0.3, doc="amplitude of roll and pitch")
-    tilt_freq_hz: float = param(1.5, unit="Hz", gt=0, doc="frequency of roll and pitch")
+    tilt_freq_hz: float = param(1.5, unit="Hz", gt=0, max=MAX_FPS_HZ, doc="frequency of roll and pitch")
     vibration_rms_mm: float = param(0.0, unit="mm", min=0.0, max=5.0, doc="RMS of the vibration on x, y and z")
     vibration_band_hz: tuple[float, ...] = param((20.0, 80.0), unit="Hz", doc="[low, high] band of the vibration")
 
     def validate(self) -> None:
         band = self.vibration_band_hz
-        if len(band) != 2 or not 0 < band[0] < band[1]:
-            raise ConfigFieldError("vibration_band_hz", f" = {list(band)}: must be [low, high] with 0 < low < high")
+        if len(band) != 2 or not 0 < band[0] < band[1] <= MAX_FPS_HZ:
+            raise ConfigFieldError(
+                "vibration_band_hz", f" = {list(band)}: must be [low, high] with 0 < low < high <= {MAX_FPS_HZ:g} Hz"
+            )
 
     @property
     def active(self) -> bool:

@@ -72,6 +72,23 @@ def test_set_overrides():
         # rendered without a word: frames of noise alone (a read noise beyond any full well)
         ({"sensor.read_noise_e": "1e308"}, r"sensor.read_noise_e = 1e\+308 e-: must be <= 10000000.0 e-"),
         ({"sensor.dsnu_e": "1e308"}, r"sensor.dsnu_e = 1e\+308 e-: must be <= 10000000.0 e-"),
+        # a disturbance frequency (or a ceramic tile's period) that overflowed: a NaN pose, a traceback
+        (
+            {"trajectory.disturbance.bounce_freq_hz": "1e308"},
+            r"trajectory.disturbance.bounce_freq_hz = 1e\+308 Hz: must be <= 1000000.0 Hz",
+        ),
+        (
+            {"trajectory.disturbance.tilt_freq_hz": "1e308"},
+            r"trajectory.disturbance.tilt_freq_hz = 1e\+308 Hz: must be <= 1000000.0 Hz",
+        ),
+        (
+            {"trajectory.disturbance.vibration_band_hz": "[20, inf]"},
+            r"trajectory.disturbance.vibration_band_hz = \[20.0, inf\]: must be \[low, high\] with 0 < low < high <= 1e\+06 Hz",
+        ),
+        (
+            {"floor.material": "ceramic_tile", "floor.params.tile_mm": "1e308"},
+            r"floor.params.tile_mm = 1e\+308 mm: must be <= 100000.0 mm",
+        ),
     ],
 )
 def test_bad_values_refused_by_name(override, message):
