@@ -65,10 +65,11 @@ import numpy as np
 from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
 from floorsim.sensor import FixedPattern, SensorModel
-from floorsim.trajectories import Trajectory, build_trajectory
+from floorsim.trajectories import Disturbance, Trajectory, build_trajectory
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown, shown_number
+from floorvo.geometry import T_world_cam_down
 from floorvo.io import file_name_problem, read_toml
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
@@ -415,7 +416,61 @@ class Scene(Config):
                 "lights.height_mm",
                 f" = {self.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {self.camera.height_mm} mm)",
             )
+        self._check_clearance()
         self._check_floor_size()
+
+    def _check_clearance(self) -> None:
+        """Refuse a disturbance that takes the LEDs or the camera down to the floor (:meth:`lowest_mm`)."""
+        dist = self.disturbance()
+        if dist is None or not dist.active:
+            return
+        led_mm, cam_mm = self.lowest_mm(dist)
+        what = (
+            f"bounce_amp_mm = {dist.bounce_amp_mm:g} mm, 4 x vibration_rms_mm = {4 * dist.vibration_rms_mm:g} mm, "
+            f"tilt_amp_rad = {dist.tilt_amp_rad:g}"
+        )
+        if cam_mm <= 0:
+            raise ConfigFieldError(
+                "trajectory.disturbance",
+                f": {what} lower the camera (camera.height_mm = {self.camera.height_mm:g} mm) to "
+                f"{cam_mm:.3g} mm above the mean floor plane at its lowest; it must stay above the floor",
+            )
+        if led_mm <= 0:
+            raise ConfigFieldError(
+                "trajectory.disturbance",
+                f": {what} lower the LEDs (lights.height_mm = {self.lights.height_mm:g} mm) to "
+                f"{led_mm:.3g} mm above the mean floor plane at their lowest; they must stay above the floor",
+            )
+
+    def disturbance(self) -> Disturbance | None:
+        """The trajectory's disturbance, or None when its table is not valid (building the
+        trajectory then says why)."""
+        d = self.trajectory.get("disturbance")
+        if isinstance(d, Disturbance):
+            return d
+        try:
+            return build(Disturbance, d if isinstance(d, Mapping) else None, "trajectory.disturbance")
+        except ConfigError:
+            return None
+
+    def lowest_mm(self, dist: Disturbance) -> tuple[float, float]:
+        """(LEDs, camera): the lowest either comes above the mean floor plane under ``dist``, at any time.
+
+        A bound, the same for every seed and duration: the bounce at its trough, the vibration at
+        4 x its RMS (the most its eight sinusoids of amplitude RMS / 2 can sum to) and every
+        attitude on the tilt's circle (roll and pitch of ``tilt_amp_rad`` a quarter period apart);
+        an LED counts half its emitter's height (:meth:`LightsSpec.emitter_size_mm`) below its centre.
+        """
+        drop = dist.bounce_amp_mm + 4.0 * dist.vibration_rms_mm
+        phi = np.linspace(0.0, 2 * np.pi, 721) if dist.tilt_amp_rad > 0 else np.zeros(1)
+        p_cam, _ = self.led_positions_cam()
+        led_z = min(
+            float(np.min(T_world_cam_down(0.0, 0.0, 0.0, 0.0, r, q)[2, :3] @ p_cam.T))
+            for r, q in zip(dist.tilt_amp_rad * np.sin(phi), dist.tilt_amp_rad * np.cos(phi))
+        )
+        _, across_mm, _ = self.lights.emitter_size_mm()
+        cam_mm = self.camera.height_mm - drop
+        return cam_mm + led_z - across_mm / 2, cam_mm
 
     def _check_floor_size(self) -> None:
         """Refuse a scene whose floor could not be held in memory (see :data:`MAX_FOOTPRINT_MM`)."""

@@ -85,6 +85,20 @@ def test_set_overrides():
             {"trajectory.disturbance.vibration_band_hz": "[20, inf]"},
             r"trajectory.disturbance.vibration_band_hz = \[20.0, inf\]: must be \[low, high\] with 0 < low < high <= 1e\+06 Hz",
         ),
+        # a disturbance that took the LEDs or the camera under the floor rendered, exit 0
+        (
+            {"trajectory.disturbance.bounce_amp_mm": "7"},
+            r"trajectory.disturbance: bounce_amp_mm = 7 mm, .* lower the LEDs \(lights.height_mm = 3 mm\) to -4 mm",
+        ),
+        ({"trajectory.disturbance.tilt_amp_rad": "0.3"}, r"trajectory.disturbance: .* lower the LEDs .* to -14.2 mm"),
+        (
+            {"trajectory.disturbance.vibration_rms_mm": "1"},
+            r"4 x vibration_rms_mm = 4 mm, .* lower the LEDs .* to -1 mm",
+        ),
+        (
+            {"camera.height_mm": "5", "lights.height_mm": "1", "trajectory.disturbance.bounce_amp_mm": "20"},
+            r"trajectory.disturbance: bounce_amp_mm = 20 mm, .* lower the camera \(camera.height_mm = 5 mm\) to -15 mm",
+        ),
         (
             {"floor.material": "ceramic_tile", "floor.params.tile_mm": "1e308"},
             r"floor.params.tile_mm = 1e\+308 mm: must be <= 100000.0 mm",
@@ -94,6 +108,18 @@ def test_set_overrides():
 def test_bad_values_refused_by_name(override, message):
     with pytest.raises(ConfigError, match=message):
         tiny_scene(**override)
+
+
+def test_a_disturbance_keeping_the_leds_above_the_floor_is_allowed():
+    # the shipped disturbed scenes keep their LEDs 0.56-2.8 mm above the mean floor plane
+    s = tiny_scene(**{"trajectory.disturbance.bounce_amp_mm": "2.9"})
+    assert s.lowest_mm(s.disturbance()) == pytest.approx((0.1, 97.1))
+    s = tiny_scene(**{"trajectory.disturbance.tilt_amp_rad": "0.03"})
+    led_mm, cam_mm = s.lowest_mm(s.disturbance())
+    assert 0.8 < led_mm < 0.9 and cam_mm == 100.0
+    for p in sorted((scenes_dir() / "motion").glob("motion_*.toml")):
+        s = load_scene(p)
+        assert s.lowest_mm(s.disturbance())[0] > 0.5
 
 
 def test_bad_files_give_one_line_and_exit_1(tmp_path):
