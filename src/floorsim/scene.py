@@ -71,6 +71,7 @@ from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_p
 from floorvo.errors import ConfigError, ConfigFieldError, shown, shown_number
 from floorvo.geometry import T_world_cam_down
 from floorvo.io import file_name_problem, read_toml
+from floorvo.sequence import DEPTH_PNG_SCALE_PER_MM
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
 __all__ = [
@@ -417,7 +418,40 @@ class Scene(Config):
                 f" = {self.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {self.camera.height_mm} mm)",
             )
         self._check_clearance()
+        self._check_depth_range()
         self._check_floor_size()
+
+    def _check_depth_range(self) -> None:
+        """Refuse png16 depth maps that cannot hold the depth the camera sees (they were clipped
+        to 655.35 mm without a word: a camera 1000 mm up wrote 65535 at every pixel)."""
+        if not self.render.depth or self.render.depth_format != "png16":
+            return
+        limit_mm = 65535 / DEPTH_PNG_SCALE_PER_MM
+        deepest = self.deepest_mm()
+        if deepest > limit_mm:
+            raise ConfigFieldError(
+                "render.depth_format",
+                f" = 'png16': holds depths up to {limit_mm:g} mm, but the camera (camera.height_mm = "
+                f"{self.camera.height_mm:g} mm) sees the floor up to {shown_number(deepest, '.1f')} mm away; "
+                "use depth_format = 'npy_float32_mm'",
+            )
+
+    def deepest_mm(self) -> float:
+        """The largest depth along the optical axis at which the camera sees the mean floor plane, at
+        any time: its image corners at the highest the disturbance takes it (the bounce's crest, 4 x the
+        vibration RMS) and every attitude on the tilt's circle (as :meth:`lowest_mm`); inf where a
+        corner ray misses the floor."""
+        dist = self.disturbance() or Disturbance()
+        high_mm = self.camera.height_mm + (dist.bounce_amp_mm + 4.0 * dist.vibration_rms_mm if dist.active else 0.0)
+        cam = self.camera.model()
+        w, h = cam.width_px, cam.height_px
+        rays = cam.unproject(np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]]), 1.0)
+        phi = np.linspace(0.0, 2 * np.pi, 721) if dist.active and dist.tilt_amp_rad > 0 else np.zeros(1)
+        down = min(
+            float(np.min(-(T_world_cam_down(0.0, 0.0, 0.0, 0.0, r, q)[2, :3] @ rays.T)))
+            for r, q in zip(dist.tilt_amp_rad * np.sin(phi), dist.tilt_amp_rad * np.cos(phi))
+        )
+        return high_mm / down if down > 0 else float("inf")
 
     def _check_clearance(self) -> None:
         """Refuse a disturbance that takes the LEDs or the camera down to the floor (:meth:`lowest_mm`)."""

@@ -99,6 +99,21 @@ def test_set_overrides():
             {"camera.height_mm": "5", "lights.height_mm": "1", "trajectory.disturbance.bounce_amp_mm": "20"},
             r"trajectory.disturbance: bounce_amp_mm = 20 mm, .* lower the camera \(camera.height_mm = 5 mm\) to -15 mm",
         ),
+        # png16 depth of a camera beyond 655.35 mm: 65535 at every pixel, exit 0
+        (
+            {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"},
+            r"render.depth_format = 'png16': holds depths up to 655.35 mm, but the camera .* sees the floor up to "
+            r"1000.0 mm away; use depth_format = 'npy_float32_mm'",
+        ),
+        (
+            {
+                "render.depth": "true",
+                "camera.height_mm": "650",
+                "lights.height_mm": "12",
+                "trajectory.disturbance.bounce_amp_mm": "10",
+            },
+            r"render.depth_format = 'png16': .* sees the floor up to 660.0 mm away",
+        ),
         (
             {"floor.material": "ceramic_tile", "floor.params.tile_mm": "1e308"},
             r"floor.params.tile_mm = 1e\+308 mm: must be <= 100000.0 mm",
@@ -120,6 +135,14 @@ def test_a_disturbance_keeping_the_leds_above_the_floor_is_allowed():
     for p in sorted((scenes_dir() / "motion").glob("motion_*.toml")):
         s = load_scene(p)
         assert s.lowest_mm(s.disturbance())[0] > 0.5
+
+
+def test_depth_beyond_png16_is_written_as_float():
+    keys = {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"}
+    s = tiny_scene(**keys, **{"render.depth_format": "npy_float32_mm"})
+    assert s.deepest_mm() == pytest.approx(1000.0)
+    s = tiny_scene(**{"render.depth": "true", "camera.height_mm": "600", "trajectory.disturbance.tilt_amp_rad": "0.03"})
+    assert 600.0 < s.deepest_mm() < 655.35  # the tilt sees the floor a little further away
 
 
 def test_bad_files_give_one_line_and_exit_1(tmp_path):
