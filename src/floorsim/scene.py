@@ -65,7 +65,7 @@ import numpy as np
 from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
 from floorsim.sensor import FixedPattern, SensorModel
-from floorsim.trajectories import Disturbance, Trajectory, build_trajectory
+from floorsim.trajectories import Disturbance, Trajectory, build_trajectory, image_border_px
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown, shown_number
@@ -100,6 +100,8 @@ MAX_FOOTPRINT_MM = 4000.0
 #: The most mesh vertices one floor tile may hold (a tile of the default rig at full size
 #: holds about 4.2 M; 11 M triangles took 1.8 GB, DESIGN.md).
 MAX_TILE_VERTICES = 80e6
+#: How far (px) the ray the renderer casts through a pixel of a distorted lens may project from it.
+MAX_DISTORTION_ERROR_PX = 0.1
 
 
 @dataclass(frozen=True)
@@ -126,6 +128,26 @@ class CameraSpec(Config):
         if len(self.distortion) > 5:
             raise ConfigFieldError(
                 "distortion", f" = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)"
+            )
+        if any(self.distortion):
+            self._check_distortion()
+
+    def _check_distortion(self) -> None:
+        """Refuse a distortion the renderer cannot invert over the image: the ray it casts through a
+        pixel (OpenCV's undistortPoints) must project back to that pixel within
+        :data:`MAX_DISTORTION_ERROR_PX`. A barrel lens of k1 = -1 folds back inside a 648x494 frame
+        (no ray reaches its corners) and rays came back 620 px off; the frames rendered, exit 0."""
+        cam = self.model()
+        u, v = np.meshgrid(np.linspace(-0.5, cam.width_px - 0.5, 17), np.linspace(-0.5, cam.height_px - 0.5, 13))
+        uv = np.stack([u.ravel(), v.ravel()], axis=1)
+        with np.errstate(all="ignore"):
+            err = np.abs(cam.project(cam.unproject(uv, 1.0)) - uv).max()
+        if not err <= MAX_DISTORTION_ERROR_PX:  # NaN too
+            raise ConfigFieldError(
+                "distortion",
+                f" = {list(self.distortion)}: the rays cast through the {cam.width_px}x{cam.height_px} image "
+                f"project back up to {shown_number(float(err), '.3g')} px from their pixels (at most "
+                f"{MAX_DISTORTION_ERROR_PX:g} px: the lens folds back or is too strong to invert)",
             )
 
     def model(self) -> CameraModel:
@@ -509,8 +531,14 @@ class Scene(Config):
     def _check_floor_size(self) -> None:
         """Refuse a scene whose floor could not be held in memory (see :data:`MAX_FOOTPRINT_MM`)."""
         c = self.camera
-        cam = c.model()
-        fp_w, fp_h = cam.width_px * c.height_mm / cam.fx_px, cam.height_px * c.height_mm / cam.fy_px
+        xy = c.model().unproject(image_border_px(c.model()), c.height_mm)[:, :2]  # the lens's distortion too
+        if not np.isfinite(xy).all():
+            raise ConfigFieldError(
+                "camera.distortion", f" = {list(c.distortion)}: the lens maps no ray to an image corner"
+            )
+        fp_w, fp_h = (
+            float(v) for v in np.ptp(xy, axis=0)
+        )  # a strong distortion ([0, 0, 5, 5]) saw kilometres: a traceback
         if max(fp_w, fp_h) > MAX_FOOTPRINT_MM:
             raise ConfigFieldError(
                 "camera",

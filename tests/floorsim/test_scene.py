@@ -4,6 +4,7 @@ import subprocess
 import sys
 import tomllib
 
+import numpy as np
 import pytest
 from _tiny import TINY_SCENE, tiny_scene
 
@@ -99,6 +100,13 @@ def test_set_overrides():
             {"camera.height_mm": "5", "lights.height_mm": "1", "trajectory.disturbance.bounce_amp_mm": "20"},
             r"trajectory.disturbance: bounce_amp_mm = 20 mm, .* lower the camera \(camera.height_mm = 5 mm\) to -15 mm",
         ),
+        # a lens the renderer cannot invert rendered rays hundreds of pixels off, exit 0; one of kilometres
+        # of floor ended in numpy's 'Maximum allowed size exceeded' traceback
+        (
+            {"camera.distortion": "[-1.0]"},
+            r"camera.distortion = \[-1.0\]: the rays cast through the 162x124 image project back up to 180 px",
+        ),
+        ({"camera.distortion": "[0, 0, 5, 5]"}, r"camera.distortion = \[0.0, 0.0, 5.0, 5.0\]: the rays cast"),
         # png16 depth of a camera beyond 655.35 mm: 65535 at every pixel, exit 0
         (
             {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"},
@@ -143,6 +151,20 @@ def test_depth_beyond_png16_is_written_as_float():
     assert s.deepest_mm() == pytest.approx(1000.0)
     s = tiny_scene(**{"render.depth": "true", "camera.height_mm": "600", "trajectory.disturbance.tilt_amp_rad": "0.03"})
     assert 600.0 < s.deepest_mm() < 655.35  # the tilt sees the floor a little further away
+
+
+def test_a_pincushion_lens_plans_its_floor_on_the_sides_of_the_image_too():
+    # a pincushion lens sees further through the middle of a side than through a corner
+    from floorsim.trajectories import footprint_bounds_mm
+
+    s = tiny_scene(**{"camera.distortion": "[0.5]"})
+    cam = s.camera_model()
+    xmin, xmax, ymin, ymax = footprint_bounds_mm(s.build_trajectory().T_world_cam[:1], cam)
+    mid = cam.unproject(np.array([[-0.5, 61.5], [161.5, 61.5], [80.5, -0.5], [80.5, 123.5]]), 100.0)
+    corners = cam.unproject(np.array([[-0.5, -0.5], [161.5, 123.5]]), 100.0)
+    assert np.abs(mid[:2, 0]).min() > np.abs(corners[:, 0]).max()  # the sides reach further
+    assert xmax - xmin == pytest.approx(np.ptp(mid[:2, 0]), rel=1e-3)
+    assert ymax - ymin == pytest.approx(np.ptp(mid[2:, 1]), rel=1e-3)
 
 
 def test_bad_files_give_one_line_and_exit_1(tmp_path):
