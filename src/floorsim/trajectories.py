@@ -492,6 +492,11 @@ def _build_lawnmower(p: LawnmowerParams, fps: float, seed: int):
 def _build_kidnap(p: KidnapParams, fps: float, seed: int):
     rng = np.random.default_rng([seed, 0x51D])
     per_seg = _n_frames(p.segment_length_mm / p.speed_mm_s, fps)
+    if per_seg < 2:  # every frame a teleport: no step to estimate, a path of length 0
+        raise ConfigError(
+            f"trajectory: segment_length_mm = {p.segment_length_mm:g} mm at speed_mm_s = {p.speed_mm_s:g} "
+            f"(fps = {fps:g}) gives 1 frame per segment: must give at least 2 (a longer segment or a lower speed)"
+        )
     starts, dirs, yaws = [], [], []
     for _ in range(p.segments):
         d = rng.uniform(-np.pi, np.pi)

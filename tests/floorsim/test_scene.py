@@ -107,6 +107,11 @@ def test_set_overrides():
             r"camera.distortion = \[-1.0\]: the rays cast through the 162x124 image project back up to 180 px",
         ),
         ({"camera.distortion": "[0, 0, 5, 5]"}, r"camera.distortion = \[0.0, 0.0, 5.0, 5.0\]: the rays cast"),
+        # a kidnap of one frame per segment: every frame a teleport and the path 0 mm long, exit 0
+        (
+            {"trajectory": {"type": "kidnap", "speed_mm_s": 1e6}},
+            r"trajectory: segment_length_mm = 40 mm at speed_mm_s = 1e\+06 \(fps = 30\) gives 1 frame per segment",
+        ),
         # png16 depth of a camera beyond 655.35 mm: 65535 at every pixel, exit 0
         (
             {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"},
