@@ -408,8 +408,9 @@ def _asphalt(X, Y, seed, p: AsphaltParams):
 class TileParams(Config):
     """Glazed ceramic tiles on a square grid with grout lines: repetitive, a hard case for matching."""
 
-    tile_mm: float = param(30.0, unit="mm", gt=0, doc="side of a tile")
-    grout_mm: float = param(2.0, unit="mm", gt=0, doc="width of a grout line")
+    # bounded: tile_mm + grout_mm (the period) of 1e308 each overflowed to inf and a NaN ended the render
+    tile_mm: float = param(30.0, unit="mm", gt=0, max=100_000.0, doc="side of a tile")
+    grout_mm: float = param(2.0, unit="mm", gt=0, max=100_000.0, doc="width of a grout line")
     grout_depth_mm: float = param(0.4, unit="mm", min=0, max=3.0, doc="depth of the grout below the glaze")
     tile_albedo: float = param(0.7, min=0, max=1, doc="albedo of the glaze")
     grout_albedo: float = param(0.35, min=0, max=1, doc="albedo of the grout")

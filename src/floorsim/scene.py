@@ -65,11 +65,13 @@ import numpy as np
 from floorsim.depthnoise import DepthNoise
 from floorsim.materials import get_material
 from floorsim.sensor import FixedPattern, SensorModel
-from floorsim.trajectories import Trajectory, build_trajectory
+from floorsim.trajectories import Disturbance, Trajectory, build_trajectory, image_border_px
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, apply_overrides, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown, shown_number
+from floorvo.geometry import T_world_cam_down
 from floorvo.io import file_name_problem, read_toml
+from floorvo.sequence import DEPTH_PNG_SCALE_PER_MM
 from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
 __all__ = [
@@ -98,6 +100,8 @@ MAX_FOOTPRINT_MM = 4000.0
 #: The most mesh vertices one floor tile may hold (a tile of the default rig at full size
 #: holds about 4.2 M; 11 M triangles took 1.8 GB, DESIGN.md).
 MAX_TILE_VERTICES = 80e6
+#: How far (px) the ray the renderer casts through a pixel of a distorted lens may project from it.
+MAX_DISTORTION_ERROR_PX = 0.1
 
 
 @dataclass(frozen=True)
@@ -124,6 +128,26 @@ class CameraSpec(Config):
         if len(self.distortion) > 5:
             raise ConfigFieldError(
                 "distortion", f" = {list(self.distortion)}: at most 5 coefficients (k1, k2, p1, p2, k3)"
+            )
+        if any(self.distortion):
+            self._check_distortion()
+
+    def _check_distortion(self) -> None:
+        """Refuse a distortion the renderer cannot invert over the image: the ray it casts through a
+        pixel (OpenCV's undistortPoints) must project back to that pixel within
+        :data:`MAX_DISTORTION_ERROR_PX`. A barrel lens of k1 = -1 folds back inside a 648x494 frame
+        (no ray reaches its corners) and rays came back 620 px off; the frames rendered, exit 0."""
+        cam = self.model()
+        u, v = np.meshgrid(np.linspace(-0.5, cam.width_px - 0.5, 17), np.linspace(-0.5, cam.height_px - 0.5, 13))
+        uv = np.stack([u.ravel(), v.ravel()], axis=1)
+        with np.errstate(all="ignore"):
+            err = np.abs(cam.project(cam.unproject(uv, 1.0)) - uv).max()
+        if not err <= MAX_DISTORTION_ERROR_PX:  # NaN too
+            raise ConfigFieldError(
+                "distortion",
+                f" = {list(self.distortion)}: the rays cast through the {cam.width_px}x{cam.height_px} image "
+                f"project back up to {shown_number(float(err), '.3g')} px from their pixels (at most "
+                f"{MAX_DISTORTION_ERROR_PX:g} px: the lens folds back or is too strong to invert)",
             )
 
     def model(self) -> CameraModel:
@@ -415,13 +439,106 @@ class Scene(Config):
                 "lights.height_mm",
                 f" = {self.lights.height_mm} mm: LEDs must be below the camera (camera.height_mm = {self.camera.height_mm} mm)",
             )
+        self._check_clearance()
+        self._check_depth_range()
         self._check_floor_size()
+
+    def _check_depth_range(self) -> None:
+        """Refuse png16 depth maps that cannot hold the depth the camera sees (they were clipped
+        to 655.35 mm without a word: a camera 1000 mm up wrote 65535 at every pixel)."""
+        if not self.render.depth or self.render.depth_format != "png16":
+            return
+        limit_mm = 65535 / DEPTH_PNG_SCALE_PER_MM
+        deepest = self.deepest_mm()
+        if deepest > limit_mm:
+            raise ConfigFieldError(
+                "render.depth_format",
+                f" = 'png16': holds depths up to {limit_mm:g} mm, but the camera (camera.height_mm = "
+                f"{self.camera.height_mm:g} mm) sees the floor up to {shown_number(deepest, '.1f')} mm away; "
+                "use depth_format = 'npy_float32_mm'",
+            )
+
+    def deepest_mm(self) -> float:
+        """The largest depth along the optical axis at which the camera sees the mean floor plane, at
+        any time: its image corners at the highest the disturbance takes it (the bounce's crest, 4 x the
+        vibration RMS) and every attitude on the tilt's circle (as :meth:`lowest_mm`); inf where a
+        corner ray misses the floor."""
+        dist = self.disturbance() or Disturbance()
+        high_mm = self.camera.height_mm + (dist.bounce_amp_mm + 4.0 * dist.vibration_rms_mm if dist.active else 0.0)
+        cam = self.camera.model()
+        w, h = cam.width_px, cam.height_px
+        rays = cam.unproject(np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]]), 1.0)
+        phi = np.linspace(0.0, 2 * np.pi, 721) if dist.active and dist.tilt_amp_rad > 0 else np.zeros(1)
+        down = min(
+            float(np.min(-(T_world_cam_down(0.0, 0.0, 0.0, 0.0, r, q)[2, :3] @ rays.T)))
+            for r, q in zip(dist.tilt_amp_rad * np.sin(phi), dist.tilt_amp_rad * np.cos(phi))
+        )
+        return high_mm / down if down > 0 else float("inf")
+
+    def _check_clearance(self) -> None:
+        """Refuse a disturbance that takes the LEDs or the camera down to the floor (:meth:`lowest_mm`)."""
+        dist = self.disturbance()
+        if dist is None or not dist.active:
+            return
+        led_mm, cam_mm = self.lowest_mm(dist)
+        what = (
+            f"bounce_amp_mm = {dist.bounce_amp_mm:g} mm, 4 x vibration_rms_mm = {4 * dist.vibration_rms_mm:g} mm, "
+            f"tilt_amp_rad = {dist.tilt_amp_rad:g}"
+        )
+        if cam_mm <= 0:
+            raise ConfigFieldError(
+                "trajectory.disturbance",
+                f": {what} lower the camera (camera.height_mm = {self.camera.height_mm:g} mm) to "
+                f"{cam_mm:.3g} mm above the mean floor plane at its lowest; it must stay above the floor",
+            )
+        if led_mm <= 0:
+            raise ConfigFieldError(
+                "trajectory.disturbance",
+                f": {what} lower the LEDs (lights.height_mm = {self.lights.height_mm:g} mm) to "
+                f"{led_mm:.3g} mm above the mean floor plane at their lowest; they must stay above the floor",
+            )
+
+    def disturbance(self) -> Disturbance | None:
+        """The trajectory's disturbance, or None when its table is not valid (building the
+        trajectory then says why)."""
+        d = self.trajectory.get("disturbance")
+        if isinstance(d, Disturbance):
+            return d
+        try:
+            return build(Disturbance, d if isinstance(d, Mapping) else None, "trajectory.disturbance")
+        except ConfigError:
+            return None
+
+    def lowest_mm(self, dist: Disturbance) -> tuple[float, float]:
+        """(LEDs, camera): the lowest either comes above the mean floor plane under ``dist``, at any time.
+
+        A bound, the same for every seed and duration: the bounce at its trough, the vibration at
+        4 x its RMS (the most its eight sinusoids of amplitude RMS / 2 can sum to) and every
+        attitude on the tilt's circle (roll and pitch of ``tilt_amp_rad`` a quarter period apart);
+        an LED counts half its emitter's height (:meth:`LightsSpec.emitter_size_mm`) below its centre.
+        """
+        drop = dist.bounce_amp_mm + 4.0 * dist.vibration_rms_mm
+        phi = np.linspace(0.0, 2 * np.pi, 721) if dist.tilt_amp_rad > 0 else np.zeros(1)
+        p_cam, _ = self.led_positions_cam()
+        led_z = min(
+            float(np.min(T_world_cam_down(0.0, 0.0, 0.0, 0.0, r, q)[2, :3] @ p_cam.T))
+            for r, q in zip(dist.tilt_amp_rad * np.sin(phi), dist.tilt_amp_rad * np.cos(phi))
+        )
+        _, across_mm, _ = self.lights.emitter_size_mm()
+        cam_mm = self.camera.height_mm - drop
+        return cam_mm + led_z - across_mm / 2, cam_mm
 
     def _check_floor_size(self) -> None:
         """Refuse a scene whose floor could not be held in memory (see :data:`MAX_FOOTPRINT_MM`)."""
         c = self.camera
-        cam = c.model()
-        fp_w, fp_h = cam.width_px * c.height_mm / cam.fx_px, cam.height_px * c.height_mm / cam.fy_px
+        xy = c.model().unproject(image_border_px(c.model()), c.height_mm)[:, :2]  # the lens's distortion too
+        if not np.isfinite(xy).all():
+            raise ConfigFieldError(
+                "camera.distortion", f" = {list(c.distortion)}: the lens maps no ray to an image corner"
+            )
+        fp_w, fp_h = (
+            float(v) for v in np.ptp(xy, axis=0)
+        )  # a strong distortion ([0, 0, 5, 5]) saw kilometres: a traceback
         if max(fp_w, fp_h) > MAX_FOOTPRINT_MM:
             raise ConfigFieldError(
                 "camera",
@@ -432,7 +549,7 @@ class Scene(Config):
         margin = 2.0 + 2.0 * spacing
         long_mm = max(self.floor.tile_length_mm, fp_w, fp_h) + 2 * margin
         short_mm = min(fp_w, fp_h) + 2 * margin + (self.stereo.baseline_mm if self.stereo.enabled else 0.0)
-        vertices = long_mm * short_mm / spacing**2
+        vertices = long_mm / spacing * (short_mm / spacing)  # spacing**2 of 1e-300 mm underflowed to 0
         if vertices > MAX_TILE_VERTICES:
             which = "floor.spacing_mm" if self.floor.spacing_mm is not None else "floor.spacing_mm (none: half the GSD)"
             raise ConfigFieldError(

@@ -38,6 +38,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import Config, build, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, shown
 from floorvo.geometry import T_world_cam_down, position_problem
+from floorvo.sequence_meta import MAX_FPS_HZ
 
 __all__ = [
     "Trajectory",
@@ -47,6 +48,7 @@ __all__ = [
     "build_trajectory",
     "trajectory_param_fields",
     "footprint_bounds_mm",
+    "image_border_px",
     "paper000_subsequences",
 ]
 
@@ -65,19 +67,23 @@ class Disturbance(Config):
     Tilt: roll and pitch, each ``tilt_amp_rad * sin(2 pi tilt_freq_hz t + phase)``.
     Vibration: a seeded sum of sinusoids between ``vibration_band_hz`` with RMS
     ``vibration_rms_mm`` on x, y and z (continuous in time, so blur integrates it).
+    Frequencies are at most :data:`~floorvo.sequence_meta.MAX_FPS_HZ`, the highest frame
+    rate (1e308 Hz overflowed to a NaN pose, which ended the render in a traceback).
     """
 
     bounce_amp_mm: float = param(0.0, unit="mm", min=0.0, max=20.0, doc="amplitude of the height bounce (suspension)")
-    bounce_freq_hz: float = param(2.0, unit="Hz", gt=0, doc="frequency of the height bounce")
+    bounce_freq_hz: float = param(2.0, unit="Hz", gt=0, max=MAX_FPS_HZ, doc="frequency of the height bounce")
     tilt_amp_rad: float = param(0.0, unit="rad", min=0.0, max=0.3, doc="amplitude of roll and pitch")
-    tilt_freq_hz: float = param(1.5, unit="Hz", gt=0, doc="frequency of roll and pitch")
+    tilt_freq_hz: float = param(1.5, unit="Hz", gt=0, max=MAX_FPS_HZ, doc="frequency of roll and pitch")
     vibration_rms_mm: float = param(0.0, unit="mm", min=0.0, max=5.0, doc="RMS of the vibration on x, y and z")
     vibration_band_hz: tuple[float, ...] = param((20.0, 80.0), unit="Hz", doc="[low, high] band of the vibration")
 
     def validate(self) -> None:
         band = self.vibration_band_hz
-        if len(band) != 2 or not 0 < band[0] < band[1]:
-            raise ConfigFieldError("vibration_band_hz", f" = {list(band)}: must be [low, high] with 0 < low < high")
+        if len(band) != 2 or not 0 < band[0] < band[1] <= MAX_FPS_HZ:
+            raise ConfigFieldError(
+                "vibration_band_hz", f" = {list(band)}: must be [low, high] with 0 < low < high <= {MAX_FPS_HZ:g} Hz"
+            )
 
     @property
     def active(self) -> bool:
@@ -486,6 +492,11 @@ def _build_lawnmower(p: LawnmowerParams, fps: float, seed: int):
 def _build_kidnap(p: KidnapParams, fps: float, seed: int):
     rng = np.random.default_rng([seed, 0x51D])
     per_seg = _n_frames(p.segment_length_mm / p.speed_mm_s, fps)
+    if per_seg < 2:  # every frame a teleport: no step to estimate, a path of length 0
+        raise ConfigError(
+            f"trajectory: segment_length_mm = {p.segment_length_mm:g} mm at speed_mm_s = {p.speed_mm_s:g} "
+            f"(fps = {fps:g}) gives 1 frame per segment: must give at least 2 (a longer segment or a lower speed)"
+        )
     starts, dirs, yaws = [], [], []
     for _ in range(p.segments):
         d = rng.uniform(-np.pi, np.pi)
@@ -594,14 +605,26 @@ def build_trajectory(
     return Trajectory(type_name, float(fps), int(n), float(height_mm), path, dist, int(seed), events, to_plain(p))
 
 
+def image_border_px(camera: CameraModel, per_side: int = 64) -> np.ndarray:
+    """(M, 2) pixel positions on the image's outer edge: its 4 corners, and with lens distortion
+    ``per_side`` points along each side too. A pincushion lens sees further through the middle of a
+    side than through its corners: a tile planned on the corners alone left those rays without
+    floor (``camera.distortion = [100]``: 17 % of the pixels black)."""
+    w, h = camera.width_px, camera.height_px
+    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+    if not camera.has_distortion:
+        return corners
+    t = np.linspace(0.0, 1.0, per_side + 2)[1:-1, None]
+    sides = [a + t * (b - a) for a, b in zip(corners, np.roll(corners, -1, axis=0))]
+    return np.concatenate([corners, *sides])
+
+
 def footprint_bounds_mm(
     T_world_cam: np.ndarray, camera: CameraModel, margin_mm: float = 0.0
 ) -> tuple[float, float, float, float]:
     """Bounding box ``(xmin, xmax, ymin, ymax)`` of the floor (z = 0) seen by ``camera`` at poses (N, 4, 4)."""
     Ts = np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4)
-    w, h = camera.width_px, camera.height_px
-    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
-    rays = camera.unproject(corners, 1.0)  # (4, 3) in the camera frame
+    rays = camera.unproject(image_border_px(camera), 1.0)  # (M, 3) in the camera frame
     pts = []
     for T in Ts:
         d = rays @ T[:3, :3].T

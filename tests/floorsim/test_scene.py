@@ -4,6 +4,7 @@ import subprocess
 import sys
 import tomllib
 
+import numpy as np
 import pytest
 from _tiny import TINY_SCENE, tiny_scene
 
@@ -51,6 +52,8 @@ def test_set_overrides():
         ({"camera.pixel_pitch_um": "1e308"}, r"camera.pixel_pitch_um = 1e\+308 um: must be <= 100000.0 um"),
         ({"camera.focal_length_mm": "1e-308"}, r"camera.focal_length_mm = 1e-308 mm: must be >= 0.1 mm"),
         ({"floor.spacing_mm": "1e-6"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-06 mm holds"),
+        # its square underflowed to 0: a ZeroDivisionError traceback
+        ({"floor.spacing_mm": "1e-300"}, r"floor: a floor tile .* at floor.spacing_mm = 1e-300 mm holds inf mesh"),
         ({"trajectory.step_mm": "1e-9"}, r"trajectory: these parameters give 4e\+09 frames; at most 1000000"),
         # a frame rate whose frame times the files cannot hold: 1e7 Hz wrote ground-truth poses that all had
         # one time (TUM holds microseconds) and its reader refused them; 1e-300 Hz made both exports overflow
@@ -70,11 +73,103 @@ def test_set_overrides():
         # rendered without a word: frames of noise alone (a read noise beyond any full well)
         ({"sensor.read_noise_e": "1e308"}, r"sensor.read_noise_e = 1e\+308 e-: must be <= 10000000.0 e-"),
         ({"sensor.dsnu_e": "1e308"}, r"sensor.dsnu_e = 1e\+308 e-: must be <= 10000000.0 e-"),
+        # a disturbance frequency (or a ceramic tile's period) that overflowed: a NaN pose, a traceback
+        (
+            {"trajectory.disturbance.bounce_freq_hz": "1e308"},
+            r"trajectory.disturbance.bounce_freq_hz = 1e\+308 Hz: must be <= 1000000.0 Hz",
+        ),
+        (
+            {"trajectory.disturbance.tilt_freq_hz": "1e308"},
+            r"trajectory.disturbance.tilt_freq_hz = 1e\+308 Hz: must be <= 1000000.0 Hz",
+        ),
+        (
+            {"trajectory.disturbance.vibration_band_hz": "[20, inf]"},
+            r"trajectory.disturbance.vibration_band_hz = \[20.0, inf\]: must be \[low, high\] with 0 < low < high <= 1e\+06 Hz",
+        ),
+        # a disturbance that took the LEDs or the camera under the floor rendered, exit 0
+        (
+            {"trajectory.disturbance.bounce_amp_mm": "7"},
+            r"trajectory.disturbance: bounce_amp_mm = 7 mm, .* lower the LEDs \(lights.height_mm = 3 mm\) to -4 mm",
+        ),
+        ({"trajectory.disturbance.tilt_amp_rad": "0.3"}, r"trajectory.disturbance: .* lower the LEDs .* to -14.2 mm"),
+        (
+            {"trajectory.disturbance.vibration_rms_mm": "1"},
+            r"4 x vibration_rms_mm = 4 mm, .* lower the LEDs .* to -1 mm",
+        ),
+        (
+            {"camera.height_mm": "5", "lights.height_mm": "1", "trajectory.disturbance.bounce_amp_mm": "20"},
+            r"trajectory.disturbance: bounce_amp_mm = 20 mm, .* lower the camera \(camera.height_mm = 5 mm\) to -15 mm",
+        ),
+        # a lens the renderer cannot invert rendered rays hundreds of pixels off, exit 0; one of kilometres
+        # of floor ended in numpy's 'Maximum allowed size exceeded' traceback
+        (
+            {"camera.distortion": "[-1.0]"},
+            r"camera.distortion = \[-1.0\]: the rays cast through the 162x124 image project back up to 180 px",
+        ),
+        ({"camera.distortion": "[0, 0, 5, 5]"}, r"camera.distortion = \[0.0, 0.0, 5.0, 5.0\]: the rays cast"),
+        # a kidnap of one frame per segment: every frame a teleport and the path 0 mm long, exit 0
+        (
+            {"trajectory": {"type": "kidnap", "speed_mm_s": 1e6}},
+            r"trajectory: segment_length_mm = 40 mm at speed_mm_s = 1e\+06 \(fps = 30\) gives 1 frame per segment",
+        ),
+        # png16 depth of a camera beyond 655.35 mm: 65535 at every pixel, exit 0
+        (
+            {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"},
+            r"render.depth_format = 'png16': holds depths up to 655.35 mm, but the camera .* sees the floor up to "
+            r"1000.0 mm away; use depth_format = 'npy_float32_mm'",
+        ),
+        (
+            {
+                "render.depth": "true",
+                "camera.height_mm": "650",
+                "lights.height_mm": "12",
+                "trajectory.disturbance.bounce_amp_mm": "10",
+            },
+            r"render.depth_format = 'png16': .* sees the floor up to 660.0 mm away",
+        ),
+        (
+            {"floor.material": "ceramic_tile", "floor.params.tile_mm": "1e308"},
+            r"floor.params.tile_mm = 1e\+308 mm: must be <= 100000.0 mm",
+        ),
     ],
 )
 def test_bad_values_refused_by_name(override, message):
     with pytest.raises(ConfigError, match=message):
         tiny_scene(**override)
+
+
+def test_a_disturbance_keeping_the_leds_above_the_floor_is_allowed():
+    # the shipped disturbed scenes keep their LEDs 0.56-2.8 mm above the mean floor plane
+    s = tiny_scene(**{"trajectory.disturbance.bounce_amp_mm": "2.9"})
+    assert s.lowest_mm(s.disturbance()) == pytest.approx((0.1, 97.1))
+    s = tiny_scene(**{"trajectory.disturbance.tilt_amp_rad": "0.03"})
+    led_mm, cam_mm = s.lowest_mm(s.disturbance())
+    assert 0.8 < led_mm < 0.9 and cam_mm == 100.0
+    for p in sorted((scenes_dir() / "motion").glob("motion_*.toml")):
+        s = load_scene(p)
+        assert s.lowest_mm(s.disturbance())[0] > 0.5
+
+
+def test_depth_beyond_png16_is_written_as_float():
+    keys = {"render.depth": "true", "camera.height_mm": "1000", "camera.focal_length_mm": "60"}
+    s = tiny_scene(**keys, **{"render.depth_format": "npy_float32_mm"})
+    assert s.deepest_mm() == pytest.approx(1000.0)
+    s = tiny_scene(**{"render.depth": "true", "camera.height_mm": "600", "trajectory.disturbance.tilt_amp_rad": "0.03"})
+    assert 600.0 < s.deepest_mm() < 655.35  # the tilt sees the floor a little further away
+
+
+def test_a_pincushion_lens_plans_its_floor_on_the_sides_of_the_image_too():
+    # a pincushion lens sees further through the middle of a side than through a corner
+    from floorsim.trajectories import footprint_bounds_mm
+
+    s = tiny_scene(**{"camera.distortion": "[0.5]"})
+    cam = s.camera_model()
+    xmin, xmax, ymin, ymax = footprint_bounds_mm(s.build_trajectory().T_world_cam[:1], cam)
+    mid = cam.unproject(np.array([[-0.5, 61.5], [161.5, 61.5], [80.5, -0.5], [80.5, 123.5]]), 100.0)
+    corners = cam.unproject(np.array([[-0.5, -0.5], [161.5, 123.5]]), 100.0)
+    assert np.abs(mid[:2, 0]).min() > np.abs(corners[:, 0]).max()  # the sides reach further
+    assert xmax - xmin == pytest.approx(np.ptp(mid[:2, 0]), rel=1e-3)
+    assert ymax - ymin == pytest.approx(np.ptp(mid[2:, 1]), rel=1e-3)
 
 
 def test_bad_files_give_one_line_and_exit_1(tmp_path):
