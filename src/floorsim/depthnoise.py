@@ -29,10 +29,10 @@ class DepthNoise(Config):
     """Parameters of :func:`apply_depth_noise` (``model = "none"`` keeps the exact depth)."""
 
     model: str = param("none", choices=("none", "structured_light"), doc="none keeps the exact depth")
-    baseline_mm: float = param(50.0, unit="mm", gt=0, doc="projector-camera baseline B")
-    focal_px: float = param(580.0, unit="px", gt=0, doc="focal length f of the depth camera")
-    subpixel: float = param(8.0, unit="steps per px", gt=0, doc="disparity quantisation steps per pixel")
-    sigma_px: float = param(0.05, unit="px", min=0, doc="standard deviation of the disparity noise")
+    baseline_mm: float = param(50.0, unit="mm", gt=0, max=1e5, doc="projector-camera baseline B")
+    focal_px: float = param(580.0, unit="px", min=1.0, max=1e6, doc="focal length f of the depth camera")
+    subpixel: float = param(8.0, unit="steps per px", gt=0, max=1e6, doc="disparity quantisation steps per pixel")
+    sigma_px: float = param(0.05, unit="px", min=0, max=1e3, doc="standard deviation of the disparity noise")
     dropout: float = param(0.0, min=0, max=1, doc="probability of a pixel without measurement")
     edge_mm: float = param(5.0, unit="mm", gt=0, doc="depth jump to a neighbour that drops a pixel")
 

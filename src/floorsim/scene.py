@@ -205,7 +205,7 @@ class LightsSpec(Config):
     bar_length_mm: float = param(40.0, unit="mm", min=0, max=1000.0, doc="length of a bar (along the camera's y axis)")
     power: float = param(1.0, min=0, max=1e6, doc="radiant intensity of each bar (relative; 0 = off)")
     side: str = param("both", choices=("both", "left", "right"), doc="which bars are lit")
-    lobe_exponent: float = param(1.0, gt=0, doc="cos^n emission lobe of an LED")
+    lobe_exponent: float = param(1.0, gt=0, max=1e6, doc="cos^n emission lobe of an LED")
     flicker: float = param(0.0, min=0, max=1.0, doc="per-frame relative standard deviation of the LED power")
     ambient_leak: float = param(
         0.0, min=0, max=10.0, doc="light leaking under the hood, relative to the LEDs' irradiance"
@@ -441,6 +441,7 @@ class Scene(Config):
             )
         self._check_clearance()
         self._check_depth_range()
+        self._check_depth_noise()
         self._check_floor_size()
 
     def _check_depth_range(self) -> None:
@@ -456,6 +457,23 @@ class Scene(Config):
                 f" = 'png16': holds depths up to {limit_mm:g} mm, but the camera (camera.height_mm = "
                 f"{self.camera.height_mm:g} mm) sees the floor up to {shown_number(deepest, '.1f')} mm away; "
                 "use depth_format = 'npy_float32_mm'",
+            )
+
+    def _check_depth_noise(self) -> None:
+        """Refuse a structured-light depth model whose disparity ``f B / z`` at the farthest floor
+        the camera sees is under one quantisation step (``1 / subpixel`` px): the depth there
+        rounds to no measurement (a baseline of 1e-3 mm wrote depth maps of zeros, exit 0)."""
+        dn = self.depth_noise
+        if not self.render.depth or dn.model != "structured_light":
+            return
+        deepest = self.deepest_mm()
+        disparity_px = dn.focal_px * dn.baseline_mm / deepest
+        if not disparity_px * dn.subpixel >= 1.0:
+            raise ConfigFieldError(
+                "depth_noise",
+                f": focal_px x baseline_mm / depth = {shown_number(disparity_px, '.3g')} px at the farthest floor the "
+                f"camera sees ({shown_number(deepest, '.1f')} mm), under one disparity step (1 / subpixel = "
+                f"{shown_number(1.0 / dn.subpixel, '.3g')} px): the depth there would read 0, no measurement",
             )
 
     def deepest_mm(self) -> float:

@@ -131,6 +131,18 @@ def test_set_overrides():
             {"floor.material": "ceramic_tile", "floor.params.tile_mm": "1e308"},
             r"floor.params.tile_mm = 1e\+308 mm: must be <= 100000.0 mm",
         ),
+        # structured-light depth whose disparity rounds to 0 at the floor: depth maps of zeros, exit 0
+        (
+            {"render.depth": "true", "depth_noise.model": '"structured_light"', "depth_noise.baseline_mm": "1e-3"},
+            r"depth_noise: focal_px x baseline_mm / depth = 0.0058 px at the farthest floor the camera sees "
+            r"\(100.0 mm\), under one disparity step \(1 / subpixel = 0.125 px\)",
+        ),
+        (
+            {"render.depth": "true", "depth_noise.model": '"structured_light"', "depth_noise.baseline_mm": "1e308"},
+            r"depth_noise.baseline_mm = 1e\+308 mm: must be <= 100000.0 mm",
+        ),
+        # a beam of 1e308: "the first frame is black (lights off or power 0)"
+        ({"lights.lobe_exponent": "1e308"}, r"lights.lobe_exponent = 1e\+308: must be <= 1000000.0"),
     ],
 )
 def test_bad_values_refused_by_name(override, message):
