@@ -32,11 +32,11 @@ from floorsim.scene import AttitudeSensorSpec, RangeSensorSpec, Scene, scene_T_w
 from floorsim.sensor import AutoExposure, SensorModel, exposure_gain, image_level, rolling_row_offsets_s
 from floorsim.spectral import mono_response
 from floorsim.tilecache import TileCache, default_cache
-from floorsim.trajectories import Trajectory, footprint_bounds_mm
+from floorsim.trajectories import Disturbance, Trajectory, footprint_bounds_mm
 from floorvo.camera import CameraModel
 from floorvo.config import build as build_config
 from floorvo.config import to_plain
-from floorvo.errors import ConfigError
+from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.geometry import attitude_of_T
 from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
 from floorvo.locking import locks_folder
@@ -271,7 +271,7 @@ def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | N
         return h, a, renderer.load_heightfield(xs[0], ys[0], spacing, h, a)
 
     if not isinstance(tiles, TileCache):
-        build()
+        h = build()[0]
     else:
         key = TileCache.key(
             {
@@ -296,6 +296,24 @@ def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | N
         if not built:
             renderer.load_heightfield(xs[0], ys[0], spacing, h, a, normals=n)
     renderer.specular = mat.specular
+    _check_relief_clearance(scene, float(np.max(h)))
+
+
+def _check_relief_clearance(scene: Scene, top_mm: float) -> None:
+    """Refuse a floor whose relief (highest point of a tile, ``top_mm`` above the mean floor plane)
+    reaches the LEDs or the camera at their lowest (:meth:`~floorsim.scene.Scene.lowest_mm`): a
+    ``floor.relief_scale`` of 100 stood asphalt's stones 37 mm tall around LEDs 3 mm up, and the
+    render ended in "the first frame is black (lights off or power 0)"."""
+    led_mm, cam_mm = scene.lowest_mm(scene.disturbance() or Disturbance())
+    for what, low_mm in (("the LEDs", led_mm), ("the camera", cam_mm)):
+        if top_mm >= low_mm:
+            f = scene.floor
+            raise ConfigFieldError(
+                "floor",
+                f": the {f.material} relief (relief_scale = {f.relief_scale:g}) rises {top_mm:.3g} mm above the mean "
+                f"floor plane, and {what} come down to {low_mm:.3g} mm: they must stay above the floor "
+                "(a smaller floor.relief_scale or the material's relief parameters)",
+            )
 
 
 @locks_folder("out_dir", "sequence folder")
@@ -439,6 +457,12 @@ def render_sequence(
             raise ConfigError(
                 f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
             )
+    elif missing:
+        # The first tile a frame is left on, loaded before anything is written: a floor the render
+        # refuses (_check_relief_clearance) leaves the folder as it found it, as above.
+        left = set(missing)
+        loaded_box = next(box for idx, box in tiles if left.intersection(idx))
+        _load_tile(renderer, scene, loaded_box, spacing, tile_cache)
     _write_signals(writer, scene, ts, T_all)  # sequence.json first (the writer's begin), then the ground truth
     atomic_write_json(sensor_path, {"gain_e_per_unit": gain, "full_well_e": scene.sensor.full_well_e})
     sensor = sensor_first = scene.sensor.model(gain)

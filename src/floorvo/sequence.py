@@ -292,16 +292,8 @@ class SequenceWriter:
         return not self._replace_old and all(_decodes(p, self._expected_dtype(p)) for p in self.required_paths(index))
 
     def _expected_dtype(self, path: Path) -> np.dtype | None:
-        """What a frame file of this sequence must hold: a png16 depth map 16-bit mono, a camera
-        frame the ``bit_depth`` that ``sequence.json`` states, mono (None: any mono image)."""
-        if path.suffix != ".png":
-            return None
-        if path.parent.name == "depth":
-            return np.dtype(np.uint16)
-        bits = self.meta.get("bit_depth")
-        if bits == 8:
-            return np.dtype(np.uint8)
-        return np.dtype(np.uint16) if bits == 16 else None
+        """What a PNG frame file of this sequence must hold (:func:`_png_frame_dtype`; None for ``.npy``)."""
+        return _png_frame_dtype(self.meta, path.parent.name) if path.suffix == ".png" else None
 
     def has_calib(self, name: str) -> bool:
         """True if ``calib/NAME.png`` is on disk and decodes (and is not about to be overwritten)."""
@@ -461,6 +453,19 @@ def _decodes(path: Path, dtype: np.dtype | None = None) -> bool:
     except (OSError, SequenceError):
         return False
     return img.ndim == 2 and (dtype is None or img.dtype == dtype)
+
+
+def _png_frame_dtype(meta: dict, folder: str) -> np.dtype | None:
+    """The pixel type of a PNG in the sequence folder ``folder`` (``cam0``, ``cam1``, ``depth``), mono
+    in every case: a png16 depth map's uint16 (1/100 mm), a camera frame's the ``bit_depth`` that
+    ``sequence.json`` (``meta``) states; None where it states none (frame 0's then holds). The one
+    rule of the writer (a resume writes a file of another type again) and the readers."""
+    if folder == "depth":
+        return np.dtype(np.uint16)
+    bits = meta.get("bit_depth")
+    if bits == 8:
+        return np.dtype(np.uint8)
+    return np.dtype(np.uint16) if bits == 16 else None
 
 
 def _check_bit_depth(img: np.ndarray, bits: object, path: Path, key: str) -> None:
@@ -750,9 +755,9 @@ class Sequence:
                 f"{self.image_path(index, cam)}: image is {img.shape[1]}x{img.shape[0]}{channels}, "
                 f"sequence.json says a mono {cam_model.width_px}x{cam_model.height_px}"
             )
-        stated = self.meta.get("bit_depth")
+        stated = _png_frame_dtype(self.meta, cam)
         if stated is not None:
-            _check_bit_depth(img, stated, self.image_path(index, cam), "bit_depth")
+            _check_bit_depth(img, 8 * stated.itemsize, self.image_path(index, cam), "bit_depth")
         else:  # no depth stated: frame 0's is the sequence's (a 16-bit frame among 8-bit ones was read as it was)
             if cam not in self._frame0_bits:
                 self._frame0_bits[cam] = 8 * (img if index == 0 else self.image(0, cam)).dtype.itemsize
@@ -788,7 +793,7 @@ class Sequence:
                     f"{self.camera.width_px}x{self.camera.height_px}"
                 )
             raw = read_png(path)
-            if raw.dtype != np.uint16 or raw.ndim != 2:  # an 8-bit one read as 1/100 mm: depths of 0-2.55 mm
+            if raw.dtype != _png_frame_dtype(self.meta, "depth") or raw.ndim != 2:  # 8-bit as 1/100 mm: 0-2.55 mm
                 bits = f"{8 * raw.dtype.itemsize}-bit" + (f" with {raw.shape[2]} channels" if raw.ndim == 3 else "")
                 raise SequenceError(
                     f"{path}: depth map is {bits}, sequence.json says depth format png16 "

@@ -240,6 +240,24 @@ def test_cli_render_refuses_empty_root_and_foreign_folders(tmp_path, monkeypatch
         ({"FLOORSIM_CACHE_MAX_MB": "abc"}, [], "FLOORSIM_CACHE_MAX_MB = 'abc': must be a number of megabytes"),
         ({"FLOORSIM_VARIANT": "bogus"}, [], "mitsuba variant 'bogus' is not available"),
         ({}, ["--set", "lights.power=0"], "the first frame is black"),
+        # a relief taller than the LEDs are high: it said "the first frame is black (lights off or power 0)"
+        (
+            {},
+            ["--set", "floor.material=asphalt", "--set", "floor.relief_scale=100"],
+            "floor: the asphalt relief (relief_scale = 100) rises 3",
+        ),
+        (
+            {},
+            [
+                "--set",
+                "floor.material=asphalt",
+                "--set",
+                "floor.relief_scale=100",
+                "--set",
+                "sensor.exposure_gain=1000",
+            ],
+            "and the LEDs come down to 3 mm: they must stay above the floor",
+        ),
     ],
 )
 def test_a_refused_render_leaves_no_half_made_sequence_folder(tmp_path, monkeypatch, capsys, env, override, rule):
