@@ -246,8 +246,10 @@ def package_versions() -> dict:
     return v
 
 
-def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | None | str = "default") -> None:
-    """Load the floor under ``box`` = (xmin, xmax, ymin, ymax) (mm) into ``renderer``.
+def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | None | str = "default") -> float:
+    """Load the floor under ``box`` = (xmin, xmax, ymin, ymax) (mm) into ``renderer``; returns the
+    tile's highest point (mm above the mean floor plane). A relief that rises to the camera is
+    refused (:func:`_check_relief_clearance`).
 
     The height, albedo and normal grids come from the tile cache (:mod:`floorsim.tilecache`)
     when it holds them (``cache``: "default" is the one the environment names, None none),
@@ -296,24 +298,38 @@ def _load_tile(renderer, scene: Scene, box, spacing: float, cache: TileCache | N
         if not built:
             renderer.load_heightfield(xs[0], ys[0], spacing, h, a, normals=n)
     renderer.specular = mat.specular
-    _check_relief_clearance(scene, float(np.max(h)))
+    top_mm = float(np.max(h))
+    _check_relief_clearance(scene, top_mm)
+    return top_mm
 
 
 def _check_relief_clearance(scene: Scene, top_mm: float) -> None:
     """Refuse a floor whose relief (highest point of a tile, ``top_mm`` above the mean floor plane)
-    reaches the LEDs or the camera at their lowest (:meth:`~floorsim.scene.Scene.lowest_mm`): a
-    ``floor.relief_scale`` of 100 stood asphalt's stones 37 mm tall around LEDs 3 mm up, and the
-    render ended in "the first frame is black (lights off or power 0)"."""
-    led_mm, cam_mm = scene.lowest_mm(scene.disturbance() or Disturbance())
-    for what, low_mm in (("the LEDs", led_mm), ("the camera", cam_mm)):
-        if top_mm >= low_mm:
-            f = scene.floor
-            raise ConfigFieldError(
-                "floor",
-                f": the {f.material} relief (relief_scale = {f.relief_scale:g}) rises {top_mm:.3g} mm above the mean "
-                f"floor plane, and {what} come down to {low_mm:.3g} mm: they must stay above the floor "
-                "(a smaller floor.relief_scale or the material's relief parameters)",
-            )
+    reaches the camera at its lowest (:meth:`~floorsim.scene.Scene.lowest_mm`): ``floor.relief_scale``
+    = 100 and asphalt's ``relief_mm`` = 3 stand stones 300 mm tall. LEDs in the relief are not
+    refused: the LED-height studies take them down into it (0.02 mm over vinyl's 0.03 mm bumps),
+    where the relief shadows the floor; a first frame that is black then says so."""
+    _, cam_mm = scene.lowest_mm(scene.disturbance() or Disturbance())
+    if top_mm >= cam_mm:
+        f = scene.floor
+        raise ConfigFieldError(
+            "floor",
+            f": the {f.material} relief (relief_scale = {f.relief_scale:g}) rises {top_mm:.3g} mm above the mean "
+            f"floor plane, and the camera comes down to {cam_mm:.3g} mm: it must stay above the floor "
+            "(a smaller floor.relief_scale or the material's relief parameters)",
+        )
+
+
+def _black_frame_problem(scene: Scene, top_mm: float) -> str:
+    """Why the first frame can be black: the lights, or LEDs at or below the relief's top ``top_mm``."""
+    led_mm, _ = scene.lowest_mm(scene.disturbance() or Disturbance())
+    if top_mm < led_mm:
+        return "lights off or power 0"
+    f = scene.floor
+    return (
+        f"lights off, power 0, or the LEDs ({led_mm:.3g} mm up at their lowest) inside the {f.material} relief, "
+        f"which rises {top_mm:.3g} mm (relief_scale = {f.relief_scale:g})"
+    )
 
 
 @locks_folder("out_dir", "sequence folder")
@@ -448,14 +464,15 @@ def render_sequence(
         # Exposure from the first frame's radiance (rendered again here if it is on disk), on the first
         # tile of the plan, which stays loaded for its frames; frame 0's render is kept for frame 0.
         loaded_box = tiles[0][1]
-        _load_tile(renderer, scene, loaded_box, spacing, tile_cache)
+        top_mm = _load_tile(renderer, scene, loaded_box, spacing, tile_cache)
         rad0 = rad_first = _render_frame(renderer, scene, traj, 0, None, scene.seed)
         vig0 = vignetting_factor(cam, scene.camera.vignetting)
         rad0 = rad0 if vig0 is None else rad0 * vig0
         gain = exposure_gain(rad0, scene.sensor.full_well_e, scene.sensor.target_percentile, scene.sensor.target_level)
         if gain <= 0:
             raise ConfigError(
-                f"{scene.name}: the first frame is black (lights off or power 0); set sensor.exposure_gain explicitly"
+                f"{scene.name}: the first frame is black ({_black_frame_problem(scene, top_mm)}); "
+                "set sensor.exposure_gain explicitly"
             )
     elif missing:
         # The first tile a frame is left on, loaded before anything is written: a floor the render

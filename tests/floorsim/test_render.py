@@ -240,23 +240,19 @@ def test_cli_render_refuses_empty_root_and_foreign_folders(tmp_path, monkeypatch
         ({"FLOORSIM_CACHE_MAX_MB": "abc"}, [], "FLOORSIM_CACHE_MAX_MB = 'abc': must be a number of megabytes"),
         ({"FLOORSIM_VARIANT": "bogus"}, [], "mitsuba variant 'bogus' is not available"),
         ({}, ["--set", "lights.power=0"], "the first frame is black"),
-        # a relief taller than the LEDs are high: it said "the first frame is black (lights off or power 0)"
+        # LEDs inside the relief: it said only "(lights off or power 0)"
         (
             {},
             ["--set", "floor.material=asphalt", "--set", "floor.relief_scale=100"],
-            "floor: the asphalt relief (relief_scale = 100) rises 3",
+            "the first frame is black (lights off, power 0, or the LEDs (3 mm up at their lowest) inside the "
+            "asphalt relief, which rises 3",
         ),
+        # a relief that reaches the camera: rendered, exit 0
         (
             {},
-            [
-                "--set",
-                "floor.material=asphalt",
-                "--set",
-                "floor.relief_scale=100",
-                "--set",
-                "sensor.exposure_gain=1000",
-            ],
-            "and the LEDs come down to 3 mm: they must stay above the floor",
+            ["--set", "floor.material=asphalt", "--set", "floor.params.relief_mm=3", "--set", "floor.relief_scale=100"]
+            + ["--set", "sensor.exposure_gain=1000"],
+            "and the camera comes down to 100 mm: it must stay above the floor",
         ),
     ],
 )
