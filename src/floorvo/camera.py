@@ -310,6 +310,34 @@ class CameraModel:
         z = np.broadcast_to(np.asarray(depth_mm, dtype=float), x.shape)
         return np.stack([x * z, y * z, z], axis=1)
 
+    def undistorted_px(self, uv_px: np.ndarray) -> np.ndarray:
+        """(N, 2) pixels of this camera's ideal pinhole (the same ``K``, no distortion) on the rays
+        of the (N, 2) pixels ``uv_px``: ``K (x, y, 1)`` of :meth:`unproject`'s ``(x, y)``, in the
+        dtype of ``uv_px`` when it is a float one. ``uv_px`` itself when the camera has no
+        distortion. What a method in pixels that assumes a pinhole takes of a distorted lens's
+        frames: a triangulation by ``P = K [R | t]``, an epipolar line of a fundamental matrix
+        made from ``K``, a plane's homography ``K' (R + t n^T / d) K^-1``."""
+        uv = np.asarray(uv_px)
+        if not self.has_distortion or uv.size == 0:
+            return uv
+        x = self.unproject(uv.reshape(-1, 2), 1.0)
+        out = np.stack([self.fx_px * x[:, 0] + self.cx_px, self.fy_px * x[:, 1] + self.cy_px], axis=1)
+        return out.astype(uv.dtype if uv.dtype.kind == "f" else np.float64).reshape(uv.shape)
+
+    def distorted_px(self, uv_pinhole_px: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`undistorted_px`: the (N, 2) pixels of the frame on the rays of the
+        ideal pinhole's (N, 2) pixels ``uv_pinhole_px`` (:meth:`project`), in their float dtype;
+        ``uv_pinhole_px`` itself when the camera has no distortion."""
+        uv = np.asarray(uv_pinhole_px)
+        if not self.has_distortion or uv.size == 0:
+            return uv
+        flat = uv.reshape(-1, 2).astype(float)
+        rays = np.column_stack(
+            [(flat[:, 0] - self.cx_px) / self.fx_px, (flat[:, 1] - self.cy_px) / self.fy_px, np.ones(len(flat))]
+        )
+        out = self.project(rays)
+        return out.astype(uv.dtype if uv.dtype.kind == "f" else np.float64).reshape(uv.shape)
+
     def _distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         k1, k2, p1, p2, k3 = (tuple(self.distortion) + (0.0,) * 5)[:5]
         r2 = x * x + y * y

@@ -2,7 +2,8 @@
 
 ``trajectory.txt`` (TUM, metres, stamped with the sequence's frame times) starts at the
 ground-truth pose of the first frame run (the nearest in time, within
-:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`) when there is one, at the identity
+:data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`; of the first frame the estimator starts on
+where it loses the first ones) when there is one, at the identity
 otherwise; frames where the track was lost are left out, so the gap shows in the file,
 and the chain continues from the last good pose (the next frame is matched against the
 last good one). The loop is :func:`floorvo.runner.run_sequence`, the files

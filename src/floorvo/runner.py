@@ -230,11 +230,16 @@ def run_frames(
     on_step: OnStep | None = None,
     name: str | None = None,
     attitude_noise_rad: float = 0.0,
+    T_world_at: Callable[[Frame], np.ndarray | None] | None = None,
 ) -> RunResult:
     """Run ``estimator`` (an :class:`~floorvo.estimators.base.Estimator`) over ``frames`` from a fresh state.
 
     ``T_world_start`` (4, 4) mm: the pose the run starts at (see the module doc for the
-    chaining). ``scale_calibration`` is divided out of every motion step, never out of an
+    chaining). ``T_world_at``: the true pose (4, 4) mm of a frame, None where unknown (the
+    ground truth, :func:`run_sequence`): where the estimator starts on a later frame than the
+    first (the first ones lost: a black frame while a real camera's exposure settles), the run
+    starts at that frame's pose instead of ``T_world_start``, the first frame's (the frame was
+    placed there, and every pose of the run was off by the motion over the lost frames). ``scale_calibration`` is divided out of every motion step, never out of an
     absolute pose. ``on_step(k, frame, step_result)`` is called after each step (progress,
     match samples). ``name``: the run's estimator name (default ``estimator.name``).
     An estimator that breaks the protocol (an unknown status, ``ok`` without motion, a motion or
@@ -260,6 +265,7 @@ def run_frames(
     orient = scale_calibration is not None and scale_calibration.uses_orientation
     theta_from: float | None = None
     state = estimator.start()
+    started = False  # whether the estimator has placed a frame (init or ok) yet
     index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
     nan = float("nan")
     t0 = time.perf_counter()
@@ -285,6 +291,14 @@ def run_frames(
         st = res.status
         why = res.reason
         fix = False
+        if st == "init" and k > 0 and not started and T_world_at is not None:
+            T_true = T_world_at(frame)  # the estimator starts on this frame: the run starts at its pose
+            if T_true is not None:
+                T_world = T_chain = np.array(T_true, dtype=float)
+                if attitude and frame.attitude_rad is not None:
+                    start = _start_footprint(T_world, frame.attitude_rad, levelled=levelled)
+                    T_chain = T_chain if start is None else start
+        started = started or st in _PLACED
         if st not in _PLACED:
             if st != "lost":
                 raise ValueError(f"{name}: frame {frame.index}: status {st!r} (an estimator returns init, ok or lost)")
@@ -503,13 +517,16 @@ def run_sequence(
     ``T_world_start`` defaults to the ground-truth pose of the first frame run (the nearest
     in time, within :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`: :meth:`Sequence.groundtruth_at`)
     when there is one, the identity otherwise (so a trajectory is in the ground truth's world
-    frame). An empty frame list is refused.
+    frame); that of the first frame the estimator starts on where it loses the first ones
+    (``run_frames``' ``T_world_at``). An empty frame list is refused.
     """
     indices = [int(i) for i in (range(seq.frame_count) if frames is None else frames)]
     name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
     if not indices:
         raise FloorbenchError(f"{name}: no frames to run on")
+    T_world_at: Callable[[Frame], np.ndarray | None] | None = None
     if T_world_start is None:
+        T_world_at = _groundtruth_pose_of(seq)
         t0 = seq.timestamps_s[indices[0]]
         T_start, found = seq.groundtruth_at(np.array([t0]))
         T_world_start = T_start[0]
@@ -535,4 +552,18 @@ def run_sequence(
         on_step=on_step,
         name=name,
         attitude_noise_rad=attitude_noise_rad(seq.attitude_signal_rad) if uses_attitude_signal(estimator) else 0.0,
+        T_world_at=T_world_at,
     )
+
+
+def _groundtruth_pose_of(seq: Sequence) -> Callable[[Frame], np.ndarray | None] | None:
+    """The ground-truth pose (4, 4) mm of a frame of ``seq`` (the nearest in time, within
+    :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`; None beyond), or None without ground truth."""
+    if seq.groundtruth() is None:
+        return None
+
+    def pose(frame: Frame) -> np.ndarray | None:
+        T, found = seq.groundtruth_at(np.array([frame.timestamp_s]))
+        return T[0] if found[0] else None
+
+    return pose

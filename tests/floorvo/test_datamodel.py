@@ -38,6 +38,21 @@ def test_project_unproject_round_trip_with_distortion():
     np.testing.assert_allclose(back, p, atol=1e-4)
 
 
+def test_pinhole_pixels_of_a_distorted_camera():
+    """CameraModel.undistorted_px: the ideal pinhole's pixel (same K) on each pixel's ray, by hand
+    from project (a point's distorted pixel goes to K (X/Z, Y/Z, 1)); distorted_px its inverse;
+    both the pixels themselves, dtype kept, without distortion."""
+    cam = CameraModel(640, 480, 800.0, 760.0, 300.0, 250.0, (-0.2, 0.05, 0.001, -0.001, 0.0))
+    p = np.array([[5.0, -3.0, 100.0], [-20.0, 15.0, 100.0], [30.0, 25.0, 100.0]])
+    pin = np.column_stack([800.0 * p[:, 0] / p[:, 2] + 300.0, 760.0 * p[:, 1] / p[:, 2] + 250.0])
+    np.testing.assert_allclose(cam.undistorted_px(cam.project(p)), pin, atol=1e-4)
+    np.testing.assert_allclose(cam.distorted_px(pin), cam.project(p), atol=1e-9)
+    assert cam.undistorted_px(cam.project(p).astype(np.float32)).dtype == np.float32
+    ideal = CameraModel(640, 480, 800.0, 760.0, 300.0, 250.0)
+    uv = np.float32([[1.5, 2.5]])
+    assert ideal.undistorted_px(uv) is uv and ideal.distorted_px(uv) is uv
+
+
 def test_bad_camera_refused():
     with pytest.raises(ConfigError, match="focal"):
         CameraModel(10, 10, 0.0, 1.0, 5, 5)

@@ -361,3 +361,26 @@ def test_stereo_sift_never_reports_an_imprecise_step_ok(tmp_path):
     run, e = _stereo_run_errors(tmp_path, disturbed_poses(), "stereo-sift-fast", noise_dn=8.0)
     assert e is None or not wrong_steps(e).any(), e
     assert any(str(r).startswith("imprecise step") for r in run.reason), list(run.reason)
+
+
+@pytest.mark.parametrize("update", ["plane", "rigid"])
+def test_stereo_sift_undoes_the_lens_distortion_before_triangulating(tmp_path, update):
+    """A stereo rig whose lenses have a mild barrel distortion (k1 = -0.1, both cameras), frames
+    made by inverting the camera model exactly (:mod:`floorvo.synthetic`): stereo-sift
+    triangulated the distorted keypoints with P = K [R | t] (eqs. (1)-(3) of paper 002 hold for
+    a pinhole), so the floor plane came out curved and every default step was lost as
+    imprecise (0.5 mm at k1 = -0.05), and with update = rigid every step was reported ok
+    31-62 % long. Each step is now reported ok within issue 14's bound of the true 6-DoF step."""
+    from floorvo.metrics import wrong_steps
+    from floorvo.run import run_estimator
+    from floorvo.scoring import ok_step_errors
+    from floorvo.synthetic import write_synthetic_sequence
+
+    # Full size: at 324x247 the floor planes alone leave most steps imprecise (BENCHMARKS.md).
+    cam = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0, distortion=(-0.1, 0, 0, 0, 0))
+    poses = np.stack([T_world_cam_down(4.0 * i, 0.5 * i, 100.0, np.radians(0.3 * i)) for i in range(4)])
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, poses, stereo_baseline_mm=20.0)
+    run = run_estimator(seq, "stereo-sift", tmp_path / "run", {"update": update})
+    assert list(run.status) == ["init", "ok", "ok", "ok"], list(run.reason)
+    e = ok_step_errors(list(run.status), list(run.reason), poses, run.T_world_cam[run.placed])
+    assert e is not None and len(e["trans_mm"]) == 3 and not wrong_steps(e).any(), e

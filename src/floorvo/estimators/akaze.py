@@ -350,6 +350,17 @@ class _AkazeBase:
     ):
         self.config = config
         self.camera = camera
+        # The camera's ideal pinhole (the same K, no distortion): the keypoints are matched and
+        # fitted in its pixels (:meth:`_levelled`), where the floor's motion is the rigid (or
+        # similarity) image motion the fit and its checks assume. In a distorted lens's own
+        # pixels it is not: at k1 = -0.25 the similarity read the distortion as a change of
+        # height (the real-time presets' steps 5.7 % short, 2 reported ok and wrong), at k1 = -0.4
+        # the pairs the rigid fit left out agreed on "two motions" and every step was lost.
+        self.pinhole = (
+            CameraModel(camera.width_px, camera.height_px, camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px)
+            if camera.has_distortion
+            else camera
+        )
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
         self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)  # once, not per frame
@@ -364,13 +375,15 @@ class _AkazeBase:
     def start(self) -> _State:
         return _State()
 
-    def _levelled(self, kps: np.ndarray, roll_rad: float, pitch_rad: float) -> np.ndarray:
-        """Keypoints (N, 2) px of a camera at attitude ``roll_rad``, ``pitch_rad`` (``attitude.csv``'s
-        convention, :func:`floorvo.geometry.attitude_of_T`) moved to where a camera at the same
-        centre and yaw looking straight down sees them: each pixel's ray (distortion undone,
-        :meth:`CameraModel.unproject`) turned by :func:`floorvo.geometry.R_nadir_cam`
-        and projected again (distortion applied, :meth:`CameraModel.project`), a homography
-        ``K R K^-1`` of the ideal pinhole. A turn about the camera's centre moves every pixel as
+    def _levelled(self, kps: np.ndarray, attitude: tuple[float, float] | None) -> np.ndarray:
+        """Keypoints (N, 2) px of the frame in the pixels of the camera's ideal pinhole
+        (:attr:`pinhole`: a distorted lens's undone, :meth:`CameraModel.undistorted_px`), where
+        the fit works, and levelled when the frame has an ``attitude`` (roll, pitch): a camera at
+        that attitude (``attitude.csv``'s convention, :func:`floorvo.geometry.attitude_of_T`)
+        has its keypoints moved to where a camera at the same centre and yaw looking straight
+        down sees them: each pixel's ray (distortion undone, :meth:`CameraModel.unproject`)
+        turned by :func:`floorvo.geometry.R_nadir_cam` and projected into the ideal pinhole, a
+        homography ``K R K^-1`` of it. A turn about the camera's centre moves every pixel as
         the floor does not, so what is left between two levelled frames is the floor's motion as
         a level camera sees it (a rigid motion and the scale of the height change): a tilt change
         of a few mrad a frame, which the pixel fit read in part as a height change (the
@@ -378,15 +391,19 @@ class _AkazeBase:
         turn about the optical axis, no longer enter the fit."""
         if len(kps) == 0:
             return kps
-        rays = self.camera.unproject(kps, 1.0) @ R_nadir_cam(roll_rad, pitch_rad).T
-        return self.camera.project(rays)
+        if attitude is None:
+            return self.camera.undistorted_px(kps)
+        rays = self.camera.unproject(kps, 1.0) @ R_nadir_cam(*attitude).T
+        return self.pinhole.project(rays)
 
     def _unlevelled(self, pts: np.ndarray, attitude: tuple[float, float] | None) -> np.ndarray:
-        """Levelled points (N, 2) px (:meth:`_levelled`) back in the pixels of the frame taken at
-        ``attitude`` (the inverse turn); as they are when ``attitude`` is None (not levelled)."""
-        if attitude is None or len(pts) == 0:
+        """Points (N, 2) px of :meth:`_levelled` back in the pixels of the frame taken at
+        ``attitude`` (the inverse turn, None: not levelled), the lens's distortion applied."""
+        if len(pts) == 0:
             return pts
-        rays = self.camera.unproject(pts, 1.0) @ R_nadir_cam(*attitude)  # R^T v, row-wise
+        if attitude is None:
+            return self.camera.distorted_px(pts)
+        rays = self.pinhole.unproject(pts, 1.0) @ R_nadir_cam(*attitude)  # R^T v, row-wise
         return self.camera.project(rays)
 
     def _detect(self, image: np.ndarray, state: _State | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -724,8 +741,8 @@ class _AkazeBase:
         """
         h_prev = state.height_mm or self.height_mm
         h_cur = self._height_after(state, fit, frame) or self.height_mm
-        q_prev = pixels_to_floor_mm(fit.src, self.camera, h_prev)
-        q_cur = pixels_to_floor_mm(fit.dst, self.camera, h_cur)
+        q_prev = pixels_to_floor_mm(fit.src, self.pinhole, h_prev)  # the pairs are the pinhole's (_levelled)
+        q_cur = pixels_to_floor_mm(fit.dst, self.pinhole, h_cur)
         R2, t2_mm = rigid_fit(q_prev, q_cur)
         T = floor_rigid_to_T(R2, t2_mm)
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
@@ -770,8 +787,8 @@ class _AkazeBase:
             return ""
         if self._frame_height(frame) is not None or len(fit.src) < 8:
             return ""  # the height is measured (the fit used it), or too few pairs for a homography
-        x_prev = self.camera.unproject(fit.src, 1.0)[:, :2]
-        x_cur = self.camera.unproject(fit.dst, 1.0)[:, :2]
+        x_prev = self.pinhole.unproject(fit.src, 1.0)[:, :2]
+        x_cur = self.pinhole.unproject(fit.dst, 1.0)[:, :2]
         spread = np.linalg.svd(x_prev - x_prev.mean(axis=0), compute_uv=False)
         if spread[1] < 1e-3 * spread[0]:
             return ""  # pairs on a line fix no homography: no evidence either way, the step as the fit has it
@@ -832,8 +849,9 @@ class _AkazeBase:
         whose window does not converge or moves by more than ``inlier_tol_px`` is left out, and
         the motion is fitted again on the rest with the fit's own model (the known image scale,
         or the fitted similarity). Fewer than ``min_inliers`` left, or a homography
-        (``fits_own_scale``): the fit as it was. Levelled keypoints (an attitude signal) are
-        refined in the frames' own pixels and levelled again. The fit's checks were made on
+        (``fits_own_scale``): the fit as it was. The pairs (in the ideal pinhole's pixels, levelled
+        with an attitude signal: :meth:`_levelled`) are refined in the frames' own pixels and
+        taken back into the pinhole. The fit's checks were made on
         its pairs before this; the height-change check (:meth:`_height_change_problem`) and
         the step (:meth:`_motion`) use the refined pairs.
         """
@@ -867,7 +885,7 @@ class _AkazeBase:
         if keep.sum() < cfg.min_inliers:
             return fit
         src = src[keep]
-        dst = p1[keep] if attitude is None else self._levelled(p1[keep], *attitude)
+        dst = self._levelled(p1[keep], attitude)
         scale = None if fit.scale_fitted else float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
         return replace(fit, M=self._rigid_px(src, dst, scale), src=src, dst=dst)
 
@@ -997,8 +1015,7 @@ class _AkazeBase:
         if isinstance(attitude, str):
             return StepResult("lost", reason=attitude, timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()))
         kps, desc, img8 = self._detect(frame.image, state)
-        if attitude is not None:
-            kps = self._levelled(kps, *attitude)
+        kps = self._levelled(kps, attitude)
         packed = pack_descriptors(desc)
         t1 = time.perf_counter()
         if state.kps is None:

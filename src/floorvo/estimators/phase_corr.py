@@ -7,7 +7,9 @@ Per frame:
    map precomputed at start (``cv2.initUndistortRectifyMap`` / ``cv2.remap``), into an
    ideal pinhole with square pixels ``f = max(fx, fy)`` and the same principal point,
    where the floor's motion is a rigid image motion again; the principal point centres
-   the crop. An ideal square-pixel camera is used as it is (no resampling).
+   the crop (moved inside the frame where the principal point is nearer an edge than half
+   the crop; motions stay about the principal point). An ideal square-pixel camera is used
+   as it is (no resampling).
 1. Divide out the LED falloff (flat-field frame, or a blur estimate without one), and replace
    the pixels brighter than twice their 3 x 3 median by it (``impulse_ratio``,
    :func:`floorvo.imaging.impulses_replaced`): a sensor's hot pixels stay put in the frame
@@ -601,8 +603,14 @@ class PhaseCorr:
             )
         self.block = bs
         self.crop = bs * g
-        self.x0 = int(round(gc.cx_px - self.crop / 2 + 0.5))
-        self.y0 = int(round(gc.cy_px - self.crop / 2 + 0.5))
+        # The crop centred on the principal point, moved inside the frame where the principal
+        # point lies nearer an edge than half the crop (a real calibration's: (200, 140) on a
+        # 648x494 frame, (159.5, 100) on a 320x240 one, whose 216 px crop fits centred only within
+        # 12 px of the middle): a crop past the edge ended the run in a ValueError from a block
+        # reshape. Every use below takes the crop's offset from the principal point
+        # (crop_from_centre, the layout's block centres), so the motion stays about that point.
+        self.x0 = int(np.clip(round(gc.cx_px - self.crop / 2 + 0.5), 0, gc.width_px - self.crop))
+        self.y0 = int(np.clip(round(gc.cy_px - self.crop / 2 + 0.5), 0, gc.height_px - self.crop))
         # The region of each frame that is normalised: the crop plus a margin for the motion.
         m = config.margin_px // k
         self.rx0, self.ry0 = max(0, self.x0 - m), max(0, self.y0 - m)

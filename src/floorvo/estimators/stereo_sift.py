@@ -11,7 +11,10 @@ state, so each frame's SIFT runs once):
 4. RANSAC on the temporal matches (a homography: the floor is a plane) keeps the trusted
    points.
 5. Triangulation of ``P_3dL1`` and ``P_3dL2`` in the left camera (projection matrices
-   from the camera models, eqs. (1)-(3), and ``T_cam0_cam1``).
+   from the camera models, eqs. (1)-(3), and ``T_cam0_cam1``), of the keypoints taken into
+   each camera's ideal pinhole first (a lens's distortion undone,
+   :meth:`floorvo.camera.CameraModel.undistorted_px`), as for the epipolar check and the
+   homographies of steps 3 and 4.
 6. Position update: the paper's ``DP_L = P_3dL1 - P_3dL2`` (mean difference, a pure
    translation; ``update = "mean"``), or the improvement made here: a rigid SVD fit of the
    two 3D point sets. The full 3D fit (``update = "rigid"``) is ill-conditioned on a floor:
@@ -163,6 +166,7 @@ class _Side:
     uv: np.ndarray  # (N, 2) left keypoints with a right match
     desc: np.ndarray  # (N, 128) float32 their descriptors
     xyz: np.ndarray  # (N, 3) mm in the left camera, triangulated
+    uv_pinhole: np.ndarray  # (N, 2) the keypoints in the left camera's ideal pinhole (uv without distortion)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of all the xyz, left camera
     plane_sigma: tuple[float, float] = (float("inf"), float("inf"))  # its standard errors (height mm, tilt rad)
 
@@ -268,21 +272,27 @@ class StereoSift:
             qi, ti = self._ratio_match(dL, dR)
             uvR_q = uvR[ti]
         if len(qi) == 0:
-            return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)))
-        xl = np.hstack([uvL[qi], np.ones((len(qi), 1))])
-        xr = np.hstack([uvR_q, np.ones((len(qi), 1))])
+            return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)), np.zeros((0, 2)))
+        # The epipolar check, the triangulation (eqs. (1)-(3): P = K [R | t]) and the homographies
+        # below hold for a pinhole: a distorted lens's keypoints are taken into its ideal pinhole
+        # first (they were triangulated as they were, and every step of a lens with k1 = -0.05
+        # was lost as imprecise, update = rigid's 11 of 11 reported ok and 31 % long).
+        pinL = self.camera.undistorted_px(uvL[qi])
+        pinR = self.camera_right.undistorted_px(uvR_q)
+        xl = np.hstack([pinL, np.ones((len(qi), 1))])
+        xr = np.hstack([pinR, np.ones((len(qi), 1))])
         line = xl @ self.F.T  # epipolar lines in the right image
         dist = np.abs(np.sum(line * xr, axis=1)) / np.maximum(np.hypot(line[:, 0], line[:, 1]), 1e-12)
         ok = dist < cfg.epipolar_px
-        qi, uvR_q = qi[ok], uvR_q[ok]
+        qi, uvR_q, pinL, pinR = qi[ok], uvR_q[ok], pinL[ok], pinR[ok]
         if len(qi) == 0:
-            return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)))
-        X = cv2.triangulatePoints(self.P_left, self.P_right, uvL[qi].T.astype(np.float64), uvR_q.T.astype(np.float64))
+            return _Side(np.zeros((0, 2)), np.zeros((0, 128), np.float32), np.zeros((0, 3)), np.zeros((0, 2)))
+        X = cv2.triangulatePoints(self.P_left, self.P_right, pinL.T.astype(np.float64), pinR.T.astype(np.float64))
         xyz = (X[:3] / X[3]).T
         front = xyz[:, 2] > 0
-        side = _Side(uvL[qi][front], dL[qi][front], xyz[front])
+        side = _Side(uvL[qi][front], dL[qi][front], xyz[front], pinL[front])
         if cfg.update == "plane" and int(front.sum()) >= cfg.min_matches:
-            fitted = self._floor_plane(imgL, imgR, uvL[qi][front], uvR_q[front], contrast)
+            fitted = self._floor_plane(imgL, imgR, pinL[front], pinR[front], contrast)
             if fitted is not None:
                 side.plane, side.plane_sigma = fitted
         return side
@@ -312,7 +322,10 @@ class StereoSift:
         h_px, w_px = lcR.shape
         if len(uvL) == 0:
             return np.zeros(0, np.int64), np.zeros((0, 2))
-        pred = cv2.perspectiveTransform(uvL.reshape(-1, 1, 2).astype(np.float64), H).reshape(-1, 2)
+        # H maps the ideal pinholes' pixels (CameraModel.undistorted_px): a distorted lens's
+        # keypoints go through it from the left pinhole and back into the right frame.
+        pin = self.camera.undistorted_px(uvL).reshape(-1, 1, 2).astype(np.float64)
+        pred = self.camera_right.distorted_px(cv2.perspectiveTransform(pin, H).reshape(-1, 2))
         inside = (pred[:, 0] >= w) & (pred[:, 0] < w_px - w) & (pred[:, 1] >= w) & (pred[:, 1] < h_px - w)
         # SIFT gives a point of several dominant gradient orientations once per orientation: keep
         # one (the ratio-matched right SIFT of the paper's M_2 keeps at most one of them, too).
@@ -346,8 +359,10 @@ class StereoSift:
         """The floor plane ``(n, d_mm)`` in the left camera, from a dense grid of stereo points,
         and its standard errors ``(height mm, tilt rad)`` (:func:`floorvo.geometry.plane_fit_precision`).
 
-        The SIFT left/right matches (N, 2) px give the floor's left -> right homography
-        (RANSAC); a grid of left pixels every ``plane_step_px`` is carried through it and each
+        The SIFT left/right matches (N, 2) px, in the two cameras' ideal pinholes
+        (:meth:`CameraModel.undistorted_px`), give the floor's left -> right homography
+        (RANSAC); a grid of left pixels every ``plane_step_px`` is carried through it (from the
+        left pinhole and back into the right frame: a homography holds between pinholes) and each
         right position refined to sub-pixel by Lucas-Kanade (``refine_win_px``) on the
         local-contrast images (:func:`floorvo.imaging.local_contrast_uint8`: the two cameras'
         illumination differs smoothly, which would bias the alignment): about a thousand points whose disparity is good to a few hundredths of a pixel, where SIFT's
@@ -367,7 +382,8 @@ class StereoSift:
         h_px, w_px = imgL.shape
         v, u = np.mgrid[w : h_px - w : g, w : w_px - w : g]
         gl = np.column_stack([u.ravel(), v.ravel()]).astype(np.float32)
-        gr = cv2.perspectiveTransform(gl.reshape(-1, 1, 2), H).reshape(-1, 2)
+        pin = self.camera.undistorted_px(gl).reshape(-1, 1, 2)
+        gr = self.camera_right.distorted_px(cv2.perspectiveTransform(pin, H).reshape(-1, 2))
         inside = (gr[:, 0] >= w) & (gr[:, 0] < w_px - w) & (gr[:, 1] >= w) & (gr[:, 1] < h_px - w)
         gl, gr = gl[inside], gr[inside]
         if w > 0 and len(gl):
@@ -387,6 +403,7 @@ class StereoSift:
             gl, gr = gl[good], p1[good]
         if len(gl) < cfg.min_matches:
             return None
+        gl, gr = self.camera.undistorted_px(gl), self.camera_right.undistorted_px(gr)
         X = cv2.triangulatePoints(self.P_left, self.P_right, gl.T.astype(np.float64), gr.T.astype(np.float64))
         xyz = (X[:3] / X[3]).T
         xyz = xyz[xyz[:, 2] > 0]
@@ -458,7 +475,8 @@ class StereoSift:
         if n_m < self.config.min_matches:
             return lost(f"too few temporal matches ({n_m})")
         cv2.setRNGSeed(self.config.seed)
-        src, dst = prev.uv[qi].astype(np.float32), cur.uv[ti].astype(np.float32)
+        # The floor's motion is a homography between the ideal pinhole's frames (uv_pinhole).
+        src, dst = prev.uv_pinhole[qi].astype(np.float32), cur.uv_pinhole[ti].astype(np.float32)
         H, mask = cv2.findHomography(src, dst, cv2.RANSAC, self.config.ransac_threshold_px)
         if H is None or mask is None:
             return lost("RANSAC found no consistent homography")
