@@ -233,24 +233,25 @@ def main() -> None:
 
 def _preset_rows(rows: list[dict]) -> list[dict]:
     """Each real-time preset ``NAME-fast`` beside ``NAME`` on the same sequence: frames/s from the
-    median wall clock of a step and from its thread CPU time, their fast/default ratios, end drift."""
+    median wall clock of a step and from its thread CPU time, their fast/default ratios, end drift.
+    A run that lost every step has no frames/s (None) and no step times (NaN): its ratios are None."""
     out = []
     by = {(r["sequence"], r["estimator"]): r for r in rows}
     for (sname, name), f in by.items():
         d = by.get((sname, name.removesuffix("-fast"))) if name.endswith("-fast") else None
         if d is None:
             continue
-        cpu_fps = {k: 1000.0 / r["cpu_ms_per_frame"] for k, r in (("d", d), ("f", f))}
+        cpu_fps = {k: _per_s(r["cpu_ms_per_frame"]) for k, r in (("d", d), ("f", f))}
         out.append(
             {
                 "sequence": sname,
                 "estimator": name.removesuffix("-fast"),
                 "fps_default": d["frames_per_s"],
                 "fps_fast": f["frames_per_s"],
-                "ratio_wall": round(f["frames_per_s"] / d["frames_per_s"], 2),
-                "cpu_fps_default": round(cpu_fps["d"], 1),
-                "cpu_fps_fast": round(cpu_fps["f"], 1),
-                "ratio_cpu": round(cpu_fps["f"] / cpu_fps["d"], 2),
+                "ratio_wall": _ratio(f["frames_per_s"], d["frames_per_s"]),
+                "cpu_fps_default": _rounded(cpu_fps["d"], 1),
+                "cpu_fps_fast": _rounded(cpu_fps["f"], 1),
+                "ratio_cpu": _ratio(cpu_fps["f"], cpu_fps["d"]),
                 "drift_pct_default": d["end_drift_pct"],
                 "drift_pct_fast": f["end_drift_pct"],
                 "lost_default": d["lost"],
@@ -258,6 +259,16 @@ def _preset_rows(rows: list[dict]) -> list[dict]:
             }
         )
     return out
+
+
+def _per_s(ms: float) -> float | None:
+    """Frames per second of ``ms`` milliseconds a frame; None where there is no time (NaN, 0)."""
+    return 1000.0 / ms if ms > 0 else None
+
+
+def _ratio(a: float | None, b: float | None) -> float | None:
+    """``a / b`` to two decimals; None where either is missing (a run that lost every step)."""
+    return None if a is None or b is None or not b > 0 else round(a / b, 2)
 
 
 def _dense_ratio_rows(rows: list[dict]) -> list[dict]:

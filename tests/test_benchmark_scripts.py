@@ -1,0 +1,67 @@
+"""The scripts of benchmarks/: the parts of their logic that a run over few or lost frames reaches."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _load(name: str) -> ModuleType:
+    """benchmarks/NAME.py as a module, its environment defaults (OMP_NUM_THREADS) undone."""
+    env = dict(os.environ)
+    spec = importlib.util.spec_from_file_location(f"_bench_{name}", BENCHMARKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+        os.environ.clear()
+        os.environ.update(env)
+    return module
+
+
+@pytest.fixture(scope="module")
+def estimators() -> ModuleType:
+    return _load("estimators")
+
+
+def _row(sequence: str, estimator: str, fps: float | None, cpu_ms: float, drift: float | None, lost: int) -> dict:
+    return {
+        "sequence": sequence,
+        "estimator": estimator,
+        "frames_per_s": fps,
+        "cpu_ms_per_frame": cpu_ms,
+        "cpu_ms_mean_per_frame": cpu_ms,
+        "end_drift_pct": drift,
+        "lost": lost,
+    }
+
+
+def test_estimators_preset_rows_of_a_run_that_lost_every_step(estimators):
+    """A preset or its default that lost every step (frames/s None, step times NaN: a featureless
+    or tiny sequence) has no ratios: None, where the table crashed with a TypeError."""
+    rows = [
+        _row("p0", "akaze-guided", 50.0, 20.0, 0.18, 0),
+        _row("p0", "akaze-guided-fast", 200.0, 5.0, 0.17, 0),
+        _row("d", "akaze-guided", 100.0, 10.0, 0.2, 1),
+        _row("d", "akaze-guided-fast", None, math.nan, None, 3),
+    ]
+    by = {r["sequence"]: r for r in estimators._preset_rows(rows)}
+    assert by["p0"]["ratio_wall"] == 4.0
+    assert by["p0"]["ratio_cpu"] == 4.0
+    assert by["p0"]["cpu_fps_fast"] == 200.0
+    assert by["d"]["ratio_wall"] is None
+    assert by["d"]["ratio_cpu"] is None
+    assert by["d"]["cpu_fps_fast"] is None
+    assert by["d"]["cpu_fps_default"] == 100.0
+    assert by["d"]["lost_fast"] == 3
