@@ -176,6 +176,17 @@ def test_left_only_leaves_a_bags_right_topic_out(tmp_path, original, capsys):
     assert not imp.has_stereo and imp.frame_count == 8
 
 
+def test_a_ros2_bag_folder_named_dot_bag_is_read_as_the_ros2_bag_it_is(tmp_path, original, capsys):
+    """rosbags' AnyReader takes any path ending in .bag for a ROS 1 bag file: a ROS 2 bag folder
+    named rec.bag (an export -o rec.bag) was refused ('not a readable ROS 2 bag (... Is a directory)')."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "rosbag2", tmp_path / "rec.bag")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--left-only"]) == 0, capsys.readouterr()
+    imp = Sequence.open(tmp_path / "imported")
+    assert imp.frame_count == 8
+    np.testing.assert_array_equal(imp.image(5), seq.image(5))
+
+
 def _bag_without(src, dst, topic: str, k: int, keep_bytes: int | None = None) -> None:
     """Copy the ROS 2 bag ``src`` to ``dst`` leaving out the ``k``-th message of ``topic``, or
     with only its first ``keep_bytes`` bytes (a message cut short)."""

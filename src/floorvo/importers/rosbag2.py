@@ -298,6 +298,12 @@ def _open_reader(source: Path):
     path = source.parent if source.is_file() else source
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        if path.is_dir() and not reader.is2:
+            # A ROS 2 bag is a folder; AnyReader takes any path ending in .bag for a ROS 1 bag file
+            # ("Is a directory"): a folder named rec.bag is read as the ROS 2 bag it is.
+            from rosbags.rosbag2 import Reader as Reader2
+
+            reader.is2, reader.readers = True, [Reader2(path)]
         reader.open()
     except Exception as exc:  # rosbags raises its own types for every kind of unreadable bag
         raise SequenceError(
