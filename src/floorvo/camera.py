@@ -63,7 +63,9 @@ MAX_DISTORTION_COEFFICIENT = 1e4
 #: The rule a pinhole camera matrix ``K`` follows (:func:`K_problem`).
 K_RULE = "must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0"
 #: The rule the principal point follows in an image of known size (:func:`K_problem`).
-PRINCIPAL_POINT_RULE = "must lie in the image: 0 <= cx <= width_px and 0 <= cy <= height_px"
+#: Pixel centres count from 0 (OpenCV), so the image's top-left edge is at -0.5: a principal point in
+#: the top-left pixel's outer half (-0.25 of a camera binned 2 x 2 from cx = 0) is in the image.
+PRINCIPAL_POINT_RULE = "must lie in the image: -0.5 <= cx <= width_px and -0.5 <= cy <= height_px"
 
 
 def K_problem(K: np.ndarray, size_px: tuple[int, int] | None = None) -> str | None:
@@ -86,7 +88,7 @@ def K_problem(K: np.ndarray, size_px: tuple[int, int] | None = None) -> str | No
     if size_px is not None:
         w, h = size_px
         cx, cy = float(K[0, 2]), float(K[1, 2])
-        if not (0.0 <= cx <= w and 0.0 <= cy <= h):
+        if not (-0.5 <= cx <= w and -0.5 <= cy <= h):
             return f"principal point (cx, cy) = ({cx:g}, {cy:g}) px {PRINCIPAL_POINT_RULE} ({w}x{h} px)"
     return None
 

@@ -85,7 +85,7 @@ class CameraBlock(Config):
     height_px: int = param(unit="px", min=1, doc="image height")
     K: Matrix = param(
         doc="3x3 intrinsic matrix in pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], fx, fy > 0, "
-        "0 <= cx <= width_px, 0 <= cy <= height_px"
+        "-0.5 <= cx <= width_px, -0.5 <= cy <= height_px"
     )
     distortion: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0, 0.0), doc="OpenCV k1, k2, p1, p2[, k3]")
     model: str = param("pinhole", choices=("pinhole", "pinhole-brown-conrady"), doc="camera model")

@@ -58,14 +58,14 @@ def test_bad_camera_refused():
         CameraModel(10, 10, 0.0, 1.0, 5, 5)
 
 
-@pytest.mark.parametrize("cx, cy", [(500.0, 5.0), (5.0, -0.1), (-40.0, 5.0), (5.0, 10.5)])
+@pytest.mark.parametrize("cx, cy", [(500.0, 5.0), (5.0, -0.6), (-40.0, 5.0), (5.0, 10.5)])
 def test_a_principal_point_outside_the_image_is_refused(cx, cy):
     """Every reader of a camera (sequence.json, camera files, flags, camera_info) builds a
     CameraModel: a principal point far outside the image was accepted by all of them."""
     with pytest.raises(ConfigError, match=r"^camera: principal point \(cx, cy\) = .* must lie in the image") as info:
         CameraModel(10, 10, 20.0, 20.0, cx, cy)
     assert "\n" not in str(info.value) and "(10x10 px)" in str(info.value)
-    for ok in ((0.0, 0.0), (10.0, 10.0), (4.5, 4.5)):
+    for ok in ((0.0, 0.0), (10.0, 10.0), (4.5, 4.5), (-0.5, -0.25)):  # the top-left edge is at -0.5
         CameraModel(10, 10, 20.0, 20.0, *ok)
 
 

@@ -252,8 +252,11 @@ def test_akaze_estimators_fit_a_wide_angle_lens_in_its_pinhole(tmp_path, name):
         # 320x240, the principal point 20 px above the centre: a 216 px crop fits centred only
         # within 12 px of the middle. With lens distortion, so the rectified region is cut too.
         CameraModel(320, 240, 400.0, 400.0, 165.0, 99.5, (-0.2, 0.05, 0.0, 0.0, 0.0)),
+        # At the top-left pixel's centre: phase-corr-fast's grid binned 2 x 2 has it at (-0.25, -0.25),
+        # in the image but refused by a rule that ended at the pixel centres (a ConfigError from inside).
+        CameraModel(324, 247, CAM.fx_px / 2, CAM.fy_px / 2, 0.0, 0.0),
     ],
-    ids=["648x494 off centre", "320x240 distorted off centre"],
+    ids=["648x494 off centre", "320x240 distorted off centre", "324x247 at the corner"],
 )
 def test_phase_corr_with_the_principal_point_far_from_the_centre(tmp_path, name, camera):
     """A real calibration's principal point can lie nearer an edge than half phase-corr's crop:

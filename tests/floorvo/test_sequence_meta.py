@@ -70,7 +70,7 @@ def _with(path: str, value):
             "camera.K",
             [[40.0, 0.0, 1550.0], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]],
             "camera.K = [[40.0, 0.0, 1550.0], [0.0, 40.0, 11.5], [0.0, 0.0, 1.0]]: principal point (cx, cy) = "
-            "(1550, 11.5) px must lie in the image: 0 <= cx <= width_px and 0 <= cy <= height_px (32x24 px)",
+            "(1550, 11.5) px must lie in the image: -0.5 <= cx <= width_px and -0.5 <= cy <= height_px (32x24 px)",
         ),
         ("camera.K", [[40.0, 0.0, 15.5], [0.0, 40.0, -3.0], [0.0, 0.0, 1.0]], "(cx, cy) = (15.5, -3) px must lie"),
         ("camera.width_px", "32", "camera.width_px = '32': must be integer"),
