@@ -98,6 +98,26 @@ def test_stereo_sift_paper_mean_update_translation_only():
     np.testing.assert_allclose(r.T_prev_cur[:3, :3], np.eye(3))
 
 
+def test_stereo_sift_paper_mean_update_loses_a_turn_it_cannot_measure():
+    """DP_L is a translation: a step turning 1.5 degrees was reported ok with no rotation and its
+    translation off by the turn of the points' centroid. It is lost, with the reason."""
+    T_true = _motion(2.5, -1.2, 1.5)
+    (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0, seed=3)
+    est = get_estimator("stereo-sift")(
+        make_config("stereo-sift", {"update": "mean"}),
+        CAM,
+        height_mm=100.0,
+        flatfield=flat,
+        camera_right=CAM,
+        T_cam0_cam1=T01,
+        flatfield_right=flat,
+    )
+    st = est.start()
+    est.step(st, Frame(0, 0.0, L0, image_right=R0))
+    r = est.step(st, Frame(1, 0.1, L1, image_right=R1))
+    assert r.status == "lost" and "turned 1.5" in r.reason and "update = mean" in r.reason, r.reason
+
+
 def test_lost_frames_give_status_and_the_run_goes_on():
     T_true = _motion(2.0, 0.0, 0.0)
     prev, cur, flat = frame_pair(CAM, T_true)

@@ -32,8 +32,9 @@ state, so each frame's SIFT runs once):
    BENCHMARKS.md, "6-DoF with depth and stereo").
 
 Self-checks (issue 14: a step reported ok must be within 0.05 mm + 2 % of the true step and
-0.3 degrees): the temporal matches' consensus and the two-motions check after RANSAC, and with
-``update = plane`` the step's precision (``precision_sigmas``): its standard errors from the
+0.3 degrees): the temporal matches' consensus and the two-motions check after RANSAC; with
+``update = mean`` a step that turns, which a translation cannot hold (:meth:`StereoSift._turn_problem`),
+is lost; and with ``update = plane`` the step's precision (``precision_sigmas``): its standard errors from the
 residuals of the in-plane fit and of the two floor planes. A floor plane's tilt error turns the
 step and shifts it by the height times that error (0.3 mrad: 0.03 mm at 100 mm), which the
 pairs cannot see; on small frames (324x247) the planes alone leave a step about 0.06 mm
@@ -504,6 +505,9 @@ class StereoSift:
             # Algorithm 1: DP_L = P_3dL1 - P_3dL2 (the camera moved opposite to the points).
             T[:3, 3] = np.mean(P1 - P2, axis=0)
             n_in = len(P1)
+            why = self._turn_problem(P1, P2, T[:3, 3])
+            if why:
+                return lost(why, n_in)
         elif self.config.update == "plane":
             if prev.plane is None or cur.plane is None:
                 return lost("too few stereo points to fit the floor plane")
@@ -537,6 +541,28 @@ class StereoSift:
             timing_ms=stage_timing_ms(t0, t1, t2, t3),
             matches_px=np.hstack([prev.uv[qi[inl]], cur.uv[ti[inl]]]),
         )
+
+    def _turn_problem(self, P1: np.ndarray, P2: np.ndarray, t_mean: np.ndarray) -> str:
+        """Why the translation-only step ``t_mean`` (``update = mean``, Algorithm 1's DP_L) is wrong
+        ('' if it is not): with ``P1 = R P2 + t`` (the point sets (K, 3), mm, of the previous and the
+        current frame), DP_L = t + (R - I) mean(P2), so a turn R moves it by its rotation of the
+        points' centroid, and leaves R itself unmeasured. The rotation about the optical axis and
+        the x-y translation are fitted (the ``planar`` update's SVD fit); where that yaw or the
+        translation's difference from DP_L exceed issue 14's bound, the step is lost: paper 002's
+        update reported such steps ok (a principal point off the centre, 2.3 degrees a frame:
+        every step wrong, 16 % drift)."""
+        cfg = self.config
+        R2, t_xy, _ = rigid_fit_robust(P2[:, :2], P1[:, :2], iterations=2)
+        yaw_deg = float(np.degrees(np.arctan2(R2[1, 0], R2[0, 0])))
+        off_mm = float(np.linalg.norm(t_mean[:2] - t_xy))
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(t_mean)))
+        if abs(yaw_deg) > cfg.max_step_error_deg or off_mm > bound_mm:
+            return (
+                f"the points turned {abs(yaw_deg):.2f} deg about the optical axis, which update = mean (a translation) "
+                "cannot measure: "
+                f"its step is {off_mm:.3f} mm off the planar fit's (bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg)"
+            )
+        return ""
 
     def _precision_problem(
         self, T: np.ndarray, prev: _Side, cur: _Side, uv_prev: np.ndarray, uv_cur: np.ndarray
