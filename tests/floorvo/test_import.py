@@ -91,6 +91,23 @@ def test_image_folder_with_timestamps_file_imports_and_runs(tmp_path, synth, cap
     assert score["n_matched"] == 7
 
 
+def test_a_timestamps_file_in_nanoseconds_is_written_to_the_nanosecond(tmp_path, synth):
+    """``--timestamps FILE --time-unit ns`` with a recording's Unix nanoseconds: the sequence holds
+    them exactly (they went through a float of seconds, good to about 240 ns: 1700000000123456789
+    became ...123456716), as the EuRoC and bag readers' do."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"{i:03d}.png"), img)
+    stamps_ns = [1_700_000_000_123_456_789 + 33_333_333 * i + 7 * i * i for i in range(len(frames))]
+    (tmp_path / "t.txt").write_text("".join(f"{n}\n" for n in stamps_ns))
+    out = tmp_path / "imp"
+    argv = ["import", str(src), "-o", str(out), *FLAGS, "--timestamps", str(tmp_path / "t.txt"), "--time-unit", "ns"]
+    assert main(argv) == 0
+    assert Sequence.open(out).timestamps_ns == stamps_ns
+
+
 def _strict_json(path):
     """The JSON file at ``path`` read as a strict reader reads it: UTF-8 text without lone surrogates."""
     data = json.loads(path.read_bytes().decode("utf-8"))

@@ -104,12 +104,14 @@ def run(args: argparse.Namespace) -> int:
     from floorvo.sequence import read_attitude_csv, read_height_csv
 
     flags = (args.fx, args.fy, args.cx, args.cy)
+    times = None if args.timestamps is None else read_timestamps_file(args.timestamps, args.time_unit)
     options = ImportOptions(
         calibration=None if args.camera is None else read_camera_file(args.camera),
         intrinsics=None if all(v is None for v in flags) else flags,
         distortion=parse_floats(args.distortion, "--distortion"),
         height_mm=args.height_mm,
-        timestamps_s=None if args.timestamps is None else read_timestamps_file(args.timestamps, args.time_unit),
+        timestamps_s=None if times is None else times.seconds,
+        timestamps_ns=None if times is None else times.ns,
         groundtruth=None if args.groundtruth is None else read_groundtruth_file(args.groundtruth),
         fps=args.fps,
         flatfield=None if args.flatfield is None else Path(args.flatfield),

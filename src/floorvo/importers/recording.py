@@ -141,7 +141,8 @@ class ImportOptions:
     height_mm:
         Camera height above the floor (mm); written as ``rig.height_mm``.
     timestamps_s:
-        Per-frame times (s) from a timestamps file; override the source's.
+        Per-frame times (s) from a timestamps file; override the source's. ``timestamps_ns``:
+        the same in integer nanoseconds where the file holds them so (written exactly).
     groundtruth:
         ``(timestamps_s, T_world_cam0 mm)`` from a ground-truth file; overrides the source's.
     fps:
@@ -170,6 +171,7 @@ class ImportOptions:
     distortion: tuple[float, ...] | None = None
     height_mm: float | None = None
     timestamps_s: np.ndarray | None = None
+    timestamps_ns: list[int] | None = None
     groundtruth: tuple[np.ndarray, np.ndarray] | None = None
     fps: float | None = None
     flatfield: Path | None = None
@@ -405,7 +407,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"
         check_attitude(np.asarray(attitude, dtype=float), n, attitude_what)
     with SequenceWriter(out, meta, overwrite=opts.overwrite) as writer:  # locked until the import ends
-        writer.write_timestamps(ts, rec.timestamps_ns if time_source == rec.format else None)
+        exact_ns = {rec.format: rec.timestamps_ns, "timestamps file": opts.timestamps_ns}.get(time_source)
+        writer.write_timestamps(ts, exact_ns)
         count = 0
         for i, fr in enumerate(rec.frames()):
             if i >= n:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from floorvo.io import read_text
 from floorvo.sequence import check_timestamps
 from floorvo.tum import check_increasing, read_tum
 
-__all__ = ["TIME_UNITS_S", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
+__all__ = ["TIME_UNITS_S", "FrameTimes", "read_timestamps_file", "read_groundtruth_file", "read_euroc_groundtruth"]
 
 #: Seconds per unit of a timestamps file.
 TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -51,17 +52,28 @@ def _rows_and_header(path: Path, what: str) -> tuple[list[tuple[int, list[str]]]
     return out, header
 
 
-def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray:
-    """(N,) frame times in seconds from ``path`` (format in the module docstring)."""
+class FrameTimes(NamedTuple):
+    """A timestamps file's frame times: ``seconds`` (N,), and for a file in ``ns`` the integers
+    themselves (``ns``, else None), which the sequence writes exactly (a float of seconds holds a
+    Unix time only to about 240 ns)."""
+
+    seconds: np.ndarray
+    ns: list[int] | None
+
+
+def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> FrameTimes:
+    """The frame times of ``path`` (format in the module docstring)."""
     path = Path(path)
     if unit not in TIME_UNITS_S:
         raise ConfigError(f"--time-unit {unit!r}: unknown (known: {', '.join(TIME_UNITS_S)})")
     if not path.is_file():
         raise SequenceError(f"timestamps file {path}: does not exist")
-    vals, linenos = [], []
+    vals, linenos, ns = [], [], []
     for lineno, fields in _rows(path, "timestamps file"):
         try:
-            v = float(fields[0]) if unit != "ns" else int(fields[0]) * 1e-9
+            if unit == "ns":
+                ns.append(int(fields[0]))
+            v = float(fields[0]) if unit != "ns" else ns[-1] * 1e-9
         except ValueError:
             raise SequenceError(f"{path}:{lineno}: {shown(fields[0])} is not a timestamp in {unit}") from None
         if not np.isfinite(v):
@@ -70,7 +82,8 @@ def read_timestamps_file(path: str | os.PathLike, unit: str = "s") -> np.ndarray
         linenos.append(lineno)
     if not vals:
         raise SequenceError(f"timestamps file {path}: holds no timestamps")
-    return check_timestamps(np.array(vals, dtype=float), None, str(path), linenos)
+    seconds = check_timestamps(np.array(vals, dtype=float), None, str(path), linenos)
+    return FrameTimes(seconds, ns if unit == "ns" else None)
 
 
 def read_euroc_groundtruth(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
