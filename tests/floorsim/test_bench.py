@@ -9,6 +9,7 @@ from functools import partial
 import _bench_doubles as D
 import pytest
 
+import floorsim.bench.bench as bench_module
 from floorsim.bench import run_bench as real_run_bench
 from floorsim.bench.bench import scene_cache_key
 from floorsim.bench.results import TEXT_COLUMNS, read_results_csv
@@ -69,6 +70,20 @@ def test_cache_key_follows_scene_seed_and_settings():
     assert k != scene_cache_key(s, seed=2, frames=None, scale=None, spp=None)
     assert k != scene_cache_key({**s, "lights": {"height_mm": 3.5}}, seed=1, frames=None, scale=None, spp=None)
     assert k != scene_cache_key(s, seed=1, frames=None, scale=0.5, spp=None)
+
+
+def test_cache_key_and_cache_follow_the_renderer_code(tmp_path, doubles, monkeypatch):
+    """The renderer edited (floorsim's version number unchanged): the sequence cache rendered again.
+    It reused the old render, so a gate passed on frames the new renderer never made."""
+    s = {"name": "a", "lights": {"height_mm": 3.0}}
+    k = scene_cache_key(s, seed=1, frames=None, scale=None, spp=None)
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    run_bench([scene], ["scaled"], tmp_path / "out")
+    assert len(D.RENDER_CALLS) == 1
+    monkeypatch.setattr(bench_module, "render_code_sha256", lambda material=None: "0" * 64)
+    assert scene_cache_key(s, seed=1, frames=None, scale=None, spp=None) != k
+    run_bench([scene], ["scaled"], tmp_path / "out")
+    assert len(D.RENDER_CALLS) == 2 and D.RENDER_CALLS[0] != D.RENDER_CALLS[1]
 
 
 def test_paper001_scene_is_compared_with_0783_percent(tmp_path, doubles):

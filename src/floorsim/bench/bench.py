@@ -16,8 +16,9 @@ scene file:
 
 1. load it (``floorsim.scene.load_scene`` with the ``--set`` overrides) and render it
    through :func:`render_cached`, which keys the sequence folder by a hash of the
-   resolved scene, the seed and the render settings, so a sequence already rendered with
-   the same inputs is reused (also across benches sharing a ``cache_dir``);
+   resolved scene, the seed, the render settings and the renderer's code
+   (:func:`scene_cache_key`), so a sequence already rendered with the same inputs by the
+   same code is reused (also across benches sharing a ``cache_dir``);
 2. run every requested estimator (default: every registered estimator whose
    ``requires`` the sequence meets: mono estimators on mono sequences; built-ins, installed
    plugins, and every external program given) through the runner
@@ -76,7 +77,7 @@ from floorsim.bench.protocols import (
 from floorsim.bench.report import Report, RunRecord, build_bench_report
 from floorsim.bench.results import RESULTS_CSV, other_results_problem, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
-from floorsim.simulate import render_sequence
+from floorsim.simulate import render_code_sha256, render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
@@ -130,21 +131,38 @@ def scene_seed(scene: Any) -> int:
 def scene_cache_key(
     resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None, spp: int | None
 ) -> str:
-    """Hex SHA-256 of the resolved scene and everything else that changes the rendered sequence.
+    """Hex SHA-256 of the resolved scene and everything else that changes the rendered sequence:
+    the seed, the render settings and the renderer's code (:func:`floorsim.simulate.render_code_sha256`,
+    with the scene's floor material: a plugin material's module too), so a sequence rendered by
+    other code is rendered again, not reused (the package's version number stays the same through
+    edits).
 
     The scene's ``bench`` table (which protocols run on it) does not change the render and
     is left out.
     """
+    material = (resolved_scene.get("floor") or {}).get("material")
     payload = {
+        **render_inputs(resolved_scene, seed=seed, frames=frames, scale=scale, spp=spp),
+        "floorsim": floorsim_version,
+        "render_code": render_code_sha256(material if isinstance(material, str) else None),
+    }
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def render_inputs(
+    resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None, spp: int | None
+) -> dict[str, Any]:
+    """What a rendered sequence is a function of besides code (the part of :func:`scene_cache_key`
+    a baseline compares: :func:`floorsim.bench.gates.made_with`): the resolved scene without its
+    ``bench`` table, the seed and the render settings."""
+    return {
         "scene": {k: v for k, v in resolved_scene.items() if k != "bench"},
         "seed": seed,
         "frames": frames,
         "scale": scale,
         "spp": spp,
-        "floorsim": floorsim_version,
     }
-    text = json.dumps(payload, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def render_cached(
@@ -198,8 +216,18 @@ def _render_into_cache(
             return out
     log.info("scene %s: rendering into %s", scene.name, out)
     render(scene, out, frames=frames, scale=scale, spp=spp, seed=seed, on_frame=on_frame)
+    material = (scene.to_dict().get("floor") or {}).get("material")
     atomic_write_json(
-        marker, {"key": key, "scene": scene.name, "seed": seed, "frames": frames, "scale": scale, "spp": spp}
+        marker,
+        {
+            "key": key,
+            "scene": scene.name,
+            "seed": seed,
+            "frames": frames,
+            "scale": scale,
+            "spp": spp,
+            "render_code": render_code_sha256(material if isinstance(material, str) else None),
+        },
     )
     return out
 
