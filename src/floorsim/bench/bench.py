@@ -81,10 +81,10 @@ from floorsim.simulate import render_code_sha256, render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, read_json
+from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, json_sha256, read_json
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose
-from floorvo.runfolder import write_match_sample
+from floorvo.runfolder import sequence_sha256, write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
@@ -100,6 +100,8 @@ __all__ = [
     "run_bench",
     "run_one",
     "scene_cache_key",
+    "sequence_content_sha256",
+    "run_inputs",
     "scene_seed",
     "MAX_REPETITIONS",
     "source_columns",
@@ -163,6 +165,19 @@ def render_inputs(
         "scale": scale,
         "spp": spp,
     }
+
+
+def sequence_content_sha256(folder: str | os.PathLike) -> str:
+    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``): its ``sequence.json``
+    (:func:`floorvo.runfolder.sequence_sha256`) and its ground truth's bytes."""
+    root = Path(folder)
+    try:
+        meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
+        gt = root / "groundtruth.txt"
+        truth = hashlib.sha256(gt.read_bytes()).hexdigest() if gt.is_file() else None
+    except (OSError, ValueError):
+        return "unreadable"
+    return json_sha256({"sequence": sequence_sha256(meta), "groundtruth": truth})
 
 
 def render_cached(
@@ -230,6 +245,16 @@ def _render_into_cache(
         },
     )
     return out
+
+
+def run_inputs(render: Mapping[str, Any] | str) -> str:
+    """A run's ``inputs`` column (16 hex digits): what the sequence it ran on is a function of besides
+    code (``render``: :func:`render_inputs` of a rendered one: the scene as resolved with ``--set``,
+    the seed, ``--frames/--scale/--spp``; or :func:`sequence_content_sha256` of a sequence folder).
+    A baseline records them (:func:`floorsim.bench.gates.made_with`) and a gate refuses to compare
+    runs on other sequences; the estimator's config (``est_config``) and scale calibration are what
+    a gate may measure a change of, and are not part of it."""
+    return json_sha256({"sequence": render})[:16]
 
 
 def check_cache_dir(cache_dir: str | os.PathLike) -> Path:
@@ -577,6 +602,11 @@ def run_bench(
                 )
             names, skipped = supported_estimators(seq_dir, estimators, runner)
             start = _start_pose(seq_dir, initial_pose)
+            sequence_id: Mapping[str, Any] | str = (
+                sequence_content_sha256(seq_dir)
+                if recorded
+                else render_inputs(scene.to_dict(), seed=scene_seed(scene) + rep, frames=frames, scale=scale, spp=spp)
+            )
             if first is None:
                 first = SceneRun(label, path, scene, seq_dir, seed, names, [])
                 for n, why in skipped.items():
@@ -596,6 +626,8 @@ def run_bench(
                 row.update(source_columns(runner, name))
                 if name in cals:
                     row["scale_calibration"] = cals[name][0]
+                row["est_config"] = json.dumps(est_over.get(name) or {}, sort_keys=True) if est_over.get(name) else ""
+                row["inputs"] = run_inputs(sequence_id)
                 try:
                     metrics = run_one(
                         seq_dir,

@@ -53,7 +53,6 @@ scene as resolved, the package versions).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import logging
 import math
@@ -65,7 +64,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder
+from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder, sequence_content_sha256
 from floorsim.bench.results import RESULTS_CSV, STUDY_RECORD
 from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
@@ -73,8 +72,7 @@ from floorsim.simulate import package_versions as render_versions
 from floorvo import metric_defs as md
 from floorvo.config import MAX_SEED, Config, build, describe_fields, param, to_plain
 from floorvo.errors import ConfigError, ConfigFieldError, FloorbenchError, shorten, shown
-from floorvo.io import atomic_write_bytes, atomic_write_json, code_sha256, json_sha256, plain, read_toml
-from floorvo.runfolder import sequence_sha256
+from floorvo.io import atomic_write_bytes, atomic_write_json, code_sha256, plain, read_toml
 
 __all__ = [
     "MAX_SWEEP_JOBS",
@@ -440,19 +438,6 @@ def _estimator_code(names: list[str] | None) -> dict[str, str]:
         except (FloorbenchError, ImportError, OSError):  # a double, or a plugin that does not load
             out[name] = "unknown"
     return out
-
-
-def sequence_content_sha256(folder: str | os.PathLike) -> str:
-    """What a recorded sequence folder holds, for a study's record: its ``sequence.json``
-    (:func:`floorvo.runfolder.sequence_sha256`) and its ground truth's bytes."""
-    root = Path(folder)
-    try:
-        meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
-        gt = root / "groundtruth.txt"
-        truth = hashlib.sha256(gt.read_bytes()).hexdigest() if gt.is_file() else None
-    except (OSError, ValueError):
-        return "unreadable"
-    return json_sha256({"sequence": sequence_sha256(meta), "groundtruth": truth})
 
 
 def made_by(spec: SweepSpec, versions: dict[str, Any]) -> dict[str, Any]:
