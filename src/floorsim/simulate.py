@@ -13,6 +13,7 @@ frame can be re-rendered alone and comes out bit-identical.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import gc
 import logging
 import os
@@ -38,7 +39,7 @@ from floorvo.config import build as build_config
 from floorvo.config import to_plain
 from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.geometry import attitude_of_T
-from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, read_json, read_text
+from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, code_sha256, read_json, read_text
 from floorvo.locking import locks_folder
 from floorvo.sequence import SequenceWriter
 
@@ -231,13 +232,48 @@ def _render_frame(
     return (acc / len(times)).astype(np.float32)
 
 
-def package_versions() -> dict:
-    """Versions of floorsim, floorvo, numpy, Python and the render backend (sequence.json, study records)."""
+#: The modules whose code makes a rendered sequence's bytes (:func:`render_code_sha256`): a change
+#: to any of them (or to a plugin material's module) is a change of the render, whatever the
+#: package's version number says.
+RENDER_CODE = (
+    "floorsim.simulate",
+    "floorsim.render",
+    "floorsim.sensor",
+    "floorsim.scene",
+    "floorsim.trajectories",
+    "floorsim.materials",
+    "floorsim.spectral",
+    "floorsim.depthnoise",
+    "floorvo.camera",
+    "floorvo.geometry",
+    "floorvo.sequence",
+    "floorvo.sequence_meta",
+)
+
+
+@functools.cache
+def render_code_sha256(material: str | None = None) -> str:
+    """SHA-256 of the renderer's source (:data:`RENDER_CODE`, and the module of ``material`` when it
+    is a plugin's; :func:`floorvo.io.code_sha256`): ``sequence.json`` records it (``versions.render_code``),
+    so a render resumed or reused by other code is refused (:class:`floorvo.sequence.SequenceWriter`),
+    and the bench's sequence cache is keyed by it (:func:`floorsim.bench.bench.scene_cache_key`)."""
+    mods = list(RENDER_CODE)
+    if material is not None:
+        module = get_material(material).sample.__module__
+        if module not in mods:
+            mods.append(module)
+    return code_sha256(*mods)
+
+
+def package_versions(material: str | None = None) -> dict:
+    """Versions of floorsim, floorvo, numpy, Python and the render backend, and the renderer's code
+    (``render_code``: :func:`render_code_sha256` with ``material``) (sequence.json, study records)."""
     v = {
         "floorsim": floorsim.__version__,
         "floorvo": floorvo.__version__,
         "numpy": np.__version__,
         "python": platform.python_version(),
+        "render_code": render_code_sha256(material),
     }
     try:
         v.update(backend_info())
@@ -409,7 +445,7 @@ def render_sequence(
         "calib": {"flatfield": "calib/cam0_flatfield.png", "flatfield_bit_depth": 16}
         if scene.render.flatfield
         else None,
-        "versions": package_versions(),
+        "versions": package_versions(scene.floor.material),
     }
     sensor_meta = _sensor_meta(scene)
     if sensor_meta is not None:  # written only when the sensor is not a global shutter of fixed exposure

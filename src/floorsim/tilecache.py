@@ -28,7 +28,6 @@ settings renders the same floor at every point. The cache keeps those arrays:
 from __future__ import annotations
 
 import hashlib
-import inspect
 import io
 import json
 import logging
@@ -46,7 +45,7 @@ import numpy as np
 
 from floorsim import materials, render
 from floorvo.errors import ConfigError, shown
-from floorvo.io import ArrayRule, atomic_write_bytes, plain, read_npz
+from floorvo.io import ArrayRule, atomic_write_bytes, code_sha256, plain, read_npz
 
 __all__ = ["TileCache", "default_cache", "cache_root", "cache_root_problem", "CACHE_FORMAT", "DEFAULT_MAX_MB"]
 
@@ -113,17 +112,10 @@ def _max_bytes() -> int:
 
 @cache
 def code_fingerprint(material_module: str) -> str:
-    """SHA-256 of the source that makes a tile: :mod:`floorsim.materials`, the material's own
-    module (a plugin's) and :func:`floorsim.render.heightfield_vertex_normals`."""
-    h = hashlib.sha256()
-    for mod_name in dict.fromkeys(["floorsim.materials", material_module]):
-        mod = sys.modules.get(mod_name) or materials
-        try:
-            h.update(inspect.getsource(mod).encode())
-        except (OSError, TypeError):  # no source (a frozen or compiled plugin): its name and version
-            h.update(f"{mod_name} {getattr(mod, '__version__', '')}".encode())
-    h.update(inspect.getsource(render.heightfield_vertex_normals).encode())
-    return h.hexdigest()
+    """SHA-256 of the source that makes a tile (:func:`floorvo.io.code_sha256`): :mod:`floorsim.materials`,
+    the material's own module (a plugin's) and :func:`floorsim.render.heightfield_vertex_normals`."""
+    mods = [sys.modules.get(name) or materials for name in dict.fromkeys(["floorsim.materials", material_module])]
+    return code_sha256(*mods, render.heightfield_vertex_normals)
 
 
 @dataclass(frozen=True)

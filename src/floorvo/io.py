@@ -13,6 +13,8 @@ import contextlib
 import csv
 import errno
 import hashlib
+import importlib
+import inspect
 import io
 import json
 import math
@@ -612,6 +614,30 @@ def json_sha256(obj: Any) -> str:
     the same for an object and for that object written by :func:`atomic_write_json` and read back."""
     text = json.dumps(plain(obj), sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
+def code_sha256(*code: Any) -> str:
+    """SHA-256 (hex) of the source of ``code``, in the order given: the one fingerprint of code
+    that cached results are keyed by or recorded with (the tile cache's tiles, the bench's rendered
+    sequences, a study's rows). Each item is a module, a module's name, or a function or class; a
+    package is its every ``*.py`` file (sorted by path, each path hashed with its bytes), so an edit
+    anywhere in it changes the fingerprint. Code without source (a frozen or compiled plugin)
+    counts as its name and ``__version__``."""
+    h = hashlib.sha256()
+    for item in code:
+        obj = importlib.import_module(item) if isinstance(item, str) else item
+        folders = list(getattr(obj, "__path__", None) or [])
+        if folders:
+            root = Path(folders[0])
+            for f in sorted(root.rglob("*.py")):
+                h.update(f.relative_to(root).as_posix().encode())
+                h.update(f.read_bytes())
+            continue
+        try:
+            h.update(inspect.getsource(obj).encode())
+        except (OSError, TypeError):
+            h.update(f"{getattr(obj, '__name__', obj)} {getattr(obj, '__version__', '')}".encode())
+    return h.hexdigest()
 
 
 def checked_output_path(path: str | os.PathLike, error: type[Exception] = SequenceError) -> Path:

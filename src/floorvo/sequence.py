@@ -64,7 +64,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel, height_problem
-from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown, shown_number
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shorten, shown, shown_number
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -145,6 +145,21 @@ def frame_name(index: int, ext: str = "png") -> str:
 def _canonical(obj: Any) -> Any:
     """JSON round trip, so in-memory metadata compares equal to what is on disk."""
     return json.loads(json.dumps(plain(obj)))
+
+
+def _differing_keys(old: dict, new: dict) -> str:
+    """The keys of ``sequence.json`` in which ``old`` and ``new`` differ, a table's own keys named
+    (``versions.render_code``: rendered by other renderer code), for a refusal's one line."""
+    keys = []
+    for k in sorted(set(old) | set(new), key=str):
+        a, b = old.get(k), new.get(k)
+        if a == b:
+            continue
+        if isinstance(a, dict) and isinstance(b, dict) and k in ("versions", "seeds", "rig"):
+            keys += [f"{k}.{sub}" for sub in sorted(set(a) | set(b), key=str) if a.get(sub) != b.get(sub)]
+        else:
+            keys.append(str(k))
+    return shorten(", ".join(keys) or "nothing")
 
 
 class SequenceWriter:
@@ -246,7 +261,8 @@ class SequenceWriter:
                 return
             if not overwrite:
                 raise SequenceError(
-                    f"{self.root}: holds a different sequence (other scene, seed or settings); "
+                    f"{self.root}: holds a different sequence (other scene, seed, settings or code: its "
+                    f"sequence.json differs in {_differing_keys(stable_meta(old), stable_meta(meta))}); "
                     "choose another output folder or pass --overwrite"
                 )
             self._replace_old = True

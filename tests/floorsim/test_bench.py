@@ -9,6 +9,7 @@ from functools import partial
 import _bench_doubles as D
 import pytest
 
+import floorsim.bench.bench as bench_module
 from floorsim.bench import run_bench as real_run_bench
 from floorsim.bench.bench import scene_cache_key
 from floorsim.bench.results import TEXT_COLUMNS, read_results_csv
@@ -69,6 +70,57 @@ def test_cache_key_follows_scene_seed_and_settings():
     assert k != scene_cache_key(s, seed=2, frames=None, scale=None, spp=None)
     assert k != scene_cache_key({**s, "lights": {"height_mm": 3.5}}, seed=1, frames=None, scale=None, spp=None)
     assert k != scene_cache_key(s, seed=1, frames=None, scale=0.5, spp=None)
+
+
+def test_cache_key_and_cache_follow_the_renderer_code(tmp_path, doubles, monkeypatch):
+    """The renderer edited (floorsim's version number unchanged): the sequence cache rendered again.
+    It reused the old render, so a gate passed on frames the new renderer never made."""
+    s = {"name": "a", "lights": {"height_mm": 3.0}}
+    k = scene_cache_key(s, seed=1, frames=None, scale=None, spp=None)
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    run_bench([scene], ["scaled"], tmp_path / "out")
+    assert len(D.RENDER_CALLS) == 1
+    monkeypatch.setattr(bench_module, "render_code_sha256", lambda material=None: "0" * 64)
+    assert scene_cache_key(s, seed=1, frames=None, scale=None, spp=None) != k
+    run_bench([scene], ["scaled"], tmp_path / "out")
+    assert len(D.RENDER_CALLS) == 2 and D.RENDER_CALLS[0] != D.RENDER_CALLS[1]
+
+
+def test_a_gate_refuses_a_baseline_made_with_other_scenes_or_settings(tmp_path, doubles):
+    """A baseline saved at --frames 4 was compared with a bench at --frames 5 or with another --set,
+    metric by metric, and passed or failed on numbers of other runs. The baseline records each
+    entry's inputs (made_with) and such an entry fails the gate as not comparable, naming why; another
+    --est-set is what a gate measures (noted in the summary)."""
+    scene = D.write_scene(tmp_path / "tiny.toml")
+    base = tmp_path / "baseline.json"
+    run_bench([scene], ["scaled"], tmp_path / "a", frames=4, save_baseline_to=base)
+    saved = json.loads(base.read_text())
+    assert set(saved["made_with"]) == {"tiny/scaled"} and saved["made_with"]["tiny/scaled"]["seeds"] == [7]
+    same = run_bench([scene], ["scaled"], tmp_path / "b", frames=4, baseline=base).gate
+    assert same.ok and same.checked >= 7 and not same.made_otherwise
+    for i, kwargs in enumerate(
+        (
+            {"frames": 5},
+            {"frames": 4, "scene_overrides": {"lights.height_mm": "3.5"}},
+        )
+    ):
+        gate = run_bench([scene], ["scaled"], tmp_path / f"c{i}", baseline=base, **kwargs).gate
+        assert not gate.ok and gate.checked == 0, kwargs
+        assert gate.made_otherwise[0].startswith("tiny/scaled: not comparable, the baseline was made with other inputs")
+    tuned = run_bench(
+        [scene], ["scaled"], tmp_path / "t", frames=4, estimator_overrides={"scaled": {"scale": "1.02"}}, baseline=base
+    ).gate
+    assert not tuned.ok and tuned.regressions and not tuned.made_otherwise
+    assert 'tiny/scaled: --est-set {"scale": "1.02"}, the baseline\'s none: the gate measures that change' in (
+        tuned.summary()
+    )
+    gate = run_bench([scene], ["scaled"], tmp_path / "d", frames=4, repetitions=2, baseline=base).gate
+    assert not gate.ok and "seeds [7], now [7, 8]" in gate.summary()
+    # a baseline saved before made_with: compared as before, and the summary says it was not checked
+    del saved["made_with"]
+    base.write_text(json.dumps(saved))
+    gate = run_bench([scene], ["scaled"], tmp_path / "e", frames=5, baseline=base).gate
+    assert gate.ok and gate.inputs_unchecked and "the baseline records no inputs" in gate.summary()
 
 
 def test_paper001_scene_is_compared_with_0783_percent(tmp_path, doubles):

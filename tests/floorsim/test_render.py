@@ -13,8 +13,10 @@ import pytest
 from _tiny import tiny_scene
 from skimage.registration import phase_cross_correlation
 
+from floorsim import simulate
 from floorsim.materials import sample_material
-from floorsim.simulate import render_sequence
+from floorsim.simulate import render_code_sha256, render_sequence
+from floorvo.errors import SequenceError
 from floorvo.geometry import invert_T, yaw_of_R
 from floorvo.sequence import Sequence
 
@@ -202,6 +204,21 @@ def test_resume_keeps_written_frames(tmp_path):
     frames[1].unlink()
     render_sequence(scene, root)
     assert [f.read_bytes() for f in frames] == original
+
+
+def test_a_render_by_other_renderer_code_is_neither_resumed_nor_reused(tmp_path, monkeypatch):
+    """sequence.json records the renderer's code (``versions.render_code``): a render interrupted,
+    the renderer edited and the command run again kept the old frames beside the new ones (a
+    finished render came back as it was); now it is refused in one line naming the key."""
+    scene = tiny_scene(**{"trajectory.distance_mm": 8.0})
+    root = render_sequence(scene, tmp_path / "seq")
+    assert json.loads((root / "sequence.json").read_text())["versions"]["render_code"] == render_code_sha256("vinyl")
+    (root / "cam0" / "000001.png").unlink()  # an interrupted render
+    monkeypatch.setattr(simulate, "render_code_sha256", lambda material=None: "0" * 64)
+    for _ in range(2):  # interrupted, then finished
+        with pytest.raises(SequenceError, match=r"differs in versions\.render_code\)"):
+            render_sequence(scene, root)
+        (root / "cam0" / "000001.png").write_bytes((root / "cam0" / "000000.png").read_bytes())
 
 
 def test_resume_renders_damaged_files_again(tmp_path):

@@ -161,6 +161,43 @@ def test_a_sweep_into_the_folder_of_another_study_is_refused_and_a_grown_grid_re
         run_sweep(sweep, out, workers=2, processes=False)
 
 
+def test_a_sweep_resumed_after_the_code_or_a_recording_changed_is_refused(tmp_path, monkeypatch, caplog):
+    """phase-corr's step made 1 % longer and the study run again into its folder: every job already
+    in results.csv was kept, the old code's rows reported as the new code's (a grown grid mixed
+    both). study.json now records what made the rows (``made_by``: floorvo's and the bench's code,
+    each estimator's source, library versions, each sequence folder's content) and such a resume
+    is refused in one line naming what changed; a record without it resumes with a warning."""
+    import json
+
+    from floorsim.bench import study
+
+    D.reset()
+    sweep = _sweep_file(tmp_path)
+    rec = D.render(D.load_scene(D.write_scene(tmp_path / "rec.toml", name="rec")), tmp_path / "rec")
+    sweep.write_text(sweep.read_text().replace("[vary]", 'sequences = ["rec"]\n\n[vary]'))
+    out = tmp_path / "out"
+    assert run_sweep(sweep, out, workers=2, processes=False).ran == 5
+    record = json.loads((out / "study.json").read_text())
+    assert set(record["made_by"]) == set(study.MADE_BY_KEYS)
+    assert run_sweep(sweep, out, workers=2, processes=False).ran == 0  # the same code: resumed, nothing to do
+    real = study.code_sha256
+    monkeypatch.setattr(study, "code_sha256", lambda *m: "edited" if m == ("floorvo",) else real(*m))
+    with pytest.raises(
+        ConfigError,
+        match=r"out: its rows were made by other code or inputs \(study.json's made_by differs in floorvo\)",
+    ):
+        run_sweep(sweep, out, workers=2, processes=False)
+    monkeypatch.setattr(study, "code_sha256", real)
+    gt = rec / "groundtruth.txt"
+    gt.write_text(gt.read_text().replace("0.000000", "0.000001", 1))  # the recording's ground truth corrected
+    with pytest.raises(ConfigError, match=r"made_by differs in sequences\."):
+        run_sweep(sweep, out, workers=2, processes=False)
+    del record["made_by"]  # a study.json written before made_by was
+    (out / "study.json").write_text(json.dumps(record))
+    assert run_sweep(sweep, out, workers=2, processes=False).ran == 0
+    assert "not checked that this code made them" in caplog.text
+
+
 def test_a_worker_count_beyond_the_machine_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
     """--jobs 1000000 tried to start a million processes; --workers as many Dask workers."""
     import floorsim.bench.sweep as sweep_module

@@ -2,12 +2,13 @@
 ``np.float64(100.0)``), read back with ``json`` / ``csv`` + ``float``."""
 
 import csv
+import importlib
 import json
 
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.io import atomic_write_csv, atomic_write_json, csv_cell, plain
+from floorvo.io import atomic_write_csv, atomic_write_json, code_sha256, csv_cell, plain
 from floorvo.run import run_estimator
 from floorvo.synthetic import line_poses, write_synthetic_sequence
 
@@ -86,3 +87,21 @@ def test_a_byte_order_mark_is_not_part_of_the_text(tmp_path):
     assert read_tum(tmp_path / "t.txt")[0].tolist() == [0.0]
     assert read_json(tmp_path / "j.json") == {"a": 1}
     assert read_text(tmp_path / "s.toml").startswith("name")
+
+
+def test_code_sha256_follows_every_edit_of_a_module_or_a_package(tmp_path, monkeypatch):
+    """The fingerprint the caches key code by: an estimator's step made 1 % longer is another fingerprint."""
+    pkg = tmp_path / "fingerprinted_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "est.py").write_text("STEP = 1.00\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    mod = importlib.import_module("fingerprinted_pkg.est")
+    before = code_sha256("fingerprinted_pkg"), code_sha256(mod), code_sha256("fingerprinted_pkg.est")
+    assert before[1] == before[2] != before[0]
+    assert code_sha256("fingerprinted_pkg") == before[0]  # the same code, the same fingerprint
+    (pkg / "est.py").write_text("STEP = 1.01\n")
+    after = code_sha256("fingerprinted_pkg"), code_sha256(mod)
+    assert after[0] != before[0] and after[1] != before[1]
+    (pkg / "util.py").write_text("")  # a file added to the package
+    assert code_sha256("fingerprinted_pkg") != after[0]

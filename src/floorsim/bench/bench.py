@@ -16,8 +16,9 @@ scene file:
 
 1. load it (``floorsim.scene.load_scene`` with the ``--set`` overrides) and render it
    through :func:`render_cached`, which keys the sequence folder by a hash of the
-   resolved scene, the seed and the render settings, so a sequence already rendered with
-   the same inputs is reused (also across benches sharing a ``cache_dir``);
+   resolved scene, the seed, the render settings and the renderer's code
+   (:func:`scene_cache_key`), so a sequence already rendered with the same inputs by the
+   same code is reused (also across benches sharing a ``cache_dir``);
 2. run every requested estimator (default: every registered estimator whose
    ``requires`` the sequence meets: mono estimators on mono sequences; built-ins, installed
    plugins, and every external program given) through the runner
@@ -76,14 +77,14 @@ from floorsim.bench.protocols import (
 from floorsim.bench.report import Report, RunRecord, build_bench_report
 from floorsim.bench.results import RESULTS_CSV, other_results_problem, write_results_csv
 from floorsim.scene import load_scene as load_scene_file
-from floorsim.simulate import render_sequence
+from floorsim.simulate import render_code_sha256, render_sequence
 from floorvo.calibration import ScaleCalibration, load_scale_calibration
 from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError, SequenceError, shorten
 from floorvo.external import ExternalEstimator
-from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, read_json
+from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, json_sha256, read_json
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose
-from floorvo.runfolder import write_match_sample
+from floorvo.runfolder import sequence_sha256, write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
@@ -99,6 +100,8 @@ __all__ = [
     "run_bench",
     "run_one",
     "scene_cache_key",
+    "sequence_content_sha256",
+    "run_inputs",
     "scene_seed",
     "MAX_REPETITIONS",
     "source_columns",
@@ -130,21 +133,51 @@ def scene_seed(scene: Any) -> int:
 def scene_cache_key(
     resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None, spp: int | None
 ) -> str:
-    """Hex SHA-256 of the resolved scene and everything else that changes the rendered sequence.
+    """Hex SHA-256 of the resolved scene and everything else that changes the rendered sequence:
+    the seed, the render settings and the renderer's code (:func:`floorsim.simulate.render_code_sha256`,
+    with the scene's floor material: a plugin material's module too), so a sequence rendered by
+    other code is rendered again, not reused (the package's version number stays the same through
+    edits).
 
     The scene's ``bench`` table (which protocols run on it) does not change the render and
     is left out.
     """
+    material = (resolved_scene.get("floor") or {}).get("material")
     payload = {
+        **render_inputs(resolved_scene, seed=seed, frames=frames, scale=scale, spp=spp),
+        "floorsim": floorsim_version,
+        "render_code": render_code_sha256(material if isinstance(material, str) else None),
+    }
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def render_inputs(
+    resolved_scene: Mapping[str, Any], *, seed: int, frames: int | None, scale: float | None, spp: int | None
+) -> dict[str, Any]:
+    """What a rendered sequence is a function of besides code (the part of :func:`scene_cache_key`
+    a baseline compares: :func:`floorsim.bench.gates.made_with`): the resolved scene without its
+    ``bench`` table, the seed and the render settings."""
+    return {
         "scene": {k: v for k, v in resolved_scene.items() if k != "bench"},
         "seed": seed,
         "frames": frames,
         "scale": scale,
         "spp": spp,
-        "floorsim": floorsim_version,
     }
-    text = json.dumps(payload, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def sequence_content_sha256(folder: str | os.PathLike) -> str:
+    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``): its ``sequence.json``
+    (:func:`floorvo.runfolder.sequence_sha256`) and its ground truth's bytes."""
+    root = Path(folder)
+    try:
+        meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
+        gt = root / "groundtruth.txt"
+        truth = hashlib.sha256(gt.read_bytes()).hexdigest() if gt.is_file() else None
+    except (OSError, ValueError):
+        return "unreadable"
+    return json_sha256({"sequence": sequence_sha256(meta), "groundtruth": truth})
 
 
 def render_cached(
@@ -198,10 +231,30 @@ def _render_into_cache(
             return out
     log.info("scene %s: rendering into %s", scene.name, out)
     render(scene, out, frames=frames, scale=scale, spp=spp, seed=seed, on_frame=on_frame)
+    material = (scene.to_dict().get("floor") or {}).get("material")
     atomic_write_json(
-        marker, {"key": key, "scene": scene.name, "seed": seed, "frames": frames, "scale": scale, "spp": spp}
+        marker,
+        {
+            "key": key,
+            "scene": scene.name,
+            "seed": seed,
+            "frames": frames,
+            "scale": scale,
+            "spp": spp,
+            "render_code": render_code_sha256(material if isinstance(material, str) else None),
+        },
     )
     return out
+
+
+def run_inputs(render: Mapping[str, Any] | str) -> str:
+    """A run's ``inputs`` column (16 hex digits): what the sequence it ran on is a function of besides
+    code (``render``: :func:`render_inputs` of a rendered one: the scene as resolved with ``--set``,
+    the seed, ``--frames/--scale/--spp``; or :func:`sequence_content_sha256` of a sequence folder).
+    A baseline records them (:func:`floorsim.bench.gates.made_with`) and a gate refuses to compare
+    runs on other sequences; the estimator's config (``est_config``) and scale calibration are what
+    a gate may measure a change of, and are not part of it."""
+    return json_sha256({"sequence": render})[:16]
 
 
 def check_cache_dir(cache_dir: str | os.PathLike) -> Path:
@@ -549,6 +602,11 @@ def run_bench(
                 )
             names, skipped = supported_estimators(seq_dir, estimators, runner)
             start = _start_pose(seq_dir, initial_pose)
+            sequence_id: Mapping[str, Any] | str = (
+                sequence_content_sha256(seq_dir)
+                if recorded
+                else render_inputs(scene.to_dict(), seed=scene_seed(scene) + rep, frames=frames, scale=scale, spp=spp)
+            )
             if first is None:
                 first = SceneRun(label, path, scene, seq_dir, seed, names, [])
                 for n, why in skipped.items():
@@ -568,6 +626,8 @@ def run_bench(
                 row.update(source_columns(runner, name))
                 if name in cals:
                     row["scale_calibration"] = cals[name][0]
+                row["est_config"] = json.dumps(est_over.get(name) or {}, sort_keys=True) if est_over.get(name) else ""
+                row["inputs"] = run_inputs(sequence_id)
                 try:
                     metrics = run_one(
                         seq_dir,

@@ -52,6 +52,7 @@ __all__ = [
     "GateResult",
     "aggregate",
     "make_baseline",
+    "made_with",
     "save_baseline",
     "parse_baseline",
     "load_baseline",
@@ -85,6 +86,27 @@ def _higher_is_better(metric: str) -> bool:
 
 def _key(row: Mapping[str, Any]) -> str:
     return f"{row['scene']}/{row['estimator']}"
+
+
+def made_with(rows: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, list]]:
+    """Per ``scene/estimator``, what its runs were made with: the sorted ``inputs`` of its rows
+    (:func:`floorsim.bench.bench.run_inputs`: the scene as resolved with ``--set``, the seed and
+    ``--frames/--scale/--spp``, or a sequence folder's content), its seeds (the repetitions) and its
+    ``--est-set`` configs (``est_config``: a change a gate may measure, noted but not refused).
+    Rows without ``inputs`` (written before it was) give none."""
+    out: dict[str, dict[str, list]] = {}
+    for r in rows:
+        if not r.get("inputs"):
+            continue
+        m = out.setdefault(_key(r), {"inputs": [], "seeds": [], "est_config": []})
+        m["inputs"].append(str(r["inputs"]))
+        m["seeds"].append(r.get("seed"))
+        m["est_config"].append(str(r.get("est_config") or ""))
+    for m in out.values():
+        m["inputs"].sort()
+        m["est_config"] = sorted(set(m["est_config"]))
+        m["seeds"].sort(key=lambda v: (v is None, v if v is not None else 0))
+    return out
 
 
 def _num(v: Any) -> float:
@@ -131,15 +153,21 @@ class Baseline:
 
     tolerances: dict[str, Tolerance]
     entries: dict[str, dict[str, float | None]]
+    #: per ``scene/estimator``, what its runs were made with (:func:`made_with`); empty in a
+    #: baseline saved before it was recorded
+    made_with: dict[str, dict[str, list]] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """The file's content (format, version, tolerances, entries)."""
-        return {
+        """The file's content (format, version, tolerances, entries, made_with)."""
+        out = {
             "format": BASELINE_FORMAT,
             "version": BASELINE_VERSION,
             "tolerances": {m: {"abs": t.abs, "rel": t.rel} for m, t in self.tolerances.items()},
             "entries": {k: dict(v) for k, v in self.entries.items()},
         }
+        if self.made_with:
+            out["made_with"] = {k: dict(v) for k, v in self.made_with.items()}
+        return out
 
 
 def _is_number(v: Any) -> bool:
@@ -166,9 +194,11 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
         raise ConfigError(
             f"{label}: version {shown(obj.get('version'))} is not supported (expected {BASELINE_VERSION})"
         )
-    unknown = sorted(set(obj) - {"format", "version", "tolerances", "entries"})
+    unknown = sorted(set(obj) - {"format", "version", "tolerances", "entries", "made_with"})
     if unknown:
-        raise ConfigError(f"{label}: unknown key {shown(unknown[0])} (known: entries, format, tolerances, version)")
+        raise ConfigError(
+            f"{label}: unknown key {shown(unknown[0])} (known: entries, format, made_with, tolerances, version)"
+        )
     tolerances: dict[str, Tolerance] = {}
     for metric, t in _table(obj.get("tolerances"), f"{label}: tolerances", "gated metrics").items():
         where = f"{label}: tolerances.{shorten(metric)}"
@@ -200,7 +230,20 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
                 f"{where}: lacks {missing[0]} (every gated metric needs a value, null when the baseline run had none)"
             )
         entries[str(key)] = {m: (None if entry[m] is None else float(entry[m])) for m in tolerances}
-    return Baseline(tolerances, entries)
+    made: dict[str, dict[str, list]] = {}
+    for key, m in (obj.get("made_with") or {}).items() if isinstance(obj.get("made_with"), Mapping) else ():
+        if not isinstance(m, Mapping) or not all(isinstance(m.get(k), list) for k in ("inputs", "seeds")):
+            raise ConfigError(
+                f"{label}: made_with.{shorten(str(key))} = {shown(m)}: must be a table of lists inputs and seeds"
+            )
+        made[str(key)] = {
+            "inputs": [str(v) for v in m["inputs"]],
+            "seeds": list(m["seeds"]),
+            "est_config": [str(v) for v in m.get("est_config") or []],
+        }
+    if "made_with" in obj and not isinstance(obj["made_with"], Mapping):
+        raise ConfigError(f"{label}: made_with = {shown(obj['made_with'])}: must be a table of scene/estimator entries")
+    return Baseline(tolerances, entries, made)
 
 
 def make_baseline(
@@ -208,9 +251,14 @@ def make_baseline(
 ) -> dict:
     """A baseline dict from bench rows (see the module doc for the format)."""
     tol = {k: dict(v) for k, v in (tolerances or DEFAULT_TOLERANCES).items()}
+    rows = list(rows)
     agg = aggregate(rows, tol)
     entries = {k: {m: (v if math.isfinite(v) else None) for m, v in ms.items()} for k, ms in agg.items()}
-    return {"format": BASELINE_FORMAT, "version": BASELINE_VERSION, "tolerances": tol, "entries": entries}
+    out = {"format": BASELINE_FORMAT, "version": BASELINE_VERSION, "tolerances": tol, "entries": entries}
+    made = made_with(rows)
+    if made:
+        out["made_with"] = made
+    return out
 
 
 def save_baseline(path: str | os.PathLike, rows: Iterable[Mapping[str, Any]], tolerances=None) -> dict:
@@ -275,13 +323,25 @@ class GateResult:
     checked: int = 0
     expected: int = 0
     allow_new: bool = False
+    #: ``scene/estimator: what differs`` of each entry whose baseline runs were made with other inputs
+    made_otherwise: list[str] = field(default_factory=list)
+    #: the baseline records no inputs (saved before they were): not checked
+    inputs_unchecked: bool = False
+    #: ``scene/estimator: ...`` of each entry run with another ``--est-set`` than its baseline (noted)
+    config_changed: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
-        return not self.regressions and (self.allow_new or not self.only_in_bench) and self.checked > 0
+        return (
+            not self.regressions
+            and not self.made_otherwise
+            and (self.allow_new or not self.only_in_bench)
+            and self.checked > 0
+        )
 
     def summary(self) -> str:
-        lines = [r.describe() for r in self.regressions]
+        lines = list(self.made_otherwise)
+        lines += [r.describe() for r in self.regressions]
         for k in self.only_in_baseline:
             lines.append(f"{k}: in the baseline but not in this bench (not checked)")
         for k in self.only_in_bench:
@@ -294,6 +354,12 @@ class GateResult:
             by_key.setdefault(k, []).append(m)
         for k, ms in by_key.items():
             lines.append(f"{k}: {len(ms)} metric(s) not checked, the baseline run had no value ({', '.join(ms)})")
+        lines += self.config_changed
+        if self.inputs_unchecked:
+            lines.append(
+                "the baseline records no inputs (saved before they were): not checked that it was made with these "
+                "scenes, --set, seeds, --frames/--scale/--spp and --est-set; save it again to have them checked"
+            )
         if self.checked == 0:
             lines.append("no metric was checked: a gate that checks nothing passes nothing")
         verdict = "passed" if self.ok else "FAILED"
@@ -302,6 +368,22 @@ class GateResult:
             f"checked {self.checked} of {self.expected} expected"
         )
         return "\n".join(lines)
+
+
+def _configs(configs: list[str]) -> str:
+    return " / ".join(c or "none" for c in configs) or "none"
+
+
+def _made_otherwise(key: str, before: Mapping[str, list], now: Mapping[str, list]) -> str:
+    """One line: the baseline's runs of ``key`` were made with other inputs than this bench's."""
+    if before["seeds"] != now["seeds"]:
+        what = f"seeds {before['seeds']}, now {now['seeds']} (scene seed or --repeat)"
+    else:
+        what = "another scene file, --set, --frames, --scale or --spp, or another sequence folder's content"
+    return (
+        f"{key}: not comparable, the baseline was made with other inputs ({what}); run the bench as the baseline "
+        "was, or save a new baseline"
+    )
 
 
 def compare(
@@ -315,13 +397,26 @@ def compare(
     if not isinstance(baseline, Baseline):
         baseline = parse_baseline(baseline)
     tol = baseline.tolerances
+    rows = list(rows)
     current = aggregate(rows, tol)
     entries = baseline.entries
     res = GateResult(allow_new=allow_new)
     res.only_in_baseline = sorted(set(entries) - set(current))
     res.only_in_bench = sorted(set(current) - set(entries))
     res.expected = len(current) * len(tol)
+    now = made_with(rows)
+    res.inputs_unchecked = not baseline.made_with and bool(now)
     for key in sorted(set(entries) & set(current)):
+        before = baseline.made_with.get(key)
+        if before is not None and key in now:
+            if (before["inputs"], before["seeds"]) != (now[key]["inputs"], now[key]["seeds"]):
+                res.made_otherwise.append(_made_otherwise(key, before, now[key]))
+                continue  # not comparable: its metrics are not checked
+            if before.get("est_config", []) != now[key]["est_config"]:
+                res.config_changed.append(
+                    f"{key}: --est-set {_configs(now[key]['est_config'])}, the baseline's "
+                    f"{_configs(before.get('est_config', []))}: the gate measures that change"
+                )
         for metric, t in tol.items():
             base = entries[key][metric]
             if base is None:

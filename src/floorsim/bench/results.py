@@ -66,6 +66,8 @@ TEXT_COLUMNS = frozenset(
         "job",
         "ground_truth",
         "score_warnings",
+        "est_config",
+        "inputs",
     }
 )
 

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 import os
 import platform
@@ -63,15 +64,15 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder
-from floorsim.bench.results import STUDY_RECORD
+from floorsim.bench.bench import MAX_REPETITIONS, is_sequence_folder, sequence_content_sha256
+from floorsim.bench.results import RESULTS_CSV, STUDY_RECORD
 from floorsim.bench.search import Bound, Criterion
 from floorsim.scene import Scene
 from floorsim.simulate import package_versions as render_versions
 from floorvo import metric_defs as md
 from floorvo.config import MAX_SEED, Config, build, describe_fields, param, to_plain
-from floorvo.errors import ConfigError, ConfigFieldError, shorten, shown
-from floorvo.io import atomic_write_bytes, atomic_write_json, plain, read_toml
+from floorvo.errors import ConfigError, ConfigFieldError, FloorbenchError, shorten, shown
+from floorvo.io import atomic_write_bytes, atomic_write_json, code_sha256, plain, read_toml
 
 __all__ = [
     "MAX_SWEEP_JOBS",
@@ -89,6 +90,8 @@ __all__ = [
     "resume_problem",
     "RESULT_KEYS",
 ]
+
+log = logging.getLogger(__name__)
 
 
 #: The most jobs (grid points x repetitions, or a search's combinations x repetitions) a study may ask for.
@@ -400,6 +403,55 @@ def package_versions() -> dict[str, str]:
 #: sweep resumes into a results folder only when these are the same (:func:`resume_problem`).
 #: The grid and the search (``vary``, ``search``, ``repetitions``) may grow: they only add jobs.
 RESULT_KEYS = ("base_scene", "set", "render", "estimators", "estimator_config", "seeds", "sequences", "externals")
+#: What made a study's rows besides its file (:func:`made_by`, ``study.json``'s ``made_by``): the
+#: code and library versions, the content of its sequence folders. A resume into a folder whose
+#: rows other code made (an estimator edited, floorvo's version number unchanged) is refused too.
+MADE_BY_KEYS = ("versions", "floorvo", "bench", "estimators", "sequences")
+#: The library versions a study's numbers depend on (``made_by.versions``); the platform, Python and
+#: Dask's are recorded in ``versions`` but a resume elsewhere is not refused for them.
+MADE_BY_VERSIONS = (
+    "floorsim",
+    "floorvo",
+    "render_code",
+    "numpy",
+    "mitsuba",
+    "drjit",
+    "scipy",
+    "opencv-python-headless",
+    "scikit-image",
+)
+#: The floorsim modules that make a study's rows from its renders (runs, scores, rows).
+BENCH_CODE = ("floorsim.bench.bench", "floorsim.bench.estimators", "floorsim.bench.sweep", "floorsim.bench.search")
+
+
+def _estimator_code(names: list[str] | None) -> dict[str, str]:
+    """``{estimator: where it comes from and the fingerprint of its module}`` of the study's Python
+    estimators (every registered one when ``names`` is None): a plugin's version and code."""
+    from floorvo.estimators import estimator_source, list_estimators
+
+    out = {}
+    for name in list_estimators() if names is None else names:
+        try:
+            src = estimator_source(name)
+            module = src.target.partition(":")[0]
+            out[name] = f"{src.describe()} {code_sha256(module) if module else ''}".strip()
+        except (FloorbenchError, ImportError, OSError):  # a double, or a plugin that does not load
+            out[name] = "unknown"
+    return out
+
+
+def made_by(spec: SweepSpec, versions: dict[str, Any]) -> dict[str, Any]:
+    """``study.json``'s ``made_by`` (:data:`MADE_BY_KEYS`): the library versions and renderer code
+    of ``versions`` (:data:`MADE_BY_VERSIONS`), the fingerprints of floorvo's code (the built-in
+    estimators, the runner, the scores: :func:`floorvo.io.code_sha256`) and of the bench's
+    (:data:`BENCH_CODE`), each estimator's source and code, and each sequence folder's content."""
+    return {
+        "versions": {k: versions.get(k) for k in MADE_BY_VERSIONS},
+        "floorvo": code_sha256("floorvo"),
+        "bench": code_sha256(*BENCH_CODE),
+        "estimators": _estimator_code(spec.estimators),
+        "sequences": {str(q): sequence_content_sha256(q) for q in spec.sequences},
+    }
 
 
 def _result_parts(record: dict) -> dict:
@@ -409,11 +461,30 @@ def _result_parts(record: dict) -> dict:
     return json.loads(json.dumps(plain(parts), default=str))  # as it reads back from study.json
 
 
+def _made_by_differs(old: Any, new: dict) -> list[str]:
+    """The parts of ``made_by`` (with the estimators, versions or sequences named) that differ."""
+    old = json.loads(json.dumps(plain(old), default=str)) if isinstance(old, dict) else {}
+    new = json.loads(json.dumps(plain(new), default=str))
+    out = []
+    for k in MADE_BY_KEYS:
+        a, b = old.get(k), new.get(k)
+        if a == b:
+            continue
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += [f"{k}.{sub}" for sub in sorted(set(a) | set(b)) if a.get(sub) != b.get(sub)]
+        else:
+            out.append(k)
+    return out
+
+
 def resume_problem(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict | None, externals: dict) -> str:
     """Why the results folder ``out_dir`` holds another study's rows (its ``study.json`` differs
-    from this one in :data:`RESULT_KEYS`), "" when it holds none or this study's. A sweep into
-    the folder of another study (another base scene, fixed keys, render settings, estimators)
-    kept that study's rows for every job name the two shared, and reported them as its own."""
+    from this one in :data:`RESULT_KEYS`), or rows made by other code (its ``made_by`` differs:
+    :func:`made_by`), "" when it holds none or this study's. A sweep into the folder of another
+    study (another base scene, fixed keys, render settings, estimators) kept that study's rows
+    for every job name the two shared, and reported them as its own; one resumed after an
+    estimator's code was edited kept the old code's rows beside the new code's. A record written
+    before ``made_by`` was is resumed with a warning."""
     path = Path(out_dir) / STUDY_RECORD
     if not path.is_file():
         return ""
@@ -423,22 +494,37 @@ def resume_problem(spec: SweepSpec, out_dir: str | os.PathLike, base_scene: dict
         old = None
     if not isinstance(old, dict):
         return f"{path}: not a readable study record; a sweep resumes only a folder of its own study"
-    new = _result_parts(study_record(spec, base_scene, externals))
+    record = study_record(spec, base_scene, externals)
+    new = _result_parts(record)
     before = _result_parts(old)
     if "externals" not in (old.get("study") or {}):  # written before externals were recorded
         before["externals"] = new["externals"]
     differ = [k for k in RESULT_KEYS if before.get(k) != new.get(k)]
-    if not differ:
+    if differ:
+        return (
+            f"{Path(out_dir)}: holds the results of another study (its study.json differs in {', '.join(differ)}); "
+            "a sweep resumes only its own study: choose another output folder"
+        )
+    if "made_by" not in old:
+        log.warning(
+            "%s: its rows record no code (written before study.json had made_by): not checked that this code made them",
+            path,
+        )
         return ""
-    return (
-        f"{Path(out_dir)}: holds the results of another study (its study.json differs in {', '.join(differ)}); "
-        "a sweep resumes only its own study: choose another output folder"
-    )
+    changed = _made_by_differs(old["made_by"], record["made_by"])
+    if changed and (Path(out_dir) / RESULTS_CSV).is_file():  # without rows nothing is reused
+        return (
+            f"{Path(out_dir)}: its rows were made by other code or inputs (study.json's made_by differs in "
+            f"{shorten(', '.join(changed))}); a sweep resumes only rows this code would make: choose another "
+            "output folder, or remove its results.csv to run the study again there"
+        )
+    return ""
 
 
 def study_record(spec: SweepSpec, base_scene: dict | None = None, externals: dict | None = None) -> dict:
     """What ``study.json`` holds (see :func:`write_study_record`); ``externals``: the external
     programs run in every job, name -> SHA-256 of the command line."""
+    versions = package_versions()
     return {
         "study": {
             "name": spec.name,
@@ -460,7 +546,8 @@ def study_record(spec: SweepSpec, base_scene: dict | None = None, externals: dic
             "externals": dict(sorted((externals or {}).items())),
         },
         "base_scene": base_scene,
-        "versions": package_versions(),
+        "versions": versions,
+        "made_by": made_by(spec, versions),
         "command": [Path(sys.argv[0]).name, *sys.argv[1:]],
     }
 
