@@ -26,8 +26,10 @@ of each (a bench's render cache) is benched as it is.
 
 ``--calibrate`` (issue 14 item 1: the suite's drift after a per-material scale calibration):
 for each floor material of the suite, the shipped straight run over it
-(``scenes/material_MATERIAL.toml``: the paper-000 rig, 100 mm along x at 4 mm/frame; from
-``--from-cache`` when it holds one, else rendered at ``--scale``) is run by every estimator
+(``scenes/material_MATERIAL.toml``: the paper-000 rig, 100 mm along x at 4 mm/frame) over
+another floor than the suite's (``floor.seed`` one above the suite's highest, 1:
+:func:`floorsim.bench.material_calibration.calibration_floor_seed`; from ``--from-cache`` when
+it holds that render, else rendered at ``--scale``) is run by every estimator
 and :func:`floorvo.calibration.calibrate_run` fits that estimator's scale on it
 (``OUT/calibration/ESTIMATOR--MATERIAL.json``); the suite's scenes over that material are
 then run again with it (:func:`floorsim.bench.run_bench`'s ``scale_calibrations``), and the
@@ -40,11 +42,15 @@ loses its calibration run (the featureless floor) runs uncalibrated, and the tab
 ``--calibrate --spins DIR`` calibrates the yaw too: each estimator's calibration is fitted
 per material on the straight run **and** a spin in place over the same floor together
 (:func:`floorsim.bench.material_calibration.fit_material_calibration`, on
-:func:`floorvo.calibration.calibrate_runs`): the suite's own spin over that material where it
-has one (concrete, polished), else the suite's ``motion_turn_spin_concrete`` scene with
-``floor.material`` set, rendered into ``DIR/MATERIAL`` at the straight run's frame size when it
-is not there (:func:`floorsim.bench.material_calibration.render_spin`; a finished render is
-reused). The material's scenes run a third time with it
+:func:`floorvo.calibration.calibrate_runs`): the suite's ``motion_turn_spin_concrete`` scene with
+``floor.material`` set, over the calibration floor, rendered into ``DIR/MATERIAL-floorSEED`` at
+the straight run's frame size when it is not there
+(:func:`floorsim.bench.material_calibration.render_spin`; a finished render is reused). Never
+the suite's own spin: its scored frames (until 2026-11-27 the concrete and polished spins were
+calibrated on themselves; the straight runs were on the suite's floor, seed 0). Every
+calibration run is checked against the scored sequences before a fit
+(:func:`floorsim.bench.material_calibration.same_floor_problem`): one on a scored sequence's
+floor stops the script. The material's scenes run a third time with it
 (``OUT/calibration/ESTIMATOR--MATERIAL--yaw.json``), and the table gains the yaw's scale, the
 end drift, turn error and wrong-ok count of that run. Where the spin cannot give the yaw (its
 run lost, its ok steps turned less than 10 degrees, or a yaw scale out of range) the straight
@@ -54,8 +60,9 @@ x, y calibrated figures, marked "(x, y only)".
 ``--calibrate --spins DIR --orientation`` fits a third calibration per material and estimator:
 on the straight run, the same run turned to 60 and 120 degrees over the floor
 (:func:`floorsim.bench.material_calibration.render_turned_straight`, rendered into
-``DIR/MATERIAL-heading60`` and ``-heading120`` when missing) and a spin over 3.5 rad (more
-than half a turn: ``DIR/MATERIAL-spin3.5rad``) together, with the
+``DIR/MATERIAL-floorSEED-heading60`` and ``-heading120`` when missing) and a spin over 3.5 rad
+(more than half a turn: ``DIR/MATERIAL-floorSEED-spin3.5rad``) together, all over the
+calibration floor, with the
 scales depending on each step's texture orientation where the runs observe it
 (:mod:`floorvo.calibration`: a grained floor, wood). Where it has such terms the material's
 scenes run a fourth time with it (``OUT/calibration/ESTIMATOR--MATERIAL--orientation.json``)
@@ -81,9 +88,12 @@ from floorsim.bench.material_calibration import (  # noqa: E402
     FULL_SPIN_RAD,
     TURNED_HEADINGS_DEG,
     MaterialCalibration,
+    calibration_floor_seed,
     fit_material_calibration,
+    floor_of,
     render_spin,
     render_turned_straight,
+    same_floor_problem,
 )
 from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
@@ -160,13 +170,11 @@ def main() -> None:
     fits: dict[tuple[str, str], MaterialCalibration] = {}
     spins: dict[str, Path] = {}
     if args.calibrate:
-        sequence_of = {_scene_name(r): Path(r["sequence"]) for r in res.rows}
-        suite_spins: dict[str, Path] = {}  # material -> the suite's own spin over it (the first)
-        for n, sc in zip(names, loaded):
-            if sc.to_dict()["trajectory"]["type"] == "spin" and n in sequence_of:
-                suite_spins.setdefault(material_of[n], sequence_of[n])
+        # Every calibration run over another floor than the suite's scenes: never fitted on what it scores.
+        floor_seed = calibration_floor_seed(loaded)
+        scored = sorted({r["sequence"] for r in res.rows})
         calibrated, with_yaw, with_orient, fits, spins = _calibrated_rows(
-            args, scenes, names, material_of, estimators, est_sets, suite_spins
+            args, scenes, names, material_of, estimators, est_sets, floor_seed, scored
         )
     cols = ["scene", "estimator", "steps", "ok", "wrong ok", "wrong ok, footprint", "lost", "end drift %"]
     cols += ["turn error %", "frames/s"]
@@ -252,10 +260,13 @@ def render_scale(paths: list[Path], scale: float | None) -> float | None:
     return None if all(is_sequence_folder(p) for p in paths) else scale
 
 
-def _cached(cache: Path, name: str) -> Path | None:
-    """The newest finished ``CACHE/NAME-*`` sequence of a bench's render cache, or None."""
+def _cached(cache: Path, name: str, floor_seed: int | None = None) -> Path | None:
+    """The newest finished ``CACHE/NAME-*`` sequence of a bench's render cache, or None;
+    ``floor_seed``: only one rendered over that floor (:func:`floor_of`)."""
     cands = sorted(cache.glob(f"{name}-*"), key=lambda p: p.stat().st_mtime)
     cands = [c for c in cands if (c / "bench-cache.json").is_file()]
+    if floor_seed is not None:
+        cands = [c for c in cands if (floor_of(c) or ("", None))[1] == floor_seed]
     return cands[-1] if cands else None
 
 
@@ -267,11 +278,11 @@ def _scene_name(row) -> str:
     return re.sub(r"-[0-9a-f]{12}$", "", str(row["scene"]))  # a cached sequence's folder: NAME-HASH
 
 
-def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, suite_spins):
+def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, floor_seed, scored):
     """Fit each estimator's scale per material on the material's straight run (with ``--spins``,
-    and on the straight run with a spin over the material: the suite's own in ``suite_spins``,
-    ``{material: sequence}``, else :func:`render_spin` into ``--spins``), then run the suite's
-    scenes again with each. Returns ``({(scene, estimator): row}`` x, y calibrated, the same with
+    and on the straight run with a spin over the material, :func:`render_spin` into ``--spins``),
+    every calibration run over the floor of ``floor_seed``, and none on the floor of a ``scored``
+    sequence (:func:`same_floor_problem`), then run the suite's scenes again with each. Returns ``({(scene, estimator): row}`` x, y calibrated, the same with
     the yaw, the same with the texture-orientation terms (``--orientation``), ``{(material, estimator):
     MaterialCalibration}``, ``{material: spin sequence})``."""
     out = args.output / "calibration"
@@ -279,8 +290,9 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
     cal_scenes = []
     for m in materials:
         shipped = resolve_scene_path(f"material_{m}")
-        cached = _cached(args.from_cache, f"material_{m}") if args.from_cache is not None else None
+        cached = _cached(args.from_cache, f"material_{m}", floor_seed) if args.from_cache is not None else None
         cal_scenes.append(cached or shipped)
+    rendered = not all(is_sequence_folder(p) for p in cal_scenes)
     cal = run_bench(
         cal_scenes,
         estimators,
@@ -289,7 +301,9 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
         cache_dir=args.cache,
         report=False,
         estimator_overrides=est_sets,
+        scene_overrides={"floor.seed": str(floor_seed)} if rendered else None,
     )
+    _check_separate([r["sequence"] for r in cal.rows], scored)
     straight = {
         (_scene_name(r).removeprefix("material_"), r["estimator"]): (r["run_dir"], r["sequence"]) for r in cal.rows
     }
@@ -299,7 +313,8 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
     if args.spins is not None:
         # A spin only for the floors some estimator could be calibrated on (not the featureless one).
         for m in sorted({m for (m, _), f in fits.items() if f.straight is not None}):
-            spins[m] = suite_spins.get(m) or render_spin(m, args.spins / m, straight_seq[m])
+            spins[m] = render_spin(m, args.spins / f"{m}-floor{floor_seed}", straight_seq[m], floor_seed=floor_seed)
+        _check_separate(spins.values(), scored)
         spin_runs: dict[tuple[str, str], tuple[str, str]] = {}
         if spins:
             material_of_spin = {str(seq): m for m, seq in spins.items()}
@@ -319,8 +334,9 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
                 (m, h): render_turned_straight(
                     m,
                     h,
-                    args.spins / f"{m}-heading{h:g}",
+                    args.spins / f"{m}-floor{floor_seed}-heading{h:g}",
                     straight_seq[m],
+                    floor_seed=floor_seed,
                 )
                 for m in spins
                 for h in TURNED_HEADINGS_DEG
@@ -329,12 +345,14 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
             full_spins = {
                 m: render_spin(
                     m,
-                    args.spins / f"{m}-spin{FULL_SPIN_RAD:g}rad",
+                    args.spins / f"{m}-floor{floor_seed}-spin{FULL_SPIN_RAD:g}rad",
                     straight_seq[m],
                     FULL_SPIN_RAD,
+                    floor_seed=floor_seed,
                 )
                 for m in spins
             }
+            _check_separate([*turned.values(), *full_spins.values()], scored)
             of_seq.update({str(seq): m for m, seq in full_spins.items()})
             ran = run_bench(
                 list(turned.values()) + list(full_spins.values()),
@@ -395,6 +413,13 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, sui
             for r in res.rows:
                 into[(_scene_name(r), r["estimator"])] = r
     return rows, rows_yaw, rows_orient, fits, spins
+
+
+def _check_separate(calibration, scored) -> None:
+    """Stop where a calibration run is a scored sequence or on a scored sequence's floor."""
+    problem = same_floor_problem(calibration, scored)
+    if problem:
+        raise SystemExit(f"--calibrate: {problem}")
 
 
 def _steps(row) -> int:

@@ -12,7 +12,8 @@ material's straight run (``scenes/material_MATERIAL.toml``), the calibration run
 same scene over another floor (``floor.seed`` = the scene's seed + 1: the same material, other
 boards, other grain), rendered into the render cache. Each estimator's x, y scale is fitted on
 it (:func:`floorsim.bench.material_calibration.fit_material_calibration`, as the suite's
-calibration) and on the material's straight run, and the scene
+calibration) and on the material's straight run (over that other floor too, as the suite's
+calibration: until 2026-11-27 it was over the scene's own floor), and the scene
 runs with each. One Markdown row per scene and estimator: ok steps, wrong ok steps (issue 14's
 bound), end drift in % uncalibrated, with the material's 4 mm/frame scale and with the scale at
 speed.
@@ -38,7 +39,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
-from floorsim.bench.material_calibration import fit_material_calibration  # noqa: E402
+from floorsim.bench.material_calibration import fit_material_calibration, same_floor_problem  # noqa: E402
 from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
 from floorsim.scene import Scene, load_scene, resolve_scene_path  # noqa: E402
@@ -83,10 +84,15 @@ def main() -> None:
         m = sc.floor.material
         floor_seed = (sc.seed if sc.floor.seed is None else sc.floor.seed) + 1
         kw = dict(scale=args.scale, cache_dir=args.cache, report=False, estimator_overrides=est_sets)
-        material = run_bench([resolve_scene_path(f"material_{m}")], estimators, out / f"{sc.name}/material-runs", **kw)
-        at_speed = run_bench(
-            [path], estimators, out / f"{sc.name}/at-speed-runs", scene_overrides={"floor.seed": str(floor_seed)}, **kw
+        other_floor = {"floor.seed": str(floor_seed)}
+        material = run_bench(
+            [resolve_scene_path(f"material_{m}")],
+            estimators,
+            out / f"{sc.name}/material-runs",
+            scene_overrides=other_floor,
+            **kw,
         )
+        at_speed = run_bench([path], estimators, out / f"{sc.name}/at-speed-runs", scene_overrides=other_floor, **kw)
         fits: dict[str, dict[str, Path]] = {"material": {}, "speed": {}}
         scales: dict[tuple[str, str], str] = {}
         for kind, res in (("material", material), ("speed", at_speed)):
@@ -100,6 +106,10 @@ def main() -> None:
                     save_scale_calibration(fit.straight, fits[kind][e])
         on_seq = {**kw, "scale": render_scale([seq], args.scale)}  # a cached sequence folder: rendered already
         plain = {r["estimator"]: r for r in run_bench([seq], estimators, out / f"{sc.name}/plain", **on_seq).rows}
+        scored = [r["sequence"] for r in plain.values()]
+        problem = same_floor_problem([r["sequence"] for r in (*material.rows, *at_speed.rows)], scored)
+        if problem:  # a calibration is never fitted on the floor it is scored on
+            raise SystemExit(problem)
         calibrated: dict[str, dict[str, dict]] = {}
         for kind, files in fits.items():
             if files:

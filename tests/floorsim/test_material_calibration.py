@@ -3,11 +3,25 @@ with the yaw from a spin, and the fall-back to the first where the spin gives no
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from tests.floorvo._synth import chain_scaled, hand_run
 
-from floorsim.bench.material_calibration import fit_material_calibration
+from floorsim.bench.material_calibration import (
+    FULL_SPIN_RAD,
+    SPIN_SCENE,
+    calibration_floor_seed,
+    fit_material_calibration,
+    floor_of,
+    same_floor_problem,
+    spin_scene,
+    straight_scene,
+    turned_straight_scene,
+)
+from floorsim.bench.suites import suite_scenes
+from floorsim.scene import load_scene
 from floorvo.geometry import T_world_cam_down
 
 STRAIGHT = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])  # 100 mm along x
@@ -82,3 +96,46 @@ def test_no_orientation_calibration_without_frames_or_turned_runs(tmp_path):
     assert fit.orientation_cell() == "none (no frames to measure the texture orientation in)"
     fit = fit_material_calibration(straight, spin)
     assert fit.with_orientation is None and fit.orientation_cell() == "-"
+
+
+def _rendered(path, material: str, floor_seed: int):
+    """A sequence folder's sequence.json as a render writes it, as far as its floor goes."""
+    path.mkdir(parents=True)
+    meta = {"scene": {"floor": {"material": material}}, "seeds": {"scene": 0, "floor": floor_seed}}
+    (path / "sequence.json").write_text(json.dumps(meta))
+    return path
+
+
+def test_the_calibration_runs_are_over_another_floor_than_the_suite():
+    """Measure on more than what you tune on: the motion suite's scenes are all over floor seed 0;
+    the calibration's straight run, spins and turned runs were too, so the straight run was the
+    first 25 steps of the vibration scenes and the 2-rad spin over concrete the suite's own
+    motion_turn_spin_concrete. Now every calibration scene is over the floor of the seed given."""
+    suite = [load_scene(p) for p in suite_scenes("motion")]
+    seed = calibration_floor_seed(suite)
+    assert seed == 1 and all(sc.floor_seed != seed for sc in suite)
+    spin = spin_scene("concrete", floor_seed=seed)
+    own = next(sc for sc in suite if sc.name == SPIN_SCENE.split("/")[-1].removesuffix(".toml"))
+    assert spin.to_dict()["trajectory"] == own.to_dict()["trajectory"] and spin.floor.material == own.floor.material
+    assert spin.floor_seed == seed != own.floor_seed
+    assert spin_scene("polished", floor_seed=seed, angle_rad=FULL_SPIN_RAD).floor_seed == seed
+    assert straight_scene("polished", floor_seed=seed).floor_seed == seed
+    assert turned_straight_scene("wood", 60.0, floor_seed=seed).floor_seed == seed
+    with pytest.raises(TypeError):  # no default: a caller cannot render one over the suite's floor by leaving it out
+        spin_scene("concrete")  # type: ignore[call-arg]
+
+
+def test_a_calibration_run_on_a_scored_sequence_or_its_floor_is_refused(tmp_path):
+    """The suite's own spin (the scored sequence itself) and a spin re-rendered over the scored
+    scene's floor are refused; one over another floor, or another material's floor, is not."""
+    scored = _rendered(tmp_path / "motion_turn_spin_concrete-abc", "concrete", 0)
+    vinyl = _rendered(tmp_path / "motion_turn_s_curve_vinyl-def", "vinyl", 0)
+    problem = same_floor_problem([scored], [scored, vinyl])
+    assert "is a scored sequence" in problem
+    again = _rendered(tmp_path / "spins" / "concrete", "concrete", 0)
+    problem = same_floor_problem([again], [scored, vinyl])
+    assert "over the floor of the scored sequence" in problem and "floor seed 0" in problem
+    assert same_floor_problem([_rendered(tmp_path / "spins" / "concrete-floor1", "concrete", 1)], [scored]) == ""
+    assert same_floor_problem([_rendered(tmp_path / "spins" / "wood", "wood", 0)], [scored, vinyl]) == ""
+    assert floor_of(tmp_path) is None  # a folder that does not say its floor: compared by folder only
+    assert same_floor_problem([tmp_path], [scored]) == ""

@@ -20,6 +20,13 @@ renders the material's straight run at other headings over the floor
 together with those terms (``with_orientation``), kept only where the runs observe them (the
 floor's texture has a direction that turns with it, and the terms are significant): on the
 shipped floors, wood.
+
+Every calibration run is rendered over another floor than the scenes it is applied to
+(``floor.seed`` = :func:`calibration_floor_seed`: one above the scored scenes' highest, 1 for the
+motion suite): "measure on more than what you tune on". At the scenes' own seed the straight run
+was the first 25 steps of the suite's vibration scenes (the same floor, path and sensor noise, the
+pose 0.05 mm RMS apart) and the 2-rad spin over concrete was the suite's ``motion_turn_spin_concrete``
+itself; :func:`same_floor_problem` refuses a calibration run on a scored scene's floor.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterable
 from collections.abc import Sequence as Sequence_
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -49,8 +57,14 @@ __all__ = [
     "FULL_SPIN_RAD",
     "MaterialCalibration",
     "fit_material_calibration",
+    "calibration_floor_seed",
+    "floor_of",
     "render_spin",
     "render_turned_straight",
+    "same_floor_problem",
+    "spin_scene",
+    "straight_scene",
+    "turned_straight_scene",
 ]
 
 #: The shipped scene a spin over another material is rendered from (``floor.material`` set).
@@ -66,25 +80,94 @@ FULL_SPIN_RAD = 3.5
 RunPair = tuple[str | os.PathLike, str | os.PathLike]  # (run folder, sequence folder)
 
 
-def render_spin(material: str, out: str | os.PathLike, like: str | os.PathLike, angle_rad: float | None = None) -> Path:
-    """The spin in place over ``material`` in the sequence folder ``out``, at the frame size of
-    the sequence ``like`` (the material's straight run); ``angle_rad``: its turn (None: the
-    scene's, 2 rad; :data:`FULL_SPIN_RAD` for the texture-orientation terms). A finished render of
-    the same scene there is reused and an interrupted one resumed
-    (:func:`floorsim.simulate.render_sequence`); one of another scene or size is refused in one line."""
-    keys = {"floor.material": json.dumps(material)}
+def calibration_floor_seed(scored: Iterable[Scene]) -> int:
+    """The floor seed of the calibration runs for the ``scored`` scenes: one above their highest
+    (:attr:`floorsim.scene.Scene.floor_seed`), so that no calibration run is over a scored scene's floor."""
+    return max((sc.floor_seed for sc in scored), default=0) + 1
+
+
+def _keys(floor_seed: int, **more: float) -> dict[str, str]:
+    return {"floor.seed": json.dumps(int(floor_seed)), **{k: json.dumps(float(v)) for k, v in more.items()}}
+
+
+def straight_scene(material: str, *, floor_seed: int) -> Scene:
+    """The material's straight run (``scenes/material_MATERIAL.toml``) over the floor of ``floor_seed``."""
+    return load_scene(scenes_dir() / f"material_{material}.toml", _keys(floor_seed))
+
+
+def spin_scene(material: str, *, floor_seed: int, angle_rad: float | None = None) -> Scene:
+    """The spin in place over ``material`` (:data:`SPIN_SCENE` with ``floor.material`` set) over the
+    floor of ``floor_seed``; ``angle_rad``: its turn (None: the scene's, 2 rad)."""
+    keys = {"floor.material": json.dumps(material), **_keys(floor_seed)}
     if angle_rad is not None:
         keys["trajectory.angle_rad"] = json.dumps(float(angle_rad))
-    return _render_like(load_scene(scenes_dir() / SPIN_SCENE, keys), out, like)
+    return load_scene(scenes_dir() / SPIN_SCENE, keys)
 
 
-def render_turned_straight(material: str, heading_deg: float, out: str | os.PathLike, like: str | os.PathLike) -> Path:
-    """The material's straight run (``scenes/material_MATERIAL.toml``) with the camera turned to
-    ``heading_deg`` over the floor and travelling along its own x axis, as its run at 0 does, in
-    the sequence folder ``out``, at the frame size of ``like``; reused and resumed as :func:`render_spin`."""
-    heading = json.dumps(math.radians(heading_deg))
-    keys = {"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading}
-    return _render_like(load_scene(scenes_dir() / f"material_{material}.toml", keys), out, like)
+def turned_straight_scene(material: str, heading_deg: float, *, floor_seed: int) -> Scene:
+    """The material's straight run with the camera turned to ``heading_deg`` over the floor and
+    travelling along its own x axis, as its run at 0 does, over the floor of ``floor_seed``."""
+    heading = math.radians(heading_deg)
+    keys = _keys(floor_seed, **{"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading})
+    return load_scene(scenes_dir() / f"material_{material}.toml", keys)
+
+
+def render_spin(
+    material: str,
+    out: str | os.PathLike,
+    like: str | os.PathLike,
+    angle_rad: float | None = None,
+    *,
+    floor_seed: int,
+) -> Path:
+    """The spin in place over ``material`` (:func:`spin_scene`) in the sequence folder ``out``, at
+    the frame size of the sequence ``like`` (the material's straight run); ``angle_rad``: its turn
+    (None: the scene's, 2 rad; :data:`FULL_SPIN_RAD` for the texture-orientation terms). A finished
+    render of the same scene there is reused and an interrupted one resumed
+    (:func:`floorsim.simulate.render_sequence`); one of another scene or size is refused in one line."""
+    return _render_like(spin_scene(material, floor_seed=floor_seed, angle_rad=angle_rad), out, like)
+
+
+def render_turned_straight(
+    material: str, heading_deg: float, out: str | os.PathLike, like: str | os.PathLike, *, floor_seed: int
+) -> Path:
+    """:func:`turned_straight_scene` in the sequence folder ``out``, at the frame size of ``like``;
+    reused and resumed as :func:`render_spin`."""
+    return _render_like(turned_straight_scene(material, heading_deg, floor_seed=floor_seed), out, like)
+
+
+def floor_of(seq_dir: str | os.PathLike) -> tuple[str, int] | None:
+    """``(material, floor seed)`` of a rendered sequence (its ``sequence.json``), or None where it
+    does not say (a recording, an imported sequence)."""
+    path = Path(seq_dir) / "sequence.json"
+    try:
+        meta = json.loads(path.read_text())
+        material = meta["scene"]["floor"]["material"]
+        seed = meta["seeds"]["floor"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return (str(material), int(seed)) if isinstance(seed, int) else None
+
+
+def same_floor_problem(calibration: Iterable[str | os.PathLike], scored: Iterable[str | os.PathLike]) -> str:
+    """Why a calibration fitted on the sequences ``calibration`` must not be scored on the
+    sequences ``scored`` ("" where it may): one of them is a scored sequence itself, or is rendered
+    over the same floor (material and floor seed) as a scored one. Sequences that do not say
+    their floor (:func:`floor_of`) are compared by folder only."""
+    given = [Path(s) for s in scored]
+    floors = {floor_of(s): s for s in given}
+    floors.pop(None, None)
+    resolved = {s.resolve(): s for s in given}
+    for c in map(Path, calibration):
+        if c.resolve() in resolved:
+            return f"calibration run {c} is a scored sequence: a scene is never scored with a calibration fitted on it"
+        floor = floor_of(c)
+        if floor is not None and floor in floors:
+            return (
+                f"calibration run {c} is over the floor of the scored sequence {floors[floor]} ({floor[0]}, floor seed "
+                f"{floor[1]}): fit on another floor (floor.seed), not on the frames it is scored on"
+            )
+    return ""
 
 
 def _render_like(scene: Scene, out: str | os.PathLike, like: str | os.PathLike) -> Path:
