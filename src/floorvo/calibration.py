@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -72,7 +73,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.config import Rule
-from floorvo.errors import ConfigError, SequenceError, shown
+from floorvo.errors import ConfigError, SequenceError, shorten, shown
 from floorvo.geometry import invert_T, rot_z, yaw_of_R, yaws_of_T
 from floorvo.imaging import mean_orientation, texture_orientation
 from floorvo.io import atomic_write_json, read_json
@@ -90,6 +91,7 @@ __all__ = [
     "save_scale_calibration",
     "load_scale_calibration",
     "apply_scale",
+    "calibration_use_problems",
 ]
 
 KIND = "floorvo scale calibration"
@@ -436,6 +438,42 @@ def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None
             f"(floorvo calibrate on a run of {shown(estimator)})"
         )
     return cal
+
+
+def calibration_use_problems(
+    cal: ScaleCalibration, seq_dir: str | os.PathLike, config: Mapping[str, Any] | None = None
+) -> list[str]:
+    """What is wrong with applying ``cal`` to a run over the sequence ``seq_dir`` with the estimator
+    config ``config`` (its ``asdict``), one line each ([] where nothing is): the sequence is one
+    the calibration was fitted on (its ``sequence``: a score of that run measures what was tuned on
+    it), or the config differs from that of a run it was fitted on (its ``run`` folders'
+    ``result.json``, where they are still there: a calibration is fitted per estimator config).
+    """
+    problems = []
+    here = Path(seq_dir).resolve()
+    fitted_on = [Path(s) for s in cal.sequence.split("; ") if s]
+    if any(s.resolve() == here for s in fitted_on):
+        problems.append(
+            f"the scale calibration was fitted on this sequence ({shorten(str(seq_dir))}): a score of this run "
+            "measures what the calibration was tuned on; fit it on a separate run"
+        )
+    if config is not None:
+        for run in (Path(r) for r in cal.run.split("; ") if r):
+            try:
+                fitted = read_json(run / "result.json", ConfigError).get("config")
+            except (ConfigError, AttributeError):
+                continue  # the run folder is gone or not a run's: nothing to compare with
+            if not isinstance(fitted, dict):
+                continue
+            differ = sorted(k for k in set(fitted) | set(config) if fitted.get(k) != config.get(k))
+            if differ:
+                shown_keys = ", ".join(f"{k} = {fitted.get(k)!r} there, {config.get(k)!r} here" for k in differ[:3])
+                more = f" and {len(differ) - 3} more" if len(differ) > 3 else ""
+                problems.append(
+                    f"the scale calibration was fitted on a run of another estimator config ({run}: {shown_keys}{more})"
+                )
+                break
+    return problems
 
 
 def apply_scale(T_prev_cur: np.ndarray, cal: ScaleCalibration, theta_rad: float | None = None) -> np.ndarray:

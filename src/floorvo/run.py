@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, replace
 import cv2
 import numpy as np
 
-from floorvo.calibration import ScaleCalibration
+from floorvo.calibration import ScaleCalibration, calibration_use_problems
 from floorvo.errors import ConfigError, FloorbenchError, shorten
 from floorvo.estimators import estimator_source, get_estimator, make_config
 from floorvo.geometry import MAX_POSITION_MM, T_from_se2, T_from_xyz_quat, position_problem
@@ -124,6 +124,11 @@ def run_estimator(
     if not isinstance(seq, Sequence):
         seq = Sequence.open(seq)
     est, cfg = build_estimator(seq, name, overrides)
+    cal_problems = (
+        [] if scale_calibration is None else calibration_use_problems(scale_calibration, seq.root, asdict(cfg))
+    )
+    for problem in cal_problems:
+        log.warning("%s on %s: %s", name, seq.root, problem)
     out = ensure_writable_dir(out_dir)
     indices = list(range(seq.frame_count) if frames is None else frames)
     n = len(indices)
@@ -143,6 +148,7 @@ def run_estimator(
         **run.summary(),
         "config": asdict(cfg),
         "scale_calibration": None if scale_calibration is None else scale_calibration.to_dict(),
+        **({"scale_calibration_problems": cal_problems} if cal_problems else {}),
         "sequence": str(seq.root),
         SEQUENCE_SHA256: sequence_sha256(seq.meta),
         "source": estimator_source(name).to_dict(),

@@ -120,6 +120,29 @@ def test_calibration_fitted_on_one_run_corrects_another(tmp_path, capsys):
     assert result["scale_calibration"]["scale_x"] == cal.scale_x
 
 
+def test_a_run_on_the_calibrations_own_sequence_or_with_another_config_says_so(tmp_path, caplog):
+    """A calibration applied to the very sequence it was fitted on (a score that measures what was
+    tuned on it) or to a run of another estimator config was applied without a word; now each is
+    a warning and a line of result.json's ``scale_calibration_problems``; a separate run has none."""
+    cal_seq = _diagonal_sequence(tmp_path / "cal", 1, 3.0, 2.0, n=8)
+    test_seq = _diagonal_sequence(tmp_path / "test", 2, 2.0, -3.0, n=8)
+    assert floorvo_main(["run", str(cal_seq), "-e", "phase-corr", "-o", str(tmp_path / "run_cal")]) == 0
+    scale = tmp_path / "scale.json"
+    assert floorvo_main(["calibrate", str(tmp_path / "run_cal"), "--gt", str(cal_seq), "-o", str(scale)]) == 0
+
+    def problems(seq, out, *more) -> list[str]:
+        cmd = ["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / out), "--scale-calibration", str(scale)]
+        assert floorvo_main([*cmd, *more]) == 0
+        return json.loads((tmp_path / out / "result.json").read_text()).get("scale_calibration_problems", [])
+
+    with caplog.at_level("WARNING", logger="floorvo"):
+        own = problems(cal_seq, "own")
+    assert len(own) == 1 and "fitted on this sequence" in own[0] and "fitted on this sequence" in caplog.text
+    assert problems(test_seq, "separate") == []
+    other = problems(test_seq, "other-config", "--set", "iterations=3")
+    assert len(other) == 1 and "another estimator config" in other[0] and "iterations = 2 there, 3 here" in other[0]
+
+
 @pytest.mark.parametrize(
     "content, message",
     [
