@@ -215,9 +215,9 @@ def main() -> None:
             fit = fits.get((material_of[scene], r["estimator"]))
             cells += [
                 fit.scale_x_cell() if fit is not None else "-",
-                _fmt(c.get("end_drift_pct")),
-                _fmt(c.get("wrong_ok_steps"), 0),
-                _fmt(c.get("wrong_ok_steps_footprint"), 0),
+                _cell(c, "end_drift_pct"),
+                _cell(c, "wrong_ok_steps", 0),
+                _cell(c, "wrong_ok_steps_footprint", 0),
             ]
         if args.spins is not None:
             # The spin gave no yaw: the x, y calibrated run stands.
@@ -248,10 +248,17 @@ def _calibrated_cells(row: dict | None, stands: dict, mark: str, calibration_cel
         row, shown = row or {}, ""
     return row, [
         calibration_cell,
-        _fmt(row.get("end_drift_pct")) + shown if row else "-",
-        _fmt(row.get("turn_error_pct")) + shown if row else "-",
-        _fmt(row.get("wrong_ok_steps_footprint"), 0),
+        _cell(row, "end_drift_pct") + shown if row else "-",
+        _cell(row, "turn_error_pct") + shown if row else "-",
+        _cell(row, "wrong_ok_steps_footprint", 0),
     ]
+
+
+def _cell(row: dict, key: str, digits: int = 3) -> str:
+    """A calibrated run's figure, or "failed" where that run failed (its row's status): it read "-",
+    as a figure the run does not have, while the uncalibrated row beside it said ok."""
+    status = str(row.get("status", "ok")) if row else "ok"
+    return _fmt(row.get(key), digits) if status == "ok" else "failed"
 
 
 def render_scale(paths: list[Path], scale: float | None) -> float | None:

@@ -65,3 +65,15 @@ def test_estimators_preset_rows_of_a_run_that_lost_every_step(estimators):
     assert by["d"]["cpu_fps_fast"] is None
     assert by["d"]["cpu_fps_default"] == 100.0
     assert by["d"]["lost_fast"] == 3
+
+
+def test_motion_suite_says_a_failed_calibrated_run_failed():
+    """A calibrated run that failed (its row's status) showed "-" in the calibrated cells, as a
+    figure it does not have, beside the uncalibrated row's "ok"; now "failed"."""
+    suite = _load("motion_suite")
+    failed = {"status": "failed: trajectory.txt: no pose", "scene": "s", "estimator": "phase-corr"}
+    assert suite._cell(failed, "end_drift_pct") == "failed"
+    assert suite._cell({"status": "ok", "end_drift_pct": 0.1234}, "end_drift_pct") == "0.123"
+    assert suite._cell({}, "end_drift_pct") == "-"
+    _, cells = suite._calibrated_cells(failed, {}, " (x, y only)", "1.0010")
+    assert cells == ["1.0010", "failed", "failed", "failed"]
