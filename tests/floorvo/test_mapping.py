@@ -115,6 +115,28 @@ def test_keyframes_on_a_straight_line_follow_the_half_similarity_rule(texture):
         assert d < 0.1 and a < 1e-3
 
 
+def test_lost_frames_in_the_mapping_run_are_passed_over(texture):
+    """One black frame and one motion-blurred one just after a keyframe (a dropped exposure, a
+    jolt) ended the whole map build: "no frame after keyframe 9 can be placed against it". They
+    are passed over: neither is a keyframe, the eq. (24) chain keeps the true poses across them
+    and the map places frames over that stretch."""
+    import cv2
+
+    poses = [T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(20)]
+    imgs = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(i)) for i, T in enumerate(poses)]
+    imgs[10] = np.zeros_like(imgs[10])
+    imgs[11] = cv2.filter2D(imgs[11], -1, np.full((1, 30), 1 / 30, np.float32))
+    m = build_map_from_images(imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0])
+    assert 10 not in m.frame_indices and 11 not in m.frame_indices
+    for k, i in enumerate(m.frame_indices):
+        d, a = _se2_err(m.T_world_kf[k], poses[i])
+        assert d < 0.1 and a < 1e-3, (i, d, a)
+    r = Localizer(m).localize(_view(texture, 0.0, 3.0, 2.0, 70))  # over frames 10-13
+    assert r.ok, r.reason
+    d, a = _se2_err(r.T_world_cam, T_world_cam_down(0.0, 3.0, H_MM, 2.0))
+    assert d < 0.2 and a < 2e-3
+
+
 # --------------------------------------------------------------------------- localisation
 @pytest.fixture(scope="module")
 def lane(texture):
