@@ -174,6 +174,9 @@ def test_frame_from_outside_the_map_is_not_localised(texture, other_texture, lan
     # Same floor, but far from the mapped lane.
     r = loc.localize(_view(texture, 0.0, 120.0, 0.0, 60))
     assert not r.ok and r.reason
+    # A black frame has no keypoints, so retrieval has no candidate: it said "best: empty map".
+    r = loc.localize(np.zeros((CAM.height_px, CAM.width_px), np.uint8))
+    assert not r.ok and r.reason == "no candidate keyframe (the frame has no keypoints)"
 
 
 # --------------------------------------------------------------------------- real cameras

@@ -156,9 +156,11 @@ class Localizer:
         n_matches = max((f.n_matches for _, f in fits), default=0)
         n_inl = max((f.n_inliers for _, f in fits), default=0)
         common: dict[str, Any] = dict(n_keypoints=len(feats), n_matches=n_matches, n_inliers=n_inl, timing_ms=timing)
+        if not fits:  # retrieval found none: "best: empty map" was said of a map of 4 keyframes
+            why = "the frame has no keypoints" if len(feats) == 0 else "no keyframe holds a descriptor near the frame's"
+            return Localization(False, reason=f"no candidate keyframe ({why})", **common)
         if best is None:
-            why = fits[0][1].reason if fits else "empty map"
-            return Localization(False, reason=f"no candidate keyframe fits (best: {why})", **common)
+            return Localization(False, reason=f"no candidate keyframe fits (best: {fits[0][1].reason})", **common)
         k, s = best
         fail = None
         if s.n_blocks < cfg.min_blocks:
