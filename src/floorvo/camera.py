@@ -266,6 +266,31 @@ class CameraModel:
         """Full horizontal and vertical field of view (rad)."""
         return (2 * np.arctan(self.width_px / 2 / self.fx_px), 2 * np.arctan(self.height_px / 2 / self.fy_px))
 
+    def square_pinhole(self) -> CameraModel:
+        """This camera itself when it is an ideal pinhole with square pixels, else that pinhole:
+        ``f = max(fx, fy)`` (no axis is undersampled), the same size and principal point, no
+        distortion. The pixels in which a method that assumes a rigid image motion (a floor
+        point's distance in pixels proportional to its distance in mm) works: phase-corr's
+        correlation, the keyframe map's fits (:mod:`floorvo.mapping`)."""
+        if self.fx_px == self.fy_px and not self.has_distortion:
+            return self
+        f = max(self.fx_px, self.fy_px)
+        return CameraModel(self.width_px, self.height_px, f, f, self.cx_px, self.cy_px)
+
+    def rectify_maps(self, pinhole: CameraModel) -> tuple[np.ndarray, np.ndarray] | None:
+        """``cv2.remap`` maps (two (H, W) float32 arrays, ``pinhole``'s size) that resample a frame of
+        this camera into the ideal ``pinhole`` (no distortion; its own focal lengths and principal
+        point): each pixel of ``pinhole`` takes this camera's pixel on the same ray
+        (``cv2.initUndistortRectifyMap``). None when ``pinhole`` is this camera (nothing to do)."""
+        if pinhole == self:
+            return None
+        import cv2  # as to_opencv_yaml
+
+        mx, my = cv2.initUndistortRectifyMap(
+            self.K, np.asarray(self.distortion), None, pinhole.K, pinhole.size, cv2.CV_32FC1
+        )
+        return mx, my
+
     def scaled(self, scale: float) -> CameraModel:
         """The same camera at ``scale`` times the resolution (pixel centres kept consistent).
 

@@ -115,6 +115,28 @@ def test_keyframes_on_a_straight_line_follow_the_half_similarity_rule(texture):
         assert d < 0.1 and a < 1e-3
 
 
+def test_lost_frames_in_the_mapping_run_are_passed_over(texture):
+    """One black frame and one motion-blurred one just after a keyframe (a dropped exposure, a
+    jolt) ended the whole map build: "no frame after keyframe 9 can be placed against it". They
+    are passed over: neither is a keyframe, the eq. (24) chain keeps the true poses across them
+    and the map places frames over that stretch."""
+    import cv2
+
+    poses = [T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(20)]
+    imgs = [syn.view(texture, CAM, T, H_MM, noise_std=1.5, rng=np.random.default_rng(i)) for i, T in enumerate(poses)]
+    imgs[10] = np.zeros_like(imgs[10])
+    imgs[11] = cv2.filter2D(imgs[11], -1, np.full((1, 30), 1 / 30, np.float32))
+    m = build_map_from_images(imgs.__getitem__, len(imgs), CAM, H_MM, T_world_first=poses[0])
+    assert 10 not in m.frame_indices and 11 not in m.frame_indices
+    for k, i in enumerate(m.frame_indices):
+        d, a = _se2_err(m.T_world_kf[k], poses[i])
+        assert d < 0.1 and a < 1e-3, (i, d, a)
+    r = Localizer(m).localize(_view(texture, 0.0, 3.0, 2.0, 70))  # over frames 10-13
+    assert r.ok, r.reason
+    d, a = _se2_err(r.T_world_cam, T_world_cam_down(0.0, 3.0, H_MM, 2.0))
+    assert d < 0.2 and a < 2e-3
+
+
 # --------------------------------------------------------------------------- localisation
 @pytest.fixture(scope="module")
 def lane(texture):
@@ -152,6 +174,118 @@ def test_frame_from_outside_the_map_is_not_localised(texture, other_texture, lan
     # Same floor, but far from the mapped lane.
     r = loc.localize(_view(texture, 0.0, 120.0, 0.0, 60))
     assert not r.ok and r.reason
+    # A black frame has no keypoints, so retrieval has no candidate: it said "best: empty map".
+    r = loc.localize(np.zeros((CAM.height_px, CAM.width_px), np.uint8))
+    assert not r.ok and r.reason == "no candidate keyframe (the frame has no keypoints)"
+
+
+# --------------------------------------------------------------------------- real cameras
+@pytest.fixture(scope="module")
+def coeffs(texture):
+    from scipy.ndimage import spline_filter
+
+    return spline_filter(texture, order=3, output=np.float32)
+
+
+def _render(coeffs, cam, T, seed):
+    """uint8 frame of ``cam`` (its whole model: distortion, fx != fy, principal point) at ``T``,
+    under the LED falloff (:func:`floorvo.synthetic.render_view`: exact in position)."""
+    img = syn.render_view(coeffs, (1300.0, 1300.0), GSD, cam, T) * syn.led_falloff(cam) * 190.0
+    img += np.random.default_rng(seed).normal(0.0, 1.5, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def _flat(cam):
+    f = syn.led_falloff(cam)
+    return np.clip(f / f.max() * 60000, 0, 65535).astype(np.uint16)
+
+
+def _fix_is_right(m, r, T_true):
+    """Issue 14's bound on a fix: 0.05 mm + 2 % of its distance from the keyframe, 0.3 degrees."""
+    d, a = _se2_err(r.T_world_cam, T_true)
+    dist = float(np.linalg.norm((invert_T(m.T_world_kf[r.keyframe]) @ T_true)[:2, 3]))
+    return d <= 0.05 + 0.02 * dist and np.degrees(a) <= 0.3, (d, np.degrees(a), dist)
+
+
+def _real_camera_map(coeffs, cam):
+    poses = [T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(14)]
+    imgs = [_render(coeffs, cam, T, 100 + i) for i, T in enumerate(poses)]
+    return build_map_from_images(
+        imgs.__getitem__, len(imgs), cam, H_MM, T_world_frames=np.stack(poses), flatfield=_flat(cam)
+    )
+
+
+@pytest.mark.parametrize(
+    "cam",
+    [
+        CameraModel(648, 494, CAM.fx_px, CAM.fx_px, 323.5, 246.5, (-0.3, 0.0, 0.0, 0.0, 0.0)),  # barrel lens
+        CameraModel(648, 494, CAM.fx_px, 1.02 * CAM.fx_px, 323.5, 246.5),
+    ],  # fy = 1.02 fx
+    ids=["k1=-0.3", "fy=1.02fx"],
+)
+def test_map_of_a_distorted_or_non_square_camera_gives_right_fixes(coeffs, cam):
+    """A map built and queried with a lens of k1 = -0.3, or pixels of fy = 1.02 fx, was fitted in
+    the camera's own pixels, where the floor does not move rigidly: turned queries were placed
+    1.3 times issue 14's bound off and reported ok (6 of 8). Frames are now resampled into the
+    camera's square pinhole, where every fix is right; the eq. (24) chain agrees with the truth."""
+    m = _real_camera_map(coeffs, cam)
+    assert m.chain_vs_groundtruth["max_mm"] < 0.1
+    loc = Localizer(m, flatfield=_flat(cam))
+    rng = np.random.default_rng(7)
+    for i in range(4):
+        T = T_world_cam_down(rng.uniform(-45, 0), rng.uniform(-10, 10), H_MM, rng.uniform(-np.pi, np.pi))
+        r = loc.localize(_render(coeffs, cam, T, 900 + i))
+        assert r.ok, r.reason
+        right, how = _fix_is_right(m, r, T)
+        assert right, (i, how)
+
+
+def test_query_camera_other_than_the_maps_gives_right_fixes(tmp_path, coeffs):
+    """A sequence whose camera differs from the map's (principal point 20 px off, 3 % longer focal
+    length, a k1 = -0.2 lens) is localised through its own camera: with the map's camera, a principal
+    point 20 px off placed every frame 2.5 mm off and reported it ok (20 x issue 14's bound)."""
+    from floorvo.estimators import Frame, get_estimator, make_config
+
+    m = _real_camera_map(coeffs, CAM)
+    save_map(m, tmp_path / "map")
+    cfg = make_config("map-fused", {"map": str(tmp_path / "map"), "odometry": "none"})
+    rng = np.random.default_rng(3)
+    for cam in (
+        CameraModel(648, 494, CAM.fx_px, CAM.fx_px, CAM.cx_px + 20.0, CAM.cy_px),
+        CameraModel(648, 494, 1.03 * CAM.fx_px, 1.03 * CAM.fx_px, CAM.cx_px, CAM.cy_px),
+        CameraModel(648, 494, CAM.fx_px, CAM.fx_px, CAM.cx_px, CAM.cy_px, (-0.2, 0.0, 0.0, 0.0, 0.0)),
+    ):
+        est = get_estimator("map-fused")(cfg, cam, height_mm=H_MM, flatfield=_flat(cam))
+        state = est.start()
+        T = T_world_cam_down(rng.uniform(-45, 0), rng.uniform(-10, 10), H_MM, rng.uniform(-np.pi, np.pi))
+        r = est.step(state, Frame(0, 0.0, _render(coeffs, cam, T, 950)))
+        assert r.T_world_cam is not None, r.reason
+        right, how = _fix_is_right(m, state.last_fix, T)
+        assert right, (cam, how)
+
+
+def test_schema_1_map_is_read_only_for_a_camera_that_is_its_own_pinhole(tmp_path, coeffs):
+    """Version 1 maps held a distorted lens's keyframes in its own pixels: refused, rebuild; a
+    pinhole camera's are what version 2 writes, and are read."""
+    from floorvo.io import json_sha256
+
+    lens = CameraModel(648, 494, CAM.fx_px, CAM.fx_px, 323.5, 246.5, (-0.2, 0.0, 0.0, 0.0, 0.0))
+    poses = np.stack([T_world_cam_down(-50.0 + 4.0 * i, 0.0, H_MM) for i in range(3)])
+    for cam, readable in ((CAM, True), (lens, False)):
+        imgs = [_render(coeffs, cam, T, i) for i, T in enumerate(poses)]
+        m = build_map_from_images(imgs.__getitem__, 3, cam, H_MM, T_world_frames=poses)
+        out = save_map(m, tmp_path / f"map{readable}")
+        meta = json.loads((out / "map.json").read_text())
+        assert meta["schema_version"] == 2
+        meta["schema_version"] = 1
+        del meta["content_sha256"]
+        meta["content_sha256"] = json_sha256(meta)
+        (out / "map.json").write_text(json.dumps(meta))
+        if readable:
+            assert load_map(out).n_keyframes == m.n_keyframes
+        else:
+            with pytest.raises(FloorbenchError, match="schema_version 1 map of a camera with distortion"):
+                load_map(out)
 
 
 # --------------------------------------------------------------------------- map on disk
@@ -165,7 +299,7 @@ def test_map_round_trip_and_refusals(tmp_path, lane):
     assert all(np.array_equal(a.desc, b.desc) for a, b in zip(m.features, m2.features))
     assert m2.config == m.config and m2.camera == m.camera
     meta = json.loads((tmp_path / "map" / "map.json").read_text())
-    assert meta["schema_version"] == 1 and meta["units"]["translation"] == "mm"
+    assert meta["schema_version"] == 2 and meta["units"]["translation"] == "mm"
     # A damaged array file, another schema version, a missing folder: one-line refusals.
     npz = tmp_path / "map" / "keyframes.npz"
     data = npz.read_bytes()

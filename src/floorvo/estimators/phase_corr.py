@@ -577,7 +577,7 @@ class PhaseCorr:
         self.camera = camera
         # The ideal pinhole the frames are measured in (step 0 of the module doc): square
         # pixels, no distortion, the camera's principal point.
-        self.pinhole = _square_pinhole(camera)
+        self.pinhole = camera.square_pinhole()
         # The pixel grid the frames are correlated on: the pinhole's, or its pixels binned
         # ``downscale`` x ``downscale`` (area average); crop, margin and blocks are in its pixels.
         if 0.0 < config.impulse_ratio <= 1.0:
@@ -620,10 +620,9 @@ class PhaseCorr:
         # ideal square pinhole).
         self.rect_map: tuple[np.ndarray, np.ndarray] | None = None
         fy0, fy1, fx0, fx1 = k * self.ry0, k * self.ry1, k * self.rx0, k * self.rx1
-        if self.pinhole is not camera:
-            mx, my = cv2.initUndistortRectifyMap(
-                camera.K, np.asarray(camera.distortion), None, self.pinhole.K, camera.size, cv2.CV_32FC1
-            )
+        maps = camera.rectify_maps(self.pinhole)
+        if maps is not None:
+            mx, my = maps
             self.rect_map = (mx[fy0:fy1, fx0:fx1], my[fy0:fy1, fx0:fx1])
         # The flat-field gain of the region, in the grid's pixels (None: no flat field).
         self.region_gain: np.ndarray | None = None
@@ -1457,15 +1456,6 @@ def _log_polar_magnitude(crop: np.ndarray, sp: _Spectral, n_angles: int) -> np.n
     mag = np.log1p(F * np.minimum(4.0 * radius, 1.0)).astype(np.float32)
     polar = cv2.warpPolar(mag, (n // 2, n_angles), (n / 2, n / 2), n / 2, cv2.WARP_POLAR_LINEAR)
     return np.ascontiguousarray(polar[:, n // 16 : n // 4])
-
-
-def _square_pinhole(camera: CameraModel) -> CameraModel:
-    """``camera`` itself when it is an ideal pinhole with square pixels, else that pinhole:
-    ``f = max(fx, fy)`` (no axis is undersampled), the same size and principal point, no distortion."""
-    if camera.fx_px == camera.fy_px and not camera.has_distortion:
-        return camera
-    f = max(camera.fx_px, camera.fy_px)
-    return CameraModel(camera.width_px, camera.height_px, f, f, camera.cx_px, camera.cy_px)
 
 
 def _rotation(angle_rad: float) -> np.ndarray:

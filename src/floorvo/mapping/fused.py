@@ -97,7 +97,8 @@ class MapFused:
                 f"{where['map']} {config.map}: built at height {self.map.height_mm} mm, "
                 f"the sequence is at {height_mm} mm"
             )
-        self.localizer = Localizer(self.map, config, flatfield=flatfield)  # a MapFusedConfig is a LocalizeConfig
+        # a MapFusedConfig is a LocalizeConfig; the sequence's frames are resampled into the map's pinhole
+        self.localizer = Localizer(self.map, config, flatfield=flatfield, camera=camera)
         self.odometry = None
         #: What the sequence must have: the odometry's (orb-icp's depth; :meth:`floorvo.sequence.Sequence.lacks`).
         self.requires: frozenset[str] = frozenset()

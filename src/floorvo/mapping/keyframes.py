@@ -4,7 +4,11 @@ The first keyframe is the first frame. From keyframe k the content similarity (e
 with each of the next ``window`` (50) frames is computed (step 1); the maximum is found
 (the nearest frame), and the next keyframe is the first frame whose similarity has fallen
 to ``ratio`` (50 %) of that maximum, or the ``window``-th frame when none has (step 2).
-Consecutive keyframes therefore overlap by about half.
+Consecutive keyframes therefore overlap by about half. A frame the keyframe does not place
+at all (similarity 0) while a later frame of the window is still above ``ratio`` of the
+maximum is a lost frame (blank, blurred, dropped to black), not the end of the overlap, and
+step 2 passes over it; where the similarity does fall to 0 at the end of the overlap, the
+last frame before it that is placed becomes the keyframe.
 
 Global poses (eq. 24): the rigid map between consecutive keyframes (eq. 5, from their
 matched features, refined by the matched sub-blocks) gives the heading difference and the
@@ -123,12 +127,20 @@ def extract_keyframes(
         if vmax <= 0:
             raise FloorbenchError(
                 f"keyframe extraction: frame {k} overlaps none of frames {k + 1}..{last} "
-                "(similarity 0: too fast, or the frames are not of one floor)"
+                "(similarity 0: too fast, a blank or blurred keyframe, or the frames are not of one floor)"
             )
-        # Step 2: the first frame whose similarity fell to ratio x max, else the window's last.
+        # Step 2: the first frame whose similarity fell to ratio x max, else the window's last;
+        # frames with none before a later one still above it are lost frames, passed over (one
+        # black frame just after a keyframe ended the whole map build: "no frame after keyframe
+        # 9 can be placed against it").
+        thr = kf_cfg.ratio * vmax
+        last_above = int(np.flatnonzero(values > thr)[-1])
+        lost = [j for n, (j, _) in enumerate(results) if values[n] <= 0 and n < last_above]
+        if lost:
+            log.warning("map: frames %s are not placed against keyframe frame %d (lost frames): passed over", lost, k)
         nxt = None
-        for (j, s), v in zip(results, values):
-            if v <= kf_cfg.ratio * vmax:
+        for n, ((j, s), v) in enumerate(zip(results, values)):
+            if v <= thr and not (v <= 0 and n < last_above):
                 nxt = (j, s)
                 break
         if nxt is None:

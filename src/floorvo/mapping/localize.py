@@ -13,6 +13,11 @@ again on its first frame after landing):
    rigid fit (refined by the matched sub-blocks) converted to a camera motion on the
    floor plane at the camera height.
 
+The live frame is first resampled into the map's pinhole (:attr:`GlobalMap.pinhole`,
+:class:`~floorvo.mapping.similarity.FramePreparer`) from its own camera, which may differ
+from the map's (distortion, focal lengths, principal point; the camera height must be the
+map's, as :class:`~floorvo.mapping.fused.MapFused` checks).
+
 A frame that no keyframe explains (too few inliers, too few matched sub-blocks, low
 correlation) is reported as not localised, with the reason, never placed at a guess.
 """
@@ -25,17 +30,18 @@ from typing import Any
 
 import numpy as np
 
+from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.errors import ConfigError, ConfigFieldError
 from floorvo.mapping.keyframes import fit_to_T_i_j
 from floorvo.mapping.map import GlobalMap
 from floorvo.mapping.similarity import (
+    FramePreparer,
     Similarity,
     content_similarity,
     detect_features,
     downscale,
     fit_features,
-    prepare_image,
 )
 
 __all__ = ["LocalizeConfig", "Localization", "Localizer"]
@@ -89,12 +95,23 @@ class Localization:
 
 
 class Localizer:
-    """Localises frames against a :class:`GlobalMap` (see the module docstring)."""
+    """Localises frames against a :class:`GlobalMap` (see the module docstring).
 
-    def __init__(self, gmap: GlobalMap, config: LocalizeConfig | None = None, flatfield: np.ndarray | None = None):
+    ``camera``: the camera of the frames (default: the map's); ``flatfield``: its flat-field frame.
+    """
+
+    def __init__(
+        self,
+        gmap: GlobalMap,
+        config: LocalizeConfig | None = None,
+        flatfield: np.ndarray | None = None,
+        camera: CameraModel | None = None,
+    ):
         self.map = gmap
         self.config = config or LocalizeConfig()
         self.flatfield = flatfield
+        self.camera = camera or gmap.camera
+        self.prepare = FramePreparer(self.camera, gmap.pinhole, flatfield)
         self.sim_cfg = gmap.config.similarity
         self.index = (
             gmap.vote_index if self.config.retrieval == "vote" else gmap.index
@@ -105,12 +122,12 @@ class Localizer:
         cfg, sc, m = self.config, self.sim_cfg, self.map
         rng = rng or np.random.default_rng(0)
         t0 = time.perf_counter()
-        cam = m.camera
+        cam = self.camera
         if image.shape != (cam.height_px, cam.width_px):
             raise ConfigError(
-                f"localize: frame size {image.shape[1]}x{image.shape[0]} differs from the map camera's {cam.width_px}x{cam.height_px}"
+                f"localize: frame size {image.shape[1]}x{image.shape[0]} differs from the camera's {cam.width_px}x{cam.height_px}"
             )
-        p = prepare_image(image, self.flatfield)
+        p = self.prepare(image)
         feats = detect_features(p, sc)
         small = downscale(p, sc.sim_scale)
         t1 = time.perf_counter()
@@ -139,9 +156,11 @@ class Localizer:
         n_matches = max((f.n_matches for _, f in fits), default=0)
         n_inl = max((f.n_inliers for _, f in fits), default=0)
         common: dict[str, Any] = dict(n_keypoints=len(feats), n_matches=n_matches, n_inliers=n_inl, timing_ms=timing)
+        if not fits:  # retrieval found none: "best: empty map" was said of a map of 4 keyframes
+            why = "the frame has no keypoints" if len(feats) == 0 else "no keyframe holds a descriptor near the frame's"
+            return Localization(False, reason=f"no candidate keyframe ({why})", **common)
         if best is None:
-            why = fits[0][1].reason if fits else "empty map"
-            return Localization(False, reason=f"no candidate keyframe fits (best: {why})", **common)
+            return Localization(False, reason=f"no candidate keyframe fits (best: {fits[0][1].reason})", **common)
         k, s = best
         fail = None
         if s.n_blocks < cfg.min_blocks:
@@ -160,7 +179,7 @@ class Localizer:
                 corr=s.corr,
                 **common,
             )
-        T_kf_live = fit_to_T_i_j(s.fit, cam, m.height_mm)
+        T_kf_live = fit_to_T_i_j(s.fit, m.pinhole, m.height_mm)
         T_world = m.T_world_kf[k] @ T_kf_live  # Eq. (24)
         return Localization(
             True, T_world, keyframe=k, similarity=s.value, block_fraction=s.block_fraction, corr=s.corr, **common

@@ -2,7 +2,10 @@
 
 A map holds the keyframes (prepared images at the similarity scale, ORB keypoints and
 descriptors), their global poses ``T_world_kf`` (mm, eq. 24), the bag-of-words vocabulary
-for retrieval, the camera model, the camera height and every parameter used.
+for retrieval, the camera model, the camera height and every parameter used. Images and
+keypoints are in the pixels of the camera's ideal square pinhole (:attr:`GlobalMap.pinhole`:
+a distorted lens's frames, or frames of pixels with ``fx != fy``, are resampled into it,
+:class:`~floorvo.mapping.similarity.FramePreparer`), where the floor moves rigidly.
 
 On disk a map is a folder::
 
@@ -17,6 +20,8 @@ On disk a map is a folder::
 Both files are written atomically, the arrays first; ``map.json`` names the arrays'
 checksum and carries one of its own content, so a map whose files do not belong together,
 or whose ``map.json`` was edited (a camera with another focal length), is refused on loading.
+Schema version 1 (before the frames were resampled into the pinhole) is read only for a
+camera that is its own pinhole (no distortion, ``fx == fy``), where nothing changed.
 """
 
 from __future__ import annotations
@@ -49,7 +54,7 @@ from floorvo.io import (
 from floorvo.locking import locks_folder
 from floorvo.mapping.keyframes import KeyframeConfig, chain_poses, extract_keyframes
 from floorvo.mapping.retrieval import BinaryVocabulary, KeyframeIndex, VoteIndex
-from floorvo.mapping.similarity import Features, SimilarityConfig, detect_features, downscale, prepare_image
+from floorvo.mapping.similarity import Features, FramePreparer, SimilarityConfig, detect_features, downscale
 from floorvo.sequence import Sequence
 
 __all__ = [
@@ -65,8 +70,13 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Version of the map folder format; :func:`load_map` refuses any other.
-MAP_SCHEMA_VERSION = 1
+#: Version of the map folder format :func:`save_map` writes; :func:`load_map` refuses any other
+#: (but 1, for a camera that is its own square pinhole: :data:`MAP_SCHEMA_VERSIONS_READ`).
+MAP_SCHEMA_VERSION = 2
+#: 1: keyframe images and keypoints in the camera's own pixels (a distorted lens's, or ``fx !=
+#: fy``); 2: in its square pinhole's (:attr:`GlobalMap.pinhole`). The two differ only where the
+#: camera is not its own pinhole.
+MAP_SCHEMA_VERSIONS_READ = (1, 2)
 MAP_FORMAT = "floorbench-keyframe-map"
 #: Values of ``MapConfig.poses``.
 POSE_SOURCES = ("groundtruth", "chain")
@@ -135,6 +145,12 @@ class GlobalMap:
         return len(self.frame_indices)
 
     @property
+    def pinhole(self) -> CameraModel:
+        """The ideal square pinhole (:meth:`CameraModel.square_pinhole` of :attr:`camera`) whose
+        pixels ``images`` and ``features`` are in, and in which fits are converted to mm."""
+        return self.camera.square_pinhole()
+
+    @property
     def index(self) -> KeyframeIndex:
         if self._index is None:
             self._index = KeyframeIndex(self.vocab, [f.desc for f in self.features])
@@ -165,7 +181,8 @@ def build_map_from_images(
     source: str = "",
     on_progress: Callable[[int, int], None] | None = None,
 ) -> GlobalMap:
-    """Build a map from frames ``get_image(0 .. n_frames - 1)`` (raw (H, W) images).
+    """Build a map from frames ``get_image(0 .. n_frames - 1)`` (raw (H, W) images of ``camera``,
+    resampled into its square pinhole: :class:`~floorvo.mapping.similarity.FramePreparer`).
 
     ``T_world_first``: pose of frame 0 (the map's world frame; default: downward camera at
     the origin with yaw 0 at ``height_mm``). ``T_world_frames``: (n_frames, 4, 4) ground-truth
@@ -176,6 +193,7 @@ def build_map_from_images(
     sc = cfg.similarity
     cache: OrderedDict[int, tuple[np.ndarray, Features]] = OrderedDict()
     cap = cfg.keyframes.window + 4
+    prepare = FramePreparer(camera, camera.square_pinhole(), flatfield)
 
     def prepared(i: int) -> tuple[np.ndarray, Features]:
         if i in cache:
@@ -186,7 +204,7 @@ def build_map_from_images(
             raise SequenceError(
                 f"frame {i}: size {img.shape[1]}x{img.shape[0]} differs from the camera's {camera.width_px}x{camera.height_px}"
             )
-        p = prepare_image(img, flatfield)
+        p = prepare(img)
         val = (downscale(p, sc.sim_scale), detect_features(p, sc))
         cache[i] = val
         while len(cache) > cap:
@@ -197,7 +215,7 @@ def build_map_from_images(
         lambda i: prepared(i)[0],
         lambda i: prepared(i)[1],
         n_frames,
-        camera,
+        prepare.pinhole,
         height_mm,
         sc,
         cfg.keyframes,
@@ -374,7 +392,7 @@ class MapArraysEntry(Config):
 class MapFile(Config):
     """The keys of ``map.json`` (read by :func:`load_map`, written by :func:`save_map`)."""
 
-    schema_version: int = param(choices=(MAP_SCHEMA_VERSION,), doc="map folder format version")
+    schema_version: int = param(choices=MAP_SCHEMA_VERSIONS_READ, doc="map folder format version")
     format: str = param(choices=(MAP_FORMAT,), doc="format name")
     camera: dict = param(doc="intrinsics (CameraModel.to_dict)")
     height_mm: float = param(
@@ -404,10 +422,9 @@ def _read_map_json(mj: Path) -> tuple[MapFile, CameraModel, MapConfig, list[MapK
     meta = read_json(mj, FloorbenchError)
     if not isinstance(meta, dict) or meta.get("format") != MAP_FORMAT:
         raise FloorbenchError(f"{mj}: not a floorbench map (format must be {MAP_FORMAT!r})")
-    if meta.get("schema_version") != MAP_SCHEMA_VERSION:
-        raise FloorbenchError(
-            f"{mj}: schema_version {shown(meta.get('schema_version'))} is not {MAP_SCHEMA_VERSION} (rebuild the map)"
-        )
+    version = meta.get("schema_version")
+    if type(version) is not int or version not in MAP_SCHEMA_VERSIONS_READ:
+        raise FloorbenchError(f"{mj}: schema_version {shown(version)} is not {MAP_SCHEMA_VERSION} (rebuild the map)")
     written = meta.get("content_sha256")
     if written is None:
         raise FloorbenchError(f"{mj}: has no content_sha256 (written before maps were checksummed); rebuild the map")
@@ -423,6 +440,11 @@ def _read_map_json(mj: Path) -> tuple[MapFile, CameraModel, MapConfig, list[MapK
         T = np.stack([_pose(k, f"keyframes[{i}]") for i, k in enumerate(kfs)]) if kfs else np.zeros((0, 4, 4))
     except ConfigError as exc:
         raise FloorbenchError(f"{mj}: {exc}") from None
+    if version < 2 and camera.square_pinhole() != camera:
+        raise FloorbenchError(
+            f"{mj}: schema_version 1 map of a camera with distortion or fx != fy: its keyframes are in the "
+            f"lens's own pixels, where fixes came out wrong; rebuild the map with `floorvo map`"
+        )
     if f.n_keyframes != len(kfs):
         raise FloorbenchError(f"{mj}: n_keyframes = {f.n_keyframes}, but {len(kfs)} keyframes are listed")
     name = f.arrays.file

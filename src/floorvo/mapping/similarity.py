@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from floorvo.camera import CameraModel
 from floorvo.config import Config, param
 from floorvo.geometry import rigid_fit
 from floorvo.imaging import illumination_corrected, to_uint8_contrast
@@ -52,6 +53,7 @@ __all__ = [
     "RigidFit",
     "Similarity",
     "prepare_image",
+    "FramePreparer",
     "detect_features",
     "match_descriptors",
     "ransac_rigid",
@@ -166,6 +168,33 @@ def prepare_image(image: np.ndarray, flatfield: np.ndarray | None = None) -> np.
     if img.ndim != 2:
         raise ValueError(f"prepare_image: need a (H, W) mono image, got shape {img.shape}")
     return to_uint8_contrast(illumination_corrected(img, flatfield, blur_downscale=8))
+
+
+class FramePreparer:
+    """Raw (H, W) frames of ``camera`` -> prepared uint8 frames (:func:`prepare_image`, with the
+    camera's ``flatfield``) in the pixels of the ideal pinhole ``pinhole`` (a keyframe map's:
+    :meth:`~floorvo.camera.CameraModel.square_pinhole` of the map's camera).
+
+    The rigid fit of eq. (5), its length check (eqs. 17-19) and the sub-block warps assume
+    that a floor point's image moves rigidly, which holds only in an ideal pinhole with square
+    pixels; and :func:`floorvo.mapping.keyframes.fit_to_T_i_j` converts a fit to mm with one
+    camera's intrinsics. A frame of a lens with distortion, of pixels with ``fx != fy``, or of
+    another camera than the map's (another principal point or focal length, a recalibration)
+    is therefore resampled into the map's pinhole first (:meth:`CameraModel.rectify_maps`, made
+    once): at k1 = -0.3, or fy = 1.02 fx with the frame turned, or a query camera whose
+    principal point was 20 px from the map's, fixes were reported 1.3 to 11 times issue 14's
+    bound off. A camera that is the pinhole itself is not resampled.
+    """
+
+    def __init__(self, camera: CameraModel, pinhole: CameraModel, flatfield: np.ndarray | None = None):
+        self.camera, self.pinhole, self.flatfield = camera, pinhole, flatfield
+        self.maps = camera.rectify_maps(pinhole)
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        p = prepare_image(image, self.flatfield)
+        if self.maps is None:
+            return p
+        return cv2.remap(p, *self.maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def downscale(image_u8: np.ndarray, scale: float) -> np.ndarray:
