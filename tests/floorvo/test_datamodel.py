@@ -238,3 +238,13 @@ def test_write_tum_writes_only_what_read_tum_reads_back(tmp_path):
     assert rigid_problem(scaled, stack=True) == "pose 1: " + str(rigid_problem(scaled[1]))
     assert rigid_problem(nan, stack=True, unknown=True) is None
     assert rigid_problem(T[0], stack=True) == "shape (4, 4), not (N, 4, 4)"
+
+
+def test_a_camera_scaled_by_no_finite_positive_number_is_refused_in_one_line():
+    """scaled(nan) raised 'cannot convert float NaN to integer' from inside; inf and 0 are refused too."""
+    cam = CameraModel.from_sensor(648, 494)
+    for bad in (float("nan"), float("inf"), 0.0, -0.5):
+        with pytest.raises(ConfigError, match="camera: scale must be a finite number > 0"):
+            cam.scaled(bad)
+    half = cam.scaled(0.5)
+    assert half.size == (324, 247) and half.fx_px == pytest.approx(cam.fx_px / 2)
