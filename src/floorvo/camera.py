@@ -297,8 +297,8 @@ class CameraModel:
         A pixel of the scaled image covers ``1 / scale`` pixels of the original, so
         f' = s f and c' = s (c + 0.5) - 0.5.
         """
-        if scale <= 0:
-            raise ConfigError(f"scale must be > 0, got {scale}")
+        if not 0 < scale < np.inf:  # NaN: 'cannot convert float NaN to integer' from inside
+            raise ConfigError(f"camera: scale must be a finite number > 0, got {scale}")
         w = max(1, int(round(self.width_px * scale)))
         h = max(1, int(round(self.height_px * scale)))
         sx, sy = w / self.width_px, h / self.height_px

@@ -49,7 +49,8 @@ import numpy as np
 
 from floorvo.config import Rule
 from floorvo.errors import ConfigError
-from floorvo.geometry import invert_T, least_rotation, rigid_fit, yaws_of_T
+from floorvo.geometry import invert_T, least_rotation, rigid_fit, rigid_problem, yaws_of_T
+from floorvo.tum import times_problem
 
 __all__ = [
     "ALIGNMENTS",
@@ -82,21 +83,41 @@ SEGMENT_LENGTHS_MM = (10.0, 25.0, 50.0, 100.0, 250.0, 500.0, 1000.0, 2000.0, 500
 
 
 def check_trajectory(timestamps_s: np.ndarray, T: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(timestamps_s (N,), T (N, 4, 4))`` as float arrays; ValueError naming ``what`` for other shapes."""
+    """``(timestamps_s (N,) s, T (N, 4, 4) mm)`` as float arrays, or a one-line ValueError naming
+    ``what`` and the rule: other shapes; a pose that is no rigid transform of finite numbers
+    (:func:`~floorvo.geometry.rigid_problem`: a transposed stack, a scaled or reflected rotation, NaN);
+    times that are not finite, within :data:`~floorvo.tum.MAX_TIME_S`, and strictly increasing
+    (:func:`~floorvo.tum.times_problem`, the rule of a TUM file's times). Units cannot be checked:
+    translations are millimetres (metres give every error 1000 times too small)."""
     ts = np.asarray(timestamps_s, dtype=float)
     Ts = np.asarray(T, dtype=float)
     if Ts.ndim != 3 or Ts.shape[1:] != (4, 4) or ts.shape != (len(Ts),):
         raise ValueError(f"{what}: need (N,) timestamps and (N, 4, 4) poses, got {ts.shape} and {Ts.shape}")
+    _check_poses(Ts, what)
+    when = times_problem(ts)
+    if when is not None:
+        raise ValueError(f"{what}: pose {when[0]}: {when[1]}")
     return ts, Ts
 
 
-def _check_pair(T_ref: np.ndarray, T_est: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _check_poses(T: np.ndarray, what: str, *, unknown: bool = False) -> None:
+    """ValueError naming ``what`` unless ``T`` (N, 4, 4) holds rigid poses (``unknown``: or NaN ones)."""
+    problem = rigid_problem(T, stack=True, unknown=unknown)
+    if problem is not None:
+        raise ValueError(f"{what}: {problem} (poses are rigid (4, 4) transforms T_world_cam, mm)")
+
+
+def _check_pair(T_ref: np.ndarray, T_est: np.ndarray, *, unknown: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``(T_ref, T_est)`` as float (N, 4, 4) arrays of rigid poses (``unknown``: a pose holding a NaN
+    is unknown and passes), N >= 1; else a one-line ValueError."""
     A = np.asarray(T_ref, dtype=float)
     B = np.asarray(T_est, dtype=float)
     if A.ndim != 3 or A.shape[1:] != (4, 4) or A.shape != B.shape:
         raise ValueError(f"need two associated (N, 4, 4) pose arrays of equal length, got {A.shape} and {B.shape}")
     if len(A) == 0:
         raise ValueError("need at least one associated pose pair, got 0")
+    _check_poses(A, "T_ref", unknown=unknown)
+    _check_poses(B, "T_est", unknown=unknown)
     return A, B
 
 
@@ -110,13 +131,17 @@ def associate(
     times. A pair is kept when the difference is at most ``max_diff_s``; each reference
     pose is used at most once (the closest estimate wins). Returns two int arrays
     ``(idx_ref, idx_est)`` of equal length, sorted by ``idx_est``. A ``max_diff_s`` that is not
-    a finite number >= 0 is a one-line :class:`~floorvo.errors.ConfigError`.
+    a finite number >= 0 is a one-line :class:`~floorvo.errors.ConfigError`; times that are not a
+    1-D array of finite numbers a one-line ValueError (a NaN time was left unpaired, silently).
     """
     problem = Rule(min=0.0, unit="s").violation(float(max_diff_s))
     if problem:  # a negative or NaN tolerance paired nothing: 'shares no timestamp', exit 0
         raise ConfigError(f"timestamp association tolerance (--max-diff) = {max_diff_s} s: {problem}")
     t_ref = np.asarray(t_ref_s, dtype=float)
     t_est = np.asarray(t_est_s, dtype=float) + offset_s
+    for what, t in (("t_ref_s", t_ref), ("t_est_s + offset_s", t_est)):
+        if t.ndim != 1 or not np.isfinite(t).all():
+            raise ValueError(f"associate: {what} must be an (N,) array of finite times (s), got shape {t.shape}")
     if len(t_ref) == 0 or len(t_est) == 0:
         return np.zeros(0, int), np.zeros(0, int)
     order = np.argsort(t_ref, kind="stable")
@@ -206,7 +231,10 @@ def _line_alignment(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def path_distances_mm(T: np.ndarray) -> np.ndarray:
     """(N,) distance travelled along the path of poses ``T`` (N, 4, 4) up to each pose (mm)."""
-    p = np.asarray(T, dtype=float)[:, :3, 3]
+    A = np.asarray(T, dtype=float)
+    if A.ndim != 3 or A.shape[1:] != (4, 4):
+        raise ValueError(f"path_distances_mm: need (N, 4, 4) poses, got shape {A.shape}")
+    p = A[:, :3, 3]
     if len(p) == 0:
         return np.zeros(0)
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
@@ -258,9 +286,10 @@ def ate(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "se3") -> dict[st
 
 # ----------------------------------------------------------------------------- RPE
 def rpe_pairs_by_frames(n: int, delta: int = 1) -> np.ndarray:
-    """(K, 2) index pairs ``(i, i + delta)`` for every i (all pairs)."""
-    if delta < 1:
-        raise ValueError(f"rpe delta = {delta}: must be >= 1 frame")
+    """(K, 2) index pairs ``(i, i + delta)`` for every i (all pairs); ``delta``: a whole number >= 1."""
+    if isinstance(delta, bool) or not float(delta).is_integer() or delta < 1:
+        raise ValueError(f"rpe delta = {delta}: must be a whole number >= 1 of frames")
+    delta = int(delta)
     i = np.arange(max(0, n - delta))
     return np.stack([i, i + delta], axis=1).astype(int)
 
@@ -277,8 +306,8 @@ def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float) -> np.ndarray:
     ``--pairs_from_reference`` evo measures the distance along the estimate's path: other pairs
     wherever the estimate's steps are off in length.
     """
-    if delta_mm <= 0:
-        raise ValueError(f"rpe delta_mm = {delta_mm}: must be > 0")
+    if not (0 < delta_mm < np.inf):  # NaN: no pair at all, silently
+        raise ValueError(f"rpe delta_mm = {delta_mm}: must be a finite number > 0")
     dist = path_distances_mm(T_ref)
     j = np.searchsorted(dist, dist + delta_mm - 1e-9, side="left")
     i = np.arange(len(dist))
@@ -302,16 +331,18 @@ def rpe(
 ) -> dict[str, Any]:
     """Relative pose error per ``delta_frames`` frames or per ``delta_mm`` of reference path.
 
-    Give exactly one of the two. Returns ``{"delta", "unit", "trans_mm": stats,
-    "rot_deg": stats, "pairs" (K, 2)}``. RPE needs no alignment (it is invariant to it).
+    ``delta_mm``, when given, is used (``delta_frames`` then ignored); else ``delta_frames``
+    (None: 1), a whole number >= 1. Returns ``{"delta", "unit", "trans_mm": stats, "rot_deg":
+    stats, "pairs" (K, 2)}``. RPE needs no alignment (it is invariant to it).
     """
     A, B = _check_pair(T_ref, T_est)
     if delta_mm is not None:
         pairs = rpe_pairs_by_distance(A, delta_mm)
         delta, unit = float(delta_mm), "mm"
     else:
-        pairs = rpe_pairs_by_frames(len(A), int(delta_frames or 1))
-        delta, unit = int(delta_frames or 1), "frames"
+        frames = 1 if delta_frames is None else delta_frames  # 0 was taken as 1, 2.7 as 2
+        pairs = rpe_pairs_by_frames(len(A), frames)
+        delta, unit = int(frames), "frames"
     e_t, e_r = _relative_errors(A, B, pairs)
     return {
         "delta": delta,
@@ -350,15 +381,12 @@ def step_errors(
     placed; a run whose poses an attitude signal tilts holds the restart frame at the last
     pose's position and yaw, tilted to that frame's attitude). Returns ``trans_mm`` (N-1,) and
     ``rot_deg`` (N-1,), the translation and rotation of the error ``(true step)^-1 (measured
-    step)``, and ``step_mm`` (N-1,), the true step's translation.
+    step)``, and ``step_mm`` (N-1,), the true step's translation. A pose holding a NaN is unknown
+    (a frame without ground truth): the steps from or to it are NaN.
     """
-    A, B = _check_pair(T_ref, T_est)
-    A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
-    if A_from.shape != (len(A) - 1, 4, 4):
-        raise ValueError(f"step_errors: T_ref_from has shape {A_from.shape}, expected ({len(A) - 1}, 4, 4)")
-    B_from = B[:-1] if T_est_from is None else np.asarray(T_est_from, dtype=float)
-    if B_from.shape != (len(B) - 1, 4, 4):
-        raise ValueError(f"step_errors: T_est_from has shape {B_from.shape}, expected ({len(B) - 1}, 4, 4)")
+    A, B = _check_pair(T_ref, T_est, unknown=True)
+    A_from = _check_from(A, T_ref_from, "step_errors: T_ref_from")
+    B_from = _check_from(B, T_est_from, "step_errors: T_est_from")
     d_true = invert_T(A_from) @ A[1:]
     E = invert_T(d_true) @ (invert_T(B_from) @ B[1:])
     return {
@@ -366,6 +394,18 @@ def step_errors(
         "rot_deg": _rotation_angle_deg(E[:, :3, :3]),
         "step_mm": np.linalg.norm(d_true[:, :3, 3], axis=1),
     }
+
+
+def _check_from(T: np.ndarray, T_from: np.ndarray | None, what: str) -> np.ndarray:
+    """The poses (N-1, 4, 4) each step of the poses ``T`` (N, 4, 4) was measured from: ``T_from``
+    (rigid, or NaN where unknown), by default ``T[:-1]``; a one-line ValueError naming ``what``."""
+    if T_from is None:
+        return T[:-1]
+    F = np.asarray(T_from, dtype=float)
+    if F.shape != (len(T) - 1, 4, 4):
+        raise ValueError(f"{what} has shape {F.shape}, expected ({len(T) - 1}, 4, 4)")
+    _check_poses(F, what, unknown=True)
+    return F
 
 
 def wrong_steps(
@@ -399,8 +439,8 @@ def turn_error(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray |
     error, not the step's length, can dominate the end drift (it swings the rest of the path).
     Steps with no true pose at either end (NaN) are left out.
     """
-    A, B = _check_pair(T_ref, T_est)
-    A_from = A[:-1] if T_ref_from is None else np.asarray(T_ref_from, dtype=float)
+    A, B = _check_pair(T_ref, T_est, unknown=True)
+    A_from = _check_from(A, T_ref_from, "turn_error: T_ref_from")
     d_true = invert_T(A_from) @ A[1:]
     d_est = invert_T(B[:-1]) @ B[1:]
     yaw_true, yaw_est = np.degrees(yaws_of_T(d_true)), np.degrees(yaws_of_T(d_est))
@@ -450,9 +490,12 @@ def segment_errors(
     ``E = (ref_i^-1 ref_j)^-1 (est_i^-1 est_j)`` gives ``t_err = |t(E)| / L`` and
     ``r_err = angle(E) / L``. Returns one dict per length that has at least one segment:
     ``{"length_mm", "count", "t_err_pct" (mean, % of L), "r_err_deg_per_m" (mean),
-    "t_err_pct_max"}``.
+    "t_err_pct_max"}``. Each length must be a finite number > 0 (a negative one gave negative errors).
     """
     A, B = _check_pair(T_ref, T_est)
+    for L in lengths_mm:
+        if not (0 < float(L) < np.inf):
+            raise ValueError(f"segment length {L} mm: must be a finite number > 0")
     dist = path_distances_mm(A)
     out = []
     starts = np.arange(0, len(A), max(1, int(step)))

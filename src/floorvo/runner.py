@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration, apply_scale
-from floorvo.errors import FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
 from floorvo.geometry import (
     T_world_cam_down,
@@ -65,6 +65,7 @@ from floorvo.imaging import mean_orientation, texture_orientation
 from floorvo.metrics import CHAINED_NOTE, WRONG_STEP_FRACTION, WRONG_STEP_MM, lost_reasons
 from floorvo.runfolder import COUNT_COLUMNS, STATUSES, TIMING_MS_COLUMNS, RunFolder
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
+from floorvo.tum import MAX_TIME_S, time_problem
 
 __all__ = [
     "RunResult",
@@ -248,11 +249,19 @@ def run_frames(
     (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
     that the signal would leave uncertain beyond the estimator's bound is lost
     (:func:`_attitude_problem`).
+
+    Refused in one line (:class:`~floorvo.errors.ConfigError`): a ``T_world_start`` that is no
+    rigid transform of finite numbers (:func:`~floorvo.geometry.rigid_problem`; a NaN start gave
+    a run of NaN poses, a scaled one every step scaled, a transposed one lost its position);
+    (:class:`~floorvo.errors.FloorbenchError`) a frame whose ``timestamp_s`` is no time
+    (:func:`floorvo.tum.time_problem`) or does not follow the last frame's: a run's frames are in
+    time order, as its trajectory is (a TUM file's times increase).
     """
     name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
+    start_problem = rigid_problem(T_world_start)
+    if start_problem is not None:
+        raise ConfigError(f"{name}: T_world_start: {start_problem} (the run's start pose T_world_cam (4, 4), mm)")
     T_world = np.array(T_world_start, dtype=float)
-    if T_world.shape != (4, 4):
-        raise ValueError(f"run_frames: T_world_start must be (4, 4), got {T_world.shape}")
     # The chained pose: the camera's; with an attitude signal, for an estimator that levels its
     # frames with it (levels_with_attitude) the levelled camera's, else its footprint's
     # (module docstring).
@@ -269,7 +278,15 @@ def run_frames(
     index, stamp, status, reason, timing, counts, poses, fixed = [], [], [], [], [], [], [], []
     nan = float("nan")
     t0 = time.perf_counter()
+    t_last = -math.inf
     for k, frame in enumerate(frames):
+        t_frame = frame.timestamp_s
+        if not t_last < t_frame <= MAX_TIME_S:  # one comparison a frame; NaN fails it too
+            why = time_problem(float(t_frame)) or f"= {t_frame!r} s follows the last frame's {t_last!r} s"
+            raise FloorbenchError(
+                f"{name}: frame {frame.index}: timestamp_s {why}: a run's frames are in time order, one a time"
+            )
+        t_last = t_frame
         if k == 0 and frame.attitude_rad is not None and uses_attitude_signal(estimator):
             start = _start_footprint(T_world, frame.attitude_rad, levelled=levelled)
             if start is None:
@@ -518,12 +535,21 @@ def run_sequence(
     in time, within :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`: :meth:`Sequence.groundtruth_at`)
     when there is one, the identity otherwise (so a trajectory is in the ground truth's world
     frame); that of the first frame the estimator starts on where it loses the first ones
-    (``run_frames``' ``T_world_at``). An empty frame list is refused.
+    (``run_frames``' ``T_world_at``). An empty frame list is refused, and so are frames out of
+    range or not increasing (a trajectory is in time order).
     """
     indices = [int(i) for i in (range(seq.frame_count) if frames is None else frames)]
     name = getattr(estimator, "name", type(estimator).__name__) if name is None else name
     if not indices:
         raise FloorbenchError(f"{name}: no frames to run on")
+    outside = [i for i in indices if not 0 <= i < seq.frame_count]
+    if outside:
+        raise FloorbenchError(f"{name}: frame {outside[0]} is not a frame of {seq.root} (0..{seq.frame_count - 1})")
+    back = next((k for k in range(1, len(indices)) if indices[k] <= indices[k - 1]), None)
+    if back is not None:
+        raise FloorbenchError(
+            f"{name}: frame {indices[back]} follows frame {indices[back - 1]}: the frames of a run must increase"
+        )
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None
     if T_world_start is None:
         T_world_at = _groundtruth_pose_of(seq)

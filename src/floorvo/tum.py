@@ -13,20 +13,37 @@ from pathlib import Path
 import numpy as np
 
 from floorvo.errors import SequenceError, shown, shown_number
-from floorvo.geometry import T_from_xyz_quat, position_problem, xyz_quat_from_T
+from floorvo.geometry import MAX_POSITION_MM, T_from_xyz_quat, position_problem, rigid_problem, xyz_quat_from_T
 from floorvo.io import atomic_write_text, read_text
 
-__all__ = ["MAX_TIME_S", "write_tum", "read_tum", "format_tum", "check_increasing", "time_problem"]
+__all__ = ["MAX_TIME_S", "write_tum", "read_tum", "format_tum", "check_increasing", "time_problem", "times_problem"]
 
 
 def format_tum(timestamps_s: np.ndarray, T_world_cam: np.ndarray, header: str | None = None) -> str:
-    """TUM text of poses (N, 4, 4) in mm at ``timestamps_s`` (N,)."""
+    """TUM text of poses ``T_world_cam`` (N, 4, 4), translations in mm (written in metres), at
+    ``timestamps_s`` (N,) in seconds (written with 6 decimals).
+
+    What :func:`read_tum` reads back, or a ``ValueError`` naming the pose or time: each pose a rigid
+    transform of finite numbers (:func:`floorvo.geometry.rigid_problem`; a transposed pose, a
+    scaled or reflected rotation were written as another pose) within
+    :data:`~floorvo.geometry.MAX_POSITION_MM` of the origin, the times finite and increasing as
+    written (:func:`times_problem`)."""
     timestamps_s = np.asarray(timestamps_s, dtype=float)
     T_world_cam = np.asarray(T_world_cam, dtype=float)
-    if T_world_cam.ndim != 3 or T_world_cam.shape[1:] != (4, 4) or len(T_world_cam) != len(timestamps_s):
+    if T_world_cam.ndim != 3 or T_world_cam.shape[1:] != (4, 4) or timestamps_s.shape != (len(T_world_cam),):
         raise ValueError(
             f"format_tum: need (N,) timestamps and (N, 4, 4) poses, got {timestamps_s.shape} and {T_world_cam.shape}"
         )
+    problem = rigid_problem(T_world_cam, stack=True)
+    if problem is None and len(T_world_cam):
+        far = np.abs(T_world_cam[:, :3, 3]).max(axis=1)
+        k = int(np.argmax(far))
+        problem = None if far[k] <= MAX_POSITION_MM else f"pose {k}: {position_problem(T_world_cam[k, :3, 3])}"
+    if problem is not None:
+        raise ValueError(f"format_tum: {problem} (poses are T_world_cam (N, 4, 4), mm)")
+    when = times_problem(timestamps_s, decimals=6)
+    if when is not None:
+        raise ValueError(f"format_tum: pose {when[0]}: {when[1]}")
     lines = []
     if header:
         lines += [f"# {h}" for h in header.splitlines()]
@@ -61,22 +78,39 @@ def time_problem(t_s: float) -> str | None:
     return None
 
 
-def check_increasing(path: str | os.PathLike, timestamps_s: list[float], linenos: list[int]) -> None:
-    """One-line :class:`SequenceError` unless the pose times read from ``path`` (line ``linenos[i]``
-    holds ``timestamps_s[i]``) strictly increase: a trajectory is in time order, one pose per
-    time. Poses out of order or repeated were scored as they stood (a path length of poses
-    visited back and forth, a drift against the wrong pose)."""
-    t = np.asarray(timestamps_s, dtype=float)
-    for k, tk in enumerate(t):
-        problem = time_problem(float(tk))
-        if problem:
-            raise SequenceError(f"{path}:{linenos[k]}: timestamp {problem}")
-    bad = np.nonzero(np.diff(t) <= 0)[0]
+def times_problem(timestamps_s: np.ndarray, *, decimals: int | None = None) -> tuple[int, str] | None:
+    """``(k, why)`` for the first of the times ``timestamps_s`` (N,) s that breaks the rule of a
+    trajectory's times, or None: each a time (:func:`time_problem`), strictly increasing (a
+    trajectory is in time order, one pose per time). ``decimals``: compared as written with that
+    many decimals (a TUM file's 6: poses closer in time than that are written as one time). The
+    one rule of :func:`check_increasing`, :func:`format_tum` and :func:`floorvo.metrics.check_trajectory`."""
+    t = np.asarray(timestamps_s, dtype=float).reshape(-1)
+    ok = np.isfinite(t) & (np.abs(t) <= MAX_TIME_S)
+    if not ok.all():
+        k = int(np.argmin(ok))
+        return k, f"timestamp {time_problem(float(t[k]))}"
+    shown_t = t if decimals is None else np.array([float(f"{x:.{decimals}f}") for x in t])
+    bad = np.nonzero(np.diff(shown_t) <= 0)[0]
     if len(bad):
         k = int(bad[0]) + 1
-        raise SequenceError(
-            f"{path}:{linenos[k]}: timestamp {shown_number(t[k], '.9f')} s follows {shown_number(t[k - 1], '.9f')} s: the poses' timestamps must increase"
+        fmt = ".9f" if decimals is None else f".{decimals}f"
+        written = "" if decimals is None or t[k] <= t[k - 1] else f" (as written, with {decimals} decimals)"
+        return k, (
+            f"timestamp {shown_number(shown_t[k], fmt)} s follows {shown_number(shown_t[k - 1], fmt)} s{written}: "
+            "the poses' timestamps must increase"
         )
+    return None
+
+
+def check_increasing(path: str | os.PathLike, timestamps_s: list[float], linenos: list[int]) -> None:
+    """One-line :class:`SequenceError` unless the pose times read from ``path`` (line ``linenos[i]``
+    holds ``timestamps_s[i]``) strictly increase (:func:`times_problem`): a trajectory is in time
+    order, one pose per time. Poses out of order or repeated were scored as they stood (a path
+    length of poses visited back and forth, a drift against the wrong pose)."""
+    problem = times_problem(np.asarray(timestamps_s, dtype=float))
+    if problem is not None:
+        k, why = problem
+        raise SequenceError(f"{path}:{linenos[k]}: {why}")
 
 
 def read_tum(path: str | os.PathLike, *, allow_empty: bool = False) -> tuple[np.ndarray, np.ndarray]:

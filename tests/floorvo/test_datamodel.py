@@ -198,3 +198,53 @@ def test_depth_png_round_trip(tmp_path):
     got = Sequence.open(tmp_path / "seq").depth_mm(0)
     assert got[5, 5] == pytest.approx(100.0)
     assert got[0, 0] == pytest.approx(99.99, abs=1e-4)
+
+
+def test_write_tum_writes_only_what_read_tum_reads_back(tmp_path):
+    """A transposed pose was written as the identity at the origin, a scaled rotation as the
+    rotation it approximates, a NaN or a time out of order or closer than a microsecond to the last
+    as a file read_tum refuses, a mirrored rotation raised from inside scipy: each is refused when
+    written, in one line naming the pose, and nothing is written."""
+    from floorvo.geometry import rigid_problem
+
+    T = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0, 0.1 * i) for i in range(4)])
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    write_tum(tmp_path / "ok.txt", t, T)
+    t_back, T_back = read_tum(tmp_path / "ok.txt")
+    np.testing.assert_allclose(T_back, T, atol=1e-6)
+    np.testing.assert_allclose(t_back, t)
+    scaled, mirrored, nan, far = T.copy(), T.copy(), T.copy(), T.copy()
+    scaled[1, :3, :3] *= 2.0
+    mirrored[1, :3, 0] *= -1.0
+    nan[1, 0, 3] = np.nan
+    far[1, 0, 3] = 1e15  # 1e12 m: beyond MAX_POSITION_MM, what read_tum refuses
+    cases = [
+        (t, np.swapaxes(T, 1, 2), r"pose 0: bottom row"),
+        (t, scaled, r"pose 1: its 3x3 part is not a rotation"),
+        (t, mirrored, r"pose 1: its 3x3 part is not a rotation"),
+        (t, nan, r"pose 1: holds a non-finite value"),
+        (t, far, r"pose 1: a position 1e\+12 m from the origin"),
+        (np.array([0.0, np.nan, 0.2, 0.3]), T, r"pose 1: timestamp is not a finite number"),
+        (np.array([0.0, 0.2, 0.1, 0.3]), T, r"pose 2: timestamp 0.100000 s follows 0.200000 s"),
+        (np.array([0.0, 0.1, 0.1000002, 0.3]), T, r"pose 2: .* \(as written, with 6 decimals\)"),
+        (t[:3], T, r"need \(N,\) timestamps and \(N, 4, 4\) poses"),
+    ]
+    for times, poses, words in cases:
+        with pytest.raises(ValueError, match="format_tum: " + words):
+            write_tum(tmp_path / "bad.txt", times, poses)
+    assert not (tmp_path / "bad.txt").exists()
+    # The rule is rigid_problem's, over a stack: the same reasons, naming the pose.
+    assert rigid_problem(T, stack=True) is None and rigid_problem(T[:0], stack=True) is None
+    assert rigid_problem(scaled, stack=True) == "pose 1: " + str(rigid_problem(scaled[1]))
+    assert rigid_problem(nan, stack=True, unknown=True) is None
+    assert rigid_problem(T[0], stack=True) == "shape (4, 4), not (N, 4, 4)"
+
+
+def test_a_camera_scaled_by_no_finite_positive_number_is_refused_in_one_line():
+    """scaled(nan) raised 'cannot convert float NaN to integer' from inside; inf and 0 are refused too."""
+    cam = CameraModel.from_sensor(648, 494)
+    for bad in (float("nan"), float("inf"), 0.0, -0.5):
+        with pytest.raises(ConfigError, match="camera: scale must be a finite number > 0"):
+            cam.scaled(bad)
+    half = cam.scaled(0.5)
+    assert half.size == (324, 247) and half.fx_px == pytest.approx(cam.fx_px / 2)

@@ -368,3 +368,27 @@ def test_a_fit_the_filter_cannot_find_is_found_from_ransac_pairs_and_random_pair
     assert len(fit.src) >= 0.8 * (~wrong).sum()
     noise = np.column_stack([rng.uniform(0, CAM.width_px, 200), rng.uniform(0, CAM.height_px, 200)])
     assert est._fit(src, noise, np.eye(3), 1.0).problem and est._fit(src, noise, np.eye(3), 1.0, ransac=True).problem
+
+
+def test_a_step_given_no_state_or_another_estimators_state_is_one_typeerror(tmp_path):
+    """A step before start() (state None) or with another estimator's state raised an
+    AttributeError from deep inside the step ('NoneType' object has no attribute 'prev'); each
+    built-in now names the rule first, and its own state still works."""
+    from floorvo.run import build_estimator
+    from floorvo.sequence import Sequence
+    from floorvo.synthetic import line_poses, write_synthetic_sequence
+
+    cam = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)
+    seq = Sequence.open(
+        write_synthetic_sequence(tmp_path / "s", cam, line_poses(4.0, 4.0), depth=True, stereo_baseline_mm=20.0)
+    )
+    frame = Frame(0, 0.0, seq.image(0), image_right=seq.image(0, "cam1"), depth_mm=seq.depth_mm(0))
+    other = build_estimator(seq, "phase-corr")[0].start()
+    for name in ("phase-corr", "akaze-guided", "homography-6dof", "orb-icp", "stereo-sift"):
+        est = build_estimator(seq, name)[0]
+        for state in (None, {}, other if name != "phase-corr" else build_estimator(seq, "orb-icp")[0].start()):
+            with pytest.raises(
+                TypeError, match=rf"{name}: step\(\) takes the state this estimator's start\(\) returned"
+            ):
+                est.step(state, frame)
+        assert est.step(est.start(), frame).status == "init"

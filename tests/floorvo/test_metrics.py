@@ -334,3 +334,109 @@ def test_turn_error_is_the_yaw_scale_error_of_the_steps_hand_computed():
     two = M.turn_error(ref[[0, 2, 3]], est, T_ref_from=ref[[0, 1]])
     assert two["turn_deg"] == pytest.approx(np.degrees(0.08), rel=1e-9)  # under MIN_TURN_DEG: no error
     assert two["measured_turn_deg"] == pytest.approx(np.degrees(0.06), rel=1e-9) and np.isnan(two["turn_error_pct"])
+
+
+# ----------------------------------------------------------------------------- bad input
+def _misuses(T):
+    """Poses a user passes by mistake, each with the words its refusal must hold."""
+    scaled, reflected, nan, inf = T.copy(), T.copy(), T.copy(), T.copy()
+    scaled[2, :3, :3] *= 1.001  # a rotation that is not one
+    reflected[2, :3, 0] *= -1.0  # a mirrored frame
+    nan[2, 0, 3] = np.nan
+    inf[2, 1, 3] = np.inf
+    return [
+        (np.swapaxes(T, 1, 2).copy(), "pose 0: bottom row"),  # row-major from another library: transposed
+        (scaled, "pose 2: its 3x3 part is not a rotation"),
+        (reflected, "pose 2: its 3x3 part is not a rotation"),
+        (nan, "pose 2: holds a non-finite value"),
+        (inf, "pose 2: holds a non-finite value"),
+    ]
+
+
+@pytest.mark.parametrize("k", range(5))
+def test_every_metric_refuses_poses_that_are_not_rigid_naming_the_pose(k):
+    """A transposed stack scored 0 mm everywhere, a scaled or mirrored rotation gave errors of a pose
+    that does not exist, a NaN ended in 'SVD did not converge' (ate) or NaN statistics (rpe), and an
+    infinite position an end drift of 0 %: each is refused in one line naming the pose and the rule."""
+    A = line_traj(12)
+    B = line_traj(12, scale=1.05)
+    bad, words = _misuses(B)[k]
+    calls = [
+        lambda a, b: M.ate(a, b, "se3"),
+        lambda a, b: M.align(a, b, "se2"),
+        lambda a, b: M.rpe(a, b, delta_frames=1),
+        lambda a, b: M.end_point_drift(a, b),
+        lambda a, b: M.segment_errors(a, b),
+        lambda a, b: M.translation_error_along_path(a, b),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError, match="T_est: " + words):
+            call(A, bad)
+        with pytest.raises(ValueError, match="T_ref: " + words):
+            call(bad, A)
+    t = np.arange(12) * 0.1
+    with pytest.raises(ValueError, match="estimate: " + words):
+        M.check_trajectory(t, bad, "estimate")
+
+
+def test_step_metrics_take_a_nan_pose_as_unknown_but_refuse_other_bad_poses():
+    """step_errors and turn_error leave out a step with no true pose (NaN, a frame without ground
+    truth, as scoring passes them); an infinite or non-rigid pose is still refused."""
+    A, B = line_traj(6), line_traj(6, scale=1.1)
+    A_nan = A.copy()
+    A_nan[3] = np.nan
+    e = M.step_errors(A_nan, B)
+    assert np.isnan(e["trans_mm"][[2, 3]]).all()
+    np.testing.assert_allclose(e["trans_mm"][[0, 1, 4]], 0.4, atol=1e-9)  # 4 mm steps measured as 4.4 mm
+    assert M.turn_error(A_nan, B)["turn_deg"] == 0.0
+    for bad, words in _misuses(B)[:3] + _misuses(B)[4:]:
+        with pytest.raises(ValueError, match="T_est: " + words):
+            M.step_errors(A, bad)
+        with pytest.raises(ValueError, match="T_est: " + words):
+            M.turn_error(A, bad)
+    with pytest.raises(ValueError, match=r"turn_error: T_ref_from has shape \(6, 4, 4\), expected \(5, 4, 4\)"):
+        M.turn_error(A, B, T_ref_from=A)  # was a broadcasting error from inside numpy
+
+
+@pytest.mark.parametrize(
+    "t, words",
+    [
+        ([0.0, 0.1, np.nan, 0.3], r"pose 2: timestamp is not a finite number"),
+        ([0.0, 0.2, 0.1, 0.3], r"pose 2: timestamp 0.100000000 s follows 0.200000000 s: .* must increase"),
+        ([0.0, 0.1, 0.1, 0.3], r"pose 2: timestamp 0.100000000 s follows 0.100000000 s"),
+        ([0.0, 0.1, 0.2, 3e18], r"pose 3: timestamp = 3e\+18 s is beyond"),
+    ],
+)
+def test_a_trajectory_whose_times_are_not_finite_and_increasing_is_refused(t, words):
+    """The rule of a TUM file's times (floorvo.tum.times_problem) holds for arrays too: an estimate
+    with a repeated time was scored against the wrong poses (ATE 4.7 mm instead of 1.1 mm), one out
+    of order had its path walked backwards, and a NaN time dropped its pose silently."""
+    from floorvo.scoring import score_trajectories
+
+    T = line_traj(4)
+    with pytest.raises(ValueError, match="estimate: " + words):
+        M.check_trajectory(np.array(t), T, "estimate")
+    with pytest.raises(ValueError, match="estimate: " + words):
+        score_trajectories(np.arange(4) * 0.1, T, np.array(t), T)
+
+
+def test_metric_parameters_out_of_range_are_refused_not_replaced():
+    """rpe took delta_frames=0 as 1 and 2.7 as 2, and delta_mm=NaN as no pair (all statistics NaN);
+    a negative segment length gave negative errors; path_distances_mm and associate raised
+    IndexError from inside on arrays of another shape, and associate left a NaN time unpaired."""
+    A, B = line_traj(10), line_traj(10, scale=1.1)
+    for kwargs in ({"delta_frames": 0}, {"delta_frames": 2.7}, {"delta_mm": float("nan")}, {"delta_mm": -1.0}):
+        with pytest.raises(ValueError, match="rpe delta"):
+            M.rpe(A, B, **kwargs)
+    assert M.rpe(A, B, delta_frames=None)["delta"] == 1
+    np.testing.assert_allclose(M.rpe(A, B, delta_frames=2)["trans_errors_mm"], 0.8, atol=1e-9)
+    for L in (-10.0, 0.0, float("nan")):
+        with pytest.raises(ValueError, match="segment length"):
+            M.segment_errors(A, B, [L])
+    for shape_bad in (A[0], A[:, :3, :3], A[:, :3, 3]):
+        with pytest.raises(ValueError, match=r"path_distances_mm: need \(N, 4, 4\) poses"):
+            M.path_distances_mm(shape_bad)
+    with pytest.raises(ValueError, match="associate: t_ref_s must be an"):
+        M.associate(np.array([0.0, np.nan, 0.2]), np.array([0.0, 0.1, 0.2]))
+    with pytest.raises(ValueError, match="associate: t_est_s"):
+        M.associate(np.array([0.0, 0.1]), np.zeros((2, 2)))

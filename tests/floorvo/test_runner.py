@@ -16,7 +16,7 @@ from tests.floorvo._synth import Scripted
 
 from floorvo.calibration import ScaleCalibration
 from floorvo.camera import CameraModel
-from floorvo.errors import FloorbenchError, SequenceError
+from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.estimators.base import Frame, StepResult
 from floorvo.geometry import T_world_cam_down, make_T, rot_z
 from floorvo.runfolder import RunFolder, read_match_samples, write_match_sample
@@ -255,3 +255,52 @@ def test_match_samples_round_trip_and_a_damaged_one_is_refused(tmp_path):
     (tmp_path / "matches" / "000009.npz").write_bytes(b"not a zip file")
     with pytest.raises(SequenceError, match="000009.npz: not a readable match sample"):
         read_match_samples(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "start, words",
+    [
+        (np.full((4, 4), np.nan), "holds a non-finite value"),  # every pose of the run was NaN
+        (np.diag([1000.0, 1000.0, 1000.0, 1.0]), "its 3x3 part is not a rotation"),  # every step x1000
+        (START.T.copy(), r"bottom row \[10.0, 5.0, 100.0, 1.0\]"),  # transposed: the position was lost
+        (START[None], r"shape \(1, 4, 4\), not \(4, 4\)"),
+    ],
+)
+def test_a_start_pose_that_is_no_rigid_transform_is_refused_before_the_run(start, words):
+    """T_world_start was checked for its shape alone: a NaN, scaled or transposed start pose was
+    chained into every pose of the run (exit 0), and run_estimator refused the trajectory only
+    when writing it, after the whole run."""
+    est = Scripted(_script())
+    with pytest.raises(ConfigError, match=r"scripted: T_world_start: " + words):
+        run_frames(est, _frames(6), T_world_start=start)
+    # the same pose, valid, chains as by hand
+    np.testing.assert_allclose(
+        run_frames(Scripted(_script()), _frames(2), T_world_start=START).T_world_cam[1], START @ STEP
+    )
+
+
+def test_frames_out_of_time_order_are_refused_in_one_line(tmp_path):
+    """A run's trajectory is in time order (a TUM file's times increase): frames given in another
+    order, repeated, with a NaN time, or indices outside the sequence (999: an IndexError from
+    inside run_sequence) were run and then refused, or scored, as they stood."""
+    frames = _frames(4)
+    for bad, words in [
+        ([frames[0], frames[2], frames[1]], r"frame 1: timestamp_s = 0.1 s follows the last frame's 0.2 s"),
+        ([frames[0], frames[1], frames[1]], r"frame 1: timestamp_s = 0.1 s follows"),
+        ([frames[0], Frame(1, float("nan"), frames[1].image)], r"frame 1: timestamp_s is not a finite number"),
+        ([Frame(0, 2e18, frames[0].image)], r"frame 0: timestamp_s = 2e\+18 s is beyond"),
+    ]:
+        with pytest.raises(FloorbenchError, match="scripted: " + words):
+            run_frames(Scripted(_script()), bad, T_world_start=START)
+    from floorvo.run import build_estimator
+
+    seq = Sequence.open(write_synthetic_sequence(tmp_path / "s", CAM, line_poses(12.0, 4.0, 100.0)))
+    est, _ = build_estimator(seq, "phase-corr")
+    for idx, words in [
+        ([2, 1], "frame 1 follows frame 2: the frames of a run must increase"),
+        ([0, 1, 1], "frame 1 follows frame 1"),
+        ([0, 999], r"frame 999 is not a frame of .* \(0..3\)"),
+        ([-1], r"frame -1 is not a frame of"),
+    ]:
+        with pytest.raises(FloorbenchError, match="phase-corr: " + words):
+            run_sequence(seq, est, frames=idx)

@@ -78,6 +78,7 @@ from floorvo.estimators.base import (
     frame_height_mm,
     frame_problem,
     stage_timing_ms,
+    state_error,
 )
 from floorvo.geometry import (
     R_nadir_cam,
@@ -1007,6 +1008,8 @@ class _AkazeBase:
         return ""
 
     def step(self, state: _State, frame: Frame) -> StepResult:
+        if not isinstance(state, _State):
+            raise state_error(self.name, state)
         t0 = time.perf_counter()
         bad = frame_problem(frame.image, self.camera)
         if bad:

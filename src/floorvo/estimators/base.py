@@ -40,6 +40,7 @@ __all__ = [
     "frame_attitude_rad",
     "StepBoundConfig",
     "stage_timing_ms",
+    "state_error",
     "NEEDS",
 ]
 
@@ -156,6 +157,17 @@ def stage_timing_ms(t0_s: float, t1_s: float, t2_s: float, t3_s: float) -> dict[
         "estimate": (t3_s - t2_s) * 1e3,
         "total": (t3_s - t0_s) * 1e3,
     }
+
+
+def state_error(name: str, state: Any) -> TypeError:
+    """The error of a ``step`` given a ``state`` its estimator's :meth:`Estimator.start` did not
+    return (None before ``start()``, another estimator's): each built-in's ``step`` checks its
+    state's type first (one ``isinstance`` a frame) and raises this, where an attribute error
+    from deep inside the step was raised."""
+    return TypeError(
+        f"{name}: step() takes the state this estimator's start() returned, got {type(state).__name__} "
+        "(call start() once per sequence and pass its state to every step)"
+    )
 
 
 class Estimator(Protocol):

@@ -47,7 +47,15 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, Config, param, with_defaults
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_is_blank, frame_problem, stage_timing_ms
+from floorvo.estimators.base import (
+    RESTART_NOTE,
+    Frame,
+    StepResult,
+    frame_is_blank,
+    frame_problem,
+    stage_timing_ms,
+    state_error,
+)
 from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -215,6 +223,8 @@ class OrbIcp:
         return m.i0[order], m.i1[order], gamma[order]
 
     def step(self, state: _State, frame: Frame) -> StepResult:
+        if not isinstance(state, _State):
+            raise state_error(self.name, state)
         t0 = time.perf_counter()
         img = np.asarray(frame.image)
         if frame.depth_mm is None:

@@ -74,6 +74,7 @@ from floorvo.estimators.base import (
     frame_is_blank,
     frame_problem,
     stage_timing_ms,
+    state_error,
 )
 from floorvo.geometry import (
     R_nadir_cam,
@@ -768,6 +769,8 @@ class PhaseCorr:
 
     # ------------------------------------------------------------------ step
     def step(self, state: _State, frame: Frame) -> StepResult:
+        if not isinstance(state, _State):
+            raise state_error(self.name, state)
         t0 = time.perf_counter()
         bad = frame_problem(frame.image, self.camera)
         if bad:

@@ -70,6 +70,7 @@ from floorvo.estimators.base import (
     frame_is_blank,
     frame_problem,
     stage_timing_ms,
+    state_error,
 )
 from floorvo.geometry import (
     consensus_problem,
@@ -421,6 +422,8 @@ class StereoSift:
         return (n, d), plane_fit_precision((X[:3] / X[3]).T, n, d)
 
     def step(self, state: _State, frame: Frame) -> StepResult:
+        if not isinstance(state, _State):
+            raise state_error(self.name, state)
         t0 = time.perf_counter()
         if frame.image_right is None:
             return StepResult("lost", reason="frame has no right image", timing_ms=stage_timing_ms(t0, t0, t0, t0))

@@ -26,7 +26,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, parse_set_args
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, state_error
 from floorvo.estimators.registry import get_estimator, make_config
 from floorvo.geometry import invert_T
 from floorvo.mapping.localize import LocalizeConfig, Localizer
@@ -118,6 +118,8 @@ class MapFused:
         return _State(odo_state=self.odometry.start() if self.odometry else None)
 
     def step(self, state: _State, frame: Frame) -> StepResult:
+        if not isinstance(state, _State):
+            raise state_error(self.name, state)
         t0 = time.perf_counter()
         odo = self.odometry.step(state.odo_state, frame) if self.odometry else None
         t1 = time.perf_counter()
