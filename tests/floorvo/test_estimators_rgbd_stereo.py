@@ -77,9 +77,9 @@ def test_stereo_sift_recovers_motion_from_triangulation(dx, dy, yaw):
     _check(est.step(st, Frame(1, 0.1, L1, image_right=R1)), T_true, "stereo-sift")
 
 
-def test_stereo_sift_paper_mean_update_translation_only():
-    """Algorithm 1's DP_L = P_3dL1 - P_3dL2 recovers a pure translation."""
-    T_true = _motion(3.0, 1.0, 0.0)
+def _stereo_sift_mean_step(T_true: np.ndarray):
+    """The step stereo-sift with paper 002's update (``update = mean``) measures over the rendered
+    stereo pair of the motion ``T_true``."""
     (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0, seed=3)
     est = get_estimator("stereo-sift")(
         make_config("stereo-sift", {"update": "mean"}),
@@ -92,7 +92,13 @@ def test_stereo_sift_paper_mean_update_translation_only():
     )
     st = est.start()
     est.step(st, Frame(0, 0.0, L0, image_right=R0))
-    r = est.step(st, Frame(1, 0.1, L1, image_right=R1))
+    return est.step(st, Frame(1, 0.1, L1, image_right=R1))
+
+
+def test_stereo_sift_paper_mean_update_translation_only():
+    """Algorithm 1's DP_L = P_3dL1 - P_3dL2 recovers a pure translation."""
+    T_true = _motion(3.0, 1.0, 0.0)
+    r = _stereo_sift_mean_step(T_true)
     assert r.ok, r.reason
     np.testing.assert_allclose(r.T_prev_cur[:3, 3], T_true[:3, 3], atol=0.05)
     np.testing.assert_allclose(r.T_prev_cur[:3, :3], np.eye(3))
@@ -101,20 +107,7 @@ def test_stereo_sift_paper_mean_update_translation_only():
 def test_stereo_sift_paper_mean_update_loses_a_turn_it_cannot_measure():
     """DP_L is a translation: a step turning 1.5 degrees was reported ok with no rotation and its
     translation off by the turn of the points' centroid. It is lost, with the reason."""
-    T_true = _motion(2.5, -1.2, 1.5)
-    (L0, R0), (L1, R1), flat, T01 = stereo_pairs(CAM, T_true, baseline_mm=20.0, seed=3)
-    est = get_estimator("stereo-sift")(
-        make_config("stereo-sift", {"update": "mean"}),
-        CAM,
-        height_mm=100.0,
-        flatfield=flat,
-        camera_right=CAM,
-        T_cam0_cam1=T01,
-        flatfield_right=flat,
-    )
-    st = est.start()
-    est.step(st, Frame(0, 0.0, L0, image_right=R0))
-    r = est.step(st, Frame(1, 0.1, L1, image_right=R1))
+    r = _stereo_sift_mean_step(_motion(2.5, -1.2, 1.5))
     assert r.status == "lost" and "turned 1.5" in r.reason and "update = mean" in r.reason, r.reason
 
 
