@@ -63,6 +63,7 @@ separated by ``"; "``.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from collections.abc import Mapping
@@ -458,6 +459,8 @@ def calibration_use_problems(
             "measures what the calibration was tuned on; fit it on a separate run"
         )
     if config is not None:
+        # As result.json holds it (a tuple read back is a list): the same config compares equal.
+        config = json.loads(json.dumps(dict(config), default=str))
         for run in (Path(r) for r in cal.run.split("; ") if r):
             try:
                 fitted = read_json(run / "result.json", ConfigError).get("config")

@@ -141,6 +141,15 @@ def test_a_run_on_the_calibrations_own_sequence_or_with_another_config_says_so(t
     assert problems(test_seq, "separate") == []
     other = problems(test_seq, "other-config", "--set", "iterations=3")
     assert len(other) == 1 and "another estimator config" in other[0] and "iterations = 2 there, 3 here" in other[0]
+    # A config value JSON holds as a list (a plugin's tuple key) is the same config, not another.
+    from floorvo.calibration import calibration_use_problems, load_scale_calibration
+
+    result_path = tmp_path / "run_cal" / "result.json"
+    result = json.loads(result_path.read_text())
+    result["config"]["block_layout"] = [2, 2]
+    result_path.write_text(json.dumps(result))
+    same = {**result["config"], "block_layout": (2, 2)}
+    assert calibration_use_problems(load_scale_calibration(scale), test_seq, same) == []
 
 
 @pytest.mark.parametrize(
