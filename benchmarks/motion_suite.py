@@ -20,7 +20,8 @@ true turn over the steps reported ok, in % of the true turn; none under 10 degre
 per second (from the mean total
 time per frame of the run, one core) and the lost frames per kind of reason. With
 ``--from-cache DIR`` the suite's scenes are not rendered: the newest ``DIR/SCENE-*`` sequence
-of each (a bench's render cache) is benched as it is.
+of each (a bench's render cache) is benched as it is, with a line on standard error where it was
+rendered from another version of the scene file or of the renderer (its cache key differs).
 
 ``--est-set NAME.KEY=VALUE`` sets an estimator's config key in every run (as ``floorsim bench``).
 
@@ -76,6 +77,7 @@ import argparse
 import os
 import platform
 import re
+import sys
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -83,7 +85,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 
 from floorsim.bench import run_bench  # noqa: E402
-from floorsim.bench.bench import is_sequence_folder  # noqa: E402
+from floorsim.bench.bench import is_sequence_folder, scene_cache_key  # noqa: E402
 from floorsim.bench.material_calibration import (  # noqa: E402
     FULL_SPIN_RAD,
     TURNED_HEADINGS_DEG,
@@ -99,6 +101,8 @@ from floorsim.bench.suites import suite_scenes  # noqa: E402
 from floorsim.commands.bench import parse_estimator_sets  # noqa: E402
 from floorsim.scene import load_scene, resolve_scene_path  # noqa: E402
 from floorvo.calibration import save_scale_calibration  # noqa: E402
+from floorvo.errors import SequenceError  # noqa: E402
+from floorvo.io import read_json  # noqa: E402
 
 
 def _fmt(v, digits: int = 3) -> str:
@@ -155,6 +159,9 @@ def main() -> None:
     material_of = {n: sc.floor.material for n, sc in zip(names, loaded)}
     if args.from_cache is not None:
         scenes = [_cached(args.from_cache, n) or _no_cache(args.from_cache, n) for n in names]
+        for sc, folder in zip(loaded, scenes):
+            if why := _stale_problem(sc, folder):
+                print(f"--from-cache: {why}; benched as it is", file=sys.stderr)
     res = run_bench(
         scenes,
         estimators,
@@ -275,6 +282,21 @@ def _cached(cache: Path, name: str, floor_seed: int | None = None) -> Path | Non
     if floor_seed is not None:
         cands = [c for c in cands if (floor_of(c) or ("", None))[1] == floor_seed]
     return cands[-1] if cands else None
+
+
+def _stale_problem(scene, folder: Path) -> str:
+    """Why the cached render ``folder`` is not what ``scene`` (the suite's scene file as it is now)
+    renders today, or '': its ``bench-cache.json`` key is not the one the bench would key that
+    scene by (:func:`floorsim.bench.bench.scene_cache_key`, at the render settings the folder
+    records), so the scene file or the renderer's code changed since. It is still benched (a
+    measurement of estimator code on earlier renders is legitimate), but said: the newest folder
+    was taken without a word before."""
+    mark = read_json(folder / "bench-cache.json", SequenceError)
+    settings = {k: mark.get(k) for k in ("frames", "scale", "spp")}
+    key = scene_cache_key(scene.to_dict(), seed=int(mark.get("seed", 0)), **settings)
+    if key == mark.get("key"):
+        return ""
+    return f"{folder} was rendered from another version of scene {scene.name} or of the renderer (cache key differs)"
 
 
 def _no_cache(cache: Path, name: str) -> Path:

@@ -77,3 +77,24 @@ def test_motion_suite_says_a_failed_calibrated_run_failed():
     assert suite._cell({}, "end_drift_pct") == "-"
     _, cells = suite._calibrated_cells(failed, {}, " (x, y only)", "1.0010")
     assert cells == ["1.0010", "failed", "failed", "failed"]
+
+
+def test_motion_suite_says_when_a_cached_render_is_not_the_scene_files_render(tmp_path):
+    """``--from-cache`` benched the newest ``NAME-*`` folder without a word, also one rendered from
+    an earlier scene file or renderer. The folder's ``bench-cache.json`` key is now checked against
+    the key of the scene as it is: the same scene passes, an edited one is named."""
+    import json
+
+    from floorsim.bench.bench import scene_cache_key
+    from floorsim.scene import load_scene
+
+    suite = _load("motion_suite")
+    scene = load_scene("demo")
+    folder = tmp_path / "demo-0123456789ab"
+    folder.mkdir()
+    key = scene_cache_key(scene.to_dict(), seed=0, frames=3, scale=0.5, spp=None)
+    mark = {"key": key, "scene": "demo", "seed": 0, "frames": 3, "scale": 0.5, "spp": None}
+    (folder / "bench-cache.json").write_text(json.dumps(mark))
+    assert suite._stale_problem(scene, folder) == ""
+    edited = load_scene("demo", {"lights.height_mm": "5"})
+    assert "was rendered from another version of scene demo or of the renderer" in suite._stale_problem(edited, folder)
