@@ -366,12 +366,13 @@ def umeyama(
     """Least-squares similarity ``dst_i ~ s R src_i + t`` of matched points (Kabsch/Umeyama).
 
     Minimises ``sum_i w_i |dst_i - (s R src_i + t)|^2`` in closed form (Umeyama 1991, eqs.
-    (34)-(42); the same SVD solution as paper 001's ICP step, eqs. (11)-(21)):
+    (34)-(42); the same SVD solution as paper 001's ICP step, eqs. (11)-(22)):
 
     * weighted centroids ``mu_s``, ``mu_d`` (eq. (12) of paper 001) and centred points;
     * ``W = sum_i w_i (dst_i - mu_d)(src_i - mu_s)^T`` (eq. (20)), ``W = U S V^T`` (eq. (21));
-    * ``R = U diag(1, .., 1, det(U V^T)) V^T``: the reflection check. Paper 001 takes ``-R``
-      when ``det(U V^T) < 0``; that is not the best rotation. The closed form flips the
+    * ``R = U diag(1, .., 1, det(U V^T)) V^T`` (eq. (22), ``R = U V^T``, with the reflection
+      check). Paper 001 takes ``-R`` when ``det(U V^T) < 0``; that is not the best
+      rotation. The closed form flips the
       singular vector of the smallest singular value instead. It matters for every planar
       point set (a floor in 3D), whose W has rank 2 and an arbitrary third singular vector;
     * ``s = trace(S diag(1, .., d)) / sum_i w_i |src_i - mu_s|^2`` when ``with_scale``, else 1;

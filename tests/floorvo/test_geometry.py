@@ -1,4 +1,4 @@
-"""floorvo.geometry: the one rigid fit (Kabsch/Umeyama, paper 001's ICP-SVD, eqs. (8)-(21)),
+"""floorvo.geometry: the one rigid fit (Kabsch/Umeyama, paper 001's ICP-SVD, eqs. (8)-(22)),
 the one rigid inverse and the pixel <-> floor conversions, against exact motions and hand computation."""
 
 from __future__ import annotations

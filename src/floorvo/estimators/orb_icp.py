@@ -3,10 +3,14 @@
 Per frame (section numbers and equations of paper 001):
 
 1. Illumination correction (flat field, or a blur estimate), contrast-normalised to 8 bit.
-2. ORB keypoints (FAST corners, eqs. (1)-(2); BRIEF descriptors, eqs. (3)-(5)),
-   **homogenised** over the image (section 6.1): FAST runs with a low threshold and the
-   strongest ``per_cell`` corners of each cell of a ``grid_cols x grid_rows`` grid are
-   kept, so the keypoints do not crowd into the most contrasted patches.
+2. ORB keypoints (section 3: FAST corners oriented by the intensity centroid, eqs. (1)-(3);
+   steered BRIEF descriptors, eqs. (4)-(5)), **homogenised** over the image (section 6.2):
+   FAST runs with a low threshold and the strongest ``per_cell`` corners of each cell of a
+   ``grid_cols x grid_rows`` grid are kept, so the keypoints do not crowd into the most
+   contrasted patches. This grid replaces the paper's own homogenisation, which it
+   describes only as "the method of image contrast adaptive threshold" (the grey image
+   "processed by adaptive threshold to reduce the density of feature points", section
+   6.2, with no rule or parameter given); both serve the same end, neither is the other.
 3. Hamming matching through FLANN-LSH with the ratio test ``gamma = d / L < ratio``
    (section 3: nearest distance d, second nearest L).
 4. **PROSAC** (section 4, eqs. (6)-(7)): matches sorted by quality (ascending gamma) and
@@ -15,7 +19,8 @@ Per frame (section numbers and equations of paper 001):
    to sub-pixel by Lucas-Kanade from its match (``refine_win_px``); without it the whole-
    pixel FAST positions quantise the motion.
 5. 3D points from the depth image (back-projection through the camera model).
-6. **ICP solved by SVD** (section 5, eqs. (8)-(21), with the reflection check), iterated
+6. **ICP solved by SVD** (section 5, eqs. (8)-(22), with the reflection check done as
+   :func:`floorvo.geometry.umeyama` says, not the paper's ``-R``), iterated
    with residual rejection: ``p_prev = R p_cur + t`` is directly ``T_prev_cur``
    (``update = "icp"``, the paper's step: a full 6-DoF fit of the matched 3D points).
    The default ``update = "plane"`` (added here, issue 14) measures the same 6-DoF step
@@ -27,6 +32,11 @@ Per frame (section numbers and equations of paper 001):
    planes (:func:`floorvo.geometry.floor_plane_step`). The ICP on the matched points
    alone lets the depth noise of a few hundred points tilt the fit, and a tilt error
    times the 100 mm depth becomes a shift.
+
+Each frame is matched against the previous (last good) frame. Paper 001 matches "with the
+feature points of the current key frame" (section 2) and obtains the pose "by combining the
+key frames" (section 7), but gives no rule for choosing a key frame; this estimator keeps no
+key frames (frame-to-frame, every good frame becomes the reference).
 
 The estimator needs depth (``requires = {"depth"}``); a run refuses a sequence without it.
 A lost frame is never the reference: the next frame is matched against the last good one, and
@@ -114,7 +124,9 @@ class OrbIcpConfig(Config):
 
 
 def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int, per_cell: int) -> list:
-    """The ``per_cell`` strongest keypoints (by response) of each grid cell (section 6.1 of paper 001)."""
+    """The ``per_cell`` strongest keypoints (by response) of each grid cell: the homogenisation
+    step of paper 001 (section 6.2), done by a grid where the paper uses a contrast-adaptive
+    threshold (see the module docstring)."""
     if not kps:
         return []
     h, w = shape
@@ -386,7 +398,7 @@ class OrbIcp:
         P_prev, P_cur = P_prev[has_depth], P_cur[has_depth]
         if len(P_prev) < self.config.min_matches:
             return lost(f"too few inliers with depth ({len(P_prev)})", len(P_prev))
-        # ICP by SVD (eqs. (8)-(21)) with residual rejection: p_prev = R p_cur + t (eq. (9)), so (R, t) is T_prev_cur.
+        # ICP by SVD (eqs. (8)-(22)) with residual rejection: p_prev = R p_cur + t (eq. (9)), so (R, t) is T_prev_cur.
         R, t, keep = rigid_fit_robust(P_cur, P_prev, iterations=self.config.icp_iterations)
         if keep.sum() < self.config.min_matches:
             return lost(f"too few points behind the ICP fit ({int(keep.sum())})", int(keep.sum()))
