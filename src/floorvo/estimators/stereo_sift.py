@@ -5,9 +5,16 @@ state, so each frame's SIFT runs once):
 
 1. SIFT features ``D_L``, ``D_R`` of the left and right frames (eqs. (4)-(6): DoG scale
    space), on illumination-corrected, contrast-normalised frames.
-2. Temporal matching ``M_1`` of ``D_Li`` and ``D_Li+1`` (Lowe's ratio test); if empty, lost.
-3. Left-right matching ``M_2`` at i and at i+1 (ratio test plus the epipolar constraint
-   of the calibrated rig); the circle L_i -> L_i+1 -> R_i+1 and L_i -> R_i must close.
+2. Left-right matching ``M_2`` of each frame as it arrives (ratio test plus the epipolar
+   constraint of the calibrated rig); only the left keypoints with a right match are kept,
+   triangulated (step 5), with their descriptors.
+3. Temporal matching ``M_1`` (Lowe's ratio test) of frame i's kept left descriptors with
+   frame i+1's; fewer than ``min_matches``: lost. Algorithm 1 runs the two in the other
+   order, ``M_1`` of all of ``D_Li`` and ``D_Li+1`` first ("If M_1 > 0") and ``M_2`` after;
+   here ``M_1`` sees only the left keypoints that ``M_2`` kept, so its ratio test compares a
+   match with the second-nearest of those, not of every left keypoint of frame i+1. A pair
+   is used when L_i -> L_i+1, L_i -> R_i and L_i+1 -> R_i+1 all matched; R_i and R_i+1 are
+   not matched to each other.
 4. RANSAC on the temporal matches (a homography: the floor is a plane) keeps the trusted
    points.
 5. Triangulation of ``P_3dL1`` and ``P_3dL2`` in the left camera (projection matrices
