@@ -8,7 +8,10 @@ floor (equal ``floor`` and ``camera`` sections) is localised against its map:
 
 * the map is built with :func:`floorvo.mapping.map.build_map` (keyframes by the 50 %
   similarity rule of section 3.2; poses from the mapping run's ground truth, the eq. (24)
-  chain's distance from them recorded) and saved to ``DIR/paper003/MAPSCENE/map``;
+  chain's distance from them recorded) and saved to ``DIR/paper003/MAPSCENE/map``. This
+  departs from the paper's condition: its keyframes' global positions are the eq. (24)
+  chain (section 3.2), so its localisation RMSE holds the chain's error, which the RMSE
+  here does not (``MapConfig.poses = "chain"`` builds the paper's map);
 * the kidnap sequence is localised frame by frame (``relocalise``: map fixes only) and with
   odometry between fixes (``map-fused``: phase-corr), each into a run folder scored like
   any other run, one ``results.csv`` row each;
