@@ -8,6 +8,7 @@ and the test needs no Mitsuba.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -94,6 +95,8 @@ def test_kidnap_scene_is_relocalised_on_the_map_of_the_lawnmower_scene(tmp_path,
     odo = rows[("paper003_kidnap", "phase-corr")]
     assert int(odo["wrong_ok_steps"]) == 0
     assert (out / "paper003" / "paper003_map" / "map" / "map.json").is_file()
+    # the paper's map: keyframe poses chained by eq. (24), not the mapping run's ground truth
+    assert json.loads((out / "paper003" / "paper003_map" / "map" / "map.json").read_text())["pose_source"] == "chain"
     html = res.report_html.read_text()
     assert "Paper 003 reproduction" in html and "frames to recover" in html
 
