@@ -43,6 +43,16 @@ def _step_frames(name: str, frames, overrides: dict | None = None, flatfield=Non
     return [est.step(state, Frame(i, i / 30.0, img)) for i, img in enumerate(frames)]
 
 
+def _assert_every_step_ok_within_bound(name: str, seq: Sequence) -> list:
+    """Run ``name`` over ``seq``: the first frame ``init``, every step ``ok`` and within issue 14's
+    bound of the synthetic truth. Returns the step results."""
+    results, truth = _run(name, seq)
+    assert [r.status for r in results] == ["init"] + ["ok"] * (len(results) - 1), [r.reason for r in results]
+    for r, T in zip(results[1:], truth):
+        assert _within_bound(r.T_prev_cur, T), _step_error(r.T_prev_cur, T)
+    return results[1:]
+
+
 def _run(name: str, seq: Sequence, **overrides):
     """Step results of estimator ``name`` over every frame of ``seq``, and the true steps T_prev_cur."""
     est = get_estimator(name)(make_config(name, overrides), seq.camera, height_mm=100.0, flatfield=seq.flatfield())
@@ -236,10 +246,7 @@ def test_akaze_estimators_fit_a_wide_angle_lens_in_its_pinhole(tmp_path, name):
     cam = CameraModel(648, 494, CAM.fx_px, CAM.fy_px, CAM.cx_px, CAM.cy_px, (-0.4, 0.0, 0.0, 0.0, 0.0))
     poses = np.stack([T_world_cam_down(4.0 * i, 0.3 * i, 100.0, np.radians(0.3 * i)) for i in range(5)])
     seq = Sequence.open(write_synthetic_sequence(tmp_path / "seq", cam, poses, seed=1))
-    results, truth = _run(name, seq)
-    assert [r.status for r in results] == ["init"] + ["ok"] * 4, [r.reason for r in results]
-    for r, T in zip(results[1:], truth):
-        assert _within_bound(r.T_prev_cur, T), _step_error(r.T_prev_cur, T)
+    for r in _assert_every_step_ok_within_bound(name, seq):
         assert abs(r.T_prev_cur[2, 3]) < 0.02, r.T_prev_cur[2, 3]
 
 
@@ -266,10 +273,7 @@ def test_phase_corr_with_the_principal_point_far_from_the_centre(tmp_path, name,
     a frame) are each within issue 14's bound of the synthetic truth."""
     poses = np.stack([T_world_cam_down(3.0 * i, 0.5 * i, 100.0, np.radians(1.0 * i)) for i in range(4)])
     seq = Sequence.open(write_synthetic_sequence(tmp_path / "seq", camera, poses, seed=2))
-    results, truth = _run(name, seq)
-    assert [r.status for r in results] == ["init"] + ["ok"] * 3, [r.reason for r in results]
-    for r, T in zip(results[1:], truth):
-        assert _within_bound(r.T_prev_cur, T), _step_error(r.T_prev_cur, T)
+    assert len(_assert_every_step_ok_within_bound(name, seq)) == 3
 
 
 @pytest.mark.parametrize("name", ["akaze-guided", "akaze-bruteforce"])

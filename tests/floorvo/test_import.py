@@ -391,6 +391,19 @@ def test_camera_file_refusals(tmp_path):
 
 
 # ----------------------------------------------------------------------------- ROS 2 bags made here
+def _mono8(Image, header, img):
+    """A ``sensor_msgs/Image`` (rosbags' class ``Image``) of the mono8 frame ``img``, with ``header``."""
+    return Image(
+        header=header,
+        height=img.shape[0],
+        width=img.shape[1],
+        encoding="mono8",
+        is_bigendian=0,
+        step=img.shape[1],
+        data=img.ravel(),
+    )
+
+
 def _write_bag(path, frames, T, stamps_ns, *, compressed: bool, gt: str):
     """A bag as a driver would record it: mono or compressed images, 16UC1 depth, a pose or TF topic."""
     from rosbags.rosbag2 import Writer
@@ -439,15 +452,7 @@ def _write_bag(path, frames, T, stamps_ns, *, compressed: bool, gt: str):
                     data=np.frombuffer(buf.tobytes(), np.uint8),
                 )
             else:
-                msg = Image(
-                    header=header(ns, "camera_optical"),
-                    height=img.shape[0],
-                    width=img.shape[1],
-                    encoding="mono8",
-                    is_bigendian=0,
-                    step=img.shape[1],
-                    data=img.ravel(),
-                )
+                msg = _mono8(Image, header(ns, "camera_optical"), img)
             w.write(c_img, ns + 5_000_000, ts.serialize_cdr(msg, msg.__msgtype__))  # received 5 ms after the stamp
             depth = np.full(img.shape, 100 + i, "<u2")
             dmsg = Image(
@@ -1052,16 +1057,7 @@ def test_a_bag_with_two_different_ground_truth_poses_at_one_stamp_is_refused(tmp
             c_gt = w.add_connection("/groundtruth", PoseStamped.__msgtype__, typestore=ts)
             for i, ns in enumerate(stamps):
                 h = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="cam")
-                img = frames[i]
-                msg = Image(
-                    header=h,
-                    height=img.shape[0],
-                    width=img.shape[1],
-                    encoding="mono8",
-                    is_bigendian=0,
-                    step=img.shape[1],
-                    data=img.ravel(),
-                )
+                msg = _mono8(Image, h, frames[i])
                 w.write(c_img, ns, ts.serialize_cdr(msg, msg.__msgtype__))
                 for x in (0.001 * i, 0.001 * i if i != 1 else second_x_m):  # each pose sent twice
                     p = Pose(position=Point(x=x, y=0.0, z=0.1), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0))
