@@ -274,7 +274,9 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     return gt_path, ref, run
 
 
-def check_poses_at_their_frames(run_dir: str | os.PathLike, run: RunFolder, seq_dir: str | os.PathLike) -> None:
+def check_poses_at_their_frames(
+    run_dir: str | os.PathLike, run: RunFolder, seq_dir: str | os.PathLike, max_diff_s: float = 0.01
+) -> None:
     """One-line :class:`SequenceError` when the run's k-th pose (``trajectory.txt``) is not at the
     time of the k-th frame its ``timing.csv`` marks ``init`` or ``ok``: the sequence frame nearest
     to the pose's time must be that frame. Or when ``timing.csv`` lists a frame the sequence does
@@ -285,7 +287,9 @@ def check_poses_at_their_frames(run_dir: str | os.PathLike, run: RunFolder, seq_
     their frames (a program's own clock, a run of another frame range) paired each step with
     another frame's truth and counted right steps wrong. Nothing is checked where ``seq_dir`` is
     not a sequence folder (a TUM file: no frame times), for a ``timing.csv`` without frames or
-    statuses, or when the counts differ (:meth:`RunFolder.read` refuses that where it applies).
+    statuses, when the counts differ (:meth:`RunFolder.read` refuses that where it applies), or
+    when no pose lies within ``max_diff_s`` of a frame's time (a run on another clock, which
+    :func:`score_run` scores for tracking only, with a warning).
     """
     seq_dir = Path(seq_dir)
     statuses = run.statuses
@@ -308,6 +312,8 @@ def check_poses_at_their_frames(run_dir: str | os.PathLike, run: RunFolder, seq_
     else:
         after = np.clip(np.searchsorted(t_seq, t_pose), 1, len(t_seq) - 1)
         nearest = np.where(np.abs(t_seq[after - 1] - t_pose) <= np.abs(t_seq[after] - t_pose), after - 1, after)
+    if not (np.abs(t_seq[nearest] - t_pose) <= max_diff_s).any():
+        return  # no pose at a frame's time: another clock, which score_run warns of (tracking only)
     off = np.flatnonzero(nearest != placed)
     if len(off):
         k = int(off[0])

@@ -187,6 +187,11 @@ def test_a_run_whose_poses_sit_at_other_frames_than_it_marks_is_refused(tmp_path
     assert main(["score", str(run), "--gt", str(seq)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "a pose at the time of each frame marked init or ok" in err[0]
+    # A run on another clock altogether (no pose at a frame's time) is not refused: it is scored for
+    # tracking only, with the warning that it shares no timestamp with the ground truth.
+    write_tum(run / "trajectory.txt", 1000.0 + np.arange(24) / 10.0, est)
+    s = S.score_run(run, seq)
+    assert s.ground_truth.startswith("the estimate shares no timestamp") and s.tracking["lost_frames"] == 2
     # A timing.csv listing a frame the sequence does not have (26 frames: 0-25).
     seq, run = _fake_run(_dir(tmp_path / "b"), scale=1.0)
     rows = (run / "timing.csv").read_text().replace("\n25,", "\n26,")
