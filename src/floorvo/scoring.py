@@ -303,7 +303,7 @@ def check_poses_at_their_frames(
             f"{Path(run_dir) / TIMING}: lists frame {int(beyond[0])}, and {seq_dir} has frames 0-{len(t_seq) - 1}; "
             "give the sequence the run was made on"
         )
-    placed = frames[[i for i, st in enumerate(statuses) if st in ("init", "ok")]]
+    placed = frames[_measured_from(statuses, None)[0]]
     t_pose = np.asarray(run.timestamps_s, dtype=float)
     if len(placed) != len(t_pose) or not len(t_seq):
         return
@@ -613,7 +613,7 @@ def _frame_times_of(seq_dir: Path, t_ref: np.ndarray, frames: np.ndarray, run: R
         ts = Sequence.open(seq_dir).timestamps_s
         return ts[frames[(frames >= 0) & (frames < len(ts))]]
     statuses = run.statuses or []
-    placed = np.array([f for f, st in zip(frames, statuses) if st in ("init", "ok")], dtype=float)
+    placed = frames[_measured_from(statuses, None)[0]].astype(float)
     t_pose = np.asarray(run.timestamps_s, dtype=float)
     if len(placed) >= 2 and len(placed) == len(t_pose):
         s_per_frame = (t_pose[-1] - t_pose[0]) / (placed[-1] - placed[0])
