@@ -44,9 +44,11 @@ loses its calibration run (the featureless floor) runs uncalibrated, and the tab
 per material on the straight run **and** a spin in place over the same floor together
 (:func:`floorsim.bench.material_calibration.fit_material_calibration`, on
 :func:`floorvo.calibration.calibrate_runs`): the suite's ``motion_turn_spin_concrete`` scene with
-``floor.material`` set, over the calibration floor, rendered into ``DIR/MATERIAL-floorSEED`` at
-the straight run's frame size when it is not there
-(:func:`floorsim.bench.material_calibration.render_spin`; a finished render is reused). Never
+``floor.material`` set, over the calibration floor, rendered into ``DIR/MATERIAL-floorSEED-CODE``
+(CODE: the renderer's code, :func:`floorsim.bench.material_calibration.calibration_render_dir`,
+so a renderer edited since renders the calibration runs anew) at the straight run's frame size
+when it is not there (:func:`floorsim.bench.material_calibration.render_spin`; a finished render
+is reused). Never
 the suite's own spin: its scored frames (until 2026-11-27 the concrete and polished spins were
 calibrated on themselves; the straight runs were on the suite's floor, seed 0). Every
 calibration run is checked against the scored sequences before a fit
@@ -61,8 +63,8 @@ x, y calibrated figures, marked "(x, y only)".
 ``--calibrate --spins DIR --orientation`` fits a third calibration per material and estimator:
 on the straight run, the same run turned to 60 and 120 degrees over the floor
 (:func:`floorsim.bench.material_calibration.render_turned_straight`, rendered into
-``DIR/MATERIAL-floorSEED-heading60`` and ``-heading120`` when missing) and a spin over 3.5 rad
-(more than half a turn: ``DIR/MATERIAL-floorSEED-spin3.5rad``) together, all over the
+``DIR/MATERIAL-floorSEED-heading60-CODE`` and ``-heading120-CODE`` when missing) and a spin over
+3.5 rad (more than half a turn: ``DIR/MATERIAL-floorSEED-spin3.5rad-CODE``) together, all over the
 calibration floor, with the
 scales depending on each step's texture orientation where the runs observe it
 (:mod:`floorvo.calibration`: a grained floor, wood). Where it has such terms the material's
@@ -91,6 +93,7 @@ from floorsim.bench.material_calibration import (  # noqa: E402
     TURNED_HEADINGS_DEG,
     MaterialCalibration,
     calibration_floor_seed,
+    calibration_render_dir,
     fit_material_calibration,
     floor_of,
     render_spin,
@@ -342,7 +345,12 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, flo
     if args.spins is not None:
         # A spin only for the floors some estimator could be calibrated on (not the featureless one).
         for m in sorted({m for (m, _), f in fits.items() if f.straight is not None}):
-            spins[m] = render_spin(m, args.spins / f"{m}-floor{floor_seed}", straight_seq[m], floor_seed=floor_seed)
+            spins[m] = render_spin(
+                m,
+                calibration_render_dir(args.spins, f"{m}-floor{floor_seed}", m),
+                straight_seq[m],
+                floor_seed=floor_seed,
+            )
         _check_separate(spins.values(), scored)
         spin_runs: dict[tuple[str, str], tuple[str, str]] = {}
         if spins:
@@ -363,7 +371,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, flo
                 (m, h): render_turned_straight(
                     m,
                     h,
-                    args.spins / f"{m}-floor{floor_seed}-heading{h:g}",
+                    calibration_render_dir(args.spins, f"{m}-floor{floor_seed}-heading{h:g}", m),
                     straight_seq[m],
                     floor_seed=floor_seed,
                 )
@@ -374,7 +382,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, flo
             full_spins = {
                 m: render_spin(
                     m,
-                    args.spins / f"{m}-floor{floor_seed}-spin{FULL_SPIN_RAD:g}rad",
+                    calibration_render_dir(args.spins, f"{m}-floor{floor_seed}-spin{FULL_SPIN_RAD:g}rad", m),
                     straight_seq[m],
                     FULL_SPIN_RAD,
                     floor_seed=floor_seed,

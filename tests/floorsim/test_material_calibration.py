@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 from tests.floorvo._synth import chain_scaled, hand_run
 
+from floorsim import simulate
 from floorsim.bench.material_calibration import (
     FULL_SPIN_RAD,
     SPIN_SCENE,
     calibration_floor_seed,
+    calibration_render_dir,
     fit_material_calibration,
     floor_of,
+    render_spin,
     same_floor_problem,
     spin_scene,
     straight_scene,
@@ -22,7 +25,10 @@ from floorsim.bench.material_calibration import (
 )
 from floorsim.bench.suites import suite_scenes
 from floorsim.scene import load_scene
+from floorsim.simulate import render_sequence
+from floorvo.errors import SequenceError
 from floorvo.geometry import T_world_cam_down
+from floorvo.sequence import Sequence
 
 STRAIGHT = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(26)])  # 100 mm along x
 SPIN = np.stack([T_world_cam_down(0.0, 0.0, 100.0, 0.1 * i) for i in range(21)])  # 115 degrees in place
@@ -139,3 +145,25 @@ def test_a_calibration_run_on_a_scored_sequence_or_its_floor_is_refused(tmp_path
     assert same_floor_problem([_rendered(tmp_path / "spins" / "wood", "wood", 0)], [scored, vinyl]) == ""
     assert floor_of(tmp_path) is None  # a folder that does not say its floor: compared by folder only
     assert same_floor_problem([tmp_path], [scored]) == ""
+
+
+@pytest.mark.render
+def test_a_renderer_edited_since_renders_the_calibration_spin_beside_the_old_one(tmp_path, monkeypatch):
+    """``motion_suite.py --spins DIR`` after a renderer edit: the spin rendered by the old code is
+    refused to the new code (its ``versions.render_code``), so the new code's spin goes into a
+    folder of its own beside it (:func:`calibration_render_dir` names the code) and renders."""
+    like = render_sequence(straight_scene("wood", floor_seed=1), tmp_path / "straight", frames=1, scale=0.25, spp=1)
+    spins = tmp_path / "spins"
+    old_dir = render_spin("wood", calibration_render_dir(spins, "wood-floor1", "wood"), like, 0.2, floor_seed=1)
+    old_code = Sequence.open(old_dir).meta["versions"]["render_code"]
+    assert old_dir.name == f"wood-floor1-{old_code[:12]}"
+
+    edited = "0" * 64  # every hash of the renderer's code is another one after an edit
+    monkeypatch.setattr(simulate, "render_code_sha256", lambda material=None: edited)
+    with pytest.raises(SequenceError, match="render_code"):  # what --spins DIR did before: refused
+        render_spin("wood", old_dir, like, 0.2, floor_seed=1)
+    new_dir = render_spin("wood", calibration_render_dir(spins, "wood-floor1", "wood"), like, 0.2, floor_seed=1)
+    assert new_dir != old_dir and new_dir.parent == spins
+    new, old = Sequence.open(new_dir), Sequence.open(old_dir)
+    assert new.meta["versions"]["render_code"] == edited and new.frame_count == old.frame_count >= 2
+    assert new.camera.width_px == Sequence.open(like).camera.width_px  # at the straight run's size

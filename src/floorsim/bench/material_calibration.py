@@ -39,6 +39,7 @@ from collections.abc import Sequence as Sequence_
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from floorsim import simulate
 from floorsim.scene import Scene, load_scene, scenes_dir
 from floorsim.simulate import render_sequence
 from floorvo.calibration import (
@@ -58,6 +59,7 @@ __all__ = [
     "MaterialCalibration",
     "fit_material_calibration",
     "calibration_floor_seed",
+    "calibration_render_dir",
     "floor_of",
     "render_spin",
     "render_turned_straight",
@@ -110,6 +112,16 @@ def turned_straight_scene(material: str, heading_deg: float, *, floor_seed: int)
     heading = math.radians(heading_deg)
     keys = _keys(floor_seed, **{"trajectory.yaw_rad": heading, "trajectory.direction_rad": heading})
     return load_scene(scenes_dir() / f"material_{material}.toml", keys)
+
+
+def calibration_render_dir(root: str | os.PathLike, name: str, material: str) -> Path:
+    """The sequence folder under ``root`` that the calibration render ``name`` (a spin, a turned
+    straight run) over ``material`` goes into: ``root/NAME-CODE``, CODE the first 12 hex digits
+    of the renderer's code (:func:`floorsim.simulate.render_code_sha256`, with ``material``'s
+    plugin module where it has one). A renderer edited since the last run so renders anew beside
+    the old render, as the bench's sequence cache does, where the old render's
+    ``versions.render_code`` would refuse it to be reused or resumed by other code."""
+    return Path(root) / f"{name}-{simulate.render_code_sha256(material)[:12]}"
 
 
 def render_spin(
