@@ -329,7 +329,7 @@ def _calibrated_rows(args, scenes, names, material_of, estimators, est_sets, flo
         cal_scenes,
         estimators,
         out / "runs",
-        scale=render_scale(cal_scenes, args.scale),
+        scale=args.scale if rendered else None,  # render_scale: --scale only for scenes still to render
         cache_dir=args.cache,
         report=False,
         estimator_overrides=est_sets,
