@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -98,3 +99,16 @@ def test_motion_suite_says_when_a_cached_render_is_not_the_scene_files_render(tm
     assert suite._stale_problem(scene, folder) == ""
     edited = load_scene("demo", {"lights.height_mm": "5"})
     assert "was rendered from another version of scene demo or of the renderer" in suite._stale_problem(edited, folder)
+
+
+def test_drift_sources_chains_each_step_in_the_frame_before():
+    """Four 10 mm steps each turning 90 degrees after it close a square; a yaw of 0.01 rad after
+    the first of two straight 10 mm steps puts the second at that angle (hand computation)."""
+    drift = _load("drift_sources")
+    square = drift.chained_end_mm(np.full(4, np.pi / 2), np.tile([10.0, 0.0], (4, 1)))
+    assert np.allclose(square, 0.0, atol=1e-12)
+    bent = drift.chained_end_mm(np.array([0.01, 0.0]), np.array([[10.0, 0.0], [10.0, 0.0]]))
+    assert np.allclose(bent, [10.0 + 10.0 * np.cos(0.01), 10.0 * np.sin(0.01)], atol=1e-12)
+    # a sideways step in the turned frame: (0, 5) after a 90-degree turn points along -x
+    side = drift.chained_end_mm(np.array([np.pi / 2, 0.0]), np.array([[10.0, 0.0], [0.0, 5.0]]))
+    assert np.allclose(side, [5.0, 0.0], atol=1e-12)
