@@ -279,7 +279,8 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     over its ``exec``); after ``timeout_s`` a timer sends its process group SIGTERM, then SIGKILL
     2 s later. Once it has ended, whatever it left running in its process group is killed: a
     child it started kept running after the run (and through the next estimator's timing in a
-    bench). Returns ``(wait status, or None when it was killed for the timeout; wall s; peak
+    bench). Interrupted while it waits (Ctrl-C, SIGTERM), it kills the program's process group
+    and reaps the program before the interrupt goes on. Returns ``(wait status, or None when it was killed for the timeout; wall s; peak
     RSS MiB, NaN where it cannot be read)``."""
     done, timed_out = threading.Event(), threading.Event()
 
@@ -299,10 +300,25 @@ def _wait(proc: subprocess.Popen, timeout_s: float | None) -> tuple[int | None, 
     if timer is not None:
         timer.daemon = True
         timer.start()
-    with PeakRss(pid=proc.pid) as mem:
-        # Ended, not yet reaped: the sampler stops while its pid still names the program.
-        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
-        wall = time.perf_counter() - t0
+    try:
+        with PeakRss(pid=proc.pid) as mem:
+            # Ended, not yet reaped: the sampler stops while its pid still names the program.
+            os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+            wall = time.perf_counter() - t0
+    except BaseException:
+        # Interrupted here (Ctrl-C, SIGTERM, an error): the program's group is killed and reaped
+        # before this unwinds. Started in a session of its own, it sees no Ctrl-C of the terminal,
+        # and it went on past the interrupted run, writing into the run folder a rerun had filled.
+        done.set()
+        if timer is not None:
+            timer.cancel()
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        os.waitpid(proc.pid, 0)
+        proc.returncode = -signal.SIGKILL  # reaped here: Popen must not wait again
+        raise
     _, status, _ = os.wait4(proc.pid, 0)
     done.set()
     if timer is not None:

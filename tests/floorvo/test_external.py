@@ -5,9 +5,13 @@ programs that crash, time out, or write nothing or garbage), its configuration r
 from __future__ import annotations
 
 import json
+import os
 import shlex
 import shutil
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
 
 import cv2
@@ -169,36 +173,84 @@ def test_a_timing_csv_that_does_not_fit_is_a_failed_run(line_sequence, tmp_path,
     assert words in info.value.reason and not (tmp_path / "run" / "result.json").exists()
 
 
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie has ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _ends_within(pid: int, seconds: float) -> bool:
+    """Whether process ``pid`` has ended within ``seconds`` (killed here if it has not)."""
+    deadline = time.monotonic() + seconds
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if _alive(pid):
+        os.kill(pid, signal.SIGKILL)
+        return False
+    return True
+
+
+# A program that starts a child (a sleep of 60 s), writes both pids into {output}, then either
+# writes its trajectory (the ground truth) or sleeps 60 s itself first (argument "slow").
+_PARENT = (
+    "import sys, os, time, pathlib, subprocess; seq, out = sys.argv[1], sys.argv[2]; "
+    "p = subprocess.Popen(['sleep', '60']); pathlib.Path(out, 'child.pid').write_text(str(p.pid)); "
+    "pathlib.Path(out, 'own.pid').write_text(str(os.getpid())); "
+    "time.sleep(60 if sys.argv[3:] == ['slow'] else 0); "
+    "pathlib.Path(out, 'trajectory.txt').write_text(pathlib.Path(seq, 'groundtruth.txt').read_text())"
+)
+
+
 def test_what_a_program_leaves_running_ends_with_it(line_sequence, tmp_path):
     """A child the program started (here a sleep of 60 s) kept running after the run had ended."""
-    import os
-    import signal
-    import time
-
-    code = (
-        "import sys, pathlib, subprocess; seq, out = sys.argv[1], sys.argv[2]; "
-        "p = subprocess.Popen(['sleep', '60']); pathlib.Path(out, 'child.pid').write_text(str(p.pid)); "
-        "pathlib.Path(out, 'trajectory.txt').write_text(pathlib.Path(seq, 'groundtruth.txt').read_text())"
-    )
-    spec = ExternalEstimator(name="parent", command=(sys.executable, "-c", code, "{sequence}", "{output}"))
+    spec = ExternalEstimator(name="parent", command=(sys.executable, "-c", _PARENT, "{sequence}", "{output}"))
     run_external(line_sequence, spec, tmp_path / "run")
-    pid = int((tmp_path / "run" / "program" / "child.pid").read_text())
+    assert _ends_within(int((tmp_path / "run" / "program" / "child.pid").read_text()), 5.0)
 
-    def alive() -> bool:
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                return f.read().split(")")[-1].split()[0] != "Z"  # a zombie has ended
-        except FileNotFoundError:
-            return False
 
-    deadline = time.monotonic() + 5.0
-    while alive() and time.monotonic() < deadline:
-        time.sleep(0.05)
+class _Interrupt(Exception):
+    pass
+
+
+def test_an_interrupted_run_ends_the_program_and_what_it_started(line_sequence, tmp_path):
+    """Interrupted while the program runs (here by a signal whose handler raises, as Ctrl-C's
+    does), the run kills the program's process group before the interrupt goes on: started in a
+    session of its own the program saw no Ctrl-C, outlived the interrupted run and wrote into
+    the run folder after a rerun had filled it."""
+
+    def interrupt(signum, frame):
+        raise _Interrupt
+
+    spec = ExternalEstimator(
+        name="parent", command=(sys.executable, "-c", _PARENT, "{sequence}", "{output}", "slow"), timeout_s=0
+    )
+    program = tmp_path / "run" / "program"
+    before = signal.signal(signal.SIGUSR1, interrupt)
+    timer = threading.Timer(60.0, lambda: None)
     try:
-        assert not alive()
+
+        def send_when_started() -> None:
+            deadline = time.monotonic() + 30.0
+            while not (program / "own.pid").is_file() and time.monotonic() < deadline:
+                time.sleep(0.02)
+            os.kill(os.getpid(), signal.SIGUSR1)
+
+        timer = threading.Timer(0.0, send_when_started)
+        timer.start()
+        started = time.monotonic()
+        with pytest.raises(_Interrupt):
+            run_external(line_sequence, spec, tmp_path / "run")
+        assert time.monotonic() - started < 30.0
     finally:
-        if alive():
-            os.kill(pid, signal.SIGKILL)
+        timer.join()
+        signal.signal(signal.SIGUSR1, before)
+    own, child = (int((program / f"{who}.pid").read_text()) for who in ("own", "child"))
+    assert not _alive(own)  # killed and reaped before the interrupt went on
+    assert _ends_within(child, 5.0)
+    assert not (program / "trajectory.txt").exists()
 
 
 def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
@@ -212,10 +264,6 @@ def test_a_program_past_its_timeout_is_killed(line_sequence, tmp_path):
 def test_a_hanging_program_without_timeout_s_is_killed_at_the_default_limit(line_sequence, tmp_path, monkeypatch):
     """A program given no ``timeout_s`` that never ends blocked the run (and a bench) for ever; it
     gets a limit scaled by the frame count, named in the error, and its children die with it."""
-    import os
-    import signal
-    import time
-
     import floorvo.external as external
 
     monkeypatch.setattr(external, "DEFAULT_TIMEOUT_START_S", 0.5)
