@@ -75,7 +75,8 @@ from floorvo.errors import (
 )
 from floorvo.estimators.base import NEEDS
 from floorvo.estimators.registry import EstimatorSource
-from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml
+from floorvo.geometry import MAX_POSITION_MM, position_problem
+from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml, strict_json
 from floorvo.locking import locks_folder
 from floorvo.memory import PeakRss
 from floorvo.metrics import associate
@@ -509,6 +510,13 @@ def run_external(
     T_prog = written.T_world_cam
     T_start = _start_pose(seq, float(written.timestamps_s[0]), T_world_start)
     T_world_cam = T_start @ np.linalg.inv(T_prog[0]) @ T_prog
+    far = np.abs(T_world_cam[:, :3, 3]).max(axis=1)
+    if not (far <= MAX_POSITION_MM).all():  # each pose within the bound, but not moved to the start pose
+        k = int(np.argmax(~(far <= MAX_POSITION_MM)))
+        raise fail(
+            f"pose {k} (t = {written.timestamps_s[k]:.6f} s), moved with the run to the start pose, lies at "
+            f"{position_problem(T_world_cam[k, :3, 3])}"
+        )
     src = spec.source
     run = ExternalRun(name, str(out), seq.frame_count, len(T_world_cam), wall_s, peak_mb, code, argv)
     statuses = written.statuses
@@ -527,7 +535,7 @@ def run_external(
             "returncode": code,
             "timeout_s": spec.timeout_for(seq.frame_count),
             "env": dict(spec.env),
-            "program_result": dict(written.result),
+            "program_result": strict_json(dict(written.result)),  # its NaN made strict JSON
         },
         "sequence": str(seq.root),
         SEQUENCE_SHA256: sequence_sha256(seq.meta),

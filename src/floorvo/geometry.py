@@ -164,6 +164,8 @@ def rigid_problem(T: Any, tol: float = RIGID_TOLERANCE, *, stack: bool = False, 
     value does not. Vectorised: ~1 us a pose.
     """
     try:
+        if np.iscomplexobj(T):  # made float, its imaginary part was dropped with a warning of numpy's
+            return f"complex numbers, not a {'(N, 4, 4)' if stack else '(4, 4)'} array of real numbers"
         A = np.asarray(T, dtype=float)
     except (TypeError, ValueError):
         return f"a {type(T).__name__}, not a {'(N, 4, 4)' if stack else '(4, 4)'} array of numbers"

@@ -40,6 +40,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_csv",
     "plain",
+    "strict_json",
     "path_text",
     "csv_cell",
     "write_png",
@@ -210,6 +211,21 @@ def plain(obj: Any) -> Any:
         return [plain(v) for v in obj]
     if isinstance(obj, os.PathLike):
         return path_text(obj)
+    return obj
+
+
+def strict_json(obj: Any) -> Any:
+    """``obj`` as :func:`plain` data whose non-finite floats are None (``null``): strict JSON,
+    which ``json.dumps`` would otherwise write as ``NaN`` or ``Infinity`` (not JSON; a strict
+    parser refuses the file). For numbers that may be undefined (a score of a run that tracked
+    nothing) and for data this project did not write (an external program's ``result.json``)."""
+    obj = plain(obj)
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [strict_json(v) for v in obj]
     return obj
 
 

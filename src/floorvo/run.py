@@ -43,20 +43,41 @@ def estimator_faults(name: str, what: str) -> Iterator[None]:
     the protocol, :func:`floorvo.runner.run_frames`) becomes a one-line :class:`FloorbenchError`
     naming the estimator, where it came from and the exception (``-v`` logs its traceback), so
     ``floorvo run`` exits 1 in one line and the bench records a failed row and goes on, as for
-    an external program that crashes. A built-in's exception is a bug of this project and keeps
-    its traceback; user errors (:class:`FloorbenchError`) and OS errors pass as they are."""
+    an external program that crashes; so does its ``sys.exit`` (a plugin's ``SystemExit`` ended
+    ``floorvo run`` with the plugin's exit code and no word, and the whole bench with it) and an
+    ``OSError`` raised through its own code (:func:`_raised_by`: a model file it cannot open).
+    A built-in's exception is a bug of this project and keeps its traceback; user errors
+    (:class:`FloorbenchError`) and the OS errors of reading the frames pass as they are."""
     try:
         yield
-    except (FloorbenchError, OSError):
+    except FloorbenchError:
         raise
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         src = estimator_source(name)
-        if src.kind == "built-in":
+        if src.kind == "built-in" or (isinstance(exc, OSError) and not _raised_by(get_estimator(name), exc)):
             raise
         log.debug("%s: %s raised", name, what, exc_info=True)
         raise FloorbenchError(
             f"estimator {name!r} ({src.kind} {src.detail}): {what} raised {type(exc).__name__}: {shorten(str(exc), 300)}"
         ) from exc
+
+
+def _raised_by(cls: type, exc: BaseException) -> bool:
+    """Whether ``exc`` went through code of the estimator class ``cls`` (a method of it or of a
+    base class other than ``object``) on its way up: raised in it or in what it called."""
+    codes = {
+        getattr(v, "__code__", None)
+        for klass in cls.__mro__[:-1]
+        for v in vars(klass).values()
+        for v in ((v.__func__,) if isinstance(v, (staticmethod, classmethod)) else (v,))
+    }
+    codes.discard(None)
+    tb = exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code in codes:
+            return True
+        tb = tb.tb_next
+    return False
 
 
 def require_opencv4(name: str) -> None:

@@ -51,10 +51,12 @@ from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError
 from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
 from floorvo.geometry import (
+    MAX_POSITION_MM,
     T_world_cam_down,
     depth_floor_plane,
     footprint_T,
     make_T,
+    position_problem,
     rigid_problem,
     rot_z,
     tilt_twist_rad,
@@ -244,7 +246,8 @@ def run_frames(
     absolute pose. ``on_step(k, frame, step_result)`` is called after each step (progress,
     match samples). ``name``: the run's estimator name (default ``estimator.name``).
     An estimator that breaks the protocol (an unknown status, ``ok`` without motion, a motion or
-    pose that is not a rigid (4, 4) transform of finite numbers) is a bug: ``ValueError``.
+    pose that is not a rigid (4, 4) transform of finite numbers, steps that chain to a position
+    beyond :data:`~floorvo.geometry.MAX_POSITION_MM`) is a bug: ``ValueError``.
     ``attitude_noise_rad``: the standard error of each reading of the frames' attitude signal
     (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
     that the signal would leave uncertain beyond the estimator's bound is lost
@@ -355,6 +358,12 @@ def run_frames(
                     T_world = T_world_cam_down(x, y, z, yaw_of_R(T_chain[:3, :3]), roll, pitch)
                 else:
                     T_world = tilted_camera_T(T_chain, roll, pitch)
+        if st in _PLACED and not float(np.abs(T_world[:3, 3]).max()) <= MAX_POSITION_MM:
+            # finite steps can chain to a place no pose file holds (1e11 mm steps): said here, with the
+            # estimator named, not by the trajectory's writer after the run
+            raise ValueError(
+                f"{name}: frame {frame.index}: its steps place the camera at {position_problem(T_world[:3, 3])}"
+            )
         index.append(frame.index)
         stamp.append(frame.timestamp_s)
         status.append(st)

@@ -25,7 +25,7 @@ from floorvo import metric_defs as md
 from floorvo.errors import SequenceError, shown_number
 from floorvo.estimators.base import RESTART_NOTE
 from floorvo.geometry import T_world_cam_down, footprint_T, yaw_of_R
-from floorvo.io import atomic_write_json, read_json
+from floorvo.io import atomic_write_json, read_json, strict_json
 from floorvo.metrics import (
     ALIGNMENTS,
     SEGMENT_LENGTHS_MM,
@@ -113,7 +113,7 @@ class Score:
         for r in [d["rpe_frame"], *d["rpe_distance"]]:
             for k in ("pairs", "trans_errors_mm", "rot_errors_deg"):
                 r.pop(k, None)
-        return _jsonable(d)
+        return strict_json(d)
 
     def flat(self) -> dict[str, float]:
         """One number per metric, named by :mod:`floorvo.metric_defs` (results.csv columns, gates)."""
@@ -152,21 +152,6 @@ class Score:
         if "fps" in self.timing:
             f[md.FPS.name] = self.timing["fps"]
         return f
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
 
 
 def score_trajectories(

@@ -62,6 +62,35 @@ def _failing(code: str, **kw) -> ExternalEstimator:
     return ExternalEstimator(name="bad", command=(sys.executable, "-c", code, "{output}"), **kw)
 
 
+def test_poses_within_the_bound_that_the_start_pose_moves_beyond_it_are_a_failed_run(line_sequence, tmp_path):
+    """Each pose within 1e8 m of the program's origin (-9e7 m, then +9e7 m), but moved with the run
+    to the start pose the second lies 1.8e8 m out: the trajectory's writer raised a traceback."""
+    code = (
+        "import sys, pathlib; lines = ['%.6f %.1f 0 0 0 0 0 1' % (i / 30, -9e7 if i == 0 else 9e7) for i in range(14)]; "
+        "pathlib.Path(sys.argv[1], 'trajectory.txt').write_text(chr(10).join(lines) + chr(10))"
+    )
+    with pytest.raises(ExternalEstimatorError) as info:
+        run_external(line_sequence, _failing(code), tmp_path / "run")
+    assert info.value.reason.startswith(
+        "pose 1 (t = 0.033333 s), moved with the run to the start pose, lies at a position 1.8e+08 m"
+    )
+
+
+def test_a_programs_own_result_json_is_kept_as_strict_json(line_sequence, tmp_path):
+    """A program's result.json holding NaN and Infinity (Python's json writes them) was copied into
+    RUN/result.json as they were, which a strict JSON parser refuses; they are null there now."""
+    code = (
+        "import sys, json, pathlib; out = pathlib.Path(sys.argv[1]); "
+        "(out / 'trajectory.txt').write_text(pathlib.Path(sys.argv[2], 'groundtruth.txt').read_text()); "
+        "(out / 'result.json').write_text(json.dumps(dict(x=float('nan'), y=[float('inf'), 1.5], z='a')))"
+    )
+    spec = ExternalEstimator(name="nan-result", command=(sys.executable, "-c", code, "{output}", "{sequence}"))
+    run_external(line_sequence, spec, tmp_path / "run")
+    text = (tmp_path / "run" / "result.json").read_text()
+    kept = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in result.json"))
+    assert kept["external"]["program_result"] == {"x": None, "y": [None, 1.5], "z": "a"}
+
+
 @pytest.mark.parametrize(
     ("code", "reason", "tail"),
     [

@@ -218,6 +218,27 @@ class Scales(Dead):
     def step(self, state, frame):
         res = super().step(state, frame)
         return StepResult("ok", np.diag([2.0, 2.0, 1.0, 1.0])) if res.ok else res
+
+class Exits(Dead):
+    def step(self, state, frame):
+        import sys
+        sys.exit(5)
+
+class NoModelFile(Dead):
+    def step(self, state, frame):
+        return open("/nonexistent-floorbench-test/model.bin", "rb")
+
+class FarAway(Dead):
+    def step(self, state, frame):
+        res = super().step(state, frame)
+        if res.ok:
+            res.T_prev_cur[0, 3] = 1e11  # 1e8 m a step: finite, each step within the bound, the chain not
+        return res
+
+class Complex(Dead):
+    def step(self, state, frame):
+        res = super().step(state, frame)
+        return StepResult("ok", res.T_prev_cur + 1e-3j) if res.ok else res
 """
 )
 
@@ -228,6 +249,13 @@ class Scales(Dead):
         ("RaisesInInit", "__init__ raised RuntimeError: no licence file"),
         ("RaisesInStep", "the run raised ZeroDivisionError: division by zero"),
         ("Scales", "frame 1: T_prev_cur is not a rigid transform"),
+        ("Exits", "the run raised SystemExit: 5"),
+        (
+            "NoModelFile",
+            "the run raised FileNotFoundError: [Errno 2] No such file or directory: '/nonexistent-floorbench",
+        ),
+        ("FarAway", "frame 2: its steps place the camera at a position 2e+08 m from the origin (at most 1e+08 m"),
+        ("Complex", "frame 1: T_prev_cur is not a rigid transform (complex numbers"),
     ],
 )
 def test_a_module_class_that_raises_is_one_line_and_a_failed_bench_row(
@@ -235,7 +263,11 @@ def test_a_module_class_that_raises_is_one_line_and_a_failed_bench_row(
 ):
     """A plugin's own exception (in __init__ or step, or a step breaking the protocol) was a
     traceback from inside the plugin and, in the bench, ended the whole bench; now it is one
-    line naming the estimator, exit code 1, and a failed row as for a crashing program."""
+    line naming the estimator, exit code 1, and a failed row as for a crashing program. So are
+    its sys.exit (floorvo ended with the plugin's code and no word, the bench with it), an
+    OSError of its own (told without the estimator's name, and the bench ended), steps that
+    chain beyond the positions a pose file holds (a traceback from the trajectory's writer
+    after the run) and a complex step (its imaginary part dropped with a warning)."""
     (tmp_path / "faulty_vo_for_tests.py").write_text(FAULTY_SOURCE)
     monkeypatch.syspath_prepend(str(tmp_path))
     ref = f"faulty_vo_for_tests:{cls}"
@@ -369,3 +401,55 @@ def test_a_sweep_of_sequence_folders_runs_the_plugin_in_worker_processes(
     assert (row["source"], row["source_detail"]) == ("plugin", "floorbench-example-plugin 0.1.0")
     assert row["ate_se2_rmse_mm"] < 0.2
     assert "Estimators compared" in (tmp_path / "out" / "sweep.html").read_text()
+
+
+SAMPLES_SOURCE = (
+    MODULE_SOURCE
+    + """
+from dataclasses import replace
+
+class PairsOfTwo(Dead):
+    def step(self, state, frame):
+        res = super().step(state, frame)
+        return replace(res, matches_px=np.zeros((3, 2))) if res.ok else res  # not (N, 4)
+
+class OnlyFromFrameZero(Dead):
+    def start(self):
+        return {"n": 0, "first": None}
+    def step(self, state, frame):
+        if state["first"] is None:
+            state["first"] = frame.index
+        if state["first"] != 0:
+            raise KeyError("prev")
+        res = super().step(state, frame)
+        return replace(res, matches_px=np.zeros((5, 4))) if res.ok else res
+"""
+)
+
+
+@pytest.mark.parametrize(
+    "cls, words, written",
+    [
+        ("PairsOfTwo", "frame 1: matches_px has shape (3, 2), not (N, 4)", 0),
+        ("OnlyFromFrameZero", "the match sample of frames 6-7 raised KeyError: 'prev'", 1),  # the pair 0-1 is kept
+    ],
+)
+def test_a_plugin_failing_on_the_reports_match_samples_keeps_its_scored_row(
+    cls, words, written, line_sequence, tmp_path, monkeypatch, caplog
+):
+    """The report's match samples run the estimator again on a few frame pairs. A plugin that
+    raised there (it cannot start on a later frame) or gave matches of another shape ended the
+    whole bench with a traceback after its run had been scored; now the samples stop with a
+    warning and the row stays ok."""
+    from floorsim.bench import run_bench
+    from floorsim.bench.bench import write_match_samples
+
+    (tmp_path / "samples_vo_for_tests.py").write_text(SAMPLES_SOURCE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    ref = f"samples_vo_for_tests:{cls}"
+    with caplog.at_level("WARNING"):
+        assert write_match_samples(line_sequence, ref, tmp_path / "samples") == written
+    assert any(words in r.getMessage() and "no more match samples" in r.getMessage() for r in caplog.records)
+    res = run_bench([line_sequence], [ref], tmp_path / "bench", report=True)
+    (row,) = res.rows
+    assert row["status"] == "ok" and row["measured_mm"] == pytest.approx(19.5)

@@ -83,7 +83,7 @@ from floorvo.errors import ConfigError, ExternalEstimatorError, FloorbenchError,
 from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, json_sha256, read_json
 from floorvo.locking import lock_folder, locks_folder
-from floorvo.run import InitialPose
+from floorvo.run import InitialPose, estimator_faults
 from floorvo.runfolder import sequence_sha256, write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.scoring import score_run, write_score
@@ -395,7 +395,10 @@ def write_match_samples(
     :func:`floorvo.runner.run_sequence` and keeps the current frame's
     ``StepResult.matches_px`` ((N, 4): u_prev, v_prev, u_cur, v_cur), written by
     :func:`floorvo.runfolder.write_match_sample`. Returns how many pairs had matches (0 when
-    the estimator does not expose them).
+    the estimator does not expose them). The samples illustrate a run that is already scored:
+    where a plugin's estimator fails on them (it raises on a pair its run did not start on, or
+    gives ``matches_px`` of another shape) that is logged as a warning and the samples end
+    there, where it had ended the whole bench with a traceback.
     """
     seq = Sequence.open(seq_dir)
     if seq.frame_count < 2:
@@ -409,10 +412,21 @@ def write_match_samples(
 
     written = 0
     for i in picks:
-        run_sequence(seq, est, frames=[i - 1, i], on_step=keep)
-        m = last["step"].matches_px
-        if m is None or len(m) == 0:
-            continue
+        try:
+            with estimator_faults(estimator, f"the match sample of frames {i - 1}-{i}"):
+                run_sequence(seq, est, frames=[i - 1, i], on_step=keep)
+                m = last["step"].matches_px
+                if m is None or len(m) == 0:
+                    continue
+                m = np.asarray(m, dtype=float)
+                if m.ndim != 2 or m.shape[1] != 4:
+                    raise FloorbenchError(
+                        f"estimator {estimator!r}: frame {i}: matches_px has shape {m.shape}, not (N, 4) "
+                        "(u_prev, v_prev, u_cur, v_cur px)"
+                    )
+        except FloorbenchError as exc:
+            log.warning("%s on %s: no more match samples for the report: %s", estimator, seq_dir, exc)
+            break
         write_match_sample(run_dir, i, m)
         written += 1
     return written
