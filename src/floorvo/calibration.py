@@ -73,7 +73,7 @@ from typing import Any
 
 import numpy as np
 
-from floorvo.config import Rule
+from floorvo.config import Rule, build, param
 from floorvo.errors import ConfigError, SequenceError, shorten, shown
 from floorvo.geometry import invert_T, rot_z, yaw_of_R, yaws_of_T
 from floorvo.imaging import mean_orientation, texture_orientation
@@ -121,26 +121,26 @@ class ScaleCalibration:
     the estimated over the true yaw changes (``scale_yaw``; ``turn_deg``: the summed |true yaw
     changes| it was fitted on)."""
 
-    scale_x: float = 1.0
-    scale_y: float = 1.0
+    scale_x: float = param(1.0, min=SCALE_RANGE[0], max=SCALE_RANGE[1])
+    scale_y: float = param(1.0, min=SCALE_RANGE[0], max=SCALE_RANGE[1])
     observed_x: bool = False
     observed_y: bool = False
-    travel_x_mm: float = 0.0
-    travel_y_mm: float = 0.0
-    steps: int = 0
+    travel_x_mm: float = param(0.0, unit="mm", min=0.0)
+    travel_y_mm: float = param(0.0, unit="mm", min=0.0)
+    steps: int = param(0, min=0)
     estimator: str = ""
-    run: str = ""
-    sequence: str = ""
-    scale_yaw: float = 1.0
+    run: str = ""  # the run folders it was fitted on, joined by "; "
+    sequence: str = ""  # their sequence folders, joined by "; "
+    scale_yaw: float = param(1.0, min=SCALE_RANGE[0], max=SCALE_RANGE[1])
     observed_yaw: bool = False
-    turn_deg: float = 0.0
+    turn_deg: float = param(0.0, unit="deg", min=0.0)
     x_cos2: float = 0.0
     x_sin2: float = 0.0
     y_cos2: float = 0.0
     y_sin2: float = 0.0
     yaw_cos2: float = 0.0
     yaw_sin2: float = 0.0
-    orientation_coherence: float = 0.0
+    orientation_coherence: float = param(0.0, min=0.0, max=1.0)
 
     def to_dict(self) -> dict:
         return {"kind": KIND, "version": VERSION, **asdict(self)}
@@ -432,7 +432,12 @@ def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None
                 f"{path}: scale_{axis} with its orientation terms spans [{low:.4f}, {high:.4f}]; it must stay in "
                 f"[{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
             )
-    cal = ScaleCalibration(**{k: v for k, v in d.items() if k in fields})
+    if d["version"] >= 2 and "scale_yaw" not in d:
+        raise ConfigError(f"{path}: scale_yaw is missing (a version {d['version']} file has one)")
+    try:  # every field's type and rule (a run or sequence that is no text was a traceback where used)
+        cal = build(ScaleCalibration, {k: v for k, v in d.items() if k in fields})
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
     if estimator is not None and cal.estimator and cal.estimator != estimator:
         raise ConfigError(
             f"{path}: fitted on a run of {shown(cal.estimator)}, not {shown(estimator)}; fit one per estimator "

@@ -57,6 +57,7 @@ __all__ = [
     "remove_stale_temporaries",
     "checked_output_path",
     "checked_output_file",
+    "sequence_folder_above",
     "file_in_the_way",
     "make_folders",
     "file_name_problem",
@@ -674,10 +675,24 @@ def checked_output_path(path: str | os.PathLike, error: type[Exception] = Sequen
     return p
 
 
-def checked_output_file(path: str | os.PathLike, error: type[Exception] = SequenceError) -> Path:
+def sequence_folder_above(path: str | os.PathLike) -> Path | None:
+    """The sequence folder (one holding ``sequence.json``) that ``path`` lies inside (its parents,
+    symbolic links followed), or None. Nothing but a sequence's own writer writes into one."""
+    for parent in Path(os.path.realpath(path)).parents:
+        if (parent / "sequence.json").is_file():
+            return parent
+    return None
+
+
+def checked_output_file(
+    path: str | os.PathLike, error: type[Exception] = SequenceError, *, reads: Iterable[str | os.PathLike] = ()
+) -> Path:
     """``path`` as the Path of an output file, refused in one line (``error``) before any work when
     it names no file (``""``, ``.``, ``..``), is a folder, or lies under a file
-    (``--save-baseline FILE/base.json`` was found out only after the whole bench had run)."""
+    (``--save-baseline FILE/base.json`` was found out only after the whole bench had run); and,
+    for a command that reads the files ``reads``, when it is one of them or lies inside a
+    sequence folder (``floorvo score RUN -o RUN/trajectory.txt`` wrote the score over the run
+    it scored, ``floorvo plot ... -o SEQ/cam0/000003.png`` over a frame, with exit code 0)."""
     raw = os.fspath(path)
     if not str(raw).strip() or Path(raw).name in ("", ".", ".."):
         raise error(f"output file {shown(raw)}: names no file; give a file name")
@@ -685,6 +700,13 @@ def checked_output_file(path: str | os.PathLike, error: type[Exception] = Sequen
     if p.is_dir():
         raise error(f"{raw}: is a folder; give a file name")
     _refuse_file_in_the_way(p, error)
+    real = os.path.realpath(p)
+    for f in reads:
+        if os.path.realpath(f) == real:
+            raise error(f"{raw}: this command reads that file ({f}); write the output elsewhere")
+    seq = sequence_folder_above(p)
+    if seq is not None:
+        raise error(f"{raw}: inside the sequence folder {seq} (sequence.json); write the output elsewhere")
     return p
 
 

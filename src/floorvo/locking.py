@@ -49,7 +49,7 @@ from types import TracebackType
 from typing import Any, TypeVar, cast
 
 from floorvo.errors import FloorbenchError, FolderLockedError
-from floorvo.io import checked_output_path, remove_stale_temporaries
+from floorvo.io import checked_output_path, remove_stale_temporaries, sequence_folder_above
 
 try:
     import fcntl
@@ -115,6 +115,28 @@ class FolderLock:
         self.release(refused=isinstance(exc, FloorbenchError))
 
 
+#: The file that marks a folder as one kind of output, and the kind (:func:`lock_folder`'s ``what``)
+#: that alone may write there (a run folder's ``result.json``: :data:`floorvo.runfolder.RESULT`).
+_KIND_MARKERS = (("sequence.json", "sequence folder"), ("map.json", "map folder"), ("result.json", "run folder"))
+
+
+def _other_kind_problem(path: Path, what: str) -> str:
+    """Why a ``what`` may not be written into folder ``path`` ('' when it may): the folder is
+    another kind's (:data:`_KIND_MARKERS`), or lies inside a sequence folder. ``floorvo run SEQ
+    -o SEQ`` wrote its run into the sequence, ``-o SEQ/cam0`` among its frames, ``floorvo map SEQ
+    -o RUN`` a map among a run's files and ``floorvo localize SEQ --map MAP -o MAP`` a run among
+    the map's. A plain ``folder`` (a lock taken for a file written into a folder) is anything's."""
+    if what == "folder":
+        return ""
+    for marker, kind in _KIND_MARKERS:
+        if what != kind and (path / marker).is_file():
+            return f"{path}: is a {kind} ({marker}); a {what} goes in a folder of its own"
+    seq = sequence_folder_above(path)
+    if seq is not None:
+        return f"{path}: inside the sequence folder {seq} (sequence.json); a {what} goes in a folder of its own"
+    return ""
+
+
 def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool = False) -> FolderLock:
     """Lock the output folder ``folder`` (created with its parents) for this writer; returns the lock.
 
@@ -126,13 +148,14 @@ def lock_folder(folder: str | os.PathLike, what: str = "folder", *, wait: bool =
     benches: the second waits for the first's render, then reuses it). The same thread may
     take a lock it holds again (re-entrant; the lock ends when its first holder releases it). A path that exists and is not a folder is a
     one-line :class:`~floorvo.errors.FloorbenchError`, and so is a folder that cannot be
-    created or written, and a sequence folder (``sequence.json``) locked as anything but a
-    ``sequence folder`` or a plain ``folder`` (a run, map or bench written into a sequence).
+    created or written, a sequence, map or run folder locked as another kind (a run, map or
+    bench written into a sequence, a map into a run folder), and any folder inside a sequence
+    folder (:func:`_other_kind_problem`); a plain ``folder`` is refused none of these.
     """
     path = checked_output_path(folder, FloorbenchError)  # no lock file in the current folder ("") or in "/"
-    if what not in ("folder", "sequence folder") and (path / "sequence.json").is_file():
-        # floorvo run SEQ -o SEQ wrote its run into the sequence, floorsim bench SEQ -o SEQ its bench
-        raise FloorbenchError(f"{path}: is a sequence folder (sequence.json); a {what} goes in a folder of its own")
+    problem = _other_kind_problem(path, what)
+    if problem:
+        raise FloorbenchError(problem)
     waited = False
     while True:
         created = _make_folder(path)

@@ -145,6 +145,19 @@ def test_a_euroc_cam1_row_without_a_cam0_frame_is_refused(tmp_path, original, ca
     assert len(err) == 1 and f"cam1/data.csv: the row at {stamp} ns has no cam0 frame (1 cam1 row(s)" in err[0]
 
 
+def test_a_euroc_frame_stamp_beyond_64_bit_nanoseconds_is_refused(tmp_path, original, capsys):
+    """9.3e18 ns (9.3e9 s, within the 1e10 s a time may be) overflowed numpy's int64: a traceback."""
+    seq, _ = original
+    exported = export_sequence(seq.root, "euroc", tmp_path / "exported")
+    data = exported / "mav0" / "cam0" / "data.csv"
+    lines = data.read_text().splitlines()
+    lines[-1] = "9300000000000000000," + lines[-1].split(",", 1)[1]
+    data.write_text("\n".join(lines) + "\n")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported"), "--height-mm", "100"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"cam0/data.csv:{len(lines)}: timestamp 9300000000000000000 ns is beyond" in err[0], err
+
+
 @pytest.mark.parametrize("header", [True, False])
 def test_a_euroc_groundtruth_row_cut_mid_line_is_refused(tmp_path, original, capsys, header):
     """A ground-truth row of 10 of the header's 17 cells (a copy or a recording that stopped

@@ -592,7 +592,7 @@ def test_an_output_path_under_a_file_says_not_a_directory(small_seq, tmp_path, c
         capsys.readouterr()
         out = afile / "sub" / "x.png" if command == "plot" else afile / "x.json"
         assert floorvo_main([command, str(run), "--gt", str(small_seq), "-o", str(out)]) == 1
-        assert f"{out}: Not a directory (errno 20)" in _one_line(capsys, "floorvo")
+        assert f"{out}: not a directory ({afile} is a file)" in _one_line(capsys, "floorvo")  # before any work
     assert floorsim_main(["export", str(small_seq), "--format", "euroc", "-o", str(afile / "e")]) == 1
     assert f"{afile / 'e'}: not a directory ({afile} is a file)" in _one_line(capsys, "floorsim")
     assert floorvo_main(["run", str(afile), "-e", "phase-corr", "-o", str(tmp_path / "r")]) == 1

@@ -172,6 +172,32 @@ def test_a_run_on_the_calibrations_own_sequence_or_with_another_config_says_so(t
             '"estimator": "akaze-guided"}',
             "fitted on a run of 'akaze-guided', not 'phase-corr'; fit one per estimator",
         ),
+        # every other field held to its type and rule: a sequence that is no text was a traceback
+        # where the run compared it with its own; a negative step count or a NaN travel was taken
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "sequence": 5}',
+            "scale.json: sequence = 5: must be a string",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "run": 7}',
+            "scale.json: run = 7: must be a string",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "steps": -1}',
+            "scale.json: steps = -1: must be >= 0",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "travel_x_mm": NaN}',
+            "scale.json: travel_x_mm = nan mm: must be a finite number",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 1, "scale_x": 1.0, "scale_y": 1.0, "observed_x": "yes"}',
+            "scale.json: observed_x = 'yes': must be true or false",
+        ),
+        (
+            '{"kind": "floorvo scale calibration", "version": 3, "scale_x": 1.0, "scale_y": 1.0}',
+            "scale.json: scale_yaw is missing",
+        ),
     ],
 )
 def test_bad_calibration_file_is_one_line_error(tmp_path, capsys, content, message):

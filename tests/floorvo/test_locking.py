@@ -151,6 +151,45 @@ def test_a_run_or_map_into_a_sequence_folder_is_refused(tmp_path, capsys):
         pass
 
 
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_outputs_over_what_a_command_reads_are_refused(tmp_path, capsys):
+    """Each wrote with exit code 0 into what it read or another command's folder: a run among the
+    frames (-o SEQ/cam0), a map among a run's files, a localisation among a map's, a score over
+    the run's trajectory, a calibration over sequence.json, a plot over a frame, and an import
+    of SEQ/cam0 into SEQ with --overwrite cleared the frames it was to read."""
+    cam = CameraModel.from_sensor().scaled(0.25)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(12.0, 4.0), seed=0)
+    run, mp = tmp_path / "run", tmp_path / "map"
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    assert floorvo_main(["map", str(seq), "-o", str(mp)]) == 0
+    before = {d: _tree(d) for d in (seq, run, mp)}
+    frame = seq / "cam0" / "000001.png"
+    for argv, words in (
+        (["run", str(seq), "-e", "phase-corr", "-o", str(seq / "cam0")], f"inside the sequence folder {seq}"),
+        (["map", str(seq), "-o", str(run)], "is a run folder (result.json); a map folder goes in a folder of its own"),
+        (["localize", str(seq), "--map", str(mp), "-o", str(mp)], "is a map folder (map.json); a run folder goes"),
+        (["run", str(seq), "-e", "phase-corr", "-o", str(mp)], "is a map folder (map.json); a run folder goes"),
+        (["score", str(run), "--gt", str(seq), "-o", str(run / "trajectory.txt")], "this command reads that file"),
+        (["score", str(run), "--gt", str(seq / "groundtruth.txt"), "-o", str(seq / "groundtruth.txt")], "reads"),
+        (["calibrate", str(run), "--gt", str(seq), "-o", str(seq / "sequence.json")], "inside the sequence folder"),
+        (["calibrate", str(run), "--gt", str(seq), "-o", str(run / "result.json")], "this command reads that file"),
+        (["plot", str(run), "--gt", str(seq), "-o", str(frame)], f"inside the sequence folder {seq}"),
+        (
+            ["import", str(seq / "cam0"), "-o", str(seq), "--overwrite", "--fps", "30", "--height-mm", "100"]
+            + ["--fx", "200", "--fy", "200", "--cx", "80", "--cy", "60"],
+            f"lies inside the output folder {seq}, which the import writes over",
+        ),
+    ):
+        capsys.readouterr()
+        assert floorvo_main(argv) == 1, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err, (argv, err)
+    assert {d: _tree(d) for d in (seq, run, mp)} == before
+
+
 # ----------------------------------------------------------------------------- every floorvo writer
 def _writers(seq: Path, out: Path) -> dict:
     """Each writer of a folder at ``out`` (a callable; the CLIs return their exit code); the

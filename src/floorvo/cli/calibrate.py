@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument
+from floorvo.cli.common import add_output_argument, checked_output_beside_runs
 
 __all__ = ["add_parser", "run"]
 
@@ -57,6 +57,7 @@ def run(args) -> int:
     gts = args.gt * len(args.run_dirs) if len(args.gt) == 1 else args.gt
     if len(gts) != len(args.run_dirs):
         raise ConfigError(f"--gt: given {len(args.gt)} times for {len(args.run_dirs)} runs: give one, or one per run")
+    checked_output_beside_runs(args.output, args.run_dirs, gts)
     cal = calibrate_runs(
         list(zip(args.run_dirs, gts)), args.max_diff, args.min_travel_mm, args.min_turn_deg, not args.no_orientation
     )

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 from floorvo.config import parse_set_args  # the one --set parser, re-exported for the command modules
 from floorvo.errors import ConfigError
+from floorvo.io import checked_output_file
+from floorvo.runfolder import RESULT, TIMING, TRAJECTORY
 
 __all__ = [
     "add_output_argument",
@@ -37,6 +41,17 @@ def parse_name_values(items: list[str] | None, flag: str, form: str) -> dict[str
             )
         out[name.strip()] = value.strip()
     return out
+
+
+def checked_output_beside_runs(output: Path, runs: Iterable[Path], ground_truths: Iterable[Path | None] = ()) -> Path:
+    """The output file ``output`` of a command that reads the run folders ``runs`` and the ground
+    truth ``ground_truths`` (sequence folders or TUM files), refused in one line
+    (:class:`~floorvo.errors.ConfigError`) where it would overwrite what the command reads: a
+    run's ``trajectory.txt``, ``timing.csv`` or ``result.json``, a ground-truth file, or anything
+    inside a sequence folder (:func:`floorvo.io.checked_output_file`)."""
+    reads = [Path(r) / f for r in runs for f in (TRAJECTORY, TIMING, RESULT)]
+    reads += [g for g in ground_truths if g is not None and not Path(g).is_dir()]
+    return checked_output_file(output, ConfigError, reads=reads)
 
 
 def add_output_argument(parser: argparse.ArgumentParser, help: str, **kwargs: Any) -> argparse.Action:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument
+from floorvo.cli.common import add_output_argument, checked_output_beside_runs
 
 
 def add_parser(sub) -> None:
@@ -22,6 +22,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from floorvo.plots import plot_runs
 
+    checked_output_beside_runs(args.output, args.runs, [args.gt])
     out = plot_runs(args.runs, args.gt, args.output, title=args.title)
     print(f"plot written to {out}")
     return 0

@@ -10,7 +10,7 @@ import contextlib
 import math
 from pathlib import Path
 
-from floorvo.cli.common import add_output_argument
+from floorvo.cli.common import add_output_argument, checked_output_beside_runs
 from floorvo.locking import lock_folder
 from floorvo.scoring import Score, score_run, write_score
 
@@ -99,6 +99,8 @@ def format_score_table(score: Score) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.output is not None:
+        checked_output_beside_runs(args.output, [args.run_dir], [args.gt])
     out = args.output or (args.run_dir / "score.json")
     # score.json written into the run folder: its writer locks it (a run still being written there is refused)
     locked = args.output is None and Path(args.run_dir).is_dir()

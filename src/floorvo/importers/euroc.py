@@ -79,9 +79,15 @@ def _camera_stream(cam_dir: Path) -> tuple[np.ndarray, list[Path]]:
         if len(parts) < 2:
             raise SequenceError(f"{csv_path}:{lineno}: a row is 'timestamp_ns,filename'")
         try:
-            stamps.append(int(parts[0]))
+            stamp = int(parts[0])
         except ValueError:
             raise SequenceError(f"{csv_path}:{lineno}: {shown(parts[0])} is not a timestamp in ns") from None
+        if not -(2**63) <= stamp < 2**63:  # 9.2e9 s, inside the 1e10 s of floorvo.tum.MAX_TIME_S: this bound is first
+            raise SequenceError(
+                f"{csv_path}:{lineno}: timestamp {stamp} ns is beyond what a 64-bit count of ns holds "
+                "(9.2e18 ns, 292 years)"
+            )
+        stamps.append(stamp)
         files.append(cam_dir / "data" / parts[1])
     if not stamps:
         raise SequenceError(f"{csv_path}: lists no frames")

@@ -288,6 +288,12 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     """
     opts = options or ImportOptions()
     what = str(rec.source)
+    src_real, out_real = Path(os.path.realpath(rec.source)), Path(os.path.realpath(out))
+    if src_real == out_real or out_real in src_real.parents:
+        # `floorvo import SEQ/cam0 -o SEQ --overwrite` cleared the frames it was to read, then failed
+        raise ConfigError(
+            f"{what}: lies inside the output folder {out}, which the import writes over; give -o another folder"
+        )
     if opts.intrinsics is not None and opts.calibration is not None:
         raise ConfigError("camera: give --camera FILE or --fx --fy --cx --cy, not both")
     if opts.distortion is not None and opts.intrinsics is None:
