@@ -403,6 +403,8 @@ def build(
     (``unknown key (known: a, b)``); ``listed_by``: the command that lists every key, named
     there instead of them (:func:`unknown_key_message`).
     """
+    if data is not None and not isinstance(data, Mapping):  # trajectory.disturbance = 1 was a traceback
+        raise ConfigError(f"{prefix or cls.__name__} = {shown(data)}: must be a table")
     data = dict(data or {})
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}

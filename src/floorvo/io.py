@@ -668,7 +668,10 @@ def checked_output_path(path: str | os.PathLike, error: type[Exception] = Sequen
     if str(raw).strip() == "":
         raise error("output folder '': the path is empty; name a folder")
     p = Path(raw)
-    resolved = p.resolve()
+    try:
+        resolved = p.resolve()
+    except (RuntimeError, OSError) as exc:  # a loop of symbolic links (RuntimeError before Python 3.13)
+        raise error(f"{raw}: cannot be resolved ({shorten(str(exc))}); name a folder") from None
     if resolved == Path(resolved.anchor):
         raise error(f"{raw}: is the root of a file system; name a folder below it")
     _refuse_file_in_the_way(p, error)

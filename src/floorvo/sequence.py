@@ -305,7 +305,22 @@ class SequenceWriter:
         renders the frame again. Nor do the files of a sequence a deferred writer (``defer``) is
         about to overwrite.
         """
-        return not self._replace_old and all(_decodes(p, self._expected_dtype(p)) for p in self.required_paths(index))
+        shape = self._frame_shape()
+        return not self._replace_old and all(
+            _decodes(p, self._expected_dtype(p), shape) for p in self.required_paths(index)
+        )
+
+    def _frame_shape(self) -> tuple[int, int] | None:
+        """(height, width) px of every frame file (cam0, cam1, depth) as ``sequence.json`` states
+        the camera, or None where it states none."""
+        cam = self.meta.get("camera")
+        if (
+            not isinstance(cam, dict)
+            or not isinstance(cam.get("width_px"), int)
+            or not isinstance(cam.get("height_px"), int)
+        ):
+            return None
+        return int(cam["height_px"]), int(cam["width_px"])
 
     def _expected_dtype(self, path: Path) -> np.dtype | None:
         """What a PNG frame file of this sequence must hold (:func:`_png_frame_dtype`; None for ``.npy``)."""
@@ -322,7 +337,7 @@ class SequenceWriter:
             if not self.has_frame(i):
                 missing.append(i)
                 for p in self.required_paths(i):
-                    if p.is_file() and not _decodes(p, self._expected_dtype(p)):
+                    if p.is_file() and not _decodes(p, self._expected_dtype(p), self._frame_shape()):
                         log.warning("%s: damaged (does not decode as this sequence's frame); writing it again", p)
         return missing
 
@@ -448,18 +463,19 @@ def _read_own_meta(meta_path: Path) -> dict:
     return old
 
 
-def _decodes(path: Path, dtype: np.dtype | None = None) -> bool:
+def _decodes(path: Path, dtype: np.dtype | None = None, shape: tuple[int, int] | None = None) -> bool:
     """True if ``path`` is a file that reads as a frame (PNG, or ``.npy`` for depth): a mono
-    image, of ``dtype`` where given (a resumed render took an 8-bit PNG where its 16-bit depth
-    map should be as present, and a colour one as a frame)."""
+    image, of ``dtype`` and ``shape`` (height, width) where given (a resumed render took an 8-bit
+    PNG where its 16-bit depth map should be as present, a colour one as a frame, and a frame of
+    another size, which the finished sequence's readers then refused)."""
     if not path.is_file():
         return False
     if path.suffix == ".npy":
         try:
-            read_npy(path, _depth_dtype_problem)  # the header first: a stated shape of terabytes is not loaded
+            arr = read_npy(path, _depth_dtype_problem)  # the header first: a stated shape of terabytes is not loaded
         except SequenceError:
             return False
-        return True
+        return shape is None or arr.shape == shape
     try:
         with open(path, "rb") as fh:
             fh.seek(-12, os.SEEK_END)
@@ -468,7 +484,7 @@ def _decodes(path: Path, dtype: np.dtype | None = None) -> bool:
         img = read_png(path)
     except (OSError, SequenceError):
         return False
-    return img.ndim == 2 and (dtype is None or img.dtype == dtype)
+    return img.ndim == 2 and (dtype is None or img.dtype == dtype) and (shape is None or img.shape == shape)
 
 
 def _png_frame_dtype(meta: dict, folder: str) -> np.dtype | None:

@@ -315,6 +315,45 @@ def test_a_sweep_refuses_what_the_bench_refuses_before_any_job(tmp_path, capsys)
         assert not out.exists() and not D.RENDER_CALLS
 
 
+def test_a_study_or_bench_refuses_these_before_it_renders(tmp_path, capsys):
+    """Each was found out after the renders or not at all (the real scene loader and runner)."""
+    from floorsim.cli import main
+
+    demo = Path(__file__).resolve().parents[2] / "scenes" / "demo.toml"
+    at_nan = tmp_path / "at_nan.toml"  # reported as "operating point nan", a search's margins from it
+    at_nan.write_text(
+        f'base = "{demo}"\nestimators = ["phase-corr"]\n[vary]\n"lights.height_mm" = [3.0]\n'
+        '[operating_point]\n"lights.height_mm" = nan\n'
+    )
+    out = tmp_path / "out"
+    for argv, words in (
+        (["sweep", str(at_nan)], "at_nan.toml: operating_point.lights.height_mm = nan: demo.toml: lights.height_mm"),
+        # a module:Class that does not import: a failed row after the renders, exit 0
+        (["bench", str(demo), "--estimators", "no_such_module_for_tests:X"], "cannot be imported: ModuleNotFoundError"),
+        # 0: empty paper-000 tables, exit 0; -1: a traceback after the renders
+        (["bench", str(demo), "--paper000-runs", "0"], "--paper000-runs 0: must be >= 1"),
+        # a disturbance that is no table: a traceback from the trajectory's builder
+        (["bench", str(demo), "--set", "trajectory.disturbance=1"], "trajectory.disturbance = 1: must be a table"),
+        (["render", str(demo), "--set", "trajectory.disturbance=[1]"], "trajectory.disturbance = [1]: must be a table"),
+    ):
+        assert main([*argv, "-o", str(out)]) == 1, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err, err
+        assert not out.exists()
+
+
+@pytest.mark.parametrize("row", ["garbage", ",,,,", "s,e,a,7,0,2,0.25,extra"])
+def test_a_results_csv_row_of_another_width_is_one_line(tmp_path, row):
+    """A row cut short or a stray line in a sweep's results.csv (read back when it resumes) was a
+    TypeError from the number parser (DictReader fills the missing cells with None)."""
+    from floorvo.errors import SequenceError
+
+    path = tmp_path / "results.csv"
+    path.write_text("scene,estimator,job,seed,repetition,lights.count,end_drift_pct\ns,e,a,7,0,2,0.25\n" + row + "\n")
+    with pytest.raises(SequenceError, match=r"results\.csv:3: a row of \d+ cells under a header of 7"):
+        read_results_csv(path)
+
+
 def test_results_csv_read_and_written_again_keeps_its_bytes(tmp_path):
     """A resumed sweep reads its results.csv and writes the earlier rows back: every number came
     back a float, so an integer column (the seed, an integer [vary] key) went from 7 to 7.0."""

@@ -880,3 +880,13 @@ def test_a_huge_number_in_an_error_message_is_shown_short(tmp_path, small_seq, c
     assert "camera.pixel_pitch_um = 1e+300 um: must be <= 100000.0 um" in lines[-1]
     for line in lines:
         assert len(line) < 200 and ("e+308" in line or "e+300" in line), line
+
+
+def test_an_output_path_in_a_loop_of_symbolic_links_is_one_line(small_seq, tmp_path, capsys):
+    """-o LINK where LINK -> l2 -> LINK was a RuntimeError traceback ('Symlink loop')."""
+    (tmp_path / "l1").symlink_to(tmp_path / "l2")
+    (tmp_path / "l2").symlink_to(tmp_path / "l1")
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(tmp_path / "l1")]) == 1
+    assert f"{tmp_path / 'l1'}: cannot be resolved (" in _one_line(capsys, "floorvo")
+    assert floorsim_main(["export", str(small_seq), "--format", "euroc", "-o", str(tmp_path / "l1")]) == 1
+    assert "cannot be resolved" in _one_line(capsys, "floorsim")

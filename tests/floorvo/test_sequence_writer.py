@@ -148,6 +148,14 @@ def test_resume_writes_again_a_frame_of_another_type(tmp_path):
     cv2.imwrite(str(root / "cam0" / "000002.png"), np.dstack([_frame(2)] * 3))  # colour
     w2 = SequenceWriter(root, _meta(3, depth={"format": "png16"}, bit_depth=8))
     assert w2.resumed and w2.missing_frames() == [1, 2]
+    # a mono frame of another size (a frame of a smaller render copied in: the run refused it after)
+    for i in (1, 2):
+        w2.write_frame(i, _frame(i))
+        w2.write_depth(i, np.full((30, 40), 100.0 + i))
+    cv2.imwrite(str(root / "cam0" / "000000.png"), _frame(0)[:25, :32])
+    cv2.imwrite(str(root / "depth" / "000002.png"), (np.full((25, 32), 10000)).astype(np.uint16))
+    w3 = SequenceWriter(root, _meta(3, depth={"format": "png16"}, bit_depth=8))
+    assert w3.resumed and w3.missing_frames() == [0, 2]
 
 
 def test_resume_removes_stale_temporaries(tmp_path):

@@ -514,6 +514,10 @@ def run_bench(
     runner = (runner or DEFAULT_RUNNER).with_externals(externals)
     if not 1 <= repetitions <= MAX_REPETITIONS:
         raise ConfigError(f"--repeat {repetitions}: must be from 1 to {MAX_REPETITIONS} (renders per scene)")
+    if paper000_runs is not None and paper000_runs < 1:  # -1 failed after the renders, 0 wrote empty tables
+        raise ConfigError(
+            f"--paper000-runs {paper000_runs}: must be >= 1 (runs per model of the paper000-strip protocol)"
+        )
     if frames is not None and frames < 2:  # one frame: no step to estimate, every row 'ok' and empty
         raise ConfigError(f"--frames {frames}: a bench needs at least 2 frames (a step to estimate)")
     if not scene_paths:

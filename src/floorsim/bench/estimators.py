@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from floorvo.calibration import ScaleCalibration
-from floorvo.errors import ConfigError, FloorbenchError, shown
+from floorvo.errors import ConfigError, EstimatorLoadError, FloorbenchError, shown
 from floorvo.estimators import EstimatorSource, estimator_source, get_estimator, list_estimators, make_config
 from floorvo.external import ExternalEstimator, run_external
 from floorvo.memory import PeakRss
@@ -184,6 +184,11 @@ def check_estimator_choice(
         for n in estimators:
             if not runner.known(n):
                 raise ConfigError(f"{names_label}: {shown(n)}: unknown estimator (known: {known})")
+            if n not in runner.names():  # a module:Class reference: imported here, not found out after the renders
+                try:
+                    get_estimator(n)
+                except EstimatorLoadError as exc:
+                    raise ConfigError(f"{names_label}: {exc}") from None
         twice = sorted({n for n in estimators if list(estimators).count(n) > 1})
         if twice:  # it ran twice into one run folder, two rows of one run
             raise ConfigError(f"{names_label}: {', '.join(map(repr, twice))} given twice; give each estimator once")

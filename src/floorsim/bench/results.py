@@ -106,12 +106,17 @@ def read_results_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
     if not path.is_file():
         return []
     text = read_text(path, SequenceError, what="a CSV text file")
+    reader = csv.DictReader(io.StringIO(text, newline=""))
     try:
-        rows = list(csv.DictReader(io.StringIO(text, newline="")))
+        rows = [(reader.line_num, r) for r in reader]
     except csv.Error as exc:  # a NUL byte, a field beyond the csv module's limit
         raise SequenceError(f"{path}: not a readable CSV file ({shorten(str(exc))})") from None
+    width = len(reader.fieldnames or ())
     out = []
-    for lineno, r in enumerate(rows, 2):
+    for lineno, r in rows:
+        if None in r or None in r.values():  # cells beyond the header's, or fewer (a row cut short, a stray line)
+            cells = width + len(r.get(None) or ()) - sum(v is None for k, v in r.items() if k is not None)
+            raise SequenceError(f"{path}:{lineno}: a row of {cells} cells under a header of {width}")
         d: dict[str, Any] = {}
         for k, v in r.items():
             if k in TEXT_COLUMNS:

@@ -419,9 +419,13 @@ def _check_study(spec: SweepSpec, load_scene: SceneLoader, runner: EstimatorRunn
     tries = [(k, v) for k, vs in spec.vary.items() for v in vs]
     if spec.search is not None:
         tries += [(spec.search.key, spec.search.low), (spec.search.key, spec.search.high)]
+    # the operating point's values are held to the scene's rules as the grid's are (a NaN or a
+    # text was reported as "operating point nan", and a search's margins measured from it)
+    tries += [(f"operating_point.{k}", v) for k, v in spec.operating_point.items()]
     for k, v in tries:
+        key = k.removeprefix("operating_point.")
         try:
-            load_scene(spec.base, {**spec.fixed, k: as_override(v)})
+            load_scene(spec.base, {**spec.fixed, key: as_override(v)})
         except ConfigError as exc:
             raise ConfigError(f"{where}: {k} = {as_override(v)}: {exc}") from None
     if spec.search is not None:
