@@ -43,7 +43,7 @@ from floorvo.metrics import (
     wrong_steps,
 )
 from floorvo.runfolder import TIMING, TRAJECTORY, RunFolder, check_run_of_sequence
-from floorvo.sequence import Sequence, read_groundtruth
+from floorvo.sequence import Sequence, no_groundtruth_reason, read_groundtruth
 from floorvo.tum import read_tum
 
 log = logging.getLogger(__name__)
@@ -251,7 +251,7 @@ def read_run_and_groundtruth(run_dir: str | os.PathLike, seq_dir: str | os.PathL
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
     gt_path = seq_dir / "groundtruth.txt" if seq_dir.is_dir() else seq_dir
     if not gt_path.is_file():
-        raise SequenceError(f"{gt_path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+        raise SequenceError(no_groundtruth_reason(gt_path, purpose))
     run = RunFolder.read(run_dir)
     check_run_of_sequence(run_dir, run.result, seq_dir)
     check_poses_at_their_frames(run_dir, run, seq_dir)
@@ -323,7 +323,7 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     it is held to the camera's step.
     """
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").is_file() and (seq_dir / "sequence.json").is_file():
+    if seq_dir.is_dir() and not (seq_dir / "groundtruth.txt").exists() and (seq_dir / "sequence.json").is_file():
         check_run_of_sequence(run_dir, RunFolder.read(run_dir).result, seq_dir)
         score = _score_without_groundtruth(run_dir, seq_dir, NO_GROUND_TRUTH)
         log.info("%s: %s; scored tracking and timing only", seq_dir, NO_GROUND_TRUTH)

@@ -105,6 +105,7 @@ __all__ = [
     "check_groundtruth_times",
     "read_groundtruth",
     "read_height_csv",
+    "no_groundtruth_reason",
     "read_attitude_csv",
     "read_frame_csv",
     "time_text",
@@ -806,7 +807,10 @@ class Sequence:
         if not self.has_depth:
             raise SequenceError(f"{self.root}: sequence has no depth (render it with depth enabled)")
         npy = self.root / "depth" / frame_name(index, "npy")
-        if npy.is_file():
+        depth_meta = self.meta.get("depth")
+        fmt = depth_meta.get("format") if isinstance(depth_meta, dict) else None
+        # the format sequence.json states (a missing .npy frame was named as a missing .png), else the file there
+        if fmt == "npy_float32_mm" or (fmt is None and npy.is_file()):
             path = npy
             hw = (self.camera.height_px, self.camera.width_px)
 
@@ -868,6 +872,8 @@ class Sequence:
         """
         p = self.root / "groundtruth.txt"
         if not p.is_file():
+            if p.exists():  # a folder by that name was read as no ground truth: a score without it, exit 0
+                raise SequenceError(no_groundtruth_reason(p, "score"))
             return None
         ts_gt, T = read_tum(p)
         if len(ts_gt) != self.frame_count and self.simulated:
@@ -912,6 +918,14 @@ class Sequence:
             raise SequenceError(f"{self.root}: frame index {index} out of range 0..{self.frame_count - 1}")
 
 
+def no_groundtruth_reason(path: Path, purpose: str) -> str:
+    """Why ``path`` (not a file) gives no ground truth to ``purpose`` against, in one line: it is
+    missing, or something else by that name (a folder was read as no ground truth)."""
+    if path.exists():
+        return f"{path}: is not a file (the ground truth to {purpose} against, TUM text)"
+    return f"{path}: no ground truth to {purpose} against (groundtruth.txt is missing)"
+
+
 def read_groundtruth(source: str | os.PathLike, purpose: str) -> tuple[Path, tuple[np.ndarray, np.ndarray]]:
     """``(path, (timestamps_s (N,), T_world_cam (N, 4, 4) mm))`` of the ground truth to ``purpose``
     ("score", "calibrate", "plot") a run against: ``source`` is a sequence folder (read through
@@ -920,7 +934,7 @@ def read_groundtruth(source: str | os.PathLike, purpose: str) -> tuple[Path, tup
     source = Path(source)
     path = source / "groundtruth.txt" if source.is_dir() else source
     if not path.is_file():
-        raise SequenceError(f"{path}: no ground truth to {purpose} against (groundtruth.txt is missing)")
+        raise SequenceError(no_groundtruth_reason(path, purpose))
     if source.is_dir() and (source / "sequence.json").is_file():
         gt = Sequence.open(source).groundtruth()
         if gt is not None:
@@ -984,7 +998,8 @@ _CELLS = {2: "two", 3: "three"}
 
 def read_frame_csv(path: str | os.PathLike, columns: tuple[str, ...]) -> np.ndarray:
     """The (N, len(columns)) values of a per-frame CSV: header ``frame,COLUMN,...``, then
-    ``i,value,...`` for frames 0, 1, ... in order; an empty value is NaN; ``#`` comments and
+    ``i,value,...`` for frames 0, 1, ... in order; an empty value is NaN (no reading), and so is
+    ``nan`` (numpy's ``savetxt`` writes a missing reading so; ``inf`` is refused by the checks); ``#`` comments and
     blank lines skipped. A malformed line is a one-line SequenceError naming the file and the
     line. The reader of ``height.csv`` and ``attitude.csv``; what the values may be is checked
     by :func:`check_heights` and :func:`check_attitude`."""

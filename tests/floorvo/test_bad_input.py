@@ -890,3 +890,29 @@ def test_an_output_path_in_a_loop_of_symbolic_links_is_one_line(small_seq, tmp_p
     assert f"{tmp_path / 'l1'}: cannot be resolved (" in _one_line(capsys, "floorvo")
     assert floorsim_main(["export", str(small_seq), "--format", "euroc", "-o", str(tmp_path / "l1")]) == 1
     assert "cannot be resolved" in _one_line(capsys, "floorsim")
+
+
+def test_a_missing_float_depth_map_is_named_as_the_format_says(tmp_path, capsys):
+    """With depth.format = npy_float32_mm and depth/000001.npy gone, the error named a .png."""
+    cam = CameraModel.from_sensor().scaled(0.25)
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, line_poses(8.0, 4.0), depth=True, seed=0)
+    (seq / "depth" / "000001.npy").unlink()
+    assert floorvo_main(["run", str(seq), "-e", "orb-icp", "-o", str(tmp_path / "run")]) == 1
+    assert f"{seq / 'depth' / '000001.npy'}: " in _one_line(capsys, "floorvo")
+
+
+def test_a_ground_truth_that_is_a_folder_is_not_scored_as_none(small_seq, tmp_path, capsys):
+    """A folder named groundtruth.txt was read as no ground truth: a score of tracking alone, exit 0."""
+    import shutil
+
+    seq = tmp_path / "seq"
+    shutil.copytree(small_seq, seq)
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    (seq / "groundtruth.txt").unlink()
+    (seq / "groundtruth.txt").mkdir()
+    capsys.readouterr()
+    assert floorvo_main(["score", str(run), "--gt", str(seq)]) == 1
+    assert f"{seq / 'groundtruth.txt'}: is not a file (the ground truth to score against" in _one_line(
+        capsys, "floorvo"
+    )

@@ -249,6 +249,17 @@ def test_video_imports_with_its_frame_times_and_runs(tmp_path, synth):
     np.testing.assert_allclose(t_run, np.arange(7) / 10.0, atol=1e-6)
     moved = np.linalg.norm(Te[-1][:3, 3] - Te[0][:3, 3])
     assert moved == pytest.approx(np.linalg.norm(T[-1][:3, 3] - T[0][:3, 3]), rel=0.005)
+    # with frame times given at 2 Hz, the nominal rate is theirs, not the container's 10 Hz
+    res = import_sequence(
+        path,
+        tmp_path / "s2",
+        options=ImportOptions(
+            intrinsics=(CAM.fx_px, CAM.fy_px, CAM.cx_px, CAM.cy_px), height_mm=100.0, timestamps_s=np.arange(7) / 2.0
+        ),
+    )
+    s2 = Sequence.open(tmp_path / "s2")
+    assert s2.fps == 2.0
+    np.testing.assert_allclose(s2.timestamps_s, np.arange(7) / 2.0, atol=1e-9)
 
 
 def test_a_truncated_video_is_one_line_not_a_shorter_sequence(tmp_path, synth, capsys):
@@ -599,9 +610,14 @@ def test_frames_closer_than_a_nanosecond_are_refused_before_writing(tmp_path, sy
     src.mkdir()
     for i, img in enumerate(frames[:3]):
         cv2.imwrite(str(src / f"{i}.png"), img)
-    for fps in ("1e12", "1e308"):
+    for fps in ("1e12", "1e308", "0.001"):  # 0.001: passed here, then refused by sequence.json's rule in its words
         err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", fps])
-        assert f"--fps {float(fps)}: must be a finite number > 0 and at most 1e+06 Hz" in err
+        assert f"--fps {float(fps)}: must be a finite number from 0.01 to 1e+06 Hz" in err
+    (tmp_path / "slow.txt").write_text("0\n1000\n2000\n")  # 1000 s apart: the same, from the times
+    err = _one_line_error(
+        capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--timestamps", str(tmp_path / "slow.txt")]
+    )
+    assert "the frames' times (timestamps file) are 1000 s apart (median), a rate under the 0.01 Hz" in err
     (tmp_path / "t.txt").write_text("0.0\n0.0000000001\n0.1\n")
     err = _one_line_error(
         capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--timestamps", str(tmp_path / "t.txt")]
@@ -667,7 +683,7 @@ def test_bad_inputs_give_one_line_errors(tmp_path, synth, capsys):
     for height in ("nan", "1e9", "1e-9", "0.1"):  # 0.1: 100 mm given in metres
         err = _one_line_error(capsys, base + FLAGS + ["--fps", "10", "--height-mm", height])
         assert f"--height-mm {float(height)} mm: must be a finite number from 1 to 20000 mm" in err
-    assert "--fps -3.0: must be a finite number > 0 and at most 1e+06 Hz" in _one_line_error(
+    assert "--fps -3.0: must be a finite number from 0.01 to 1e+06 Hz" in _one_line_error(
         capsys, base + FLAGS + ["--fps", "-3"]
     )
     assert "--fx, --cy missing" in _one_line_error(capsys, base + ["--fy", "200", "--cx", "80", "--fps", "10"])

@@ -35,7 +35,7 @@ from floorvo.sequence import (
     check_heights,
     check_timestamps,
 )
-from floorvo.sequence_meta import MAX_FPS_HZ
+from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
 
 __all__ = [
     "FrameImages",
@@ -243,13 +243,13 @@ def median_rate_hz(timestamps_s: np.ndarray) -> float | None:
 
 
 def _fps(value: float | None, what: str) -> float | None:
-    """A frame rate given by the user (``--fps``): finite, > 0 and at most :data:`MAX_FPS_HZ`, as
+    """A frame rate given by the user (``--fps``): finite, from :data:`MIN_FPS_HZ` to :data:`MAX_FPS_HZ`, as
     ``sequence.json``'s ``fps`` (1e308 gave every frame the time 0 and a 'must increase' error)."""
     if value is None:
         return None
     v = float(value)
-    if not np.isfinite(v) or v <= 0 or v > MAX_FPS_HZ:
-        raise ConfigError(f"{what} {shown(value)}: must be a finite number > 0 and at most {MAX_FPS_HZ:g} Hz")
+    if not np.isfinite(v) or v < MIN_FPS_HZ or v > MAX_FPS_HZ:  # 0.001 passed here, then sequence.json refused it
+        raise ConfigError(f"{what} {shown(value)}: must be a finite number from {MIN_FPS_HZ:g} to {MAX_FPS_HZ:g} Hz")
     return v
 
 
@@ -326,9 +326,17 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             f"--fps {shown_number(fps_given)}: the frames have times (from the {time_source}); --fps is for a source "
             "without them, or a video whose times do not increase: leave it out"
         )
-    fps = fps_given or rec.fps or median_rate_hz(ts) or 1.0
+    # the nominal rate: given, else that of the times the user gave (a video's container said 30 Hz
+    # beside --timestamps at 1 Hz), else the source's, else its frames' times'
+    given_times = median_rate_hz(ts) if opts.timestamps_s is not None else None
+    fps = fps_given or given_times or rec.fps or median_rate_hz(ts) or 1.0
     if not np.isfinite(fps) or fps <= 0:
         fps = median_rate_hz(ts) or 1.0
+    if fps < MIN_FPS_HZ:  # refused by sequence.json's rule, in the words of a file not yet written
+        raise ConfigError(
+            f"{what}: the frames' times ({time_source}) are {1.0 / fps:g} s apart (median), a rate under the "
+            f"{MIN_FPS_HZ:g} Hz a sequence's fps may be"
+        )
     stereo = rec.has_right and cal.cam1 is not None and cal.T_cam0_cam1 is not None
     if rec.has_right and not stereo:  # a warning, and the stereo recording came out mono with exit code 0
         raise ConfigError(
