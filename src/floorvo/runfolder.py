@@ -233,6 +233,9 @@ class RunFolder:
         result = read_json(rp, SequenceError) if rp.is_file() else {}
         if not isinstance(result, dict):
             raise SequenceError(f"{rp}: must hold a JSON object (the run's summary), got {type(result).__name__}")
+        for key in ("estimator", "sequence", "run_dir") if agree else ():  # a program's own result.json is its own
+            if key in result and not isinstance(result[key], str):  # named in scores and calibrations (5 was)
+                raise SequenceError(f"{rp}: {key} = {shown(result[key])}: must be a string")
         run = cls(ts, T, timing, result)
         problem = _disagreement(run_dir, run) if agree else ""
         if problem:

@@ -335,6 +335,11 @@ def test_a_study_or_bench_refuses_these_before_it_renders(tmp_path, capsys):
         # a disturbance that is no table: a traceback from the trajectory's builder
         (["bench", str(demo), "--set", "trajectory.disturbance=1"], "trajectory.disturbance = 1: must be a table"),
         (["render", str(demo), "--set", "trajectory.disturbance=[1]"], "trajectory.disturbance = [1]: must be a table"),
+        # --jobs 1 is --jobs's default: argparse took it as not given beside --workers
+        (
+            ["sweep", str(at_nan), "--jobs", "1", "--workers", "1"],
+            "argument --workers: not allowed with argument --jobs",
+        ),
     ):
         assert main([*argv, "-o", str(out)]) == 1, argv
         err = capsys.readouterr().err

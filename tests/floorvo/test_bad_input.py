@@ -916,3 +916,17 @@ def test_a_ground_truth_that_is_a_folder_is_not_scored_as_none(small_seq, tmp_pa
     assert f"{seq / 'groundtruth.txt'}: is not a file (the ground truth to score against" in _one_line(
         capsys, "floorvo"
     )
+
+
+@pytest.mark.parametrize("key, value", [("estimator", 5), ("estimator", None), ("sequence", [1])])
+def test_a_run_summary_naming_things_with_no_text_is_refused(small_seq, tmp_path, capsys, key, value):
+    """result.json's estimator 5 (or null) was printed in the score and written into a calibration."""
+    import json
+
+    run = tmp_path / "run"
+    assert floorvo_main(["run", str(small_seq), "-e", "phase-corr", "-o", str(run)]) == 0
+    result = json.loads((run / "result.json").read_text())
+    (run / "result.json").write_text(json.dumps({**result, key: value}))
+    capsys.readouterr()
+    assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
+    assert f"result.json: {key} = " in _one_line(capsys, "floorvo")

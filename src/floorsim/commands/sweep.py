@@ -38,7 +38,7 @@ def add_parser(subparsers) -> None:
     where.add_argument(
         "--jobs",
         type=int,
-        default=1,
+        default=None,  # not 1: argparse takes an explicit value equal to the default as not given (--jobs 1 --workers 1)
         metavar="N",
         help="local worker processes when not on Dask (default 1, <= 4 per CPU)",
     )
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
             args.output,
             scheduler=args.scheduler,
             workers=args.workers,
-            jobs=args.jobs,
+            jobs=1 if args.jobs is None else args.jobs,
             cache_dir=args.cache,
             on_job=on_job,
             externals=externals_from_args(args),
