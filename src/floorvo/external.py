@@ -80,7 +80,16 @@ from floorvo.io import atomic_write_text, ensure_writable_dir, read_toml, strict
 from floorvo.locking import locks_folder
 from floorvo.memory import PeakRss
 from floorvo.metrics import associate
-from floorvo.runfolder import SEQUENCE_SHA256, RunFolder, remove_derived_files, sequence_sha256
+from floorvo.runfolder import (
+    PROGRAM_CAMERA,
+    PROGRAM_DIR,
+    PROGRAM_STDERR,
+    PROGRAM_STDOUT,
+    SEQUENCE_SHA256,
+    RunFolder,
+    remove_derived_files,
+    sequence_sha256,
+)
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
 
 __all__ = [
@@ -444,14 +453,14 @@ def run_external(
     if lacking:
         raise FloorbenchError(lacking)
     out = ensure_writable_dir(run_dir)
-    program_dir = out / "program"
+    program_dir = out / PROGRAM_DIR
     for stale in ("trajectory.txt", "timing.csv", "result.json"):  # a rerun must not read an older run's files
         (out / stale).unlink(missing_ok=True)
         (program_dir / stale).unlink(missing_ok=True)
     remove_derived_files(out)  # nor keep the older run's score beside a failed one
     program_dir.mkdir(exist_ok=True)
     height = seq.height_mm
-    camera_file = out / "camera.yaml"
+    camera_file = out / PROGRAM_CAMERA
     extra = {} if height is None else {"camera_height_mm": float(height)}
     atomic_write_text(camera_file, seq.camera.to_opencv_yaml(**extra))
     values = {
@@ -470,13 +479,13 @@ def run_external(
     log.info("%s: running %s", name, shlex.join(argv))
 
     def fail(reason: str) -> ExternalEstimatorError:
-        tail = _tail(out / "stderr.txt")
+        tail = _tail(out / PROGRAM_STDERR)
         log.warning("%s on %s failed: %s%s", name, seq.root, reason, f" (stderr: {tail})" if tail else "")
         return ExternalEstimatorError(
             f"{name}: {reason}" + (f"; stderr: {tail}" if tail else ""), reason=reason, stderr_tail=tail
         )
 
-    with open(out / "stdout.txt", "wb") as so, open(out / "stderr.txt", "wb") as se:
+    with open(out / PROGRAM_STDOUT, "wb") as so, open(out / PROGRAM_STDERR, "wb") as se:
         try:
             proc = subprocess.Popen(
                 argv, stdin=subprocess.DEVNULL, stdout=so, stderr=se, env=env, start_new_session=True

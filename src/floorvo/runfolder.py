@@ -78,6 +78,12 @@ __all__ = [
     "SCORE",
     "DERIVED",
     "remove_derived_files",
+    "remove_program_files",
+    "PROGRAM_DIR",
+    "PROGRAM_FILES",
+    "PROGRAM_CAMERA",
+    "PROGRAM_STDOUT",
+    "PROGRAM_STDERR",
 ]
 
 #: The ``result.json`` key holding the content hash of the ``sequence.json`` a run was made on.
@@ -135,6 +141,30 @@ SCORE = "score.json"
 #: (:func:`remove_derived_files`): a score of one run beside the trajectory of another was read
 #: as the new run's (``floorvo run -e akaze-guided -o R`` kept phase-corr's ``R/score.json``).
 DERIVED = (SCORE, MATCHES)
+
+
+#: What a program's run (:mod:`floorvo.external`) writes into its run folder besides the run's
+#: own files: the program's folder (``{output}``), the camera file it was given, its output streams.
+PROGRAM_DIR = "program"
+PROGRAM_CAMERA, PROGRAM_STDOUT, PROGRAM_STDERR = "camera.yaml", "stdout.txt", "stderr.txt"
+PROGRAM_FILES = (PROGRAM_CAMERA, PROGRAM_STDOUT, PROGRAM_STDERR)
+
+
+def remove_program_files(run_dir: str | os.PathLike) -> None:
+    """Remove what a program's earlier run left in ``run_dir`` (:data:`PROGRAM_FILES`, and the run
+    files of :data:`PROGRAM_DIR`, the folder too once empty): a Python estimator's run written
+    into the folder kept them beside a ``result.json`` that named it. The caller holds the lock."""
+    run_dir = Path(run_dir)
+    for name in PROGRAM_FILES:
+        (run_dir / name).unlink(missing_ok=True)
+    pdir = run_dir / PROGRAM_DIR
+    if pdir.is_dir():
+        for name in (TRAJECTORY, TIMING, RESULT):
+            (pdir / name).unlink(missing_ok=True)
+        try:
+            pdir.rmdir()
+        except OSError:  # the program wrote more there: not ours to remove
+            pass
 
 
 def remove_derived_files(run_dir: str | os.PathLike) -> None:

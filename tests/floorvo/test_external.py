@@ -544,3 +544,26 @@ def test_a_programs_peak_memory_is_its_own(line_sequence, tmp_path, mb, wrap):
     assert held.sum() == held.size and res.placed == 14
     assert mb + 5 < res.peak_rss_mb < mb + 150  # a Python child with numpy: some tens of MiB besides
     assert json.loads((tmp_path / "run" / "result.json").read_text())["peak_rss_mb"] == res.peak_rss_mb
+
+
+def test_a_python_run_into_a_programs_run_folder_leaves_none_of_the_programs_files(line_sequence, tmp_path):
+    """The program's folder, camera file and output streams stayed beside a result.json that
+    named the Python estimator written there after it; what else the program wrote stays."""
+    from floorvo.run import run_estimator
+
+    code = (
+        "import sys, pathlib; out = pathlib.Path(sys.argv[1]); (out / 'model.bin').write_bytes(b'x'); "
+        "(out / 'trajectory.txt').write_text(pathlib.Path(sys.argv[2], 'groundtruth.txt').read_text())"
+    )
+    spec = ExternalEstimator(name="prog", command=(sys.executable, "-c", code, "{output}", "{sequence}"))
+    run = tmp_path / "run"
+    run_external(line_sequence, spec, run)
+    assert {"camera.yaml", "stdout.txt", "stderr.txt", "program"} <= {p.name for p in run.iterdir()}
+    run_estimator(line_sequence, "phase-corr", run)
+    assert sorted(p.name for p in run.iterdir() if not p.name.startswith(".")) == [
+        "program",
+        "result.json",
+        "timing.csv",
+        "trajectory.txt",
+    ]
+    assert sorted(p.name for p in (run / "program").iterdir()) == ["model.bin"]  # the program's own, kept
