@@ -90,6 +90,8 @@ __all__ = [
     "fit_plane",
     "plane_fit_precision",
     "depth_floor_plane",
+    "depth_floor_plane_precision",
+    "floor_plane_step_precision",
     "least_rotation",
     "level_rotation",
     "rays_to_plane",
@@ -913,6 +915,16 @@ def depth_floor_plane(
     the camera model and :func:`fit_plane` fits them; ``d`` is the camera's height above
     the floor. None with fewer than ``min_points`` such pixels.
     """
+    fitted = depth_floor_plane_precision(depth_mm, camera, step_px, min_points=min_points)
+    return None if fitted is None else fitted[:2]
+
+
+def depth_floor_plane_precision(
+    depth_mm: np.ndarray, camera: CameraModel, step_px: int = 4, *, min_points: int = 100
+) -> tuple[np.ndarray, float, tuple[float, float]] | None:
+    """:func:`depth_floor_plane` with the plane's standard errors: ``(n, d_mm, (sigma_height_mm,
+    sigma_tilt_rad))`` (:func:`plane_fit_precision` of the depth points the fit kept, each
+    taken as an independent measurement), or None."""
     depth = np.asarray(depth_mm)
     g = int(step_px)
     v, u = np.mgrid[g // 2 : depth.shape[0] : g, g // 2 : depth.shape[1] : g]
@@ -921,8 +933,9 @@ def depth_floor_plane(
     if int(ok.sum()) < min_points:
         return None
     uv = np.column_stack([u.ravel()[ok], v.ravel()[ok]]).astype(np.float64)
-    n, d, _ = fit_plane(camera.unproject(uv, z[ok]))
-    return n, d
+    P = camera.unproject(uv, z[ok])
+    n, d, kept = fit_plane(P)
+    return n, d, plane_fit_precision(P[kept], n, d)
 
 
 def least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -1007,6 +1020,36 @@ def floor_plane_step(
     R2, t2, keep = rigid_fit_robust(q_prev, q_cur, iterations=iterations)
     rms = float(np.sqrt(np.mean(np.sum((q_prev[keep] @ R2.T + t2 - q_cur[keep]) ** 2, axis=1))))
     return plane_step_T(n_p, d_p, n_c, d_c, R2, t2), keep, rms
+
+
+def floor_plane_step_precision(
+    uv_prev_px: np.ndarray,
+    uv_cur_px: np.ndarray,
+    camera: CameraModel,
+    plane_prev: tuple[np.ndarray, float],
+    plane_cur: tuple[np.ndarray, float],
+    sigma_prev: tuple[float, float],
+    sigma_cur: tuple[float, float],
+) -> tuple[float, float, float]:
+    """The standard errors of a :func:`floor_plane_step` step from the pairs it kept (N, 2) px and
+    each frame's floor plane ``(n, d_mm)`` with its standard errors ``(sigma_height_mm,
+    sigma_tilt_rad)`` (:func:`plane_fit_precision`): ``(sigma_mm, sigma_deg, sigma_fit_mm)``.
+
+    Three fits' residuals: the in-plane rigid fit of the pairs in the levelled floor coordinates
+    (:func:`rigid_fit_precision`: the camera's own displacement and the yaw; ``sigma_fit_mm``),
+    and each plane's: its height, which is the step's height change, and its tilt, which turns
+    the step and shifts every floor point, so the in-plane displacement, by the height times the
+    tilt error. Independent, their variances add."""
+    (n_p, d_p), (n_c, d_c) = plane_prev, plane_cur
+    q_prev = (rays_to_plane(uv_prev_px, camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
+    q_cur = (rays_to_plane(uv_cur_px, camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
+    R2, t2 = rigid_fit(q_prev, q_cur)
+    sig_fit_mm, sig_yaw_rad = rigid_fit_precision(q_prev, q_cur, R2, t2)
+    var_mm, var_rad = sig_fit_mm**2, sig_yaw_rad**2
+    for d_mm, (sig_h_mm, sig_tilt_rad) in ((d_p, sigma_prev), (d_c, sigma_cur)):
+        var_mm += sig_h_mm**2 + (d_mm * sig_tilt_rad) ** 2
+        var_rad += sig_tilt_rad**2
+    return float(np.sqrt(var_mm)), float(np.degrees(np.sqrt(var_rad))), float(sig_fit_mm)
 
 
 def plane_homography_motion(

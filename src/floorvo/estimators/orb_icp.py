@@ -56,17 +56,25 @@ import cv2
 import numpy as np
 
 from floorvo.camera import CameraModel
-from floorvo.config import MAX_SEED, Config, param, with_defaults
+from floorvo.config import MAX_SEED, param, with_defaults
 from floorvo.estimators.base import (
     RESTART_NOTE,
     Frame,
+    StepBoundConfig,
     StepResult,
     frame_is_blank,
     frame_problem,
     stage_timing_ms,
     state_error,
 )
-from floorvo.geometry import consensus_problem, depth_floor_plane, floor_plane_step, make_T, rigid_fit_robust
+from floorvo.geometry import (
+    consensus_problem,
+    depth_floor_plane_precision,
+    floor_plane_step,
+    floor_plane_step_precision,
+    make_T,
+    rigid_fit_robust,
+)
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
 
@@ -74,7 +82,7 @@ __all__ = ["OrbIcp", "OrbIcpConfig", "OrbIcpFast", "OrbIcpFastConfig", "homogeni
 
 
 @dataclass(frozen=True)
-class OrbIcpConfig(Config):
+class OrbIcpConfig(StepBoundConfig):
     """``fast_threshold``: FAST threshold on the normalised 8-bit frame (low, the grid picks
     the strongest); ``grid_cols x grid_rows`` cells keeping ``per_cell`` corners each
     (homogenisation); ``ratio``: FLANN-LSH ratio-test threshold gamma; ``prosac_threshold_px``:
@@ -152,7 +160,8 @@ class _State:
     desc: np.ndarray | None = None  # (N, 32) uint8
     xyz: np.ndarray | None = None  # (N, 3) mm, camera frame; NaN where no depth
     img8: np.ndarray | None = None  # normalised previous frame
-    plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the previous frame, camera frame
+    # floor plane (n, d_mm) of the previous frame, camera frame, and its standard errors (height mm, tilt rad)
+    plane: tuple[np.ndarray, float, tuple[float, float]] | None = None
     n_lost: int = 0  # frames lost in a row since the reference
 
 
@@ -188,11 +197,12 @@ class OrbIcp:
             dict(algorithm=6, table_number=6, key_size=12, multi_probe_level=1), dict(checks=50)
         )
 
-    def floor_plane(self, depth_mm: np.ndarray) -> tuple[np.ndarray, float] | None:
+    def floor_plane(self, depth_mm: np.ndarray) -> tuple[np.ndarray, float, tuple[float, float]] | None:
         """The floor plane ``(n, d_mm)`` (camera frame) of a depth image, from the pixels of a
-        ``plane_step_px`` grid (:func:`floorvo.geometry.depth_floor_plane`); None with fewer
-        than 100 of them carrying depth."""
-        return depth_floor_plane(depth_mm, self.camera, self.config.plane_step_px)
+        ``plane_step_px`` grid, and its standard errors ``(height mm, tilt rad)``
+        (:func:`floorvo.geometry.depth_floor_plane_precision`); None with fewer than 100 of
+        them carrying depth."""
+        return depth_floor_plane_precision(depth_mm, self.camera, self.config.plane_step_px)
 
     def start(self) -> _State:
         return _State()
@@ -380,12 +390,14 @@ class OrbIcp:
             good = (st.ravel() == 1) & (np.linalg.norm(p1 - uv_cur, axis=1) < 1.5)
             uv_prev, uv_cur, P_prev = uv_prev[good], p1[good], P_prev[good]
             P_cur = self._depth_xyz(depth_mm, uv_cur)
+            if len(uv_prev) < self.config.min_matches:  # one pair left was a ValueError of the fit
+                return lost(f"too few matches after the sub-pixel refinement ({len(uv_prev)})", len(uv_prev))
         if self.config.update == "plane":
             if plane is None or plane_prev is None:
                 return lost("too few depth pixels to fit the floor plane")
             # 6-DoF from the two floor planes and the in-plane rigid fit of the matched rays.
             T, keep, rms_mm = floor_plane_step(
-                uv_prev, uv_cur, self.camera, plane_prev, plane, iterations=self.config.icp_iterations
+                uv_prev, uv_cur, self.camera, plane_prev[:2], plane[:2], iterations=self.config.icp_iterations
             )
             if keep.sum() < self.config.min_matches:
                 return lost(f"too few matches behind the in-plane fit ({int(keep.sum())})", int(keep.sum()))
@@ -393,6 +405,9 @@ class OrbIcp:
                 return lost(
                     f"in-plane fit residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum())
                 )
+            why = self._precision_problem(T, uv_prev[keep], uv_cur[keep], plane_prev, plane)
+            if why:
+                return lost(why, int(keep.sum()))
             return ok(T, uv_prev[keep], uv_cur[keep])
         has_depth = np.isfinite(P_prev).all(axis=1) & np.isfinite(P_cur).all(axis=1)
         P_prev, P_cur = P_prev[has_depth], P_cur[has_depth]
@@ -406,6 +421,39 @@ class OrbIcp:
         if rms_mm > self.config.max_residual_mm:
             return lost(f"ICP residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum()))
         return ok(make_T(R, t), uv_prev[has_depth][keep], uv_cur[has_depth][keep])
+
+    def _precision_problem(
+        self,
+        T: np.ndarray,
+        uv_prev: np.ndarray,
+        uv_cur: np.ndarray,
+        plane_prev: tuple[np.ndarray, float, tuple[float, float]],
+        plane_cur: tuple[np.ndarray, float, tuple[float, float]],
+    ) -> str:
+        """Why the 6-DoF step ``T`` (``update = plane``) from the pairs it kept ``uv_prev ->
+        uv_cur`` (K, 2) px and the two frames' floor planes is too imprecise to report ('' if it
+        is not): its standard errors (:func:`floorvo.geometry.floor_plane_step_precision`: the
+        in-plane fit's and the planes' height and tilt), ``precision_sigmas`` of them, must lie
+        within issue 14's bound (``max_step_error_*``), as stereo-sift's. Without it a step of
+        few pairs (a turn of 90 degrees between two 160 x 120 frames) was reported ok 0.06-0.14
+        mm off against a 0.05 mm bound."""
+        cfg = self.config
+        if cfg.precision_sigmas <= 0.0:
+            return ""
+        if len(uv_prev) < 3:
+            return f"too few pairs to measure the step's precision ({len(uv_prev)})"
+        sig_mm, sig_deg, sig_fit_mm = floor_plane_step_precision(
+            uv_prev, uv_cur, self.camera, plane_prev[:2], plane_cur[:2], plane_prev[2], plane_cur[2]
+        )
+        bound_mm = cfg.bound_mm(float(np.linalg.norm(T[:3, 3])))
+        k = cfg.precision_sigmas
+        if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
+            return (
+                f"imprecise step: {k:g} standard errors are {k * sig_mm:.3f} mm and {k * sig_deg:.2f} deg "
+                f"(bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg; in-plane fit of {len(uv_prev)} pairs "
+                f"{sig_fit_mm:.3f} mm, planes' height {plane_prev[2][0]:.3f}/{plane_cur[2][0]:.3f} mm)"
+            )
+        return ""
 
 
 #: The real-time preset (issue 14 item 5): one ORB level instead of the pyramid (at a fixed

@@ -83,12 +83,9 @@ from floorvo.geometry import (
     consensus_problem,
     fit_plane,
     floor_plane_step,
+    floor_plane_step_precision,
     invert_T,
-    level_rotation,
     plane_fit_precision,
-    rays_to_plane,
-    rigid_fit,
-    rigid_fit_precision,
     rigid_fit_robust,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8, to_uint8_contrast
@@ -596,16 +593,9 @@ class StereoSift:
             return ""
         if len(uv_prev) < 3 or prev.plane is None or cur.plane is None:
             return f"too few pairs to measure the step's precision ({len(uv_prev)})"
-        (n_p, d_p), (n_c, d_c) = prev.plane, cur.plane
-        q_prev = (rays_to_plane(uv_prev, self.camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
-        q_cur = (rays_to_plane(uv_cur, self.camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
-        R2, t2 = rigid_fit(q_prev, q_cur)
-        sig_fit_mm, sig_yaw_rad = rigid_fit_precision(q_prev, q_cur, R2, t2)
-        var_mm, var_rad = sig_fit_mm**2, sig_yaw_rad**2
-        for (_, d_mm), (sig_h_mm, sig_tilt_rad) in ((prev.plane, prev.plane_sigma), (cur.plane, cur.plane_sigma)):
-            var_mm += sig_h_mm**2 + (d_mm * sig_tilt_rad) ** 2
-            var_rad += sig_tilt_rad**2
-        sig_mm, sig_deg = float(np.sqrt(var_mm)), float(np.degrees(np.sqrt(var_rad)))
+        sig_mm, sig_deg, sig_fit_mm = floor_plane_step_precision(
+            uv_prev, uv_cur, self.camera, prev.plane, cur.plane, prev.plane_sigma, cur.plane_sigma
+        )
         bound_mm = cfg.bound_mm(float(np.linalg.norm(T[:3, 3])))
         k = cfg.precision_sigmas
         if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
