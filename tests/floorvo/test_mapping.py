@@ -177,6 +177,13 @@ def test_frame_from_outside_the_map_is_not_localised(texture, other_texture, lan
     # A black frame has no keypoints, so retrieval has no candidate: it said "best: empty map".
     r = loc.localize(np.zeros((CAM.height_px, CAM.width_px), np.uint8))
     assert not r.ok and r.reason == "no candidate keyframe (the frame has no keypoints)"
+    # A colour frame or one of another size is not localised, said: it raised a ConfigError
+    # that ended a whole map-fused run ("frame size 160x120 differs from the camera's 160x120").
+    frame = _view(texture, 0.0, 0.0, 0.0, 61)
+    r = loc.localize(np.dstack([frame] * 3))
+    assert not r.ok and r.reason == f"frame has 3 channels (shape {(*frame.shape, 3)}): a mono (H, W) image is expected"
+    r = loc.localize(frame[:-2])
+    assert not r.ok and r.reason.startswith(f"frame is {frame.shape[1]}x{frame.shape[0] - 2} px: the camera is")
 
 
 # --------------------------------------------------------------------------- real cameras

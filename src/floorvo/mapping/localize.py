@@ -32,7 +32,8 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
-from floorvo.errors import ConfigError, ConfigFieldError
+from floorvo.errors import ConfigFieldError
+from floorvo.estimators.base import frame_problem
 from floorvo.mapping.keyframes import fit_to_T_i_j
 from floorvo.mapping.map import GlobalMap
 from floorvo.mapping.similarity import (
@@ -118,15 +119,14 @@ class Localizer:
         )  # built now, not on the first query
 
     def localize(self, image: np.ndarray, rng: np.random.Generator | None = None) -> Localization:
-        """Global pose of one raw (H, W) frame, using nothing but the frame and the map."""
+        """Global pose of one raw (H, W) frame, using nothing but the frame and the map; a frame
+        that is none of the camera's (:func:`floorvo.estimators.base.frame_problem`) is not localised."""
         cfg, sc, m = self.config, self.sim_cfg, self.map
         rng = rng or np.random.default_rng(0)
         t0 = time.perf_counter()
-        cam = self.camera
-        if image.shape != (cam.height_px, cam.width_px):
-            raise ConfigError(
-                f"localize: frame size {image.shape[1]}x{image.shape[0]} differs from the camera's {cam.width_px}x{cam.height_px}"
-            )
+        bad = frame_problem(image, self.camera)
+        if bad:  # not localised, said: a frame of another size or a colour one had ended the whole run
+            return Localization(False, reason=bad, timing_ms={"total": 1e3 * (time.perf_counter() - t0)})
         p = self.prepare(image)
         feats = detect_features(p, sc)
         small = downscale(p, sc.sim_scale)
