@@ -428,3 +428,30 @@ def test_the_height_check_takes_its_read_as_a_share_of_the_change():
     assert why["1"] == ""
     assert "reads -0.120 mm" in why["0.85"] and "standard error 0.000" in why["0.85"]
     assert "0.141 mm > bound 0.130" in why["0.85"]
+
+
+@pytest.mark.parametrize("name", ["phase-corr", "phase-corr-fast"])
+def test_phase_corr_loses_a_step_whose_height_reading_the_picture_contradicts(bounce_seqs, tmp_path, name):
+    """A range reading of 300 mm in a run at 98-102 mm, or one creeping 3 mm a frame, was taken
+    as it was: the steps reported ok 200 mm off (akaze's fits lost them). The honest readings of
+    the same bounce (0.02 mm of noise) keep every step."""
+    import shutil
+
+    from floorvo.sequence import read_height_csv
+
+    honest = score_run(run_estimator(bounce_seqs[0], name, tmp_path / "honest").run_dir, bounce_seqs[0]).flat()
+    assert honest["lost_frames"] == 0 and honest["wrong_ok_steps"] == 0
+    seq = tmp_path / "seq"
+    shutil.copytree(bounce_seqs[0], seq)
+    h = read_height_csv(seq / "height.csv")
+    h[10] = 300.0
+    h[20:] += 3.0 * np.arange(1, len(h) - 19)
+    lines = ["frame,height_mm", *(f"{i},{v:.6f}" for i, v in enumerate(h))]
+    (seq / "height.csv").write_text("\n".join(lines) + "\n")
+    run = run_estimator(seq, name, tmp_path / "run")
+    s = score_run(run.run_dir, seq).flat()
+    assert s["wrong_ok_steps"] == 0
+    lost = {int(i) for i, st in zip(run.frame_index, run.status) if st == "lost"}
+    assert 10 in lost and set(range(21, len(h))) <= lost
+    why = {int(i): r for i, r in zip(run.frame_index, run.reason)}
+    assert why[10].startswith("height signal disagrees with the picture: it reads 300.000 mm")
