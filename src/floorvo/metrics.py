@@ -240,6 +240,19 @@ def path_distances_mm(T: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
 
 
+def _distances(A: np.ndarray, dist_mm: np.ndarray | None) -> np.ndarray:
+    """The reference path's distance (N,) mm at each of the poses ``A`` (N, 4, 4): ``dist_mm`` as
+    given (measured along the whole reference, where ``A`` are the poses of it that a run's poses
+    matched: the path between two matched poses across lost frames is longer than their chord),
+    else along ``A`` itself (:func:`path_distances_mm`)."""
+    if dist_mm is None:
+        return path_distances_mm(A)
+    d = np.asarray(dist_mm, dtype=float)
+    if d.shape != (len(A),) or not np.isfinite(d).all() or np.any(np.diff(d) < 0):
+        raise ValueError(f"dist_mm: need ({len(A)},) finite, non-decreasing distances, got shape {d.shape}")
+    return d - d[0] if len(d) else d
+
+
 def _rotation_angle_deg(R: np.ndarray) -> np.ndarray:
     """Angle (deg) of rotations (..., 3, 3)."""
     tr = np.trace(R, axis1=-2, axis2=-1)
@@ -294,7 +307,7 @@ def rpe_pairs_by_frames(n: int, delta: int = 1) -> np.ndarray:
     return np.stack([i, i + delta], axis=1).astype(int)
 
 
-def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float) -> np.ndarray:
+def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float, dist_mm: np.ndarray | None = None) -> np.ndarray:
     """(K, 2) pairs ``(i, j)``: j is the first pose where the reference path is >= delta_mm past i.
 
     Every pose ``i`` that has such a ``j`` starts a pair, so the pairs overlap. evo's
@@ -304,11 +317,12 @@ def rpe_pairs_by_distance(T_ref: np.ndarray, delta_mm: float) -> np.ndarray:
     these, the errors on them are equal, and the statistics over all pairs differ by the
     sampling alone (a test checks both against evo's pair filter on the reference). Without
     ``--pairs_from_reference`` evo measures the distance along the estimate's path: other pairs
-    wherever the estimate's steps are off in length.
+    wherever the estimate's steps are off in length. ``dist_mm``: the reference path's distance
+    at each pose (:func:`_distances`; default: along ``T_ref``).
     """
     if not (0 < delta_mm < np.inf):  # NaN: no pair at all, silently
         raise ValueError(f"rpe delta_mm = {delta_mm}: must be a finite number > 0")
-    dist = path_distances_mm(T_ref)
+    dist = _distances(np.asarray(T_ref, dtype=float), dist_mm)
     j = np.searchsorted(dist, dist + delta_mm - 1e-9, side="left")
     i = np.arange(len(dist))
     ok = j < len(dist)
@@ -327,17 +341,23 @@ def _relative_errors(A: np.ndarray, B: np.ndarray, pairs: np.ndarray) -> tuple[n
 
 
 def rpe(
-    T_ref: np.ndarray, T_est: np.ndarray, *, delta_frames: int | None = 1, delta_mm: float | None = None
+    T_ref: np.ndarray,
+    T_est: np.ndarray,
+    *,
+    delta_frames: int | None = 1,
+    delta_mm: float | None = None,
+    dist_mm: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Relative pose error per ``delta_frames`` frames or per ``delta_mm`` of reference path.
 
     ``delta_mm``, when given, is used (``delta_frames`` then ignored); else ``delta_frames``
     (None: 1), a whole number >= 1. Returns ``{"delta", "unit", "trans_mm": stats, "rot_deg":
-    stats, "pairs" (K, 2)}``. RPE needs no alignment (it is invariant to it).
+    stats, "pairs" (K, 2)}``. RPE needs no alignment (it is invariant to it). ``dist_mm``: the
+    reference path's distance at each pose (:func:`_distances`).
     """
     A, B = _check_pair(T_ref, T_est)
     if delta_mm is not None:
-        pairs = rpe_pairs_by_distance(A, delta_mm)
+        pairs = rpe_pairs_by_distance(A, delta_mm, dist_mm)
         delta, unit = float(delta_mm), "mm"
     else:
         frames = 1 if delta_frames is None else delta_frames  # 0 was taken as 1, 2.7 as 2
@@ -455,16 +475,21 @@ def turn_error(T_ref: np.ndarray, T_est: np.ndarray, *, T_ref_from: np.ndarray |
 
 
 # ----------------------------------------------------------------------------- drift
-def end_point_drift(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none") -> dict[str, Any]:
+def end_point_drift(
+    T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none", dist_mm: np.ndarray | None = None
+) -> dict[str, Any]:
     """End-point error (mm) and its share of the reference path length (%).
 
     Also the measured against the true displacement from the first to the last pose
     (``measured_mm``, ``true_mm``, the paper-000 "measured distance") and their relative
     difference (``distance_error_pct``, the paper-001 "% error" of a straight line).
+    ``dist_mm``: the reference path's distance at each pose (:func:`_distances`: along the whole
+    reference, where the run lost frames; its chord across them was taken, and a half circle
+    tracked at its ends alone was 205 mm long instead of 314).
     """
     A, B = _check_pair(T_ref, T_est)
     B2, _ = align(A, B, alignment)
-    length = float(path_distances_mm(A)[-1])
+    length = float(_distances(A, dist_mm)[-1])
     err = float(np.linalg.norm(A[-1, :3, 3] - B2[-1, :3, 3]))
     true_mm = float(np.linalg.norm(A[-1, :3, 3] - A[0, :3, 3]))
     measured_mm = float(np.linalg.norm(B2[-1, :3, 3] - B2[0, :3, 3]))
@@ -481,7 +506,11 @@ def end_point_drift(T_ref: np.ndarray, T_est: np.ndarray, alignment: str = "none
 
 
 def segment_errors(
-    T_ref: np.ndarray, T_est: np.ndarray, lengths_mm: SequenceT[float] = SEGMENT_LENGTHS_MM, step: int = 1
+    T_ref: np.ndarray,
+    T_est: np.ndarray,
+    lengths_mm: SequenceT[float] = SEGMENT_LENGTHS_MM,
+    step: int = 1,
+    dist_mm: np.ndarray | None = None,
 ) -> list[dict[str, float]]:
     """KITTI devkit segment errors (``calcSequenceErrors``), lengths in mm.
 
@@ -491,12 +520,13 @@ def segment_errors(
     ``r_err = angle(E) / L``. Returns one dict per length that has at least one segment:
     ``{"length_mm", "count", "t_err_pct" (mean, % of L), "r_err_deg_per_m" (mean),
     "t_err_pct_max"}``. Each length must be a finite number > 0 (a negative one gave negative errors).
+    ``dist_mm``: the reference path's distance at each pose (:func:`_distances`).
     """
     A, B = _check_pair(T_ref, T_est)
     for L in lengths_mm:
         if not (0 < float(L) < np.inf):
             raise ValueError(f"segment length {L} mm: must be a finite number > 0")
-    dist = path_distances_mm(A)
+    dist = _distances(A, dist_mm)
     out = []
     starts = np.arange(0, len(A), max(1, int(step)))
     for L in lengths_mm:

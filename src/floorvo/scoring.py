@@ -177,12 +177,16 @@ def score_trajectories(
             f"estimate has {len(i_ref)} pose(s) matching a ground-truth timestamp within {max_diff_s} s; need >= 2 to score"
         )
     A, B = T_ref[i_ref], T_est[i_est]
+    # the reference path's length at each matched pose, along the whole reference: across the
+    # frames a run lost, the chord between its matched poses is shorter than the path
+    dist = path_distances_mm(T_ref)[i_ref]
+    dist = dist - dist[0]
     ates = {m: ate(A, B, m) for m in ALIGNMENTS}
-    rpe_d = [rpe(A, B, delta_mm=d) for d in rpe_deltas_mm if path_distances_mm(A)[-1] >= d]
-    drift = end_point_drift(A, B, "none")
+    rpe_d = [rpe(A, B, delta_mm=d, dist_mm=dist) for d in rpe_deltas_mm if dist[-1] >= d]
+    drift = end_point_drift(A, B, "none", dist_mm=dist)
     warnings = []
     start_mm = float(np.linalg.norm(A[0, :3, 3] - B[0, :3, 3]))
-    if start_mm > FAR_START_MM + FAR_START_FRACTION * path_distances_mm(A)[-1]:
+    if start_mm > FAR_START_MM + FAR_START_FRACTION * dist[-1]:
         # Not in the ground truth's frame: the unaligned figures would measure the offset, not the estimator.
         warnings.append(
             f"the estimate starts {shown_number(start_mm, '.1f')} mm from the ground truth at their first shared time: it is not in "
@@ -202,7 +206,7 @@ def score_trajectories(
         rpe_frame=rpe(A, B, delta_frames=1),
         rpe_distance=rpe_d,
         drift=drift,
-        segments=segment_errors(A, B, segment_lengths_mm),
+        segments=segment_errors(A, B, segment_lengths_mm, dist_mm=dist),
         tracking=tracking_stats(None if statuses is None else list(statuses), len(T_ref), len(i_est), reasons),
         timing=timing_stats(timing),
         warnings=warnings,

@@ -308,3 +308,24 @@ def test_an_impossible_association_tolerance_is_refused(tmp_path, capsys, value,
     assert main(["score", str(run), "--gt", str(seq), "--max-diff", value]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"timestamp association tolerance (--max-diff) = {float(value)} s: {words}" in err
+
+
+def test_drift_divides_by_the_reference_path_across_lost_frames_not_its_chord():
+    """A half circle of radius 100 mm (61 poses) tracked at frames 0, 59 and 60 only, exact but
+    for a 5 mm error at the end: the path is 100 pi mm long up to frame 60 (60 chords of 3
+    degrees), and the drift 5 mm of it (1.59 %). The chord between the matched poses (205 mm)
+    gave 2.44 %, and no 250 mm segment at all."""
+    a = np.linspace(0.0, np.pi, 61)
+    T_ref = np.stack([T_world_cam_down(100.0 * np.sin(x), 100.0 * (1.0 - np.cos(x)), 100.0, x) for x in a])
+    t = np.arange(61) / 30.0
+    keep = [0, 59, 60]
+    T_est = T_ref[keep].copy()
+    T_est[-1, 0, 3] += 5.0
+    sc = S.score_trajectories(t, T_ref, t[keep], T_est, rpe_deltas_mm=(250.0,), segment_lengths_mm=(250.0,))
+    assert sc.drift["path_length_mm"] == pytest.approx(60 * 200.0 * np.sin(np.pi / 120), rel=1e-12)
+    assert sc.drift["end_drift_pct"] == pytest.approx(100.0 * 5.0 / sc.drift["path_length_mm"], rel=1e-12)
+    # 250 mm along the path from frame 0 is reached at frame 59 (its chord from frame 0: 200 mm)
+    (seg,) = sc.segments
+    assert seg["length_mm"] == 250.0 and seg["count"] == 1
+    (r,) = sc.rpe_distance
+    assert r["trans_mm"]["count"] == 1
