@@ -42,7 +42,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -270,6 +270,7 @@ def run_frames(
     # (module docstring).
     T_chain = T_world
     attitude = False
+    unused_attitude = False  # the frames' attitude, set aside for the run (its start pose is not over the floor)
     levelled = bool(getattr(estimator, "levels_with_attitude", False))
     measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
     # A calibration whose scales depend on the texture orientation: each frame's, and that of the
@@ -298,8 +299,13 @@ def run_frames(
                     "its attitude signal is not used (give a start pose over the floor, --initial-pose)",
                     name,
                 )
+                unused_attitude = True
             else:
                 T_chain, attitude = start, True
+        if unused_attitude and frame.attitude_rad is not None:
+            # not used, so not handed on: the estimator levelled its frames with it and lost those
+            # without a reading while the run chained its steps as a level camera's
+            frame = replace(frame, attitude_rad=None)
         res = estimator.step(state, frame)
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")

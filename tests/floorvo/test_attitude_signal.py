@@ -198,6 +198,18 @@ def test_phase_corr_with_the_attitude_reproduces_the_tilted_cameras_trajectory(
     assert s_off.tracking["wrong_ok_steps"] == 29 and s_off.tracking["wrong_ok_steps_footprint"] == 0
 
 
+def test_a_signal_the_run_does_not_use_is_not_handed_to_the_estimator(tilt_seq, tmp_path):
+    """A run that starts at the identity (no ground truth) does not use the attitude signal (its
+    optical axis meets no floor; a warning says so), yet phase-corr still levelled its frames
+    with it and lost the frame without a reading. It now runs as with the signal switched off."""
+    root = _with_dropout(tilt_seq, tmp_path, 7)
+    (root / "groundtruth.txt").unlink()
+    unused = run_estimator(Sequence.open(root), "phase-corr", tmp_path / "unused")
+    off = run_estimator(Sequence.open(root), "phase-corr", tmp_path / "off", {"use_attitude_signal": "false"})
+    assert not unused.attitude_signal and unused.lost == 0
+    np.testing.assert_array_equal(unused.T_world_cam, off.T_world_cam)
+
+
 @pytest.mark.parametrize("levelled", [True, False])
 def test_a_frame_without_an_attitude_reading_is_lost_and_the_next_one_right(tilt_seq, tmp_path, monkeypatch, levelled):
     """A dropout (NaN row) is no 6-DoF pose: the frame is reported lost with the reason. phase-corr,

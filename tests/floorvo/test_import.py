@@ -1086,3 +1086,17 @@ def test_a_bag_with_two_different_ground_truth_poses_at_one_stamp_is_refused(tmp
     err = _one_line_error(capsys, ["import", str(tmp_path / "two"), "-o", str(tmp_path / "b"), *FLAGS])
     assert f"two /groundtruth: two different poses stamped {stamps[1]} ns: ground truth holds one pose per time" in err
     assert not (tmp_path / "b").exists()
+
+
+def test_a_folder_holding_frames_of_another_format_is_refused_not_read_without_them(tmp_path, synth, capsys):
+    """Three PGM frames beside a PNG: the folder was imported as the one PNG, exit 0."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames[:3]):
+        cv2.imwrite(str(src / f"f{i}.pgm"), img)
+    cv2.imwrite(str(src / "f3.png"), frames[3])
+    (src / "notes.txt").write_text("not an image: left alone")
+    err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", "10"])
+    assert "holds 3 image file(s) of a format not read as frames ('f0.pgm', ...)" in err
+    assert not (tmp_path / "s").exists()

@@ -29,6 +29,23 @@ log = logging.getLogger(__name__)
 
 #: File suffixes read as frames (case-insensitive).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+#: Suffixes of the other image formats OpenCV decodes: a folder holding such files is refused,
+#: not read without them (its PGM frames were left out with exit code 0).
+OTHER_IMAGE_SUFFIXES = (
+    ".pgm",
+    ".ppm",
+    ".pbm",
+    ".pnm",
+    ".pfm",
+    ".webp",
+    ".exr",
+    ".hdr",
+    ".pic",
+    ".sr",
+    ".ras",
+    ".jp2",
+    ".avif",
+)
 
 
 def detect(source: Path) -> bool:
@@ -41,10 +58,15 @@ def detect(source: Path) -> bool:
 def list_images(source: Path) -> tuple[list[Path], np.ndarray | None]:
     """The frame files of ``source`` in frame order, and their times (s) when a list file gives them."""
     if source.is_dir():
-        files = sorted(
-            (p for p in source.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES),
-            key=lambda p: natural_key(p.name),
-        )
+        entries = sorted((p for p in source.iterdir() if p.is_file()), key=lambda p: natural_key(p.name))
+        other = [p.name for p in entries if p.suffix.lower() in OTHER_IMAGE_SUFFIXES]
+        if other:
+            raise SequenceError(
+                f"{source}: holds {len(other)} image file(s) of a format not read as frames ({shown(other[0])}"
+                f"{', ...' if len(other) > 1 else ''}): frames are {', '.join(IMAGE_SUFFIXES)}; convert them, "
+                "or list the frames to import in a text file"
+            )
+        files = [p for p in entries if p.suffix.lower() in IMAGE_SUFFIXES]
         if not files:
             raise SequenceError(f"{source}: holds no image files ({', '.join(IMAGE_SUFFIXES)})")
         return files, None
