@@ -91,6 +91,10 @@ _PLACED = ("init", "ok")
 #: The reason of a frame whose step was measured but that has no attitude reading (a dropout
 #: of ``attitude.csv``) in a run whose poses the attitude signal makes 6-DoF.
 NO_ATTITUDE = f"no attitude reading (attitude.csv): no 6-DoF pose; {CHAINED_NOTE}"
+#: The reason of a frame whose picture repeats the previous frame's bit for bit (:func:`run_frames`):
+#: a camera's noise never gives two such pictures, a re-delivered buffer does (every estimator
+#: measured no motion there, and the motion of both frames at the next).
+REPEATED_FRAME = "the picture repeats the previous frame's bit for bit (a buffer delivered twice?): not measured"
 
 
 @dataclass(frozen=True)
@@ -270,6 +274,7 @@ def run_frames(
     # (module docstring).
     T_chain = T_world
     attitude = False
+    prev_image = None  # the last frame's picture (a repeat of it is not measured)
     unused_attitude = False  # the frames' attitude, set aside for the run (its start pose is not over the floor)
     levelled = bool(getattr(estimator, "levels_with_attitude", False))
     measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
@@ -306,7 +311,12 @@ def run_frames(
             # not used, so not handed on: the estimator levelled its frames with it and lost those
             # without a reading while the run chained its steps as a level camera's
             frame = replace(frame, attitude_rad=None)
-        res = estimator.step(state, frame)
+        if _same_picture(frame.image, prev_image):
+            # not handed to the estimator: its next step is measured from the frame it last measured
+            res = StepResult("lost", reason=REPEATED_FRAME)
+        else:
+            res = estimator.step(state, frame)
+        prev_image = frame.image
         if not isinstance(res, StepResult):
             raise ValueError(f"{name}: frame {frame.index}: step returned a {type(res).__name__}, not a StepResult")
         # Measured only on a frame a step ends on or is measured from (a frame the estimator
@@ -443,6 +453,21 @@ def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_
         f"attitude signal too noisy for the step: {sigmas:g} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
         f"x height {height_mm:.1f} mm = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; {CHAINED_NOTE}"
     )
+
+
+def _same_picture(image: Any, prev: Any) -> bool:
+    """Whether the frame picture ``image`` (an array) repeats ``prev`` bit for bit, and shows
+    something (a blank picture, every pixel alike, is the estimator's to refuse: "empty
+    frame"): a few rows first (two pictures of a camera differ there at once), then the whole."""
+    if image is None or prev is None:
+        return False
+    a, b = np.asarray(image), np.asarray(prev)
+    if a.shape != b.shape or a.dtype != b.dtype or a.ndim < 1 or a.size == 0:
+        return False
+    step = max(1, len(a) // 8)
+    if not (np.array_equal(a[::step], b[::step]) and np.array_equal(a, b)):
+        return False
+    return bool(a.min() != a.max())
 
 
 def uses_attitude_signal(estimator: Any) -> bool:

@@ -50,6 +50,29 @@ def _script():
 
 
 # ----------------------------------------------------------------------------- the loop
+def test_a_picture_repeating_the_last_frames_bit_for_bit_is_lost_and_not_measured():
+    """A buffer delivered twice: every estimator measured no motion at the repeat (3 mm off) and
+    both frames' motion at the next. The runner does not hand the repeat to the estimator; its
+    next step is measured from the frame before (the script's second step is the next frame's).
+    A blank picture repeated is the estimator's to refuse (all-zero pictures pass through)."""
+    from floorvo.runner import REPEATED_FRAME
+
+    rng = np.random.default_rng(0)
+    pics = [rng.integers(0, 255, (6, 8), dtype=np.uint8) for _ in range(4)]
+    pics[2] = pics[1].copy()
+    frames = [Frame(i, i / 10.0, p) for i, p in enumerate(pics)]
+    script = [StepResult("init"), StepResult("ok", STEP), StepResult("ok", STEP @ STEP)]
+    res = run_frames(Scripted(script), frames, T_world_start=START)
+    assert res.status.tolist() == ["init", "ok", "lost", "ok"]
+    assert res.reason[2] == REPEATED_FRAME
+    np.testing.assert_allclose(res.T_world_cam[3], START @ STEP @ STEP @ STEP, atol=1e-12)
+    blank = [Frame(i, i / 10.0, np.zeros((6, 8), np.uint8)) for i in range(3)]
+    res = run_frames(
+        Scripted([StepResult("init"), StepResult("lost", reason="empty frame")] * 2), blank, T_world_start=START
+    )
+    assert res.reason[1] == "empty frame"
+
+
 def test_run_frames_chains_steps_places_fixes_and_holds_the_pose_when_lost():
     calls = []
     res = run_frames(
