@@ -451,3 +451,27 @@ def test_orb_icp_after_a_jump_without_overlap_loses_frames_instead_of_raising(tm
     steps = _depth_run(tmp_path, name, np.stack([T_world_cam_down(x, 0.0, 100.0, 0.0) for x in xs]))
     assert [s[1] for s in steps[:5]] == ["init", "ok", "ok", "ok", "ok"]
     assert steps[5][1] == "lost" and not any(s[3] for s in steps)
+
+
+@pytest.mark.parametrize("name", ["stereo-sift", "stereo-sift-fast"])
+def test_stereo_sift_keypoints_lie_on_their_points(name):
+    """OpenCV's SIFT puts every keypoint 0.25 px right of and below its point (its first octave
+    doubles the image); a frame turned 180 degrees shows it as twice that between the keypoints
+    of the turned frame and the turned keypoints, and stereo-sift read a turn in place as a
+    translation (0.18 mm at 320 x 240, -fast twice that). Its keypoints now lie on their points
+    to 0.02 px (mean over the pairs)."""
+    (L0, _), _, flat, T01 = stereo_pairs(CAM, _motion(0.0, 0.0, 0.0), baseline_mm=20.0, seed=3)
+    est = get_estimator(name)(
+        make_config(name), CAM, height_mm=100.0, flatfield=flat, camera_right=CAM, T_cam0_cam1=T01, flatfield_right=flat
+    )
+    img = np.ascontiguousarray(L0)
+    uv, desc = est._detect(img)
+    uv_r, desc_r = est._detect(np.ascontiguousarray(img[::-1, ::-1]))
+    from floorvo.matching import match_ratio
+
+    m = match_ratio(desc, desc_r, 0.7, unique="best")
+    turned = np.column_stack([CAM.width_px - 1 - uv[m.i0, 0], CAM.height_px - 1 - uv[m.i0, 1]])
+    d = uv_r[m.i1] - turned
+    d = d[np.linalg.norm(d, axis=1) < 1.0]
+    assert len(d) > 30
+    np.testing.assert_allclose(d.mean(axis=0) / 2.0, [0.0, 0.0], atol=0.03)
