@@ -238,6 +238,7 @@ def run_frames(
     name: str | None = None,
     attitude_noise_rad: float = 0.0,
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None,
+    lose_repeated_pictures: bool = True,
 ) -> RunResult:
     """Run ``estimator`` (an :class:`~floorvo.estimators.base.Estimator`) over ``frames`` from a fresh state.
 
@@ -252,6 +253,10 @@ def run_frames(
     An estimator that breaks the protocol (an unknown status, ``ok`` without motion, a motion or
     pose that is not a rigid (4, 4) transform of finite numbers, steps that chain to a position
     beyond :data:`~floorvo.geometry.MAX_POSITION_MM`) is a bug: ``ValueError``.
+    ``lose_repeated_pictures``: a frame whose picture repeats the last frame's bit for bit is
+    reported lost (:data:`REPEATED_FRAME`) and not handed to the estimator; False for frames
+    that repeat a picture by design (paper 000's protocol, whose runs repeat a strip frame
+    where they stand still).
     ``attitude_noise_rad``: the standard error of each reading of the frames' attitude signal
     (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
     that the signal would leave uncertain beyond the estimator's bound is lost
@@ -311,7 +316,7 @@ def run_frames(
             # not used, so not handed on: the estimator levelled its frames with it and lost those
             # without a reading while the run chained its steps as a level camera's
             frame = replace(frame, attitude_rad=None)
-        if _same_picture(frame.image, prev_image):
+        if lose_repeated_pictures and _same_picture(frame.image, prev_image):
             # not handed to the estimator: its next step is measured from the frame it last measured
             res = StepResult("lost", reason=REPEATED_FRAME)
         else:
