@@ -994,6 +994,22 @@ def plane_step_T(
     return invert_T(Qp) @ invert_T(T_Lc_Lp) @ Qc
 
 
+def _levelled_floor_points(
+    uv_prev_px: np.ndarray,
+    uv_cur_px: np.ndarray,
+    camera: CameraModel,
+    plane_prev: tuple[np.ndarray, float],
+    plane_cur: tuple[np.ndarray, float],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The floor points (N, 2) mm of matched pixels (N, 2) in each frame's levelled floor
+    coordinates: each ray met with its frame's plane ``(n, d_mm)`` (:func:`rays_to_plane`), turned
+    by the plane's :func:`level_rotation`, its x and y."""
+    (n_p, d_p), (n_c, d_c) = plane_prev, plane_cur
+    q_prev = (rays_to_plane(uv_prev_px, camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
+    q_cur = (rays_to_plane(uv_cur_px, camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
+    return q_prev, q_cur
+
+
 def floor_plane_step(
     uv_prev_px: np.ndarray,
     uv_cur_px: np.ndarray,
@@ -1015,8 +1031,7 @@ def floor_plane_step(
     inliers' floor coordinates).
     """
     (n_p, d_p), (n_c, d_c) = plane_prev, plane_cur
-    q_prev = (rays_to_plane(uv_prev_px, camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
-    q_cur = (rays_to_plane(uv_cur_px, camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
+    q_prev, q_cur = _levelled_floor_points(uv_prev_px, uv_cur_px, camera, plane_prev, plane_cur)
     R2, t2, keep = rigid_fit_robust(q_prev, q_cur, iterations=iterations)
     rms = float(np.sqrt(np.mean(np.sum((q_prev[keep] @ R2.T + t2 - q_cur[keep]) ** 2, axis=1))))
     return plane_step_T(n_p, d_p, n_c, d_c, R2, t2), keep, rms
@@ -1040,9 +1055,8 @@ def floor_plane_step_precision(
     and each plane's: its height, which is the step's height change, and its tilt, which turns
     the step and shifts every floor point, so the in-plane displacement, by the height times the
     tilt error. Independent, their variances add."""
-    (n_p, d_p), (n_c, d_c) = plane_prev, plane_cur
-    q_prev = (rays_to_plane(uv_prev_px, camera, n_p, d_p) @ level_rotation(n_p).T)[:, :2]
-    q_cur = (rays_to_plane(uv_cur_px, camera, n_c, d_c) @ level_rotation(n_c).T)[:, :2]
+    d_p, d_c = plane_prev[1], plane_cur[1]
+    q_prev, q_cur = _levelled_floor_points(uv_prev_px, uv_cur_px, camera, plane_prev, plane_cur)
     R2, t2 = rigid_fit(q_prev, q_cur)
     sig_fit_mm, sig_yaw_rad = rigid_fit_precision(q_prev, q_cur, R2, t2)
     var_mm, var_rad = sig_fit_mm**2, sig_yaw_rad**2

@@ -26,6 +26,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.config import Config, param
+from floorvo.geometry import floor_plane_step_precision
 from floorvo.metrics import WRONG_STEP_DEG, WRONG_STEP_FRACTION, WRONG_STEP_MM
 
 __all__ = [
@@ -82,6 +83,42 @@ class StepBoundConfig(Config):
         """The translation error (mm) a step of ``step_mm`` reported ok may have:
         ``max_step_error_mm + max_step_error_fraction * step_mm``."""
         return self.max_step_error_mm + self.max_step_error_fraction * float(step_mm)
+
+
+def plane_step_precision_problem(
+    cfg: StepBoundConfig,
+    T_prev_cur: np.ndarray,
+    uv_prev: np.ndarray,
+    uv_cur: np.ndarray,
+    camera: CameraModel,
+    plane_prev: tuple[np.ndarray, float],
+    plane_cur: tuple[np.ndarray, float],
+    sigma_prev: tuple[float, float],
+    sigma_cur: tuple[float, float],
+) -> str:
+    """Why the 6-DoF step ``T_prev_cur`` (4, 4) mm from the pairs it kept ``uv_prev -> uv_cur``
+    (K, 2) px and the two frames' floor planes ``(n, d_mm)`` with their standard errors
+    ``(height mm, tilt rad)`` is too imprecise to report ('' if it is not): its standard errors
+    (:func:`floorvo.geometry.floor_plane_step_precision`: the in-plane fit's and the planes'),
+    ``precision_sigmas`` of them, must lie within issue 14's bound (``max_step_error_*``).
+    stereo-sift's and orb-icp's check (``update = plane``)."""
+    if cfg.precision_sigmas <= 0.0:
+        return ""
+    if len(uv_prev) < 3:
+        return f"too few pairs to measure the step's precision ({len(uv_prev)})"
+    sig_mm, sig_deg, sig_fit_mm = floor_plane_step_precision(
+        uv_prev, uv_cur, camera, plane_prev, plane_cur, sigma_prev, sigma_cur
+    )
+    bound_mm = cfg.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
+    k = cfg.precision_sigmas
+    if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
+        return (
+            f"imprecise step: {k:g} standard errors are {k * sig_mm:.3f} mm and {k * sig_deg:.2f} deg "
+            f"(bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg; in-plane fit of {len(uv_prev)} pairs "
+            f"{sig_fit_mm:.3f} mm, planes' height {sigma_prev[0]:.3f}/{sigma_cur[0]:.3f} mm, "
+            f"tilt {sigma_prev[1] * 1e3:.2f}/{sigma_cur[1] * 1e3:.2f} mrad)"
+        )
+    return ""
 
 
 #: The note a lost step's reason ends with when the estimator restarts its track on that

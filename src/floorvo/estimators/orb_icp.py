@@ -64,6 +64,7 @@ from floorvo.estimators.base import (
     StepResult,
     frame_is_blank,
     frame_problem,
+    plane_step_precision_problem,
     stage_timing_ms,
     state_error,
 )
@@ -71,7 +72,6 @@ from floorvo.geometry import (
     consensus_problem,
     depth_floor_plane_precision,
     floor_plane_step,
-    floor_plane_step_precision,
     make_T,
     rigid_fit_robust,
 )
@@ -437,23 +437,9 @@ class OrbIcp:
         within issue 14's bound (``max_step_error_*``), as stereo-sift's. Without it a step of
         few pairs (a turn of 90 degrees between two 160 x 120 frames) was reported ok 0.06-0.14
         mm off against a 0.05 mm bound."""
-        cfg = self.config
-        if cfg.precision_sigmas <= 0.0:
-            return ""
-        if len(uv_prev) < 3:
-            return f"too few pairs to measure the step's precision ({len(uv_prev)})"
-        sig_mm, sig_deg, sig_fit_mm = floor_plane_step_precision(
-            uv_prev, uv_cur, self.camera, plane_prev[:2], plane_cur[:2], plane_prev[2], plane_cur[2]
+        return plane_step_precision_problem(
+            self.config, T, uv_prev, uv_cur, self.camera, plane_prev[:2], plane_cur[:2], plane_prev[2], plane_cur[2]
         )
-        bound_mm = cfg.bound_mm(float(np.linalg.norm(T[:3, 3])))
-        k = cfg.precision_sigmas
-        if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
-            return (
-                f"imprecise step: {k:g} standard errors are {k * sig_mm:.3f} mm and {k * sig_deg:.2f} deg "
-                f"(bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg; in-plane fit of {len(uv_prev)} pairs "
-                f"{sig_fit_mm:.3f} mm, planes' height {plane_prev[2][0]:.3f}/{plane_cur[2][0]:.3f} mm)"
-            )
-        return ""
 
 
 #: The real-time preset (issue 14 item 5): one ORB level instead of the pyramid (at a fixed

@@ -76,6 +76,7 @@ from floorvo.estimators.base import (
     StepResult,
     frame_is_blank,
     frame_problem,
+    plane_step_precision_problem,
     stage_timing_ms,
     state_error,
 )
@@ -83,7 +84,6 @@ from floorvo.geometry import (
     consensus_problem,
     fit_plane,
     floor_plane_step,
-    floor_plane_step_precision,
     invert_T,
     plane_fit_precision,
     rigid_fit_robust,
@@ -599,24 +599,15 @@ class StereoSift:
         imprecise pairs (a frame with few keypoints, SIFT on small frames) otherwise pass every
         other check with the step a tenth of a millimetre or a few tenths of a degree off.
         """
-        cfg = self.config
-        if cfg.precision_sigmas <= 0.0:
-            return ""
-        if len(uv_prev) < 3 or prev.plane is None or cur.plane is None:
-            return f"too few pairs to measure the step's precision ({len(uv_prev)})"
-        sig_mm, sig_deg, sig_fit_mm = floor_plane_step_precision(
-            uv_prev, uv_cur, self.camera, prev.plane, cur.plane, prev.plane_sigma, cur.plane_sigma
-        )
-        bound_mm = cfg.bound_mm(float(np.linalg.norm(T[:3, 3])))
-        k = cfg.precision_sigmas
-        if not (k * sig_mm <= bound_mm and k * sig_deg <= cfg.max_step_error_deg):
+        if prev.plane is None or cur.plane is None:
             return (
-                f"imprecise step: {k:g} standard errors are {k * sig_mm:.3f} mm and {k * sig_deg:.2f} deg "
-                f"(bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg; in-plane fit of {len(uv_prev)} pairs "
-                f"{sig_fit_mm:.3f} mm, planes' height {prev.plane_sigma[0]:.3f}/{cur.plane_sigma[0]:.3f} mm, "
-                f"tilt {prev.plane_sigma[1] * 1e3:.2f}/{cur.plane_sigma[1] * 1e3:.2f} mrad)"
+                ""
+                if self.config.precision_sigmas <= 0.0
+                else f"too few pairs to measure the step's precision ({len(uv_prev)})"
             )
-        return ""
+        return plane_step_precision_problem(
+            self.config, T, uv_prev, uv_cur, self.camera, prev.plane, cur.plane, prev.plane_sigma, cur.plane_sigma
+        )
 
 
 #: The real-time preset (issue 14 item 5): SIFT doubles the frame before its first octave,
