@@ -8,6 +8,7 @@ from functools import partial
 
 import _bench_doubles as D
 import pytest
+from _bench_data import write_sequence
 
 import floorsim.bench.bench as bench_module
 from floorsim.bench import run_bench as real_run_bench
@@ -392,3 +393,35 @@ def test_a_scene_override_given_with_sequence_folders_is_refused_or_said_to_skip
     assert note in capsys.readouterr().out.splitlines()
     drift = {r["scene"]: r["end_drift_pct"] for r in read_results_csv(out / "results.csv")}
     assert drift == pytest.approx({"rec": 0.2, "a": 0.5}, rel=1e-4)  # 0.1 % per mm of the LED height
+
+
+def test_a_gate_on_a_recording_sees_its_frames_and_a_refreshed_baseline_keeps_its_tolerances(tmp_path):
+    """A sequence folder's inputs held its sequence.json and ground truth only: frames changed
+    since the baseline (blurred) were blamed on the estimators. --save-baseline wrote the default
+    tolerances over those edited into the file, and over the baseline a gate had just failed
+    against, with the regressed numbers (the same command then passed). phase-corr for real."""
+    import cv2
+
+    from floorsim.bench.gates import load_baseline
+
+    seq = write_sequence(tmp_path / "rec")
+    base = tmp_path / "baseline.json"
+    bench = partial(real_run_bench, [seq], ["phase-corr"], report=False)
+    first = bench(tmp_path / "a", save_baseline_to=base)
+    saved = json.loads(base.read_text())
+    saved["tolerances"]["tracked_fraction"] = {"abs": 0.0, "rel": 0.0}
+    saved["entries"]["rec/phase-corr"]["tracked_fraction"] = first.rows[0]["tracked_fraction"]
+    base.write_text(json.dumps(saved))
+    res = bench(tmp_path / "b", baseline=base, save_baseline_to=base)
+    assert res.gate.ok and "tracked_fraction" in load_baseline(base).tolerances  # refreshed, its edits kept
+    saved = json.loads(base.read_text())
+    saved["entries"]["rec/phase-corr"]["tracked_fraction"] = 1.0  # a baseline no run meets
+    base.write_text(json.dumps(saved))
+    before = base.read_bytes()
+    worse = bench(tmp_path / "c", baseline=base, save_baseline_to=base)
+    assert not worse.gate.ok and worse.baseline_saved is None and base.read_bytes() == before
+    assert any("not saved, the gate against it failed" in n for n in worse.notes)
+    frame = seq / "cam0" / "000003.png"
+    cv2.imwrite(str(frame), cv2.GaussianBlur(cv2.imread(str(frame), cv2.IMREAD_UNCHANGED), (0, 0), 3))
+    gate = bench(tmp_path / "d", baseline=base).gate
+    assert not gate.ok and gate.checked == 0 and gate.made_otherwise[0].startswith("rec/phase-corr: not comparable")

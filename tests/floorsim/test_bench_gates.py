@@ -195,3 +195,52 @@ def test_save_baseline_refuses_rows_that_give_nothing_to_check(tmp_path):
     with pytest.raises(ConfigError, match="must be a finite number >= 0"):
         save_baseline(tmp_path / "b.json", [ROW], {"end_drift_pct": {"abs": float("nan"), "rel": 0}})
     assert not (tmp_path / "b.json").exists()
+
+
+def test_a_signed_error_is_gated_by_its_size_and_a_quantity_without_direction_is_refused():
+    """distance_error_pct (signed: its magnitude counts) was gated as lower-is-better: -10.6 %
+    passed against -0.65 % and +0.19 % failed. The length of a path has no better direction at
+    all: a tolerance on it is refused."""
+    tol = {"distance_error_pct": {"abs": 0.5, "rel": 0.0}}
+    baseline = _baseline(tol, {"s/e": {"distance_error_pct": -0.652}})
+    worse = compare([{"scene": "s", "estimator": "e", "distance_error_pct": -10.59}], baseline)
+    assert not worse.ok and "allowed up to 1.152 in size" in worse.summary()
+    better = compare([{"scene": "s", "estimator": "e", "distance_error_pct": 0.19}], baseline)
+    assert better.ok and better.improved
+    assert not compare([{"scene": "s", "estimator": "e", "distance_error_pct": 1.2}], baseline).ok
+    with pytest.raises(ConfigError, match="tolerances.path_length_mm: length of the reference path has no better"):
+        parse_baseline(_baseline({"path_length_mm": {"abs": 1.0}}, {"s/e": {"path_length_mm": 100.0}}))
+
+
+def test_an_estimator_missing_from_a_bench_of_the_default_estimators_fails_the_gate():
+    """Without --estimators the bench runs what each sequence supports: a plugin that broke on
+    import, or whose construction fails, was skipped and its baseline entry 'not checked', and
+    the gate passed. Where the bench was given its estimators, an entry of another is not run
+    by choice; and an entry whose scene did not run at all is not checked either way."""
+    tol = {"end_drift_pct": {"abs": 0.0, "rel": 0.1}}
+    baseline = _baseline(
+        tol, {"s/e": {"end_drift_pct": 1.0}, "s/plug": {"end_drift_pct": 1.0}, "u/e": {"end_drift_pct": 1.0}}
+    )
+    rows = [{"scene": "s", "estimator": "e", "end_drift_pct": 1.0}]
+    default = compare(rows, baseline, estimators_chosen=False)
+    assert not default.ok and default.missing_now == ["s/plug"] and default.only_in_baseline == ["u/e"]
+    assert "s/plug: in the baseline, and its scene ran, but not this estimator" in default.summary()
+    assert default.expected == 2
+    chosen = compare(rows, baseline, estimators_chosen=True)
+    assert chosen.ok and chosen.only_in_baseline == ["s/plug", "u/e"]
+
+
+def test_a_baseline_entry_without_a_value_is_no_baseline_entry():
+    """An entry saved from a run that failed is null throughout: it exempted the estimator from
+    every later gate ('not checked'). It counts as no entry: a failure unless --allow-new."""
+    tol = {"end_drift_pct": {"abs": 0.0, "rel": 0.1}, "lost_frames": {"abs": 0.0, "rel": 0.0}}
+    baseline = _baseline(
+        tol, {"s/e": {"end_drift_pct": None, "lost_frames": None}, "s/f": {"end_drift_pct": 1.0, "lost_frames": 0}}
+    )
+    rows = [
+        {"scene": "s", "estimator": "e", "end_drift_pct": 39.0, "lost_frames": 3},
+        {"scene": "s", "estimator": "f", "end_drift_pct": 1.0, "lost_frames": 0},
+    ]
+    r = compare(rows, baseline)
+    assert not r.ok and r.only_in_bench == ["s/e"]
+    assert compare(rows, baseline, allow_new=True).ok

@@ -65,7 +65,7 @@ import numpy as np
 
 from floorsim import __version__ as floorsim_version
 from floorsim.bench.estimators import DEFAULT_RUNNER, EstimatorRunner, check_estimator_choice
-from floorsim.bench.gates import GateResult, compare, load_baseline, save_baseline
+from floorsim.bench.gates import Baseline, GateResult, compare, load_baseline, save_baseline
 from floorsim.bench.protocols import (
     PROTOCOLS,
     BenchContext,
@@ -167,17 +167,30 @@ def render_inputs(
     }
 
 
+#: The render cache's marker in a sequence folder it rendered (:func:`render_cached`): the bench's, not the sequence's.
+CACHE_MARKER = "bench-cache.json"
+
+
 def sequence_content_sha256(folder: str | os.PathLike) -> str:
-    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``): its ``sequence.json``
-    (:func:`floorvo.runfolder.sequence_sha256`) and its ground truth's bytes."""
+    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``): its
+    ``sequence.json`` (:func:`floorvo.runfolder.sequence_sha256`) and the bytes of every file in it
+    (frames, depth, calibration, times, signals, ground truth) but hidden ones (a writer's lock)
+    and the render cache's marker. Its frames were left out: a gate blamed the estimators for a
+    recording whose frames had been blurred since its baseline (12 metrics worse)."""
     root = Path(folder)
+    files = hashlib.sha256()
     try:
         meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
-        gt = root / "groundtruth.txt"
-        truth = hashlib.sha256(gt.read_bytes()).hexdigest() if gt.is_file() else None
+        for p in sorted(root.rglob("*")):
+            rel = p.relative_to(root)
+            if p.name == CACHE_MARKER or any(part.startswith(".") for part in rel.parts) or not p.is_file():
+                continue
+            files.update(rel.as_posix().encode("utf-8", "surrogateescape") + b"\0")
+            with open(p, "rb") as fh:
+                files.update(hashlib.file_digest(fh, "sha256").digest())
     except (OSError, ValueError):
         return "unreadable"
-    return json_sha256({"sequence": sequence_sha256(meta), "groundtruth": truth})
+    return json_sha256({"sequence": sequence_sha256(meta), "files": files.hexdigest()})
 
 
 def render_cached(
@@ -220,7 +233,7 @@ def _render_into_cache(
     on_frame: Callable[[int, int], None] | None,
     render: RenderFn,
 ) -> Path:
-    marker = out / "bench-cache.json"
+    marker = out / CACHE_MARKER
     if marker.is_file():
         try:
             mark = read_json(marker, SequenceError)
@@ -432,6 +445,21 @@ def write_match_samples(
     return written
 
 
+def _kept_tolerances(path: str | os.PathLike, compared: Baseline | None) -> dict[str, dict[str, float]] | None:
+    """The tolerances a new baseline saved to ``path`` keeps: those of the baseline file already
+    there (a refresh kept none of its edited tolerances), else those of the baseline the bench was
+    compared with, else None (the defaults)."""
+    source = compared
+    if Path(path).is_file():
+        try:
+            source = load_baseline(path)
+        except ConfigError:
+            pass  # not a baseline: the defaults, or the compared one's
+    if source is None:
+        return None
+    return {m: {"abs": t.abs, "rel": t.rel} for m, t in source.tolerances.items()}
+
+
 def _notes_section(notes: list[str], rep: Report) -> None:
     rep.heading("Notes")
     for text in notes:
@@ -538,6 +566,7 @@ def run_bench(
     est_over = {k: dict(v) for k, v in (estimator_overrides or {}).items()}
     known = runner.names()
     check_estimator_choice(runner, estimators, est_over)  # what a study checks of its estimators too
+    estimators_chosen = estimators is not None
     if estimators is not None:
         estimators = list(estimators) + [n for n in runner.externals if n not in estimators]
     cals = _load_scales(scale_calibrations, estimators, known)
@@ -690,11 +719,30 @@ def run_bench(
     res = BenchResult(rows, records, results_csv, notes=notes)
     gate_text = None
     if baseline_data is not None:
-        res.gate = compare(rows, baseline_data, allow_new=allow_new)
+        res.gate = compare(rows, baseline_data, allow_new=allow_new, estimators_chosen=estimators_chosen)
         gate_text = res.gate.summary()
     if save_baseline_to is not None:
-        save_baseline(save_baseline_to, rows)
-        res.baseline_saved = Path(save_baseline_to)
+        if (
+            res.gate is not None
+            and not res.gate.ok
+            and baseline is not None
+            and Path(save_baseline_to).resolve() == Path(baseline).resolve()
+        ):
+            # the baseline it failed against, overwritten with the regressed numbers: the same
+            # command then passed
+            log.warning("--save-baseline %s: not saved, the gate against it failed", save_baseline_to)
+            notes.append(f"--save-baseline {save_baseline_to}: not saved, the gate against it failed")
+        else:
+            saved = save_baseline(save_baseline_to, rows, _kept_tolerances(save_baseline_to, baseline_data))
+            res.baseline_saved = Path(save_baseline_to)
+            for key, entry in saved["entries"].items():
+                if all(v is None for v in entry.values()):
+                    log.warning(
+                        "--save-baseline %s: %s has no value (its runs failed or lost every frame): a gate "
+                        "will count it as having no baseline entry",
+                        save_baseline_to,
+                        key,
+                    )
     if report:
         if notes:
             sections.insert(0, partial(_notes_section, list(notes)))

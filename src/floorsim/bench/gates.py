@@ -84,6 +84,30 @@ def _higher_is_better(metric: str) -> bool:
         return False
 
 
+def _by_size(metric: str) -> bool:
+    """True for a signed error declared with no direction (``distance_error_pct``,
+    ``turn_error_pct``: their magnitude counts): gated by its size. It was gated as lower-is-better,
+    so -10.6 % passed against -0.65 % and +0.19 % failed."""
+    try:
+        d = md.metric(metric)
+    except ValueError:
+        return False
+    return d.lower_is_better is None and d.low is None
+
+
+def _gate_problem(metric: str) -> str:
+    """Why ``metric`` cannot be gated ('' if it can): it is declared with no better direction and
+    is no signed error (a path's length, a measured distance, a turn: what the run was, not how
+    well it was measured)."""
+    try:
+        d = md.metric(metric)
+    except ValueError:
+        return ""
+    if d.lower_is_better is None and d.low is not None:
+        return f"{d.description} has no better direction: not a quality a gate can hold"
+    return ""
+
+
 def _key(row: Mapping[str, Any]) -> str:
     return f"{row['scene']}/{row['estimator']}"
 
@@ -207,6 +231,9 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
         for k, v in t.items():
             if not _is_number(v) or v < 0:
                 raise ConfigError(f"{where}.{k} = {shown(v)}: must be a finite number >= 0")
+        problem = _gate_problem(str(metric))
+        if problem:
+            raise ConfigError(f"{where}: {problem}")
         tolerances[str(metric)] = Tolerance(float(t.get("abs", 0.0)), float(t.get("rel", 0.0)))
     entries: dict[str, dict[str, float | None]] = {}
     for key, entry in _table(obj.get("entries"), f"{label}: entries", "scene/estimator entries").items():
@@ -292,10 +319,16 @@ class Regression:
     value: float
     allowed: float
     higher_is_better: bool = False
+    by_size: bool = False  # a signed error, held by its magnitude (``allowed``: the largest size)
 
     def describe(self) -> str:
         if not math.isfinite(self.value):
             return f"{self.key}: {self.metric} is missing now (baseline {self.baseline:.6g})"
+        if self.by_size:
+            return (
+                f"{self.key}: {self.metric} got worse: {self.value:.6g} against baseline {self.baseline:.6g} "
+                f"(allowed up to {self.allowed:.6g} in size)"
+            )
         # by the metric's direction: with no tolerance the limit is the baseline itself, and
         # comparing the two said 'up to' of a higher-is-better one's lower limit
         bound = "down to" if self.higher_is_better else "up to"
@@ -329,12 +362,15 @@ class GateResult:
     inputs_unchecked: bool = False
     #: ``scene/estimator: ...`` of each entry run with another ``--est-set`` than its baseline (noted)
     config_changed: list[str] = field(default_factory=list)
+    #: baseline entries whose scene ran in a bench of the default estimators but whose estimator did not
+    missing_now: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
         return (
             not self.regressions
             and not self.made_otherwise
+            and not self.missing_now
             and (self.allow_new or not self.only_in_bench)
             and self.checked > 0
         )
@@ -342,6 +378,11 @@ class GateResult:
     def summary(self) -> str:
         lines = list(self.made_otherwise)
         lines += [r.describe() for r in self.regressions]
+        for k in self.missing_now:
+            lines.append(
+                f"{k}: in the baseline, and its scene ran, but not this estimator (skipped or unavailable: see the "
+                "bench's notes and warnings)"
+            )
         for k in self.only_in_baseline:
             lines.append(f"{k}: in the baseline but not in this bench (not checked)")
         for k in self.only_in_bench:
@@ -387,23 +428,36 @@ def _made_otherwise(key: str, before: Mapping[str, list], now: Mapping[str, list
 
 
 def compare(
-    rows: Iterable[Mapping[str, Any]], baseline: Baseline | Mapping[str, Any], *, allow_new: bool = False
+    rows: Iterable[Mapping[str, Any]],
+    baseline: Baseline | Mapping[str, Any],
+    *,
+    allow_new: bool = False,
+    estimators_chosen: bool = True,
 ) -> GateResult:
     """Compare bench rows with a baseline (see the module doc for the rule).
 
     ``baseline``: a :class:`Baseline`, or its file content (checked by :func:`parse_baseline`).
     ``allow_new``: a ``scene/estimator`` without a baseline entry does not fail the gate.
+    ``estimators_chosen``: the bench ran the estimators it was given (``--estimators``); False
+    when it ran those each sequence supports, and then a baseline entry whose scene ran but
+    whose estimator did not (it broke on import, or its construction fails, and was skipped)
+    fails the gate: it had passed, "not checked". An entry whose every value is null (its
+    baseline runs failed) is no baseline entry: it had exempted the estimator for good.
     """
     if not isinstance(baseline, Baseline):
         baseline = parse_baseline(baseline)
     tol = baseline.tolerances
     rows = list(rows)
     current = aggregate(rows, tol)
-    entries = baseline.entries
+    entries = {k: v for k, v in baseline.entries.items() if any(x is not None for x in v.values())}
     res = GateResult(allow_new=allow_new)
     res.only_in_baseline = sorted(set(entries) - set(current))
     res.only_in_bench = sorted(set(current) - set(entries))
-    res.expected = len(current) * len(tol)
+    if not estimators_chosen:
+        scenes_now = {str(r["scene"]) for r in rows}
+        res.missing_now = [k for k in res.only_in_baseline if k.rsplit("/", 1)[0] in scenes_now]
+        res.only_in_baseline = [k for k in res.only_in_baseline if k not in res.missing_now]
+    res.expected = (len(current) + len(res.missing_now)) * len(tol)
     now = made_with(rows)
     res.inputs_unchecked = not baseline.made_with and bool(now)
     for key in sorted(set(entries) & set(current)):
@@ -423,11 +477,12 @@ def compare(
                 res.no_baseline_value.append((key, metric))
                 continue
             value = current[key][metric]
-            higher = _higher_is_better(metric)
-            allowed = t.allowed(base, higher)
+            higher, size = _higher_is_better(metric), _by_size(metric)
+            allowed = t.allowed(abs(base) if size else base, higher)
             res.checked += 1
-            if not math.isfinite(value) or (value < allowed if higher else value > allowed):
-                res.regressions.append(Regression(key, metric, base, value, allowed, higher))
-            elif (value > base) if higher else (value < base):
+            v = abs(value) if size else value
+            if not math.isfinite(value) or (v < allowed if higher else v > allowed):
+                res.regressions.append(Regression(key, metric, base, value, allowed, higher, size))
+            elif (v > base) if higher else (v < (abs(base) if size else base)):
                 res.improved.append(f"{key}: {metric} {value:.6g} (baseline {base:.6g})")
     return res
