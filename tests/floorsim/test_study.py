@@ -386,7 +386,7 @@ def test_repetitions_give_the_breaking_point_an_interval(tmp_path):
     assert bp.value == pytest.approx(5.416667, abs=1e-6)
     assert bp.interval == pytest.approx((5.416667 - 1.897293, 5.416667 + 1.897293), abs=1e-5)
     line = res.search.describe(p)
-    assert "95 % interval 3.519-7.314 over 3 of 3 seeds" in line and "noisy: the seeds disagree" in line
+    assert "95 % interval 3.519 to 7.314 over 3 of 3 seeds" in line and "noisy: the seeds disagree" in line
     # Curves of the searched values show each point's interval over the seeds.
     md = (tmp_path / "out" / "sweep.md").read_text()
     assert "bands: 95 % interval over the seeds" in md
@@ -527,3 +527,33 @@ def test_a_study_of_sequence_folders_alone_runs_and_is_recorded(tmp_path):
     assert record["study"]["base"] is None and record["base_scene"] is None
     assert record["study"]["sequences"] == [str(rec.resolve())]
     assert "Sequence folders only (no base scene)" in (tmp_path / "out" / "sweep.md").read_text()
+
+
+def test_a_seed_failing_over_the_whole_range_is_said_to_make_the_value_optimistic():
+    """Seeds breaking at 1.0 and 2.5 mm and one failing over the whole range (0.05-3 mm, at the
+    operating point too): the value (1.75 mm) and its margin left that seed out, with the words
+    used for a seed that works everywhere, which makes them pessimistic instead."""
+    from floorsim.bench.search import Bracket, EstimatorBreakingPoint, SearchResult, combine_brackets
+
+    grid = [0.05 + 0.1 * k for k in range(30)]  # 0.05 ... 2.95
+    brackets = (Bracket("found", 9, 10), Bracket("found", 24, 25), Bracket("fails_everywhere"))
+    point = EstimatorBreakingPoint({}, "e", combine_brackets(grid, brackets), brackets, (7, 8, 9), {})
+    res = SearchResult("lights.height_mm", "mm", "below", "linear", 0.1, "lost_frames > 0", grid, [point], {}, 0, 3.0)
+    line = res.describe(point)
+    assert point.point.state == "mixed"
+    assert "1 of 3 seeds fail over the whole range (at 2.95 mm, the working end, too)" in line
+    assert "this value and margin are optimistic" in line
+    assert "works over" not in line and "pessimistic" not in line
+    works = (Bracket("found", 9, 10), Bracket("works_everywhere"))
+    point = EstimatorBreakingPoint({}, "e", combine_brackets(grid, works), works, (7, 8), {})
+    assert "1 of 2 seeds work over the whole range" in res.describe(point) and "pessimistic" in res.describe(point)
+
+
+def test_a_study_value_read_back_from_its_results_csv_matches_its_declared_value():
+    """A boolean read back from results.csv is the text True (the study's is true), and an
+    integer grid value 100 is the base scene's 100.0: the report of a study run again lost its
+    curves and crashed on an empty envelope, and a search's margin and star went missing."""
+    from floorsim.bench.sweep_report import _same
+
+    assert _same("True", True) and _same("False", False) and not _same("True", False)
+    assert _same(100, 100.0) and _same("100.0", 100) and _same("both", "both") and not _same("both", "left")

@@ -362,7 +362,9 @@ class SearchResult:
             found = sum(b.state == "found" for b in p.brackets)
             if bp.noisy and math.isfinite(bp.interval[0]):
                 pct = round(100 * self.confidence)
-                text += f"; {pct} % interval {bp.interval[0]:.4g}-{bp.interval[1]:.4g} over {found} of {bp.seeds} seeds"
+                text += (
+                    f"; {pct} % interval {bp.interval[0]:.4g} to {bp.interval[1]:.4g} over {found} of {bp.seeds} seeds"
+                )
             elif bp.noisy:  # one seed found it: no interval
                 text += f"; found by {found} of {bp.seeds} seeds"
             else:
@@ -374,9 +376,22 @@ class SearchResult:
             text += (
                 f", {abs(m):.4g} {self.unit}".rstrip()
                 + f" {where} the operating point ({self.value_text(float(self.operating_value))})"
+                + (": the operating point is on the failing side" if m < 0 else "")
             )
         if bp.state == "mixed":
-            text += "; some seeds found no breaking point in the range"
+            n_fail = sum(b.state == "fails_everywhere" for b in p.brackets)
+            n_work = sum(b.state == "works_everywhere" for b in p.brackets)
+            if n_fail:  # beyond the working end: left out, they made the value and margin look safer
+                end = hi if side == "below" else lo
+                text += (
+                    f"; {n_fail} of {bp.seeds} seeds fail over the whole range (at {self.value_text(end)}, the working "
+                    "end, too): their breaking points lie beyond it, so this value and margin are optimistic"
+                )
+            if n_work:
+                text += (
+                    f"; {n_work} of {bp.seeds} seeds work over the whole range: their breaking points lie beyond "
+                    "its failing end, so this value is pessimistic"
+                )
         elif bp.noisy:
             text += "; noisy: the seeds disagree"
         return text

@@ -52,12 +52,23 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+def _match_key(v: Any) -> str:
+    """The one text a varied value is matched by, however it was written: a number as a float
+    (the study's ``100`` and a base scene's ``100.0``: the operating point's star and margin went
+    missing), a boolean in lower case (a row read back from CSV holds ``True``, the study ``true``:
+    a study run again emptied its tables and crashed), anything else as a ``--set`` text."""
+    if isinstance(v, str) and v in ("True", "False"):
+        return v.lower()
+    if not isinstance(v, bool):
+        f = _num(v)
+        if math.isfinite(f):
+            return repr(f)
+    return as_override(v)
+
+
 def _same(a: Any, b: Any) -> bool:
-    """A row's value (read back from CSV: ``1.0``) is the study's value (``1``)?"""
-    if as_override(a) == as_override(b):
-        return True
-    fa, fb = _num(a), _num(b)
-    return math.isfinite(fa) and fa == fb
+    """A row's value (read back from CSV: ``1.0``, ``True``) is the study's value (``1``, ``true``)?"""
+    return _match_key(a) == _match_key(b)
 
 
 def _values(rows: SequenceT[Row], key: str, declared: SequenceT[Any] | None = None) -> tuple[list[Any], bool]:
@@ -137,7 +148,7 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
     values, numeric = _values(scored if declared is None else rows, key, declared)
     if not values:
         return
-    pos = {as_override(v): (float(v) if numeric else i) for i, v in enumerate(values)}
+    pos = {_match_key(v): (float(v) if numeric else i) for i, v in enumerate(values)}
     estimators = sorted({r["estimator"] for r in scored})
     bounds = {b.metric: b for b in spec.criterion.bounds} if spec.criterion else {}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
@@ -159,7 +170,7 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
             if spec.criterion is not None:
                 row["fails"] = f"{sum(spec.criterion.failure(r) is not None for r in sel)}/{len(sel)}"
             table.append(row)
-        x = [pos[as_override(v)] for v in values]
+        x = [pos[_match_key(v)] for v in values]
         for ax, metric in zip(axes, curves):
             mean, lo, hi = np.array(curves[metric], dtype=float).T
             lo = np.maximum(lo, 0.0)  # drift and lost frames are never negative
@@ -169,8 +180,8 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
     for ax, metric, ylabel in zip(
         axes, (md.END_DRIFT.name, md.LOST_FRAMES.name), ("end-point drift [% of distance]", "lost frames")
     ):
-        if op is not None and as_override(op) in pos:
-            ax.axvline(pos[as_override(op)], color="k", ls="--", lw=1, label="operating point")
+        if op is not None and _match_key(op) in pos:
+            ax.axvline(pos[_match_key(op)], color="k", ls="--", lw=1, label="operating point")
         elif op is not None and numeric and _is_number(op):
             ax.axvline(float(op), color="k", ls="--", lw=1, label="operating point")
         if metric in bounds:
@@ -311,19 +322,19 @@ def _search_envelope(rep: Report, spec: SweepSpec, s: SearchResult, ops: Mapping
     plt = _plt()
     (vkey,) = spec.vary
     values, numeric = _values([], vkey, spec.vary[vkey])
-    xpos = {as_override(v): (float(v) if numeric else i) for i, v in enumerate(values)}
+    xpos = {_match_key(v): (float(v) if numeric else i) for i, v in enumerate(values)}
     fig, ax = plt.subplots(figsize=(7, 4))
     margins = []
     op_v, op_s = ops.get(vkey), s.operating_value
     for est in sorted({p.estimator for p in s.points}):
-        ps = {as_override(p.context[vkey]): p for p in s.points if p.estimator == est}
+        ps = {_match_key(p.context[vkey]): p for p in s.points if p.estimator == est}
         xs, ys, lo, hi = [], [], [], []
         fails_at_op = []
         for v in values:
-            p = ps.get(as_override(v))
+            p = ps.get(_match_key(v))
             if p is None:
                 continue
-            xs.append(xpos[as_override(v)])
+            xs.append(xpos[_match_key(v)])
             ys.append(p.point.value)
             lo.append(p.point.interval[0])
             hi.append(p.point.interval[1])
@@ -337,10 +348,10 @@ def _search_envelope(rep: Report, spec: SweepSpec, s: SearchResult, ops: Mapping
         y = np.array(ys, dtype=float)
         yerr = np.abs(np.array([lo, hi], dtype=float) - y)
         ax.errorbar(xs, y, yerr=np.nan_to_num(yerr), fmt="o-", capsize=3, label=est)
-        at_op = ps.get(as_override(op_v)) if op_v is not None else None
+        at_op = ps.get(_match_key(op_v)) if op_v is not None else None
         m = s.margin(at_op) if at_op is not None else None
         search_margin = f"{m:.4g} {s.unit}".strip() if m is not None else (at_op.point.state if at_op else "-")
-        vals_present = [v for v in values if as_override(v) in ps]
+        vals_present = [v for v in values if _match_key(v) in ps]
         margins.append(
             {
                 "estimator": est,
@@ -348,8 +359,8 @@ def _search_envelope(rep: Report, spec: SweepSpec, s: SearchResult, ops: Mapping
                 "vary": margin_text(vals_present, fails_at_op, op_v, numeric),
             }
         )
-    if op_v is not None and _is_number(op_s) and as_override(op_v) in xpos:
-        ax.plot([xpos[as_override(op_v)]], [float(op_s)], "k*", ms=14, label="operating point")
+    if op_v is not None and _is_number(op_s) and _match_key(op_v) in xpos:
+        ax.plot([xpos[_match_key(op_v)]], [float(op_s)], "k*", ms=14, label="operating point")
     if not numeric:
         ax.set_xticks(range(len(values)), [str(v) for v in values])
     ax.set_xlabel(vkey)
