@@ -442,14 +442,21 @@ def compare(
     when it ran those each sequence supports, and then a baseline entry whose scene ran but
     whose estimator did not (it broke on import, or its construction fails, and was skipped)
     fails the gate: it had passed, "not checked". An entry whose every value is null (its
-    baseline runs failed) is no baseline entry: it had exempted the estimator for good.
+    baseline runs failed) is no baseline entry where the runs have values now: it had exempted
+    the estimator for good; where they still have none, its metrics are not checked, as before.
     """
     if not isinstance(baseline, Baseline):
         baseline = parse_baseline(baseline)
     tol = baseline.tolerances
     rows = list(rows)
     current = aggregate(rows, tol)
-    entries = {k: v for k, v in baseline.entries.items() if any(x is not None for x in v.values())}
+    # an entry with no value at all (its baseline runs failed) is no baseline entry for a run that has values now
+    entries = {
+        k: v
+        for k, v in baseline.entries.items()
+        if any(x is not None for x in v.values())
+        or not any(math.isfinite(x) for x in current.get(k, {}).values())
+    }
     res = GateResult(allow_new=allow_new)
     res.only_in_baseline = sorted(set(entries) - set(current))
     res.only_in_bench = sorted(set(current) - set(entries))
