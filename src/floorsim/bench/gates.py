@@ -454,8 +454,7 @@ def compare(
     entries = {
         k: v
         for k, v in baseline.entries.items()
-        if any(x is not None for x in v.values())
-        or not any(math.isfinite(x) for x in current.get(k, {}).values())
+        if any(x is not None for x in v.values()) or not any(math.isfinite(x) for x in current.get(k, {}).values())
     }
     res = GateResult(allow_new=allow_new)
     res.only_in_baseline = sorted(set(entries) - set(current))
