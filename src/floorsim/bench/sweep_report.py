@@ -162,6 +162,7 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
             for metric in curves:
                 per_seed = _per_seed_means(sel, metric)
                 m, lo, hi = mean_interval(per_seed, spec.confidence)
+                lo = max(lo, 0.0) if np.isfinite(lo) else lo  # drift and lost frames are never negative
                 curves[metric].append((m, lo, hi))
                 row[metric] = m
                 # an interval where two seeds have a value (one seed's was shown as zero wide)
@@ -173,7 +174,6 @@ def _curves(rep: Report, spec: SweepSpec, rows: SequenceT[Row], key: str, declar
         x = [pos[_match_key(v)] for v in values]
         for ax, metric in zip(axes, curves):
             mean, lo, hi = np.array(curves[metric], dtype=float).T
-            lo = np.maximum(lo, 0.0)  # drift and lost frames are never negative
             (line,) = ax.plot(x, mean, "o-", label=est)
             if np.isfinite(lo).any() and np.any(hi > lo):
                 ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
