@@ -61,6 +61,7 @@ __all__ = [
     "file_in_the_way",
     "make_folders",
     "file_name_problem",
+    "MAX_NAME_BYTES",
     "png_size",
     "png_header_size",
     "image_header_size",
@@ -754,7 +755,15 @@ def file_name_problem(name: str) -> str:
         return "must be a name (not empty)"
     if name in (".", "..") or "/" in name or "\\" in name or any(ord(c) < 32 or ord(c) == 127 for c in name):
         return "must be a file name: not . or .., no / or \\, no control characters"
+    if len(name.encode("utf-8", "surrogateescape")) > MAX_NAME_BYTES:
+        # the file systems' 255 bytes, less what the project adds (a cache folder's -HASH, a temporary's
+        # suffix): a scene of 300 characters failed after its render started, 'File name too long'
+        return f"must be a file name of at most {MAX_NAME_BYTES} bytes (this one has {len(name.encode('utf-8', 'surrogateescape'))})"
     return ""
+
+
+#: The longest name :func:`file_name_problem` accepts, in UTF-8 bytes.
+MAX_NAME_BYTES = 200
 
 
 def ensure_writable_dir(path: str | os.PathLike) -> Path:

@@ -63,6 +63,8 @@ def test_set_overrides():
         ({"name": "../../x"}, r"name = '../../x': must be a file name: not \. or \.\., no / or \\"),
         ({"name": ".."}, r"name = '\.\.': must be a file name"),
         ({"name": ""}, r"name = '': must be a name \(not empty\)"),
+        # 300 characters: refused after the render had started ('File name too long')
+        ({"name": "a" * 300}, r"must be a file name of at most 200 bytes \(this one has 300\)"),
         # 1e308 (a TOML float) ended in an OverflowError or numpy ValueError traceback, or a wrong
         # 'the first frame is black' after overflow warnings
         ({"floor.spacing_mm": "1e308"}, r"floor.spacing_mm = 1e\+308 mm: must be <= 10.0 mm"),
