@@ -516,8 +516,12 @@ def _build_kidnap(p: KidnapParams, fps: float, seed: int):
     frame_dt = 1.0 / fps
 
     def path(t: np.ndarray) -> np.ndarray:
-        # Segment k occupies frames [k * per_seg, (k + 1) * per_seg): times [k * per_seg / fps, ...).
-        k = np.clip(np.floor(t * fps / per_seg + 1e-9).astype(int), 0, p.segments - 1)
+        # Segment k occupies frames [k * per_seg, (k + 1) * per_seg). The teleport falls half a frame
+        # before its first frame, between two frames: an exposure (motion blur) or a rolling
+        # shutter's rows around a frame's time lie in its own segment (the teleport frame's early
+        # rows showed the last segment's floor, and black where no tile was planned), still
+        # before the segment starts to move.
+        k = np.clip(np.floor((t * fps + 0.5) / per_seg + 1e-9).astype(int), 0, p.segments - 1)
         tau = np.clip(t - k * per_seg * frame_dt, 0.0, seg_dt + frame_dt)
         sx = np.array(starts)[k]
         d = np.array(dirs)[k]

@@ -106,3 +106,34 @@ def test_kidnap_scene_without_a_mapping_scene_says_so(tmp_path, texture):
     res = run_bench([kid_scene], ["phase-corr"], tmp_path / "bench", render=_texture_render(texture), report=False)
     assert any("paper003_kidnap: no relocalisation (no lawnmower scene" in n for n in res.notes)
     assert {r["estimator"] for r in res.rows} == {"phase-corr"}
+
+
+@pytest.mark.parametrize("t0_s", [0.0, 5.0])
+def test_relocalisation_scores_take_each_frame_by_its_own_time(tmp_path, t0_s):
+    """The protocol's scores took frame k to be at k / fps: a sequence whose frame times start at
+    5 s (a recording) scored 0 % localised where every fix was right. Six frames, a teleport at
+    frame 3; the run places frames 0, 1 (0.3 mm off), 3 (2 mm off) and 4; its poses carry the frames' times."""
+    from floorsim.bench.protocols.paper003 import relocalisation_metrics
+    from floorvo.camera import CameraModel
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.runfolder import RunFolder
+
+    cam = CameraModel.from_sensor().scaled(0.1)
+    T = np.stack([T_world_cam_down(2.0 * i, 0.0, 100.0) for i in range(6)])
+    ts = t0_s + np.arange(6) / 30.0
+    meta = {"camera": cam.to_dict(), "fps": 30.0, "frame_count": 6, "rig": {"height_mm": 100.0}}
+    meta["events"] = {"teleport_frames": [3]}
+    seq = tmp_path / "seq"
+    with SequenceWriter(seq, meta) as w:
+        for i in range(6):
+            w.write_frame(i, np.full((cam.height_px, cam.width_px), 10 * i, np.uint8))
+        w.write_timestamps(ts)
+        w.write_groundtruth(ts, T)
+    placed = [0, 1, 3, 4]
+    est = T[placed].copy()
+    est[1, 0, 3] += 0.3
+    est[2, 1, 3] += 2.0
+    RunFolder(ts[placed], est, None, {"estimator": "x"}).write(tmp_path / "run")
+    m = relocalisation_metrics(seq, tmp_path / "run")
+    assert m["localised_pct"] == pytest.approx(100.0 * 4 / 6) and m["within_1mm_pct"] == pytest.approx(100.0 * 3 / 6)
+    assert m["loc_max_mm"] == pytest.approx(2.0) and m["frames_to_recover"] == [1]

@@ -119,6 +119,17 @@ def test_kidnap_teleports_marked_and_seeded():
     np.testing.assert_allclose(within, 4.0, atol=1e-9)  # 120 mm/s at 30 fps
     # Every point stays inside the area.
     assert s[:, 0].min() >= -1e-9 and s[:, 0].max() <= 200 + 1e-9
+    # The teleport falls half a frame before its frame: that frame's exposure (or a rolling
+    # shutter's early rows) sees its own segment, standing at its start, and the frame before
+    # sees its segment moving on (the teleport frame's early rows showed the last segment's floor).
+    f, dt = tf[0], 1.0 / 30.0
+    np.testing.assert_allclose(a.pose_at(f * dt - 0.4 * dt)[0], a.T_world_cam[f], atol=1e-9)
+    before = a.pose_at((f - 1) * dt + 0.4 * dt)[0]
+    np.testing.assert_allclose(
+        before[:2, 3] - a.T_world_cam[f - 1][:2, 3],
+        0.4 * (a.T_world_cam[f - 1] - a.T_world_cam[f - 2])[:2, 3],
+        atol=1e-9,
+    )
 
 
 def test_disturbances_change_height_and_tilt_only_as_asked():

@@ -534,3 +534,25 @@ def test_vote_index_refuses_impossible_radius():
 
     with pytest.raises(ConfigError, match="max_hamming_bits = 300: must be in"):
         VoteIndex([], max_hamming_bits=300)
+
+
+def test_a_map_whose_ground_truth_starts_late_is_anchored_at_a_frame_that_has_one(tmp_path, lane):
+    """Ground truth starting two frames after the first image (a motion capture started late):
+    the chain was anchored at frame 0 with the first ground-truth pose, frame 2's, and every
+    keyframe (and fix) was 8 mm off, reported ok. It is anchored at the first keyframe that has
+    a pose of its own now: every keyframe within 0.05 mm of the truth."""
+    from floorvo.mapping.map import build_map
+    from floorvo.sequence import SequenceWriter
+
+    poses, imgs, _ = lane
+    ts = np.arange(len(imgs)) / 30.0
+    meta = {"camera": CAM.to_dict(), "fps": 30.0, "frame_count": len(imgs), "rig": {"height_mm": H_MM}}
+    with SequenceWriter(tmp_path / "seq", meta) as w:
+        for i, img in enumerate(imgs):
+            w.write_frame(i, img)
+        w.write_timestamps(ts)
+        w.write_groundtruth(ts[2:], np.stack(poses[2:]))
+    m = build_map(tmp_path / "seq")
+    assert m.pose_source == "chain"
+    truth = np.stack(poses)[np.asarray(m.frame_indices)]
+    assert np.abs(m.T_world_kf[:, :3, 3] - truth[:, :3, 3]).max() < 0.05

@@ -41,7 +41,7 @@ import numpy as np
 from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, CameraModel
 from floorvo.config import MAX_SEED, Config, build, from_overrides, param, to_plain
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError, shown
-from floorvo.geometry import T_world_cam_down
+from floorvo.geometry import T_world_cam_down, invert_T
 from floorvo.io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -186,8 +186,11 @@ def build_map_from_images(
 
     ``T_world_first``: pose of frame 0 (the map's world frame; default: downward camera at
     the origin with yaw 0 at ``height_mm``). ``T_world_frames``: (n_frames, 4, 4) ground-truth
-    poses (mm) of every frame, or None; with ``config.poses == "groundtruth"`` the keyframes
-    take theirs (see :class:`MapConfig`), and the chain is anchored at frame 0's.
+    poses (mm) of the frames, NaN for a frame without one, or None; with ``config.poses ==
+    "groundtruth"`` and a pose for every keyframe the keyframes take theirs (see
+    :class:`MapConfig`); the chain is anchored at the first keyframe that has one (its own: a
+    ground truth starting two frames late gave frame 0 frame 2's pose, and every keyframe and
+    fix was 8 mm off, reported ok).
     """
     cfg = config or MapConfig()
     sc = cfg.similarity
@@ -225,23 +228,25 @@ def build_map_from_images(
     gt = None if T_world_frames is None else np.asarray(T_world_frames, float).reshape(-1, 4, 4)
     if gt is not None and len(gt) != n_frames:
         raise ValueError(f"T_world_frames has {len(gt)} poses for {n_frames} frames")
+    kf = np.asarray(res.indices)
+    has_gt = np.zeros(len(kf), bool) if gt is None else ~np.isnan(gt[kf]).any(axis=(1, 2))
     if T_world_first is not None:
         T0 = np.asarray(T_world_first, float)
-    elif gt is not None:
-        T0 = gt[0]
+    elif has_gt.any():
+        j = int(np.argmax(has_gt))  # the first keyframe with a ground-truth pose anchors the chain there
+        T0 = gt[kf[j]] @ invert_T(chain_poses(np.eye(4), res.T_kf_prev_kf)[j])  # type: ignore[index]
     else:
+        if gt is not None:
+            log.warning("map: no keyframe has a ground-truth pose: the chain starts at the origin")
         T0 = T_world_cam_down(0.0, 0.0, height_mm)
     T_chain = chain_poses(T0, res.T_kf_prev_kf)  # Eq. (24)
     pose_source, chain_vs_gt = "chain", {}
     T_world_kf = T_chain
-    if gt is not None:
-        T_gt = gt[np.asarray(res.indices)]
-        d_mm = np.linalg.norm(T_chain[:, :2, 3] - T_gt[:, :2, 3], axis=1)
-        d_yaw = np.abs(
-            np.angle(
-                np.exp(1j * (np.arctan2(T_chain[:, 1, 0], T_chain[:, 0, 0]) - np.arctan2(T_gt[:, 1, 0], T_gt[:, 0, 0])))
-            )
-        )
+    if gt is not None and has_gt.any():
+        T_gt = gt[kf]
+        C, G = T_chain[has_gt], T_gt[has_gt]
+        d_mm = np.linalg.norm(C[:, :2, 3] - G[:, :2, 3], axis=1)
+        d_yaw = np.abs(np.angle(np.exp(1j * (np.arctan2(C[:, 1, 0], C[:, 0, 0]) - np.arctan2(G[:, 1, 0], G[:, 0, 0])))))
         chain_vs_gt = {
             "max_mm": float(d_mm.max()),
             "rms_mm": float(np.sqrt(np.mean(d_mm**2))),
@@ -252,7 +257,7 @@ def build_map_from_images(
             chain_vs_gt["max_mm"],
             chain_vs_gt["rms_mm"],
         )
-        if cfg.poses == "groundtruth":
+        if cfg.poses == "groundtruth" and has_gt.all():
             T_world_kf, pose_source = T_gt.copy(), "groundtruth"
     images = np.stack([prepared(i)[0] for i in res.indices])
     feats = [prepared(i)[1] for i in res.indices]
@@ -293,21 +298,18 @@ def build_map(
         raise SequenceError(
             f"{seq.root}/sequence.json: rig.height_mm is missing (the camera height above the floor, mm)"
         )
-    gt = seq.groundtruth()
     T_at, found = seq.groundtruth_at(seq.timestamps_s, max_diff_s=1e-3)
-    T_frames: np.ndarray | None = T_at
-    if not found.all():
-        if gt is not None:
+    T_frames: np.ndarray | None = None
+    if found.any():
+        T_frames = np.where(found[:, None, None], T_at, np.nan)  # NaN: a frame without a ground-truth pose
+        if not found.all():
             log.warning("map: ground truth does not cover every frame; keyframe poses are chained (eq. 24)")
-        T_frames = None
-    T0 = gt[1][0] if T_frames is None and gt is not None and len(gt[1]) else None
     return build_map_from_images(
         seq.image,
         seq.frame_count,
         seq.camera,
         seq.height_mm,
         timestamps_s=seq.timestamps_s,
-        T_world_first=T0,
         T_world_frames=T_frames,
         flatfield=seq.flatfield(),
         config=config,

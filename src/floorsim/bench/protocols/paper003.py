@@ -120,17 +120,16 @@ def relocalisation_metrics(
     """
     seq = Sequence.open(seq_dir)
     run = RunFolder.read(run_dir)
-    t_ref, T_ref = read_tum(Path(seq_dir) / "groundtruth.txt")
     n = seq.frame_count
     err = np.full(n, np.nan)
     if len(run.timestamps_s):
-        T_est = run.T_world_cam
-        i_ref, i_est = associate(t_ref, run.timestamps_s)
-        frame_of_ref = np.rint(t_ref * seq.fps).astype(int)
-        d = np.linalg.norm(T_est[i_est, :2, 3] - T_ref[i_ref, :2, 3], axis=1)
-        frames = frame_of_ref[i_ref]
-        ok = (frames >= 0) & (frames < n)
-        err[frames[ok]] = d[ok]
+        # each placed pose's frame by its time, and that frame's true pose (the frames' own times:
+        # frame k taken at k / fps scored a sequence whose times start at 5 s as 0 % localised)
+        T_true, found = seq.groundtruth_at(seq.timestamps_s)
+        i_frame, i_est = associate(seq.timestamps_s, run.timestamps_s)
+        keep = found[i_frame]
+        i_frame, i_est = i_frame[keep], i_est[keep]
+        err[i_frame] = np.linalg.norm(run.T_world_cam[i_est, :2, 3] - T_true[i_frame, :2, 3], axis=1)
     placed = np.isfinite(err)
     good = placed & (err <= within_mm)
     tele = [int(f) for f in (seq.meta.get("events") or {}).get("teleport_frames", [])]
