@@ -87,6 +87,7 @@ __all__ = [
     "fit_scale_calibration",
     "calibrate_run",
     "calibrate_runs",
+    "scale_range_problem",
     "RunSteps",
     "run_steps",
     "save_scale_calibration",
@@ -261,6 +262,7 @@ def calibrate_run(
     min_travel_mm: float = 10.0,
     min_turn_deg: float = 10.0,
     orientation: bool = True,
+    check_range: bool = True,
 ) -> ScaleCalibration:
     """Fit the scales of ``RUN/trajectory.txt`` against ``SEQ/groundtruth.txt`` (or a TUM file).
 
@@ -271,7 +273,21 @@ def calibrate_run(
     between those poses it pulled the scale down (0.17-0.49 fitted on a half-size ceramic
     floor that lost steps). Without ``timing.csv``, consecutive poses as they are.
     """
-    return calibrate_runs([(run_dir, seq_dir)], max_diff_s, min_travel_mm, min_turn_deg)
+    return calibrate_runs([(run_dir, seq_dir)], max_diff_s, min_travel_mm, min_turn_deg, orientation, check_range)
+
+
+def scale_range_problem(cal: ScaleCalibration, axes: tuple[str, ...] = _AXES) -> str:
+    """Why ``cal`` is no calibration a file may hold ('' when it is): a scale of ``axes``, with
+    the amplitude of its texture-orientation terms, leaves :data:`SCALE_RANGE` (a 10 % scale
+    error is a wrong camera height or a broken run). The one range rule of the fit, the file's
+    reader and the motion suite's per-material fits."""
+    for axis in axes:
+        v = getattr(cal, f"scale_{axis}")
+        amp = math.hypot(getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
+        if not (SCALE_RANGE[0] <= v - amp and v + amp <= SCALE_RANGE[1]):
+            terms = f" +/- {amp:.5f}" if amp else ""
+            return f"scale_{axis} = {v:.5f}{terms}, outside [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
+    return ""
 
 
 def calibrate_runs(
@@ -280,15 +296,23 @@ def calibrate_runs(
     min_travel_mm: float = 10.0,
     min_turn_deg: float = 10.0,
     orientation: bool = True,
+    check_range: bool = True,
 ) -> ScaleCalibration:
     """One calibration fitted on the steps of several ``(run folder, sequence)`` pairs together
     (each as :func:`calibrate_run`): a straight run for the translation's scales and a turning
     one for the yaw's, say. The runs must be of one estimator (``result.json``). The
     texture-orientation terms (``orientation``) need every run's step frames (``timing.csv``)
-    and frames (a sequence folder, not a bare ground-truth file); without them, constants only."""
+    and frames (a sequence folder, not a bare ground-truth file); without them, constants only.
+    Refused: runs made with a scale calibration, and a fit outside :data:`SCALE_RANGE`
+    (:func:`scale_range_problem`; ``check_range=False`` returns it, for a caller that says so itself)."""
     if not runs:
         raise SequenceError("scale calibration: no run given")
     got = [run_steps(run_dir, seq_dir, max_diff_s, orientation) for run_dir, seq_dir in runs]
+    for (run_dir, _), r in zip(runs, got):
+        if r.calibrated:  # fitted on runs a calibration had already corrected: scales of 1, applied for nothing
+            raise SequenceError(
+                f"{run_dir}: was run with a scale calibration (result.json): fit on runs made without one"
+            )
     G, E = [r.true for r in got], [r.est for r in got]
     names = {r.estimator for r in got}
     if len(names) > 1:
@@ -301,14 +325,28 @@ def calibrate_runs(
     theta = np.concatenate([r.theta_rad for r in got]) if with_theta else None
     coherence = float(np.average([r.coherence for r in got], weights=[len(g) for g in G])) if with_theta else 0.0
     cal = _fit_steps(np.concatenate(G), np.concatenate(E), min_travel_mm, min_turn_deg, theta, coherence)
+    problem = scale_range_problem(cal) if check_range else ""
+    if problem:  # what the file's reader refuses: said now, not at every later use of the file
+        raise SequenceError(
+            f"scale calibration: the runs give {problem}: not a calibration (a wrong camera height, or runs "
+            "that lost their track)"
+        )
     return ScaleCalibration(
         **{
             **asdict(cal),
             "estimator": names.pop(),
-            "run": "; ".join(str(r) for r, _ in runs),
-            "sequence": "; ".join(str(s) for _, s in runs),
+            # where they are, wherever the command ran: the use check compares them with the run's
+            "run": "; ".join(str(Path(r).resolve()) for r, _ in runs),
+            "sequence": "; ".join(str(_sequence_folder(Path(s)).resolve()) for _, s in runs),
         }
     )
+
+
+def _sequence_folder(path: Path) -> Path:
+    """The sequence folder of ``path``: the folder itself, or the folder of its ``groundtruth.txt``."""
+    if path.name == "groundtruth.txt" and (path.parent / "sequence.json").is_file():
+        return path.parent
+    return path
 
 
 @dataclass(frozen=True)
@@ -324,6 +362,7 @@ class RunSteps:
     estimator: str
     theta_rad: np.ndarray | None = None
     coherence: float = 0.0
+    calibrated: bool = False  # the run was made with a scale calibration (its result.json)
 
 
 def run_steps(
@@ -333,19 +372,19 @@ def run_steps(
     ``orientation``, their texture orientations, read from the sequence's frames (none without
     ``timing.csv``, for a bare ground-truth file, or a sequence without frames)."""
     run_dir, seq_dir = Path(run_dir), Path(seq_dir)
-    g, e, estimator, frames = _run_steps(run_dir, seq_dir, max_diff_s)
+    g, e, estimator, frames, calibrated = _run_steps(run_dir, seq_dir, max_diff_s)
     orient = _step_orientations(seq_dir, *frames) if orientation and frames is not None else None
     if orient is None:
-        return RunSteps(g, e, estimator)
-    return RunSteps(g, e, estimator, *orient)
+        return RunSteps(g, e, estimator, calibrated=calibrated)
+    return RunSteps(g, e, estimator, *orient, calibrated=calibrated)
 
 
 def _run_steps(
     run_dir: Path, seq_dir: Path, max_diff_s: float
-) -> tuple[np.ndarray, np.ndarray, str, tuple[np.ndarray, np.ndarray] | None]:
+) -> tuple[np.ndarray, np.ndarray, str, tuple[np.ndarray, np.ndarray] | None, bool]:
     """The true and estimated steps (K, 4, 4) of a run (:func:`calibrate_run`), its estimator's
-    name, and each step's sequence frames ``(from (K,), to (K,))`` (None: unknown, a run without
-    ``timing.csv``, or a bare ground-truth file)."""
+    name, each step's sequence frames ``(from (K,), to (K,))`` (None: unknown, a run without
+    ``timing.csv``, or a bare ground-truth file), and whether it was made with a scale calibration."""
     gt, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "calibrate")
     if len(run.timestamps_s) < 2:  # a run that lost every frame: said as such, not as a timing mismatch
         raise SequenceError(
@@ -355,9 +394,10 @@ def _run_steps(
     if len(i_ref) < 2:
         raise SequenceError(f"{run_dir}/trajectory.txt: fewer than 2 poses match {gt} in time (within {max_diff_s} s)")
     estimator = str(run.result.get("estimator", ""))
+    calibrated = bool(run.result.get("scale_calibration"))
     poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
     if poses is None:
-        return _steps(T_ref[i_ref]), _steps(run.T_world_cam[i_est]), estimator, None
+        return _steps(T_ref[i_ref]), _steps(run.T_world_cam[i_est]), estimator, None, calibrated
     A, A_from, B = poses
     g = invert_T(A_from) @ A[1:]
     e = invert_T(B[:-1]) @ B[1:]
@@ -367,7 +407,7 @@ def _run_steps(
     frames = ok_step_frames_of_run(run) if (seq_dir / "sequence.json").is_file() else None
     if frames is not None:
         frames = (frames[0][known], frames[1][known])
-    return g[known], e[known], estimator, frames
+    return g[known], e[known], estimator, frames, calibrated
 
 
 def _step_orientations(seq_dir: Path, frm: np.ndarray, to: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -456,8 +496,13 @@ def calibration_use_problems(
     ``result.json``, where they are still there: a calibration is fitted per estimator config).
     """
     problems = []
+    if not cal.estimator:  # fitted on runs without a result.json: the estimator check passed any
+        problems.append(
+            "the scale calibration names no estimator (its runs had no result.json): that it is this estimator's "
+            "is not checked"
+        )
     here = Path(seq_dir).resolve()
-    fitted_on = [Path(s) for s in cal.sequence.split("; ") if s]
+    fitted_on = [_sequence_folder(Path(s)) for s in cal.sequence.split("; ") if s]
     if any(s.resolve() == here for s in fitted_on):
         problems.append(
             f"the scale calibration was fitted on this sequence ({shorten(str(seq_dir))}): a score of this run "

@@ -425,3 +425,15 @@ def test_a_gate_on_a_recording_sees_its_frames_and_a_refreshed_baseline_keeps_it
     cv2.imwrite(str(frame), cv2.GaussianBlur(cv2.imread(str(frame), cv2.IMREAD_UNCHANGED), (0, 0), 3))
     gate = bench(tmp_path / "d", baseline=base).gate
     assert not gate.ok and gate.checked == 0 and gate.made_otherwise[0].startswith("rec/phase-corr: not comparable")
+
+
+def test_a_scale_calibration_is_taken_for_a_module_class_estimator(tmp_path):
+    """--estimators mod:Class ran, and --scale-calibration mod:Class=FILE was refused as an unknown estimator."""
+    from floorsim.bench.bench import _load_scales
+    from floorvo.calibration import ScaleCalibration, save_scale_calibration
+
+    save_scale_calibration(ScaleCalibration(scale_x=1.01, observed_x=True, estimator="mymod:Vo"), tmp_path / "c.json")
+    cals = _load_scales({"mymod:Vo": tmp_path / "c.json"}, ["mymod:Vo"], ["phase-corr"])
+    assert cals["mymod:Vo"][1].scale_x == 1.01
+    with pytest.raises(Exception, match="--scale-calibration nope=.*unknown estimator"):
+        _load_scales({"nope": tmp_path / "c.json"}, None, ["phase-corr"])

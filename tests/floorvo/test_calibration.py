@@ -484,3 +484,39 @@ def test_a_frame_without_a_mono_image_gets_no_orientation_and_the_run_goes_on():
     res = run_frames(Scripted(script), frames, T_world_start=np.eye(4), scale_calibration=cal)
     assert list(res.status) == ["init", "lost", "ok"]
     np.testing.assert_allclose(res.T_world_cam[-1], apply_scale(E[0], cal, texture_orientation(frames[0].image)[0]))
+
+
+def test_a_calibration_is_fitted_only_on_uncalibrated_runs_within_its_range_and_knows_its_paths(
+    tmp_path, capsys, monkeypatch
+):
+    """Runs made with a calibration fitted scales of 1 (a file that then did nothing); a fit of 1.15
+    wrote a file every later run refused; relative paths (and --gt SEQ/groundtruth.txt) kept the
+    'fitted on this sequence' warning from runs made elsewhere; a file fitted on runs without
+    result.json (no estimator) was applied to any estimator without a word."""
+    from floorvo.calibration import calibrate_runs, calibration_use_problems
+
+    seq = _diagonal_sequence(tmp_path / "cal", 1, 3.0, 2.0)
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "raw")]) == 0
+    monkeypatch.chdir(tmp_path)
+    assert floorvo_main(["calibrate", "raw", "--gt", "cal/groundtruth.txt", "-o", "scale.json"]) == 0
+    cal = load_scale_calibration(tmp_path / "scale.json")
+    assert cal.run == str((tmp_path / "raw").resolve()) and cal.sequence == str(seq.resolve())
+    monkeypatch.chdir(tmp_path.parent)  # elsewhere: the fitted sequence is still told
+    assert any("fitted on this sequence" in p for p in calibration_use_problems(cal, seq))
+    argv = ["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "corrected")]
+    assert floorvo_main([*argv, "--scale-calibration", str(tmp_path / "scale.json")]) == 0
+    capsys.readouterr()
+    assert (
+        floorvo_main(["calibrate", str(tmp_path / "corrected"), "--gt", str(seq), "-o", str(tmp_path / "c2.json")]) == 1
+    )
+    assert "was run with a scale calibration (result.json): fit on runs made without one" in capsys.readouterr().err
+    # a height 15 % off: scales of 1.15 are no calibration
+    meta = json.loads((seq / "sequence.json").read_text())
+    meta["rig"]["height_mm"] = 115.0
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "far")]) == 0
+    with pytest.raises(Exception, match=r"the runs give scale_x = 1\.1\d+, outside \[0\.9, 1\.1\]"):
+        calibrate_runs([(tmp_path / "far", seq)])
+    assert not (tmp_path / "c2.json").exists()
+    nameless = replace(cal, estimator="")
+    assert any("names no estimator" in p for p in calibration_use_problems(nameless, tmp_path / "other"))

@@ -474,7 +474,7 @@ def _load_scales(
     """``{estimator: (file, ScaleCalibration)}``; refuses an unknown or unselected estimator by name."""
     cals = {}
     for n, f in (scale_calibrations or {}).items():
-        if n not in known:
+        if n not in known and ":" not in n:  # a module:Class reference is taken as --estimators takes it
             raise ConfigError(f"--scale-calibration {n}={f}: unknown estimator (known: {', '.join(sorted(known))})")
         if estimators is not None and n not in estimators:
             raise ConfigError(

@@ -44,10 +44,10 @@ from floorsim.scene import Scene, load_scene, scenes_dir
 from floorsim.simulate import render_sequence
 from floorvo.calibration import (
     ORIENTATION_MIN_COHERENCE,
-    SCALE_RANGE,
     ScaleCalibration,
     calibrate_run,
     calibrate_runs,
+    scale_range_problem,
 )
 from floorvo.errors import FloorbenchError
 from floorvo.sequence import Sequence
@@ -225,10 +225,12 @@ class MaterialCalibration:
 
 
 def _out_of_range(cal: ScaleCalibration, axes: tuple[str, ...]) -> str:
+    """The table cell's words where a scale of ``axes`` leaves the range
+    (:func:`floorvo.calibration.scale_range_problem`), else ''."""
     for axis in axes:
-        v = getattr(cal, f"scale_{axis}")
-        amp = math.hypot(getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
-        if not SCALE_RANGE[0] <= v - amp <= v + amp <= SCALE_RANGE[1]:
+        if scale_range_problem(cal, (axis,)):
+            v = getattr(cal, f"scale_{axis}")
+            amp = math.hypot(getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
             return f"scale {axis} {v:.3f}" + (f" +/- {amp:.3f}" if amp else "") + " fitted: a broken run"
     return ""
 
@@ -255,7 +257,9 @@ def fit_material_calibration(
     if not turned or full_spin is None or fit.with_yaw is None:
         return fit
     try:
-        cal = calibrate_runs([straight, *turned, full_spin], min_turn_deg=min_turn_deg, orientation=True)
+        cal = calibrate_runs(
+            [straight, *turned, full_spin], min_turn_deg=min_turn_deg, orientation=True, check_range=False
+        )
     except FloorbenchError as exc:
         return replace(fit, orientation_why=f"a turned straight run lost: {exc}")
     if not cal.uses_orientation:
@@ -275,7 +279,7 @@ def fit_material_calibration(
 def _fit_constant(straight: RunPair, spin: RunPair | None, min_turn_deg: float) -> MaterialCalibration:
     """:func:`fit_material_calibration`'s two calibrations with constant scales."""
     try:
-        cal = calibrate_run(*straight, orientation=False)
+        cal = calibrate_run(*straight, orientation=False, check_range=False)
     except FloorbenchError:  # the run tracked too little (a featureless floor)
         return MaterialCalibration(None, None, "calibration run lost")
     bad = _out_of_range(cal, ("x", "y"))
@@ -284,7 +288,7 @@ def _fit_constant(straight: RunPair, spin: RunPair | None, min_turn_deg: float) 
     if spin is None:
         return MaterialCalibration(cal, None, "no spin over this floor")
     try:
-        both = calibrate_runs([straight, spin], min_turn_deg=min_turn_deg, orientation=False)
+        both = calibrate_runs([straight, spin], min_turn_deg=min_turn_deg, orientation=False, check_range=False)
     except FloorbenchError as exc:
         # The message names the run and sequence folders: the cell needs the reason only.
         text = str(exc).replace(f"{Path(spin[0])}/", "").replace(str(Path(spin[0])), "the run")
