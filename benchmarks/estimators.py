@@ -39,6 +39,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
+from floorvo.errors import FloorbenchError  # noqa: E402
 from floorvo.estimators import get_estimator, list_estimators  # noqa: E402
 from floorvo.run import run_estimator  # noqa: E402
 from floorvo.scoring import score_run  # noqa: E402
@@ -313,7 +314,11 @@ def _calibrated_rows(seqs: dict, rows: list[dict], cal_name: str, out: Path) -> 
         cal_run = out / "runs" / cal_name / name
         if not (cal_run / "trajectory.txt").is_file():
             continue
-        cal = calibrate_run(cal_run, seqs[cal_name])
+        try:
+            cal = calibrate_run(cal_run, seqs[cal_name])
+        except FloorbenchError as exc:  # a run that lost its track, or a scale no calibration may have
+            print(f"{name}: no calibration on {cal_name}: {exc}")
+            continue
         run = out / "runs" / sname / f"{name}-calibrated"
         run_estimator(Sequence.open(seqs[sname]), name, run, scale_calibration=cal)
         sc = score_run(run, seqs[sname]).flat()
