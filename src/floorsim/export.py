@@ -550,4 +550,12 @@ def export_sequence(seq_dir: str | os.PathLike, fmt: str, out: str | os.PathLike
     """Export the sequence folder ``seq_dir`` in format ``fmt`` (``rosbag2`` or ``euroc``)."""
     if fmt not in FORMATS:
         raise FloorbenchError(f"--format {fmt!r}: unknown (known: {', '.join(FORMATS)})")
-    return FORMATS[fmt](Sequence.open(seq_dir), out)
+    seq = Sequence.open(seq_dir)
+    if seq.led_positions_cam_mm is not None:  # homography-6dof's lights check reads them: it runs otherwise on the copy
+        log.warning(
+            "%s: the rig's LED positions (rig.led_positions_cam_mm) are left out of the %s export: neither "
+            "format has a place for them",
+            seq.root,
+            "EuRoC" if fmt == "euroc" else "ROS 2 bag",
+        )
+    return FORMATS[fmt](seq, out)

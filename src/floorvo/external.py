@@ -87,7 +87,7 @@ from floorvo.runfolder import (
     PROGRAM_STDOUT,
     SEQUENCE_SHA256,
     RunFolder,
-    remove_derived_files,
+    remove_run_files,
     sequence_sha256,
 )
 from floorvo.sequence import GROUNDTRUTH_MAX_DIFF_S, Sequence
@@ -454,10 +454,8 @@ def run_external(
         raise FloorbenchError(lacking)
     out = ensure_writable_dir(run_dir)
     program_dir = out / PROGRAM_DIR
-    for stale in ("trajectory.txt", "timing.csv", "result.json"):  # a rerun must not read an older run's files
-        (out / stale).unlink(missing_ok=True)
-        (program_dir / stale).unlink(missing_ok=True)
-    remove_derived_files(out)  # nor keep the older run's score beside a failed one
+    remove_run_files(out)  # a rerun must not read an older run's files, nor keep its score beside a failed one
+    remove_run_files(program_dir)
     program_dir.mkdir(exist_ok=True)
     height = seq.height_mm
     camera_file = out / PROGRAM_CAMERA

@@ -79,6 +79,7 @@ __all__ = [
     "DERIVED",
     "remove_derived_files",
     "remove_program_files",
+    "remove_run_files",
     "PROGRAM_DIR",
     "PROGRAM_FILES",
     "PROGRAM_CAMERA",
@@ -165,6 +166,17 @@ def remove_program_files(run_dir: str | os.PathLike) -> None:
             pdir.rmdir()
         except OSError:  # the program wrote more there: not ours to remove
             pass
+
+
+def remove_run_files(run_dir: str | os.PathLike) -> None:
+    """Remove an earlier run's ``trajectory.txt``, ``timing.csv`` and ``result.json`` from
+    ``run_dir``, and what was made from them (:func:`remove_derived_files`): a run that then
+    fails leaves no older run behind (a bench drew a failed run's curve from the run before,
+    and timed it). The caller holds the folder's lock."""
+    run_dir = Path(run_dir)
+    for name in (TRAJECTORY, TIMING, RESULT):
+        (run_dir / name).unlink(missing_ok=True)
+    remove_derived_files(run_dir)
 
 
 def remove_derived_files(run_dir: str | os.PathLike) -> None:

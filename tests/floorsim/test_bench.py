@@ -5,6 +5,7 @@ its gate."""
 import csv
 import json
 from functools import partial
+from pathlib import Path
 
 import _bench_doubles as D
 import pytest
@@ -437,3 +438,35 @@ def test_a_scale_calibration_is_taken_for_a_module_class_estimator(tmp_path):
     assert cals["mymod:Vo"][1].scale_x == 1.01
     with pytest.raises(Exception, match="--scale-calibration nope=.*unknown estimator"):
         _load_scales({"nope": tmp_path / "c.json"}, None, ["phase-corr"])
+
+
+def test_a_bench_of_a_one_frame_recording_is_refused_and_a_failed_run_is_not_drawn(tmp_path, monkeypatch):
+    """A sequence folder of 1 frame gave 'ok' rows that tracked nothing (a render of --frames 1 is
+    refused). A run that failed in a bench run again was drawn and timed from the files of the run
+    before it, left in its folder."""
+    from floorvo.errors import ConfigError
+
+    one = write_sequence(tmp_path / "one", n=1)
+    with pytest.raises(ConfigError, match=r"holds 1 frame\(s\): a bench needs at least 2"):
+        real_run_bench([one], ["phase-corr"], tmp_path / "b1", report=False)
+    (tmp_path / "flaky_vo_for_tests.py").write_text(
+        "import os\n"
+        "from floorvo.estimators.phase_corr import PhaseCorr\n"
+        "class Flaky(PhaseCorr):\n"
+        "    name = 'flaky'\n"
+        "    def step(self, state, frame):\n"
+        "        if os.environ.get('FLAKY_FOR_TESTS'):\n"
+        "            raise RuntimeError('flaky failure')\n"
+        "        return super().step(state, frame)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    seq = write_sequence(tmp_path / "rec")
+    bench = partial(real_run_bench, [seq], ["phase-corr", "flaky_vo_for_tests:Flaky"], tmp_path / "b2", report=False)
+    first = bench()
+    assert {r.estimator for r in first.records} == {"phase-corr", "flaky_vo_for_tests:Flaky"}
+    monkeypatch.setenv("FLAKY_FOR_TESTS", "1")
+    again = bench()
+    rows = {r["estimator"]: r for r in again.rows}
+    assert rows["flaky_vo_for_tests:Flaky"]["status"].startswith("failed: ")
+    assert {r.estimator for r in again.records} == {"phase-corr"}
+    assert not (Path(rows["flaky_vo_for_tests:Flaky"]["run_dir"]) / "trajectory.txt").exists()

@@ -362,6 +362,27 @@ def test_a_euroc_export_says_it_leaves_the_depth_images_out(tmp_path, original, 
     assert not any("depth" in r.getMessage() for r in caplog.records)
 
 
+def test_an_export_says_it_leaves_the_rigs_led_positions_out(tmp_path, original, caplog):
+    """Neither format carries rig.led_positions_cam_mm, which homography-6dof's lights check
+    reads: on the copy it ran in another mode, without a word."""
+    import json
+    import shutil
+
+    seq, _ = original
+    root = tmp_path / "seq"
+    shutil.copytree(seq.root, root)
+    meta = json.loads((root / "sequence.json").read_text())
+    meta["rig"]["led_positions_cam_mm"] = [[-70.0, -20.0, 97.0], [-70.0, 20.0, 97.0]]
+    (root / "sequence.json").write_text(json.dumps(meta))
+    for fmt in ("euroc", "rosbag2"):
+        caplog.clear()
+        export_sequence(root, fmt, tmp_path / fmt)
+        assert any("LED positions (rig.led_positions_cam_mm) are left out" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    export_sequence(seq.root, "euroc", tmp_path / "plain")
+    assert not any("LED positions" in r.getMessage() for r in caplog.records)
+
+
 def _recording(root, gt_times_s, frame_times_s=None):
     """An imported-like sequence folder (not simulated: its ground truth may be at another rate than
     its 8 frames, 16-bit, stereo): frames at ``frame_times_s`` (default about 30 Hz at a Unix time,

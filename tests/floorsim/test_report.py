@@ -140,3 +140,29 @@ def test_table_cells_of_a_run_scored_without_pose_metrics_say_why():
     assert all(c[k] == 0.1 for k in GROUND_TRUTH_COLUMNS)
     table = format_table(rows).splitlines()
     assert table[2].count("fewer than two frames tracked") == 1 and table[3].count("no ground truth") == 1
+
+
+def test_markdown_cells_stay_in_their_columns_and_text_columns_are_shown_as_written(tmp_path):
+    """A plugin's message or a program's stderr tail (lines joined by ' | ') split a Markdown row
+    into more cells than its header; '*', '_' and '<b>' in names rendered as emphasis or HTML; a
+    scene folder named 1.50 or nan was shown as 1.5 and -. A gate's lines ran into one paragraph."""
+    from floorsim.bench.report import Report
+
+    rep = Report("t", tmp_path / "rep")
+    rows = [
+        {"scene": "1.50", "estimator": "mod:Cls", "status": "failed: kaboom | col2\nx", "end_drift_pct": 0.25},
+        {"scene": "nan", "estimator": "sc|ene *u* <b>", "status": "ok", "end_drift_pct": float("nan")},
+    ]
+    cols = [("scene", "scene"), ("estimator", "estimator"), ("status", "status"), ("end_drift_pct", "drift %")]
+    rep.table(rows, cols)
+    rep.lines(["a: end_drift_pct got worse", "regression gate FAILED: 1 metric(s) worse"])
+    html_path, md_path = rep.write()
+    md = md_path.read_text().splitlines()
+    table = [line for line in md if line.startswith("| ")]
+    assert all(len(re.findall(r"(?<!\\)\|", line)) == len(cols) + 1 for line in table), table
+    assert "| 1.50 | mod:Cls | failed: kaboom \\| col2 x | 0.25 |" in table
+    assert "| nan | sc\\|ene \\*u\\* \\<b\\> | ok | - |" in table
+    assert "- a: end\\_drift\\_pct got worse" in md and "- regression gate FAILED: 1 metric(s) worse" in md
+    page = html_path.read_text()
+    assert "<td>1.50</td>" in page and "sc|ene *u* &lt;b&gt;" in page
+    assert "a: end_drift_pct got worse<br>regression gate FAILED" in page

@@ -287,8 +287,15 @@ def check_sequence_folder(path: str | os.PathLike) -> None:
     """Refuse, before any render or run, a sequence folder the runs cannot read (what
     :meth:`floorvo.sequence.Sequence.open` refuses: a ``sequence.json`` of an unknown schema
     version, bad timestamps; and its ground truth, :meth:`~floorvo.sequence.Sequence.groundtruth`:
-    a rendered sequence's cut short): the one check of the bench's sequence folders and a study's."""
-    Sequence.open(path).groundtruth()
+    a rendered sequence's cut short), and one of fewer than 2 frames (no step to estimate: every
+    run was an 'ok' row that "tracked" nothing, as a render of --frames 1 is refused): the one
+    check of the bench's sequence folders and a study's."""
+    seq = Sequence.open(path)
+    if seq.frame_count < 2:
+        raise ConfigError(
+            f"{seq.root}: holds {seq.frame_count} frame(s): a bench needs at least 2 (a step to estimate)"
+        )
+    seq.groundtruth()
 
 
 def is_sequence_folder(path: str | os.PathLike) -> bool:
@@ -700,7 +707,8 @@ def run_bench(
                     row.update(protocol.row_columns(first))
                 rows.append(row)
                 first.rows.append(row)
-                records.append(RunRecord(label, name, rep, seq_dir, run_dir))
+                if row["status"] == "ok":  # a failed run's folder may hold an earlier run's files: not drawn
+                    records.append(RunRecord(label, name, rep, seq_dir, run_dir))
                 write_results_csv(results_csv, rows)
         assert first is not None  # repetitions >= 1
         for protocol in protocols:

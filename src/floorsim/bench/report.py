@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from floorsim.bench.results import TEXT_COLUMNS
 from floorvo import metric_defs as md
 from floorvo.io import atomic_write_bytes, atomic_write_text
 from floorvo.plots import PlotRun, draw_errors, draw_trajectories, load_plot_run, pyplot
@@ -140,6 +141,25 @@ def _plt():
     return pyplot()
 
 
+def _md(text: str) -> str:
+    """``text`` as Markdown shows it literally, on one line: a table cell's ``|`` split its row
+    (a program's stderr lines are joined by them), and ``*``, ``_``, ``[``, ``<`` in names and
+    messages rendered as emphasis, links or HTML."""
+    out = " ".join(str(text).split("\n"))
+    for ch in "\\`*_[]<>|":
+        out = out.replace(ch, "\\" + ch)
+    return out
+
+
+def _cell(r: Mapping[str, Any], column: str) -> str:
+    """One table cell: a text column (the scene, the estimator, the status) as it is (a scene
+    folder named 1.50 or nan was shown as 1.5 or -), any other as :func:`_fmt` formats it."""
+    v = r.get(column)
+    if column in TEXT_COLUMNS and isinstance(v, str):
+        return v
+    return _fmt(v)
+
+
 def _fmt(v: Any) -> str:
     if v is None:
         return "-"
@@ -158,7 +178,7 @@ def _fmt(v: Any) -> str:
 
 def format_table(rows: SequenceT[Mapping[str, Any]], columns: SequenceT[tuple[str, str]] = SUMMARY_COLUMNS) -> str:
     """Plain-text table (fixed-width columns) of ``rows`` (:func:`display_rows`)."""
-    cells = [[h for _, h in columns]] + [[_fmt(r.get(c)) for c, _ in columns] for r in display_rows(rows)]
+    cells = [[h for _, h in columns]] + [[_cell(r, c) for c, _ in columns] for r in display_rows(rows)]
     widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in cells]
     lines.insert(1, "  ".join("-" * w for w in widths))
@@ -195,14 +215,19 @@ class Report:
         self._html.append(f"<p>{html.escape(text)}</p>")
         self._md.append(f"{text}\n")
 
+    def lines(self, lines: SequenceT[str]) -> None:
+        """Lines of text kept apart (a gate's summary: it ran together in one paragraph)."""
+        self._html.append("<p>" + "<br>".join(html.escape(t) for t in lines) + "</p>")
+        self._md.append("\n".join(f"- {_md(t)}" for t in lines) + "\n")
+
     def table(self, rows: SequenceT[Mapping[str, Any]], columns: SequenceT[tuple[str, str]]) -> None:
         head = "".join(f"<th>{html.escape(h)}</th>" for _, h in columns)
         body = "".join(
-            "<tr>" + "".join(f"<td>{html.escape(_fmt(r.get(c)))}</td>" for c, _ in columns) + "</tr>" for r in rows
+            "<tr>" + "".join(f"<td>{html.escape(_cell(r, c))}</td>" for c, _ in columns) + "</tr>" for r in rows
         )
         self._html.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
-        md = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
-        md += ["| " + " | ".join(_fmt(r.get(c)) for c, _ in columns) + " |" for r in rows]
+        md = ["| " + " | ".join(_md(h) for _, h in columns) + " |", "|" + "---|" * len(columns)]
+        md += ["| " + " | ".join(_md(_cell(r, c)) for c, _ in columns) + " |" for r in rows]
         self._md.append("\n".join(md) + "\n")
 
     def figure(self, fig, caption: str) -> None:
@@ -426,7 +451,7 @@ def build_bench_report(
     _lost_reasons_section(rows, rep)
     if gate_summary:
         rep.heading("Regression gate")
-        rep.text(gate_summary)
+        rep.lines(gate_summary.splitlines())
     for section in extra_sections:
         section(rep)
     by_scene: dict[str, list[RunRecord]] = {}
