@@ -27,7 +27,7 @@ from floorvo.estimators import estimator_source, get_estimator, make_config
 from floorvo.geometry import MAX_POSITION_MM, T_from_se2, T_from_xyz_quat, position_problem
 from floorvo.io import ensure_writable_dir
 from floorvo.locking import locks_folder
-from floorvo.runfolder import SEQUENCE_SHA256, remove_program_files, remove_run_files, sequence_sha256
+from floorvo.runfolder import SEQUENCE_SHA256, remove_program_files, sequence_sha256
 from floorvo.runner import RunResult, camera_height_mm, run_sequence
 from floorvo.sequence import Sequence
 
@@ -151,7 +151,6 @@ def run_estimator(
     for problem in cal_problems:
         log.warning("%s on %s: %s", name, seq.root, problem)
     out = ensure_writable_dir(out_dir)
-    remove_run_files(out)  # a run that fails leaves no earlier run behind
     remove_program_files(out)  # a program's earlier run into this folder
     indices = list(range(seq.frame_count) if frames is None else frames)
     n = len(indices)

@@ -170,9 +170,10 @@ def remove_program_files(run_dir: str | os.PathLike) -> None:
 
 def remove_run_files(run_dir: str | os.PathLike) -> None:
     """Remove an earlier run's ``trajectory.txt``, ``timing.csv`` and ``result.json`` from
-    ``run_dir``, and what was made from them (:func:`remove_derived_files`): a run that then
-    fails leaves no older run behind (a bench drew a failed run's curve from the run before,
-    and timed it). The caller holds the folder's lock."""
+    ``run_dir``, and what was made from them (:func:`remove_derived_files`): an external
+    program's run, whose program writes them itself, must not read an older run's. The caller
+    holds the folder's lock. (A Python run keeps the older run until it writes its own whole: an
+    interrupted run loses nothing; the bench draws only the runs of its ``ok`` rows.)"""
     run_dir = Path(run_dir)
     for name in (TRAJECTORY, TIMING, RESULT):
         (run_dir / name).unlink(missing_ok=True)
