@@ -22,7 +22,7 @@ from floorvo.metrics import associate, translation_error_along_path
 from floorvo.runfolder import RunFolder, check_run_of_sequence
 from floorvo.sequence import read_groundtruth
 
-__all__ = ["PlotRun", "pyplot", "draw_trajectories", "draw_errors", "load_plot_run", "plot_runs"]
+__all__ = ["PlotRun", "pyplot", "draw_trajectories", "draw_errors", "load_plot_run", "plot_runs", "run_styles"]
 
 
 def pyplot():
@@ -70,7 +70,7 @@ def _plot_run(run_dir: str | os.PathLike, label: str | None = None) -> PlotRun |
 PLOT_FORMATS = ("png", "pdf", "svg")
 
 
-def _styles(n: int) -> list[tuple[Any, str]]:
+def run_styles(n: int) -> list[tuple[Any, str]]:
     """(colour, line style) of each of ``n`` runs, all different: matplotlib's ten colours, then
     twenty, each with three line styles (beyond ten runs the default cycle drew two runs alike)."""
     import matplotlib
@@ -90,7 +90,7 @@ def draw_trajectories(ax: Any, runs: SequenceT[PlotRun], reference: tuple[np.nda
     if reference is not None:
         T_ref = reference[1]
         ax.plot(T_ref[:, 0, 3], T_ref[:, 1, 3], "k-", lw=2.5, alpha=0.5, label="ground truth")
-    for r, (colour, ls) in zip(runs, _styles(len(runs)), strict=True):
+    for r, (colour, ls) in zip(runs, run_styles(len(runs)), strict=True):
         ax.plot(r.T_world_cam[:, 0, 3], r.T_world_cam[:, 1, 3], ".", ls=ls, color=colour, ms=3, lw=1, label=r.label)
     ax.set_xlabel("x [mm]")
     xy = (reference[1] if reference is not None else np.concatenate([r.T_world_cam for r in runs]))[:, :2, 3]
@@ -113,7 +113,7 @@ def draw_errors(
     run (poses associated by time within ``max_diff_s``). Returns whether anything was drawn."""
     drawn = False
     t_ref, T_ref = reference
-    for r, (colour, ls) in zip(runs, _styles(len(runs)), strict=True):
+    for r, (colour, ls) in zip(runs, run_styles(len(runs)), strict=True):
         i_ref, i_est = associate(t_ref, r.t_s, max_diff_s)
         if len(i_ref) < 2:
             continue

@@ -166,3 +166,23 @@ def test_markdown_cells_stay_in_their_columns_and_text_columns_are_shown_as_writ
     page = html_path.read_text()
     assert "<td>1.50</td>" in page and "sc|ene *u* &lt;b&gt;" in page
     assert "a: end_drift_pct got worse<br>regression gate FAILED" in page
+
+
+def test_the_accuracy_figure_draws_each_estimator_its_own_way():
+    """With 21 estimators the figure took matplotlib's ten-colour cycle: ext01, ext11 and a third
+    were the same blue circles. Each now has its own colour and marker (floorvo.plots.run_styles)."""
+    from floorsim.bench.report import _accuracy_time_figure
+
+    rows = [
+        {
+            "scene": "s",
+            "estimator": f"e{i:02d}",
+            "status": "ok",
+            "ate_se2_rmse_mm": 0.1 + i,
+            "wall_ms_per_frame": 1.0 + i,
+        }
+        for i in range(21)
+    ]
+    fig = _accuracy_time_figure(rows)
+    looks = {(tuple(line.get_color()), line.get_marker()) for line in fig.axes[0].get_lines()}
+    assert len(looks) == 21

@@ -441,7 +441,7 @@ def test_floorvo_plot_takes_its_title_as_typed_tells_runs_apart_and_writes_the_f
 ):
     """A title with '$...$' was read as math and raised from inside matplotlib (a 61-line
     traceback); two runs of one estimator had one legend entry; '-o out.pdf' wrote PNG bytes."""
-    from floorvo.plots import _styles, load_plot_run
+    from floorvo.plots import load_plot_run, run_styles
 
     spec = load_estimator_file(EXAMPLE / "fft-vo.toml")
     run_external(line_sequence, spec, tmp_path / "a")
@@ -461,7 +461,7 @@ def test_floorvo_plot_takes_its_title_as_typed_tells_runs_apart_and_writes_the_f
     capsys.readouterr()
     assert floorvo_main([*argv, "-o", str(tmp_path / "plot.jpeg")]) == 1
     assert "plot.jpeg: the plot is written as png, pdf, svg, by the file's suffix" in capsys.readouterr().err
-    styles = _styles(25)  # beyond ten runs matplotlib's cycle drew two alike
+    styles = run_styles(25)  # beyond ten runs matplotlib's cycle drew two alike
     assert len({(tuple(c), ls) for c, ls in styles}) == 25
 
 

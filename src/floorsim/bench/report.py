@@ -28,7 +28,7 @@ import numpy as np
 from floorsim.bench.results import TEXT_COLUMNS
 from floorvo import metric_defs as md
 from floorvo.io import atomic_write_bytes, atomic_write_text
-from floorvo.plots import PlotRun, draw_errors, draw_trajectories, load_plot_run, pyplot
+from floorvo.plots import PlotRun, draw_errors, draw_trajectories, load_plot_run, pyplot, run_styles
 from floorvo.runfolder import read_match_samples, read_timing_csv
 from floorvo.sequence import Sequence
 from floorvo.tum import read_tum
@@ -372,15 +372,17 @@ def _accuracy_time_figure(rows: SequenceT[Mapping[str, Any]]):
         return None
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for est, pts in sorted(points.items()):
+    # every estimator its own colour and marker (beyond ten the default cycle drew two alike)
+    markers = {"-": "o", "--": "s", ":": "^"}
+    for (est, pts), (colour, ls) in zip(sorted(points.items()), run_styles(len(points)), strict=True):
         xs, ys = zip(*pts)
-        ax.plot(xs, ys, "o", ms=7, label=est)
+        ax.plot(xs, ys, markers[ls], color=colour, ms=7, label=est)
     ax.set_xscale("log")
     ax.set_xlabel("wall time per frame [ms] (log)")
     ax.set_ylabel("ATE after SE(2) alignment [mm]")
     ax.set_title("accuracy against time per frame (lower left is better)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))  # beside the axes, not over them
     return fig
 
 
