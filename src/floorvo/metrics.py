@@ -584,7 +584,11 @@ def reason_kind(reason: str) -> str:
     text = clauses[-1] if clauses else ""
     text = re.sub(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", text)
     text = re.sub(r"\s+", " ", text).strip(" :;,")
-    return text or "(no reason)"
+    return text or NO_REASON
+
+
+#: The kind of a lost frame that gives no reason (an empty cell, or a timing.csv without the column).
+NO_REASON = "(no reason)"
 
 
 def lost_reasons(statuses: SequenceT[str], reasons: SequenceT[str]) -> dict[str, int]:
@@ -607,7 +611,7 @@ def tracking_stats(
     as lost. Returns ``lost_frames``, ``loss_events`` (runs of consecutive lost frames),
     ``tracked_fraction`` and ``source``; with ``reasons`` (per frame, ``timing.csv``'s
     reason column) also ``lost_reasons``, the lost steps counted per kind of reason
-    (:func:`lost_reasons`).
+    (:func:`lost_reasons`); without reasons, those lost steps as ``{NO_REASON: n}``.
     """
     if statuses is not None and len(statuses) > 0:
         lost = np.array([s == "lost" for s in statuses], dtype=bool)
@@ -622,6 +626,8 @@ def tracking_stats(
         }
         if reasons is not None and len(reasons) == n:
             out["lost_reasons"] = lost_reasons(statuses, reasons)
+        elif out["lost_frames"]:  # a timing.csv without reasons (a program's): its lost frames were left out of the count
+            out["lost_reasons"] = {NO_REASON: out["lost_frames"]}
         return out
     lost_n = max(0, int(n_ref) - int(n_est))
     return {

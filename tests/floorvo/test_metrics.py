@@ -142,7 +142,9 @@ def test_lost_steps_are_counted_per_kind_of_reason():
     }
     t = M.tracking_stats(statuses, 7, 2, reasons)
     assert t["lost_frames"] == 5 and sum(t["lost_reasons"].values()) == 5
-    assert "lost_reasons" not in M.tracking_stats(statuses, 7, 2)
+    # a timing.csv without reasons (a program's): its lost frames counted as without one (they were left out)
+    assert M.tracking_stats(statuses, 7, 2)["lost_reasons"] == {"(no reason)": 5}
+    assert "lost_reasons" not in M.tracking_stats(["init", "ok"], 2, 2)
     # the runner's note that it chains the motion through a frame is no cause: every attitude
     # reason was counted as 'the motion is chained through this frame'
     from floorvo.runner import NO_ATTITUDE
