@@ -626,7 +626,9 @@ def tracking_stats(
         }
         if reasons is not None and len(reasons) == n:
             out["lost_reasons"] = lost_reasons(statuses, reasons)
-        elif out["lost_frames"]:  # a timing.csv without reasons (a program's): its lost frames were left out of the count
+        elif out[
+            "lost_frames"
+        ]:  # a timing.csv without reasons (a program's): its lost frames were left out of the count
             out["lost_reasons"] = {NO_REASON: out["lost_frames"]}
         return out
     lost_n = max(0, int(n_ref) - int(n_est))
