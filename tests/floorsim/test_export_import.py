@@ -501,3 +501,16 @@ def test_the_frame_rate_comes_back_as_it_was(tmp_path, fmt, capsys):
             "metadata.yaml: custom_data floorbench.fps = '-30': must be a number of Hz > 0 and at most 1e+06"
         )
         assert not (tmp_path / "bad").exists()
+
+
+def test_a_bag_reading_goes_to_its_own_frame_when_frames_are_under_a_millisecond_apart():
+    """Frames 0.4 and 0.6 ms apart, the third without a height reading: it took the fourth
+    frame's reading (the nearest unused within 1 ms), and the fourth then had none, without a word."""
+    from floorvo.importers.rosbag2 import _pair
+
+    frames = np.array([0, 400_000, 1_000_000, 1_400_000, 2_000_000], dtype=np.int64)  # ns
+    readings = frames[[0, 1, 3, 4]]
+    assert _pair(frames, readings) == {0: 0, 400_000: 400_000, 1_400_000: 1_400_000, 2_000_000: 2_000_000}
+    # readings a little off their frames' stamps still pair, each with its own frame
+    shifted = {int(r) + 50_000: int(r) for r in readings}
+    assert _pair(frames, readings + 50_000) == shifted

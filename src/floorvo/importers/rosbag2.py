@@ -325,19 +325,26 @@ def _deserialized(reader: Any, raw: bytes, conn: Any, bag_ns: int, source: Path)
         ) from None
 
 
+def _nearest(sorted_ns: np.ndarray, t: int) -> int | None:
+    """The stamp of ``sorted_ns`` (sorted int64 ns) nearest to ``t`` (the earlier one on a tie), or None."""
+    if not len(sorted_ns):
+        return None
+    j = int(np.searchsorted(sorted_ns, t))
+    cands = [int(sorted_ns[i]) for i in (j - 1, j) if 0 <= i < len(sorted_ns)]
+    return min(cands, key=lambda c: abs(c - t))
+
+
 def _pair(left_ns: np.ndarray, other_ns: np.ndarray) -> dict[int, int]:
-    """``{other stamp: left stamp}`` for each left stamp with an other stamp within tolerance (nearest)."""
+    """``{other stamp: left stamp}`` for each left stamp with an other stamp within tolerance,
+    each the other's nearest too (mutual nearest): frames under a millisecond apart gave a frame without a reading its neighbour's, and the neighbour none."""
     other = np.sort(np.asarray(other_ns, dtype=np.int64))
+    left = np.sort(np.asarray(left_ns, dtype=np.int64))
     out: dict[int, int] = {}
-    if not len(other):
-        return out
-    pos = np.clip(np.searchsorted(other, left_ns), 0, len(other) - 1)
-    for k, t in enumerate(left_ns):
-        best = None
-        for j in (pos[k] - 1, pos[k]):
-            if 0 <= j < len(other) and (best is None or abs(other[j] - t) < abs(best - t)):
-                best = int(other[j])
-        if best is not None and abs(best - int(t)) <= PAIR_TOLERANCE_NS and best not in out:
+    for t in left_ns:
+        best = _nearest(other, int(t))
+        if best is None or abs(best - int(t)) > PAIR_TOLERANCE_NS or best in out:
+            continue
+        if _nearest(left, best) == int(t):
             out[best] = int(t)
     return out
 
