@@ -466,18 +466,20 @@ def load_scale_calibration(path: str | os.PathLike, estimator: str | None = None
         for t, v in zip(("cos2", "sin2"), terms):
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
                 raise ConfigError(f"{path}: {axis}_{t} = {shown(v)} must be a finite number")
-        low, high = d.get(f"scale_{axis}", 1.0) - math.hypot(*terms), d.get(f"scale_{axis}", 1.0) + math.hypot(*terms)
-        if low < SCALE_RANGE[0] or high > SCALE_RANGE[1]:
-            raise ConfigError(
-                f"{path}: scale_{axis} with its orientation terms spans [{low:.4f}, {high:.4f}]; it must stay in "
-                f"[{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
-            )
     if d["version"] >= 2 and "scale_yaw" not in d:
         raise ConfigError(f"{path}: scale_yaw is missing (a version {d['version']} file has one)")
     try:  # every field's type and rule (a run or sequence that is no text was a traceback where used)
         cal = build(ScaleCalibration, {k: v for k, v in d.items() if k in fields})
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+    for axis in _AXES:  # the range rule of the fit (scale_range_problem), said with the span the terms give
+        if scale_range_problem(cal, (axis,)):
+            v = getattr(cal, f"scale_{axis}")
+            amp = math.hypot(getattr(cal, f"{axis}_cos2"), getattr(cal, f"{axis}_sin2"))
+            raise ConfigError(
+                f"{path}: scale_{axis} with its orientation terms spans [{v - amp:.4f}, {v + amp:.4f}]; it must "
+                f"stay in [{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]"
+            )
     if estimator is not None and cal.estimator and cal.estimator != estimator:
         raise ConfigError(
             f"{path}: fitted on a run of {shown(cal.estimator)}, not {shown(estimator)}; fit one per estimator "
