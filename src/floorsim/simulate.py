@@ -421,6 +421,8 @@ def render_sequence(
             "led_positions_cam_mm": scene.led_positions_cam()[0].tolist(),
             "led_height_mm": scene.lights.height_mm,
             "T_cam0_cam1": None if T_01 is None else T_01.tolist(),
+            # the range sensor's noise, to which the runner holds the steps' height changes
+            **({"height_noise_mm": scene.range_sensor.noise_mm} if scene.range_sensor.enabled else {}),
         },
         "stereo": T_01 is not None,
         "cameras": {"cam1": cam.to_dict()} if T_01 is not None else {},

@@ -49,7 +49,7 @@ import numpy as np
 
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm
 from floorvo.geometry import (
     MAX_POSITION_MM,
     T_world_cam_down,
@@ -237,6 +237,7 @@ def run_frames(
     on_step: OnStep | None = None,
     name: str | None = None,
     attitude_noise_rad: float = 0.0,
+    height_noise_mm: float = 0.0,
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None,
     lose_repeated_pictures: bool = True,
 ) -> RunResult:
@@ -260,7 +261,12 @@ def run_frames(
     ``attitude_noise_rad``: the standard error of each reading of the frames' attitude signal
     (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
     that the signal would leave uncertain beyond the estimator's bound is lost
-    (:func:`_attitude_problem`).
+    (:func:`_attitude_problem`). ``height_noise_mm``: the standard deviation of each reading
+    of the frames' height signal (``Frame.height_mm``; :func:`run_sequence` takes the one the
+    sequence states, :attr:`~floorvo.sequence.Sequence.height_noise_mm`): an ``ok`` step of an
+    estimator that takes its height change from the readings
+    (:func:`takes_height_change_from_signal`) that the signal leaves uncertain beyond the
+    estimator's bound is lost (:func:`_height_noise_problem`).
 
     Refused in one line (:class:`~floorvo.errors.ConfigError`): a ``T_world_start`` that is no
     rigid transform of finite numbers (:func:`~floorvo.geometry.rigid_problem`; a NaN start gave
@@ -282,6 +288,8 @@ def run_frames(
     prev_image = None  # the last frame's picture (a repeat of it is not measured)
     unused_attitude = False  # the frames' attitude, set aside for the run (its start pose is not over the floor)
     levelled = bool(getattr(estimator, "levels_with_attitude", False))
+    height_steps = takes_height_change_from_signal(estimator)
+    height_noisy = 0  # steps lost to the height signal's noise
     measured_from: tuple[float, float] | None = None  # attitude of the frame the next step is measured from
     # A calibration whose scales depend on the texture orientation: each frame's, and that of the
     # frame the next step is measured from (floorvo.calibration).
@@ -361,8 +369,14 @@ def run_frames(
             T_chain = T_chain @ step
         if st in _PLACED or RESTART_NOTE in res.reason:
             theta_from = theta  # the next step is measured from this frame
+        if st == "ok" and height_noise_mm > 0.0 and frame_height_mm(frame) is not None and height_steps:
+            noisy = _height_noise_problem(estimator, res, height_noise_mm)
+            if noisy:  # measured and chained, not placed: the signal leaves its height change uncertain
+                st, why, fix = "lost", noisy, False
+                height_noisy += 1
         if not attitude:
-            T_world = T_chain
+            if st in _PLACED:  # a frame lost after its step was chained keeps the last placed pose
+                T_world = T_chain
         else:
             roll, pitch = frame.attitude_rad or (nan, nan)
             known = bool(np.isfinite(roll) and np.isfinite(pitch))
@@ -397,6 +411,14 @@ def run_frames(
         if on_step is not None:
             on_step(k, frame, res)
     wall = time.perf_counter() - t0
+    if height_noisy:
+        log.warning(
+            "%s: %d step(s) lost: the height signal's stated noise (%.3g mm) leaves their height change uncertain "
+            "beyond the bound; with use_height_signal = false the estimator takes the height from the picture",
+            name,
+            height_noisy,
+            height_noise_mm,
+        )
     n = len(index)
     return RunResult(
         estimator=name,
@@ -439,10 +461,41 @@ def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_
     error ``noise_rad`` is too uncertain to report ('' when it is not): a reading's error moves
     the camera's pose by ``height_mm`` x the error, a step's by sqrt(2) of that, and at the
     estimator's ``precision_sigmas`` that must stay within its bound for the step
-    (:class:`floorvo.estimators.base.StepBoundConfig`; an estimator without those keys: the
-    scoring's bound, :data:`floorvo.metrics.WRONG_STEP_MM` and its siblings, at 2.5). A signal of
-    1.5 mrad at 100 mm: 0.53 mm against the 0.13 mm of a 4 mm step; 0.2 mrad: 0.07 mm."""
-    if noise_rad <= 0.0 or res.T_prev_cur is None:
+    (:func:`_step_uncertainty_problem`). A signal of 1.5 mrad at 100 mm: 0.53 mm against the
+    0.13 mm of a 4 mm step; 0.2 mrad: 0.07 mm."""
+    if noise_rad <= 0.0:
+        return ""
+    return _step_uncertainty_problem(
+        estimator,
+        res,
+        np.sqrt(2.0) * height_mm * noise_rad,
+        f"attitude signal too noisy for the step: {{sigmas:g}} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
+        f"x height {height_mm:.1f} mm",
+    )
+
+
+def _height_noise_problem(estimator: Any, res: StepResult, noise_mm: float) -> str:
+    """Why an ``ok`` step whose height change is the difference of two height readings, each
+    with the standard deviation ``noise_mm``, is too uncertain to report ('' when it is not): the
+    change has sqrt(2) x that, and at the estimator's ``precision_sigmas`` it must stay within its
+    bound for the step (:func:`_step_uncertainty_problem`). A range sensor of 0.1 mm: 0.35 mm
+    against the 0.13 mm of a 4 mm step (taken as exact, 12 of 40 steps of a bounce were reported ok
+    and wrong); 0.02 mm: 0.07 mm."""
+    return _step_uncertainty_problem(
+        estimator,
+        res,
+        np.sqrt(2.0) * noise_mm,
+        f"height signal too noisy for the step: {{sigmas:g}} x sqrt(2) x its stated noise {noise_mm:.3f} mm",
+    )
+
+
+def _step_uncertainty_problem(estimator: Any, res: StepResult, sd_mm: float, said: str) -> str:
+    """Why an ``ok`` step that a signal leaves uncertain by the standard deviation ``sd_mm`` (mm)
+    cannot be reported ('' when it can): ``precision_sigmas`` of it must stay within the
+    estimator's bound for the step (:class:`floorvo.estimators.base.StepBoundConfig`; an
+    estimator without those keys: the scoring's bound, :data:`floorvo.metrics.WRONG_STEP_MM` and
+    its siblings, at 2.5). ``said``: how the reason starts (``{sigmas}`` filled in)."""
+    if res.T_prev_cur is None:
         return ""
     cfg = getattr(estimator, "config", None)
     sigmas = float(getattr(cfg, "precision_sigmas", 2.5))
@@ -451,13 +504,10 @@ def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_
     step_mm = float(np.linalg.norm(np.asarray(res.T_prev_cur, dtype=float)[:3, 3]))
     bound = getattr(cfg, "bound_mm", None)
     bound_mm = float(bound(step_mm)) if callable(bound) else WRONG_STEP_MM + WRONG_STEP_FRACTION * step_mm
-    err_mm = sigmas * np.sqrt(2.0) * height_mm * noise_rad
+    err_mm = sigmas * sd_mm
     if err_mm <= bound_mm:
         return ""
-    return (
-        f"attitude signal too noisy for the step: {sigmas:g} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
-        f"x height {height_mm:.1f} mm = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; {CHAINED_NOTE}"
-    )
+    return f"{said.format(sigmas=sigmas)} = {err_mm:.3f} mm > bound {bound_mm:.3f} mm; {CHAINED_NOTE}"
 
 
 def _same_picture(image: Any, prev: Any) -> bool:
@@ -473,6 +523,16 @@ def _same_picture(image: Any, prev: Any) -> bool:
     if not (np.array_equal(a[::step], b[::step]) and np.array_equal(a, b)):
         return False
     return bool(a.min() != a.max())
+
+
+def takes_height_change_from_signal(estimator: Any) -> bool:
+    """True when ``estimator``'s steps carry the difference of the frames' height readings as
+    their height change: its class's ``height_change_from_signal`` (the planar mono estimators),
+    and its config's ``use_height_signal`` on. The runner holds such steps to the signal's noise
+    (:func:`_height_noise_problem`)."""
+    if not getattr(type(estimator), "height_change_from_signal", False):
+        return False
+    return bool(getattr(getattr(estimator, "config", None), "use_height_signal", True))
 
 
 def uses_attitude_signal(estimator: Any) -> bool:
@@ -623,6 +683,7 @@ def run_sequence(
         on_step=on_step,
         name=name,
         attitude_noise_rad=attitude_noise_rad(seq.attitude_signal_rad) if uses_attitude_signal(estimator) else 0.0,
+        height_noise_mm=seq.height_noise_mm or 0.0,
         T_world_at=T_world_at,
     )
 

@@ -727,6 +727,14 @@ class Sequence:
         return None if h is None else h.copy()
 
     @property
+    def height_noise_mm(self) -> float | None:
+        """The standard deviation (mm) of each reading of :attr:`height_signal_mm`, as
+        ``sequence.json`` states it (``rig.height_noise_mm``: a render's ``range_sensor.noise_mm``,
+        an import's ``--height-noise-mm``, a range sensor's datasheet); None where it states none."""
+        v = (self.meta.get("rig") or {}).get("height_noise_mm")
+        return None if v is None else float(v)
+
+    @property
     def attitude_signal_rad(self) -> np.ndarray | None:
         """(frame_count, 2) measured roll and pitch of the camera against gravity per frame (rad,
         the module's docstring defines them; a row of NaN where no reading) from ``attitude.csv``;

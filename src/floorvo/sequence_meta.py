@@ -118,6 +118,13 @@ class RigBlock(Config):
     gsd_mm_per_px: float | None = param(None, unit="mm/px", gt=0, doc="ground sample distance at height_mm")
     led_height_mm: float | None = param(None, unit="mm", gt=0, doc="LED emitters above the floor")
     led_positions_cam_mm: Matrix | None = param(None, doc="LED positions in the camera frame, mm")
+    height_noise_mm: float | None = param(
+        None,
+        unit="mm",
+        min=0.0,
+        max=CAMERA_HEIGHT_RANGE_MM[1],
+        doc="standard deviation of each height.csv reading (the range sensor's datasheet figure; absent: not stated)",
+    )
 
     def validate(self) -> None:
         if self.T_cam0_cam1 is not None:

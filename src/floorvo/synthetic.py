@@ -205,7 +205,8 @@ def write_synthetic_sequence(
     per frame (the flat floor, :func:`floor_depth`; poses may be tilted), with Gaussian noise
     of ``depth_noise_mm`` per pixel (seeded from ``seed``). ``height_noise_mm``: also a range
     sensor's camera height per frame (``height.csv``: the pose's height plus Gaussian noise of
-    that size, seeded from ``seed``); None: no such file. ``attitude_noise_rad``: also an IMU's
+    that size, seeded from ``seed``; ``sequence.json`` states it, ``rig.height_noise_mm``); None: no
+    such file. ``attitude_noise_rad``: also an IMU's
     roll and pitch per frame (``attitude.csv``: :func:`floorvo.geometry.attitude_of_T` of the
     pose plus Gaussian noise of that size on each angle, seeded from ``seed``); None: no such
     file. ``stereo_baseline_mm``: also a right camera ``cam1``.
@@ -237,6 +238,8 @@ def write_synthetic_sequence(
     }
     if depth:
         meta["depth"] = {"format": "npy_float32_mm"}
+    if height_noise_mm is not None:
+        meta["rig"]["height_noise_mm"] = float(height_noise_mm)
     if stereo_baseline_mm:
         T01 = np.eye(4)
         T01[0, 3] = float(stereo_baseline_mm)

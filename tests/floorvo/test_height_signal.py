@@ -455,3 +455,71 @@ def test_phase_corr_loses_a_step_whose_height_reading_the_picture_contradicts(bo
     assert 10 in lost and set(range(21, len(h))) <= lost
     why = {int(i): r for i, r in zip(run.frame_index, run.reason)}
     assert why[10].startswith("height signal disagrees with the picture: it reads 300.000 mm")
+
+
+def test_homography_6dof_holds_its_floor_plane_to_the_height_signal(bounce_seqs, tmp_path):
+    """homography-6dof reads only the ratio of the heights from the floor's homography, so the
+    plane it starts from scales every step: a first reading of 300 mm in a run at 100 mm made
+    every step 3x long, 38 of 40 reported ok. The readings after the first now hold the carried
+    plane: the steps they contradict are lost, tracking restarts at a reading, and no step is
+    wrong; a single wrong reading later in the run costs its own frame only. The honest readings
+    (0.02 mm of noise) keep every step."""
+    import shutil
+
+    from floorvo.estimators.base import RESTART_NOTE
+    from floorvo.sequence import read_height_csv
+
+    name = "homography-6dof"
+    honest = score_run(run_estimator(bounce_seqs[0], name, tmp_path / "honest").run_dir, bounce_seqs[0]).flat()
+    assert honest["lost_frames"] == 0 and honest["wrong_ok_steps"] == 0
+    for at in (0, 10):
+        seq = tmp_path / f"seq{at}"
+        shutil.copytree(bounce_seqs[0], seq)
+        h = read_height_csv(seq / "height.csv")
+        h[at] = 300.0
+        (seq / "height.csv").write_text(
+            "\n".join(["frame,height_mm", *(f"{i},{v:.6f}" for i, v in enumerate(h))]) + "\n"
+        )
+        run = run_estimator(seq, name, tmp_path / f"run{at}")
+        s = score_run(run.run_dir, seq).flat()
+        assert s["wrong_ok_steps"] == 0
+        lost = [int(i) for i, st in zip(run.frame_index, run.status) if st == "lost"]
+        why = {int(i): r for i, r in zip(run.frame_index, run.reason)}
+        if at == 0:
+            assert lost == [1, 2] and why[2].endswith(RESTART_NOTE)
+            assert why[1].startswith("height signal disagrees with the floor plane: it reads 100.7")
+        else:
+            assert lost == [10]
+            assert why[10].startswith("height signal disagrees with the floor plane: it reads 300.000 mm")
+
+
+@pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
+def test_a_height_signal_too_noisy_for_the_step_loses_it(tmp_path, name):
+    """A range sensor of 0.1 mm noise on the 2 mm bounce: a step's height change, the difference
+    of two readings, has 0.14 mm of noise against the 0.13 mm bound of a 4 mm step. Taken as
+    exact (the sequence states no noise) steps are reported ok and wrong by it; with the noise
+    stated (rig.height_noise_mm, as a render and `floorvo import --height-noise-mm` write it)
+    those steps are lost with the reason and none is wrong; with the height signal off the
+    estimator's own height change is not held to it."""
+    import json
+
+    seq = write_synthetic_sequence(tmp_path / "seq", CAM, _bounce_poses(), height_noise_mm=0.1)
+    assert Sequence.open(seq).height_noise_mm == 0.1
+    stated = run_estimator(seq, name, tmp_path / "stated")
+    s = score_run(stated.run_dir, seq).flat()
+    assert s["wrong_ok_steps"] == 0
+    noisy = [
+        r for r in stated.reason if r.startswith("height signal too noisy for the step: 2.5 x sqrt(2) x its stated")
+    ]
+    assert len(noisy) > 20
+    assert "0.100 mm = 0.354 mm > bound 0.13" in noisy[0]
+    meta = json.loads((seq / "sequence.json").read_text())
+    del meta["rig"]["height_noise_mm"]
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    unstated = score_run(run_estimator(seq, name, tmp_path / "unstated").run_dir, seq).flat()
+    assert unstated["wrong_ok_steps"] > 5
+    meta["rig"]["height_noise_mm"] = 0.1
+    (seq / "sequence.json").write_text(json.dumps(meta))
+    off = {"use_height_signal": "false"}
+    run_off = run_estimator(seq, name, tmp_path / "off", off)
+    assert not any(r.startswith("height signal too noisy") for r in run_off.reason)

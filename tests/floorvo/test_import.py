@@ -975,6 +975,27 @@ def test_import_writes_a_range_sensors_height_column(tmp_path, synth, capsys):
     )
     assert "--height-file: 2 height(s) for 7 frame(s)" in err
     assert not (tmp_path / "imp2" / "height.csv").exists()
+    # the readings' noise, stated beside them (rig.height_noise_mm), for the runner to hold the steps to
+    assert Sequence.open(out).height_noise_mm is None
+    assert main([*argv[:3], str(tmp_path / "imp3"), *argv[4:], "--height-file", str(tmp_path / "h.csv"),
+                 "--height-noise-mm", "0.1"]) == 0  # fmt: skip
+    assert Sequence.open(tmp_path / "imp3").height_noise_mm == 0.1
+    err = _one_line_error(capsys, [*argv[:3], str(tmp_path / "imp4"), *argv[4:], "--height-noise-mm", "0.1"])
+    assert "--height-noise-mm: the import has no height signal to state the noise of (--height-file)" in err
+    err = _one_line_error(
+        capsys,
+        [
+            *argv[:3],
+            str(tmp_path / "imp5"),
+            *argv[4:],
+            "--height-file",
+            str(tmp_path / "h.csv"),
+            "--height-noise-mm",
+            "-1",
+        ],
+    )
+    assert "--height-noise-mm = -1.0: must be a standard deviation in mm, 0 to 20000" in err
+    assert not (tmp_path / "imp4").exists() and not (tmp_path / "imp5").exists()
 
 
 def test_import_writes_an_imus_attitude(tmp_path, synth, capsys):

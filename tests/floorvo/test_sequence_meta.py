@@ -54,6 +54,7 @@ def _with(path: str, value):
         ("rig.height_mm", float("nan"), "rig.height_mm = nan mm: must be a finite number"),
         ("rig.height_mm", -5.0, "rig.height_mm = -5.0 mm: must be >= 1.0 mm"),
         ("rig", "none", "rig = 'none': must be a table"),
+        ("rig.height_noise_mm", -0.1, "rig.height_noise_mm = -0.1 mm: must be >= 0.0 mm"),
         ("fps", 0, "fps = 0.0 Hz: must be >= 0.01 Hz"),
         ("fps", 1e7, "fps = 10000000.0 Hz: must be <= 1000000.0 Hz"),
         ("frame_count", 0, "frame_count = 0: must be >= 1"),

@@ -58,6 +58,13 @@ def add_parser(sub) -> None:
         help="per-frame camera height (mm) from a range sensor: CSV frame,height_mm (written to height.csv)",
     )
     p.add_argument(
+        "--height-noise-mm",
+        type=float,
+        default=None,
+        help="standard deviation of each reading of the height signal, mm (the range sensor's datasheet; "
+        "rig.height_noise_mm): steps it leaves uncertain are lost",
+    )
+    p.add_argument(
         "--attitude-file",
         metavar="FILE",
         default=None,
@@ -116,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
         fps=args.fps,
         flatfield=None if args.flatfield is None else Path(args.flatfield),
         height_signal_mm=None if args.height_file is None else read_height_csv(args.height_file),
+        height_noise_mm=args.height_noise_mm,
         attitude_signal_rad=None if args.attitude_file is None else read_attitude_csv(args.attitude_file),
         topics=parse_topics(args.topic),
         left_only=args.left_only,

@@ -35,6 +35,7 @@ __all__ = [
     "Estimator",
     "frame_problem",
     "frame_height_mm",
+    "HEIGHT_SIGNAL_MISREAD",
     "frame_is_blank",
     "RESTART_NOTE",
     "NO_ATTITUDE_READING",
@@ -264,6 +265,17 @@ def frame_is_blank(image: np.ndarray) -> bool:
     if a.ndim >= 2 and a[0].min() != a[0].max():
         return False
     return bool(a.min() == a.max())
+
+
+#: The least share of the camera height by which an estimator's picture may misread it, where a
+#: measured height (``Frame.height_mm``) is held to the picture: phase-corr's blocks' image scale
+#: (:meth:`floorvo.estimators.phase_corr.PhaseCorr._height_signal_problem`), homography-6dof's
+#: carried floor plane (:meth:`floorvo.estimators.homography.HomographySixDof._height_signal_problem`).
+#: 1 %, above the 0.6 % phase-corr's blocks misread on the suite's polished and ceramic vibrations
+#: with a range sensor (BENCHMARKS.md, "phase-corr holds a height signal to the picture") and the
+#: 0.24 % by which homography-6dof's carried plane strays from the range sensor on the suite's
+#: full-size renders ("homography-6dof holds its floor plane to a height signal").
+HEIGHT_SIGNAL_MISREAD = 0.01
 
 
 def frame_height_mm(frame: Frame, enabled: bool = True) -> float | None:

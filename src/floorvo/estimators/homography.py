@@ -72,10 +72,14 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import MAX_SEED, param
 from floorvo.estimators.akaze import AkazeConfig, _AkazeBase, _Fit, _State
-from floorvo.estimators.base import Frame
+from floorvo.estimators.base import HEIGHT_SIGNAL_MISREAD, Frame
 from floorvo.geometry import block_homographies, plane_homography_motion
 
-__all__ = ["HomographySixDof", "HomographySixDofConfig"]
+__all__ = ["HomographySixDof", "HomographySixDofConfig", "HEIGHT_SIGNAL_DISAGREES"]
+
+#: How a step lost to a height reading that contradicts the carried floor plane is said
+#: (:meth:`HomographySixDof._height_signal_problem`).
+HEIGHT_SIGNAL_DISAGREES = "height signal disagrees with the floor plane"
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,7 @@ class HomographySixDof(_AkazeBase):
     fits_own_scale = True
     measures_footprint = False  # its poses are 6-DoF: an attitude signal must not turn them again
     levels_with_attitude = False  # it measures the tilt itself
+    height_change_from_signal = False  # the homography's (the readings only hold the plane to them)
     config: HomographySixDofConfig
 
     def __init__(
@@ -268,5 +273,36 @@ class HomographySixDof(_AkazeBase):
             return None, f"floor plane tilted {tilt:.2f} rad from the optical axis > {cfg.max_tilt_rad:g}"
         if abs(d_cur - d_prev) > cfg.max_height_step_mm:
             return None, f"height change {d_cur - d_prev:+.2f} mm in one frame > {cfg.max_height_step_mm:g}"
+        problem = self._height_signal_problem(T, d_cur, self._frame_height(frame))
+        if problem:
+            return None, problem
         state.plane = (n_cur, d_cur)
         return T, ""
+
+    def _motion_problem_restarts(self, problem: str) -> bool:
+        """A height reading that contradicts the carried plane restarts tracking at a reading
+        (:meth:`_height_signal_problem`): measured from the older reference the plane stays wrong."""
+        return problem.startswith(HEIGHT_SIGNAL_DISAGREES)
+
+    def _height_signal_problem(self, T_prev_cur: np.ndarray, d_cur_mm: float, h_meas_mm: float | None) -> str:
+        """Why the step ``T_prev_cur`` (4, 4) mm, which puts the camera ``d_cur_mm`` over the
+        carried floor plane, contradicts the frame's measured height ``h_meas_mm`` (mm; None:
+        none) ('' if it does not). The homography gives only the ratio of the heights (``t / d``,
+        Result 13.1), so the carried plane's height scales every step: a plane started from a
+        wrong reading (300 mm at 100 mm) made every step 3x long, reported ok. A reading further
+        from the carried height than the plane may stray (:data:`HEIGHT_SIGNAL_MISREAD` of the
+        height) plus issue 14's bound for the step loses the step; after ``restart_after_lost``
+        such frames tracking restarts at the reading (:meth:`_start_reference`), so a plane started
+        wrong is lost, not chained, and a single wrong reading costs its own frame."""
+        if h_meas_mm is None:
+            return ""
+        misread_mm = HEIGHT_SIGNAL_MISREAD * h_meas_mm
+        off_mm = abs(h_meas_mm - d_cur_mm) - misread_mm
+        bound_mm = self.config.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
+        if off_mm > bound_mm:
+            return (
+                f"{HEIGHT_SIGNAL_DISAGREES}: it reads {h_meas_mm:.3f} mm, the carried plane "
+                f"is {d_cur_mm:.3f} mm below the camera; beyond what the plane may stray ({misread_mm:.3f} mm) "
+                f"{off_mm:.3f} mm > bound {bound_mm:.3f} mm"
+            )
+        return ""

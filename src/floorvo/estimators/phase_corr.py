@@ -65,6 +65,7 @@ from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
 from floorvo.errors import ConfigError
 from floorvo.estimators.base import (
+    HEIGHT_SIGNAL_MISREAD,
     RESTART_NOTE,
     Frame,
     StepBoundConfig,
@@ -283,13 +284,6 @@ SECOND_MOTION_MIN_BLOCKS = 2
 
 #: Rounds a rotating warp may take beyond ``iterations`` while its estimate still moves.
 MAX_EXTRA_ROUNDS = 3
-
-
-#: The least share of the camera height by which phase-corr's blocks may misread it from the image
-#: scale (:meth:`PhaseCorr._height_signal_problem`): 1 %, above the 0.6 % they misread on the
-#: suite's polished and ceramic vibrations with a range sensor (BENCHMARKS.md, "phase-corr holds
-#: a height signal to the picture").
-HEIGHT_SIGNAL_MISREAD = 0.01
 
 
 @dataclass
@@ -575,6 +569,10 @@ class PhaseCorr:
     #: looking straight down, and the runner tilts that pose with the frame's attitude
     #: (:func:`floorvo.runner.run_frames`) instead of turning a footprint back.
     levels_with_attitude: bool = True
+    #: With a frame's measured height (``use_height_signal``) the step's height change is the
+    #: readings' difference, so the runner holds it to the signal's stated noise
+    #: (:func:`floorvo.runner.takes_height_change_from_signal`).
+    height_change_from_signal: bool = True
 
     def __init__(
         self,

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from floorvo import __version__
-from floorvo.camera import height_problem
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM, height_problem
 from floorvo.errors import ConfigError, SequenceError, shown, shown_number
 from floorvo.importers.camera_files import CameraCalibration, camera_from_flags
 from floorvo.io import IMAGE_FORMATS, read_image
@@ -151,7 +151,9 @@ class ImportOptions:
         A flat-field image of cam0 (same rig over a flat uniform floor), copied to ``calib/``.
     height_signal_mm:
         Per-frame camera height above the floor (mm, NaN where none) from a range sensor,
-        written to ``height.csv`` (one per frame).
+        written to ``height.csv`` (one per frame). ``height_noise_mm``: the standard deviation of
+        each of its readings (a range sensor's datasheet figure), written as
+        ``rig.height_noise_mm``; the runner loses the steps it leaves uncertain.
     attitude_signal_rad:
         Per-frame camera roll and pitch against gravity (rad, a row of NaN where none) from an
         IMU, (frame_count, 2), written to ``attitude.csv`` (:mod:`floorvo.sequence` defines the angles).
@@ -176,6 +178,7 @@ class ImportOptions:
     fps: float | None = None
     flatfield: Path | None = None
     height_signal_mm: np.ndarray | None = None
+    height_noise_mm: float | None = None
     attitude_signal_rad: np.ndarray | None = None
     topics: dict[str, str] = field(default_factory=dict)
     left_only: bool = False
@@ -416,6 +419,17 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     if heights is not None:
         heights_what = "--height-file" if opts.height_signal_mm is not None else f"{what}: measured heights"
         check_heights(np.asarray(heights, dtype=float), n, heights_what)
+    if opts.height_noise_mm is not None:
+        if heights is None:
+            raise ConfigError(
+                "--height-noise-mm: the import has no height signal to state the noise of (--height-file)"
+            )
+        if not 0.0 <= opts.height_noise_mm <= CAMERA_HEIGHT_RANGE_MM[1]:
+            raise ConfigError(
+                f"--height-noise-mm = {shown_number(opts.height_noise_mm)}: must be a standard deviation in mm, "
+                f"0 to {CAMERA_HEIGHT_RANGE_MM[1]:g}"
+            )
+        meta["rig"]["height_noise_mm"] = float(opts.height_noise_mm)
     attitude = opts.attitude_signal_rad if opts.attitude_signal_rad is not None else rec.attitude_signal_rad
     if attitude is not None:
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"
