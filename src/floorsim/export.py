@@ -18,9 +18,9 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
   stamp): the flat-field frames, when the sequence has them
 * ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
   (``height.csv``)
-* the rig height and the frame rate in the bag's ``custom_data`` (``metadata.yaml``), keys
-  :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY` (mm) and ``FPS_KEY`` (Hz; a bag has no field
-  for it)
+* the rig height, the height readings' noise (``rig.height_noise_mm``) and the frame rate in the
+  bag's ``custom_data`` (``metadata.yaml``), keys :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY`
+  (mm), ``HEIGHT_NOISE_KEY`` (mm) and ``FPS_KEY`` (Hz; a bag has no field for them)
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
@@ -37,7 +37,8 @@ The EuRoC export carries what the layout has no file of its own for in sidecars 
 ``floorvo import`` reads back (other readers ignore them): each camera's flat-field frame as
 ``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
 and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height0/data.csv``
-(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading), an
+(``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading; its
+``sensor.yaml`` states the readings' noise, ``noise_mm``, where the sequence does), an
 IMU's ``attitude.csv`` likewise as ``mav0/attitude0/data.csv`` (``#timestamp [ns],roll
 [rad],pitch [rad]``). So
 both formats carry the whole sequence (``calib/`` beyond the flat fields aside: a render's
@@ -65,7 +66,7 @@ import numpy as np
 from floorvo.errors import FloorbenchError, FolderLockedError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
-from floorvo.importers.euroc import ATTITUDE_SENSOR, CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_SENSOR
+from floorvo.importers.euroc import ATTITUDE_SENSOR, CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_NOISE_KEY, HEIGHT_SENSOR
 from floorvo.io import (
     TEMP_SUFFIX,
     atomic_write_bytes,
@@ -306,6 +307,8 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             conns["/cam0/height"] = w.add_connection("/cam0/height", Range.__msgtype__, typestore=ts)
         if seq.height_mm is not None:
             w.set_custom_data(bag_reader.CAMERA_HEIGHT_KEY, repr(float(seq.height_mm)))
+        if heights is not None and seq.height_noise_mm:
+            w.set_custom_data(bag_reader.HEIGHT_NOISE_KEY, repr(float(seq.height_noise_mm)))
         w.set_custom_data(bag_reader.FPS_KEY, repr(float(seq.fps)))
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
@@ -374,11 +377,12 @@ def _frame_sidecar(
     sensor_type: str,
     comment: str,
     fps: float,
+    extra: dict | None = None,
 ) -> None:
     """A EuRoC-style sensor folder of one reading per cam0 frame: ``data.csv`` (``#timestamp
     [ns]`` at each frame's stamp ``stamps_ns`` (N), then the ``columns`` of ``values`` (N,) or
     (N, k), a NaN written empty: no reading) and ``sensor.yaml`` (``sensor_type``, ``comment``,
-    the frame rate)."""
+    the frame rate, and the entries ``extra``)."""
     folder.mkdir(parents=True, exist_ok=True)
     rows = np.asarray(values, dtype=float).reshape(len(stamps_ns), -1)
     atomic_write_csv(
@@ -386,7 +390,9 @@ def _frame_sidecar(
         ["#timestamp [ns]", *columns],
         [(stamps_ns[i], *(None if np.isnan(v) else float(v) for v in row)) for i, row in enumerate(rows)],
     )
-    _yaml_dump(folder / "sensor.yaml", {"sensor_type": sensor_type, "comment": comment, "rate_hz": float(fps)})
+    _yaml_dump(
+        folder / "sensor.yaml", {"sensor_type": sensor_type, "comment": comment, "rate_hz": float(fps), **(extra or {})}
+    )
 
 
 def _yaml_dump(path: Path, data: dict) -> None:
@@ -482,6 +488,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             "range",
             "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
             seq.fps,
+            {HEIGHT_NOISE_KEY: seq.height_noise_mm} if seq.height_noise_mm else None,
         )
     attitude = seq.attitude_signal_rad
     if attitude is not None:

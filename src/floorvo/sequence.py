@@ -24,6 +24,9 @@ version 2 added ``timestamps.txt``; version 1 folders (no such file) still load.
 ``height.csv`` (issue 14 item 4) is optional in every version: a folder without it loads
 as before, and a reader that does not know it ignores it (the estimators then use the
 rig's constant height, as before); :attr:`Sequence.height_signal_mm` reads it.
+``sequence.json`` may state the standard deviation of its readings, ``rig.height_noise_mm``
+(optional; :attr:`Sequence.height_noise_mm`): the runner then loses the steps whose height
+change that noise leaves uncertain (:mod:`floorvo.runner`).
 
 ``attitude.csv`` (issue 14, "6-DoF where the sensors allow it") is optional in the same
 way; :attr:`Sequence.attitude_signal_rad` reads it. Its angles say where gravity (the

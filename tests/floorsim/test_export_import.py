@@ -289,6 +289,8 @@ def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path,
     assert np.isnan(imp.height_signal_mm[1])
     # EuRoC's CSV holds the file's decimals; a bag's Range holds float32 metres (1e-5 mm)
     np.testing.assert_allclose(imp.height_signal_mm, seq.height_signal_mm, rtol=0, atol=0 if fmt == "euroc" else 1e-4)
+    # and the readings' stated noise (rig.height_noise_mm), which the runner holds the steps to
+    assert seq.height_noise_mm == 0.2 and imp.height_noise_mm == 0.2
     for i in range(seq.frame_count):
         np.testing.assert_array_equal(imp.image(i), seq.image(i))
     # a flag still wins over what the export carried
@@ -308,8 +310,20 @@ def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path,
     flagged = Sequence.open(tmp_path / "flagged")
     assert flagged.height_mm == 90.0 and int(flagged.flatfield("cam0").max()) == 77
     assert flagged.flatfield("cam1") is None  # the source's is 16-bit: sequence.json states one bit depth
+    assert flagged.height_noise_mm == 0.2  # the source's readings, and their noise
+    # readings of the user's own replace the source's: the source's noise is not theirs
+    argv_h = [*argv[:3], str(tmp_path / "own_heights"), "--height-file", str(out / "height.csv")]
+    assert main(argv_h) == 0
+    assert Sequence.open(tmp_path / "own_heights").height_noise_mm is None
     if fmt != "euroc":
         return
+    noise = exported / "mav0" / "height0" / "sensor.yaml"
+    kept = noise.read_text()
+    noise.write_text(kept.replace("noise_mm: 0.2", "noise_mm: .nan"))
+    assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("height0/sensor.yaml: noise_mm = nan: must be a finite number of mm > 0"), err
+    noise.write_text(kept)
     # a sidecar row at no frame's stamp is refused in one line, before anything is written
     csv_path = exported / "mav0" / "height0" / "data.csv"
     csv_path.write_text(csv_path.read_text() + "17,88.0\n")

@@ -41,7 +41,8 @@ def test_stereo_disparity_is_baseline_times_focal_over_depth(tmp_path):
 
 def test_range_sensor_writes_the_true_height_plus_its_seeded_noise(tmp_path):
     """Issue 14 item 4: a simulated range sensor (scene key range_sensor) writes height.csv,
-    the ground truth's height (here bouncing) plus Gaussian noise from the scene seed."""
+    the ground truth's height (here bouncing) plus Gaussian noise from the scene seed, and
+    states that noise in sequence.json (rig.height_noise_mm)."""
     from floorsim.scene import RangeSensorSpec
     from floorsim.simulate import range_sensor_heights
 
@@ -58,6 +59,7 @@ def test_range_sensor_writes_the_true_height_plus_its_seeded_noise(tmp_path):
     h = seq.height_signal_mm
     assert h is not None and np.ptp(gt) > 1.0
     assert np.all(np.abs(h - gt) < 0.05)
+    assert seq.height_noise_mm == 0.01  # stated in sequence.json, for the runner to hold the steps to
     T = np.tile(np.eye(4), (20000, 1, 1))
     T[:, 2, 3] = 100.0
     a = range_sensor_heights(T, RangeSensorSpec(enabled=True, noise_mm=0.3, dropout=0.25), seed=4)

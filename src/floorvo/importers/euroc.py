@@ -41,7 +41,7 @@ from floorvo.importers.recording import FrameImages, Recording, read_image_file,
 from floorvo.importers.times import read_euroc_groundtruth
 from floorvo.io import read_text
 
-__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_FILE", "HEIGHT_SENSOR", "detect", "read", "mav0_of"]
+__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_FILE", "HEIGHT_NOISE_KEY", "HEIGHT_SENSOR", "detect", "read", "mav0_of"]
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +51,9 @@ FLATFIELD_FILE = "flatfield.png"
 CAMERA_HEIGHT_KEY = "camera_height_mm"
 #: The sensor folder of a range sensor's camera heights (mm) at cam0's frames.
 HEIGHT_SENSOR = "height0"
+#: The key of the range sensor's ``sensor.yaml`` holding the standard deviation of its readings, mm
+#: (a sequence's ``rig.height_noise_mm``).
+HEIGHT_NOISE_KEY = "noise_mm"
 #: The sensor folder of an IMU's camera roll and pitch (rad) at cam0's frames.
 ATTITUDE_SENSOR = "attitude0"
 
@@ -130,18 +133,19 @@ def _unpaired_stamp(mav: Path, st0: np.ndarray, st1: np.ndarray) -> str:
     )
 
 
-def _camera_height_mm(sensor: Path) -> float | None:
-    """cam0's :data:`CAMERA_HEIGHT_KEY` from its ``sensor.yaml`` (mm), None when absent;
-    a value that is not a number > 0 is a one-line error."""
+def _sensor_mm(sensor: Path, key: str = CAMERA_HEIGHT_KEY) -> float | None:
+    """The entry ``key`` of a ``sensor.yaml`` (mm: cam0's :data:`CAMERA_HEIGHT_KEY`, the range
+    sensor's :data:`HEIGHT_NOISE_KEY`), None when absent; a value that is not a number > 0 is a
+    one-line error."""
     if not sensor.is_file():
         return None
     d = load_yaml(sensor, "EuRoC sensor.yaml")
-    if not isinstance(d, dict) or CAMERA_HEIGHT_KEY not in d:
+    if not isinstance(d, dict) or key not in d:
         return None
-    v = d[CAMERA_HEIGHT_KEY]
+    v = d[key]
     ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0
     if not ok:
-        raise SequenceError(f"{sensor}: {CAMERA_HEIGHT_KEY} = {shown(v)}: must be a finite number of mm > 0")
+        raise SequenceError(f"{sensor}: {key} = {shown(v)}: must be a finite number of mm > 0")
     return float(v)
 
 
@@ -257,10 +261,9 @@ def read(source: Path, options=None) -> Recording:
         has_right=files1 is not None,
         groundtruth=gt,
         details={"first_stamp_ns": int(st0[0])},
-        height_mm=None
-        if getattr(options, "height_mm", None) is not None
-        else _camera_height_mm(mav / "cam0" / "sensor.yaml"),
+        height_mm=None if getattr(options, "height_mm", None) is not None else _sensor_mm(mav / "cam0" / "sensor.yaml"),
         flatfields=flatfields,
         height_signal_mm=heights,
+        height_noise_mm=None if heights is None else _sensor_mm(mav / HEIGHT_SENSOR / "sensor.yaml", HEIGHT_NOISE_KEY),
         attitude_signal_rad=attitude,
     )

@@ -102,6 +102,7 @@ class Recording:
         Flat-field frames the source carries, by camera (``cam0``, ``cam1``).
     height_signal_mm:
         (frame_count,) measured camera heights (mm, NaN where none) the source carries, or None.
+        ``height_noise_mm``: the standard deviation of each reading, where the source states it.
     attitude_signal_rad:
         (frame_count, 2) measured camera roll and pitch (rad, NaN where none) the source
         carries, or None.
@@ -124,6 +125,7 @@ class Recording:
     height_mm: float | None = None
     flatfields: dict[str, np.ndarray] = field(default_factory=dict)
     height_signal_mm: np.ndarray | None = None
+    height_noise_mm: float | None = None
     attitude_signal_rad: np.ndarray | None = None
 
 
@@ -419,7 +421,10 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
     if heights is not None:
         heights_what = "--height-file" if opts.height_signal_mm is not None else f"{what}: measured heights"
         check_heights(np.asarray(heights, dtype=float), n, heights_what)
+    # the readings' noise: the user's, else the source's where its readings are taken
+    height_noise = rec.height_noise_mm if opts.height_signal_mm is None else None
     if opts.height_noise_mm is not None:
+        height_noise = opts.height_noise_mm
         if heights is None:
             raise ConfigError(
                 "--height-noise-mm: the import has no height signal to state the noise of (--height-file)"
@@ -429,7 +434,8 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
                 f"--height-noise-mm = {shown_number(opts.height_noise_mm)}: must be a standard deviation in mm, "
                 f"0 to {CAMERA_HEIGHT_RANGE_MM[1]:g}"
             )
-        meta["rig"]["height_noise_mm"] = float(opts.height_noise_mm)
+    if heights is not None and height_noise is not None:
+        meta["rig"]["height_noise_mm"] = float(height_noise)
     attitude = opts.attitude_signal_rad if opts.attitude_signal_rad is not None else rec.attitude_signal_rad
     if attitude is not None:
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"

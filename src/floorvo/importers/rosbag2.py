@@ -27,8 +27,9 @@ Topics by role; a role not given with ``--topic ROLE=NAME`` is found by message 
   :data:`floorvo.camera.CAMERA_HEIGHT_RANGE_MM`, counted in one warning line).
 
 The rig height is the bag's ``custom_data`` entry :data:`CAMERA_HEIGHT_KEY` (mm) in
-``metadata.yaml``, and the nominal frame rate its entry :data:`FPS_KEY` (Hz; without it, the rate
-of the median spacing of the frames), as ``floorsim export --format rosbag2`` writes them.
+``metadata.yaml``, the height readings' noise its entry :data:`HEIGHT_NOISE_KEY` (mm), and the
+nominal frame rate its entry :data:`FPS_KEY` (Hz; without it, the rate of the median spacing of
+the frames), as ``floorsim export --format rosbag2`` writes them.
 
 Frame times are the image headers' stamps (the bag's receive time where every stamp is zero;
 some zero and some not is refused: two clocks).
@@ -59,7 +60,16 @@ from floorvo.importers.recording import FrameImages, Recording, to_mono
 from floorvo.io import IMAGE_FORMATS, image_header_size, image_size_problem
 from floorvo.sequence_meta import MAX_FPS_HZ
 
-__all__ = ["CAMERA_HEIGHT_KEY", "FPS_KEY", "FLATFIELD_TOPIC_NAME", "ROLES", "detect", "read", "decode_image"]
+__all__ = [
+    "CAMERA_HEIGHT_KEY",
+    "HEIGHT_NOISE_KEY",
+    "FPS_KEY",
+    "FLATFIELD_TOPIC_NAME",
+    "ROLES",
+    "detect",
+    "read",
+    "decode_image",
+]
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +92,9 @@ RANGE_TYPE = "sensor_msgs/msg/Range"
 FLATFIELD_TOPIC_NAME = "flatfield"
 #: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the camera height above the floor, mm.
 CAMERA_HEIGHT_KEY = "floorbench.camera_height_mm"
+#: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the standard deviation of the height
+#: topic's readings, mm (a sequence's ``rig.height_noise_mm``; ``sensor_msgs/Range`` has no field for it).
+HEIGHT_NOISE_KEY = "floorbench.height_noise_mm"
 #: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the sequence's nominal frame rate, Hz
 #: (a bag has no field for it: 29.97 Hz frames came back at the 29.985 Hz of their median spacing).
 FPS_KEY = "floorbench.fps"
@@ -572,12 +585,13 @@ def read(source: Path, options=None) -> Recording:
         else _custom_number(source, CAMERA_HEIGHT_KEY, "mm"),
         flatfields=flatfields,
         height_signal_mm=heights,
+        height_noise_mm=None if heights is None else _custom_number(source, HEIGHT_NOISE_KEY, "mm"),
     )
 
 
 def _custom_number(source: Path, key: str, unit: str, most: float = np.inf) -> float | None:
-    """The bag's ``custom_data`` entry ``key`` (:data:`CAMERA_HEIGHT_KEY` in mm, :data:`FPS_KEY` in
-    Hz) from its ``metadata.yaml``; None when absent; a value that is not a number > 0 and at most
+    """The bag's ``custom_data`` entry ``key`` (:data:`CAMERA_HEIGHT_KEY` and :data:`HEIGHT_NOISE_KEY`
+    in mm, :data:`FPS_KEY` in Hz) from its ``metadata.yaml``; None when absent; a value that is not a number > 0 and at most
     ``most`` is a one-line error."""
     path = (source.parent if source.is_file() else source) / "metadata.yaml"
     if not path.is_file():
