@@ -372,7 +372,8 @@ def _build_sigmoid(p: SigmoidParams, fps: float, seed: int):
 
     def path(t: np.ndarray) -> np.ndarray:
         f = t * fps
-        d = p.total_mm / (1.0 + np.exp(-p.gain * (f - f0)))
+        with np.errstate(over="ignore"):  # far before a midpoint far away exp overflows: 1 / (1 + inf) = 0, exact
+            d = p.total_mm / (1.0 + np.exp(-p.gain * (f - f0)))
         return np.stack([p.start_x_mm + c * d, p.start_y_mm + s * d, np.zeros_like(t)], axis=1)
 
     return p.frames, path, {}

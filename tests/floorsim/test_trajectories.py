@@ -36,6 +36,17 @@ def test_sigmoid_follows_formula(gain):
     np.testing.assert_allclose(_se2(tr)[:, 0], expect, atol=1e-12)
 
 
+def test_a_sigmoid_whose_midpoint_lies_far_away_stands_still_without_a_numpy_warning():
+    """A midpoint f0 of 1e308 frames overflowed exp(-g (f - f0)) and printed numpy's overflow
+    warning; the pose is exact all the same (1 / (1 + inf) = 0): the run stands at its start."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tr = build_trajectory("sigmoid", {"f0": 1e308, "frames": 5}, height_mm=100.0, fps=10.0)
+    np.testing.assert_array_equal(_se2(tr)[:, 0], 0.0)
+
+
 def test_line_paper001():
     tr = build_trajectory("line", {}, height_mm=100.0, fps=30.0)
     assert tr.frame_count == 301  # 3 m at 10 mm/frame
