@@ -426,6 +426,13 @@ def build(
             if isinstance(value, tp):
                 kwargs[key] = value
                 continue
+            if isinstance(value, SetText):  # --set KEY={...}: a TOML inline table, as a file would give it
+                value = _plain_text(value)
+                if not isinstance(value, Mapping):
+                    raise ConfigError(
+                        f"{where} = {shown(value)}: must be a table (an inline TOML table, or set one of its keys: "
+                        f"--set {where}.KEY=VALUE)"
+                    )
             if not isinstance(value, Mapping):
                 raise ConfigError(f"{where} = {shown(value)}: must be a table")
             kwargs[key] = build(tp, value, where, unknown=unknown, listed_by=listed_by)

@@ -93,6 +93,22 @@ def test_an_optional_nested_table_is_built_checked_and_listed():
     assert [f.key for f in describe_fields(WithOptional)] == ["inner.depth_mm"]
 
 
+def test_a_set_table_is_read_as_an_inline_toml_table():
+    """``--set inner={depth_mm=2}`` is the table a TOML file would give, checked as one; a value
+    that is no table says how a table is set (``--set inner={}`` read "inner = '{}': must be a
+    table", though it was one)."""
+    over = parse_set_args(["inner={depth_mm = 2}"])
+    assert from_overrides(WithOptional, over).inner == Inner(2.0)
+    assert from_overrides(WithOptional, parse_set_args(["inner={}"])).inner == Inner()
+    with pytest.raises(ConfigError, match=r"^w\.inner\.depth_mm = 6\.0 mm: must be <= 5\.0 mm$"):
+        from_overrides(WithOptional, parse_set_args(["inner={depth_mm=6}"]), "w")
+    with pytest.raises(ConfigError) as exc:
+        from_overrides(WithOptional, parse_set_args(["inner=3"]), "w")
+    assert str(exc.value) == (
+        "w.inner = 3: must be a table (an inline TOML table, or set one of its keys: --set w.inner.KEY=VALUE)"
+    )
+
+
 @pytest.mark.parametrize(
     "data, message",
     [
