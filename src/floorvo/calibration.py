@@ -79,6 +79,7 @@ from floorvo.geometry import invert_T, rot_z, yaw_of_R, yaws_of_T
 from floorvo.imaging import mean_orientation, texture_orientation
 from floorvo.io import atomic_write_json, read_json
 from floorvo.metrics import associate
+from floorvo.runfolder import sequence_content_sha256
 from floorvo.scoring import ok_step_frames_of_run, ok_step_poses_of_run, read_run_and_groundtruth
 from floorvo.sequence import Sequence
 
@@ -142,6 +143,9 @@ class ScaleCalibration:
     yaw_cos2: float = 0.0
     yaw_sin2: float = 0.0
     orientation_coherence: float = param(0.0, min=0.0, max=1.0)
+    # what the ``sequence`` folders held (floorvo.runfolder.sequence_content_sha256; "" for a
+    # ground-truth file), joined by "; ": a copy of one is recognised where its path is not
+    sequence_sha256: str = ""
 
     def to_dict(self) -> dict:
         return {"kind": KIND, "version": VERSION, **asdict(self)}
@@ -338,8 +342,15 @@ def calibrate_runs(
             # where they are, wherever the command ran: the use check compares them with the run's
             "run": "; ".join(str(Path(r).resolve()) for r, _ in runs),
             "sequence": "; ".join(str(_sequence_folder(Path(s)).resolve()) for _, s in runs),
+            "sequence_sha256": "; ".join(_content_sha256(_sequence_folder(Path(s))) for _, s in runs),
         }
     )
+
+
+def _content_sha256(path: Path) -> str:
+    """What the sequence folder ``path`` holds (:func:`floorvo.runfolder.sequence_content_sha256`);
+    "" for what is no sequence folder (a bare ground-truth file)."""
+    return sequence_content_sha256(path) if (path / "sequence.json").is_file() else ""
 
 
 def _sequence_folder(path: Path) -> Path:
@@ -505,10 +516,14 @@ def calibration_use_problems(
         )
     here = Path(seq_dir).resolve()
     fitted_on = [_sequence_folder(Path(s)) for s in cal.sequence.split("; ") if s]
-    if any(s.resolve() == here for s in fitted_on):
+    held = {h for h in cal.sequence_sha256.split("; ") if h and h != "unreadable"}
+    same = any(s.resolve() == here for s in fitted_on)
+    if not same and held and _content_sha256(here) in held:
+        same = True  # a copy (or the same scene rendered again, bit for bit) of a sequence it was fitted on
+    if same:
         problems.append(
-            f"the scale calibration was fitted on this sequence ({shorten(str(seq_dir))}): a score of this run "
-            "measures what the calibration was tuned on; fit it on a separate run"
+            f"the scale calibration was fitted on this sequence ({shorten(str(seq_dir))}, or one holding the same "
+            "files): a score of this run measures what the calibration was tuned on; fit it on a separate run"
         )
     if config is not None:
         # As result.json holds it (a tuple read back is a list): the same config compares equal.

@@ -36,7 +36,9 @@ short at a line boundary is whole on its own, and was scored as a shorter run.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import math
 import os
 from collections.abc import Mapping
@@ -74,6 +76,8 @@ __all__ = [
     "read_match_samples",
     "SEQUENCE_SHA256",
     "sequence_sha256",
+    "BENCH_CACHE_MARKER",
+    "sequence_content_sha256",
     "check_run_of_sequence",
     "SCORE",
     "DERIVED",
@@ -97,6 +101,34 @@ def sequence_sha256(meta: Any) -> str:
     (:func:`floorvo.sequence_meta.stable_meta`): a copy of the folder, or the same scene rendered
     again, has the same."""
     return json_sha256(stable_meta(meta) if isinstance(meta, dict) else meta)
+
+
+#: The bench's render cache marks a sequence folder it rendered with this file
+#: (:func:`floorsim.bench.bench.render_cached`): the bench's, not the sequence's.
+BENCH_CACHE_MARKER = "bench-cache.json"
+
+
+def sequence_content_sha256(folder: str | os.PathLike) -> str:
+    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``, the
+    sequences a scale calibration was fitted on): its ``sequence.json`` (:func:`sequence_sha256`)
+    and the bytes of every file in it (frames, depth, calibration, times, signals, ground truth)
+    but hidden ones (a writer's lock) and the render cache's marker (:data:`BENCH_CACHE_MARKER`);
+    ``"unreadable"`` where it cannot be read. Its frames were left out once: a gate blamed the
+    estimators for a recording whose frames had been blurred since its baseline (12 metrics worse)."""
+    root = Path(folder)
+    files = hashlib.sha256()
+    try:
+        meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
+        for p in sorted(root.rglob("*")):
+            rel = p.relative_to(root)
+            if p.name == BENCH_CACHE_MARKER or any(part.startswith(".") for part in rel.parts) or not p.is_file():
+                continue
+            files.update(rel.as_posix().encode("utf-8", "surrogateescape") + b"\0")
+            with open(p, "rb") as fh:
+                files.update(hashlib.file_digest(fh, "sha256").digest())
+    except (OSError, ValueError):
+        return "unreadable"
+    return json_sha256({"sequence": sequence_sha256(meta), "files": files.hexdigest()})
 
 
 def check_run_of_sequence(run_dir: str | os.PathLike, result: Any, seq_dir: str | os.PathLike) -> None:

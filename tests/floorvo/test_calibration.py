@@ -141,6 +141,16 @@ def test_a_run_on_the_calibrations_own_sequence_or_with_another_config_says_so(t
     assert problems(test_seq, "separate") == []
     other = problems(test_seq, "other-config", "--set", "iterations=3")
     assert len(other) == 1 and "another estimator config" in other[0] and "iterations = 2 there, 3 here" in other[0]
+    # A copy of the sequence it was fitted on is that sequence (its path was all that was compared);
+    # a copy whose frames have changed since is another.
+    import shutil
+
+    shutil.copytree(cal_seq, tmp_path / "copy")
+    copy = problems(tmp_path / "copy", "run_copy")
+    assert len(copy) == 1 and "fitted on this sequence" in copy[0] and "or one holding the same files" in copy[0]
+    frame = tmp_path / "copy" / "cam0" / "000003.png"
+    frame.write_bytes(frame.read_bytes() + b"\0")  # a byte more after the PNG's end: other files, same picture
+    assert problems(tmp_path / "copy", "run_copy2") == []
     # A config value JSON holds as a list (a plugin's tuple key) is the same config, not another.
     from floorvo.calibration import calibration_use_problems, load_scale_calibration
 

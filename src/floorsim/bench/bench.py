@@ -84,7 +84,8 @@ from floorvo.external import ExternalEstimator
 from floorvo.io import atomic_write_json, checked_output_file, checked_output_path, json_sha256, read_json
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose, estimator_faults
-from floorvo.runfolder import sequence_sha256, write_match_sample
+from floorvo.runfolder import BENCH_CACHE_MARKER as CACHE_MARKER
+from floorvo.runfolder import sequence_content_sha256, write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
@@ -165,32 +166,6 @@ def render_inputs(
         "scale": scale,
         "spp": spp,
     }
-
-
-#: The render cache's marker in a sequence folder it rendered (:func:`render_cached`): the bench's, not the sequence's.
-CACHE_MARKER = "bench-cache.json"
-
-
-def sequence_content_sha256(folder: str | os.PathLike) -> str:
-    """What a recorded sequence folder holds (a study's record, a bench row's ``inputs``): its
-    ``sequence.json`` (:func:`floorvo.runfolder.sequence_sha256`) and the bytes of every file in it
-    (frames, depth, calibration, times, signals, ground truth) but hidden ones (a writer's lock)
-    and the render cache's marker. Its frames were left out: a gate blamed the estimators for a
-    recording whose frames had been blurred since its baseline (12 metrics worse)."""
-    root = Path(folder)
-    files = hashlib.sha256()
-    try:
-        meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
-        for p in sorted(root.rglob("*")):
-            rel = p.relative_to(root)
-            if p.name == CACHE_MARKER or any(part.startswith(".") for part in rel.parts) or not p.is_file():
-                continue
-            files.update(rel.as_posix().encode("utf-8", "surrogateescape") + b"\0")
-            with open(p, "rb") as fh:
-                files.update(hashlib.file_digest(fh, "sha256").digest())
-    except (OSError, ValueError):
-        return "unreadable"
-    return json_sha256({"sequence": sequence_sha256(meta), "files": files.hexdigest()})
 
 
 def render_cached(
