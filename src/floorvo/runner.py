@@ -49,7 +49,7 @@ import numpy as np
 
 from floorvo.calibration import ScaleCalibration, apply_scale
 from floorvo.errors import ConfigError, FloorbenchError, SequenceError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, frame_height_mm, takes_height_change_from_signal
 from floorvo.geometry import (
     MAX_POSITION_MM,
     T_world_cam_down,
@@ -369,7 +369,13 @@ def run_frames(
             T_chain = T_chain @ step
         if st in _PLACED or RESTART_NOTE in res.reason:
             theta_from = theta  # the next step is measured from this frame
-        if st == "ok" and height_noise_mm > 0.0 and frame_height_mm(frame) is not None and height_steps:
+        if (
+            st == "ok"
+            and height_steps
+            and height_noise_mm > 0.0
+            and res.T_world_cam is None  # a fix (map-fused's) places the frame: not the readings' difference
+            and frame_height_mm(frame) is not None
+        ):
             noisy = _height_noise_problem(estimator, res, height_noise_mm)
             if noisy:  # measured and chained, not placed: the signal leaves its height change uncertain
                 st, why, fix = "lost", noisy, False
@@ -523,16 +529,6 @@ def _same_picture(image: Any, prev: Any) -> bool:
     if not (np.array_equal(a[::step], b[::step]) and np.array_equal(a, b)):
         return False
     return bool(a.min() != a.max())
-
-
-def takes_height_change_from_signal(estimator: Any) -> bool:
-    """True when ``estimator``'s steps carry the difference of the frames' height readings as
-    their height change: its class's ``height_change_from_signal`` (the planar mono estimators),
-    and its config's ``use_height_signal`` on. The runner holds such steps to the signal's noise
-    (:func:`_height_noise_problem`)."""
-    if not getattr(type(estimator), "height_change_from_signal", False):
-        return False
-    return bool(getattr(getattr(estimator, "config", None), "use_height_signal", True))
 
 
 def uses_attitude_signal(estimator: Any) -> bool:

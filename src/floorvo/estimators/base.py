@@ -36,6 +36,7 @@ __all__ = [
     "frame_problem",
     "frame_height_mm",
     "HEIGHT_SIGNAL_MISREAD",
+    "takes_height_change_from_signal",
     "frame_is_blank",
     "RESTART_NOTE",
     "NO_ATTITUDE_READING",
@@ -286,6 +287,16 @@ def frame_height_mm(frame: Frame, enabled: bool = True) -> float | None:
     if not enabled or h is None or not np.isfinite(h) or h <= 0:
         return None
     return float(h)
+
+
+def takes_height_change_from_signal(estimator: Any) -> bool:
+    """True when ``estimator``'s steps carry the difference of the frames' height readings as
+    their height change: its ``height_change_from_signal`` (the planar mono estimators; map-fused
+    with such an odometry), and its config's ``use_height_signal`` on. The runner holds such steps
+    to the signal's noise (:func:`floorvo.runner.run_frames`)."""
+    if not getattr(estimator, "height_change_from_signal", False):
+        return False
+    return bool(getattr(getattr(estimator, "config", None), "use_height_signal", True))
 
 
 def frame_attitude_rad(frame: Frame, enabled: bool = True) -> tuple[float, float] | None | str:

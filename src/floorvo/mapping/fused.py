@@ -26,7 +26,7 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, parse_set_args
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, state_error
+from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, state_error, takes_height_change_from_signal
 from floorvo.estimators.registry import get_estimator, make_config
 from floorvo.geometry import invert_T
 from floorvo.mapping.localize import LocalizeConfig, Localizer
@@ -113,6 +113,8 @@ class MapFused:
             self.requires = frozenset(getattr(self.odometry, "requires", ()))
         elif config.odometry_set.strip():  # taken and ignored without a word
             raise ConfigError(f"map-fused.odometry_set = {config.odometry_set!r}: set with no odometry ('none')")
+        #: Its steps between fixes are the odometry's: held to a height signal's noise as the odometry's are.
+        self.height_change_from_signal = self.odometry is not None and takes_height_change_from_signal(self.odometry)
 
     def start(self) -> _State:
         return _State(odo_state=self.odometry.start() if self.odometry else None)
