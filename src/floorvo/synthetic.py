@@ -197,6 +197,7 @@ def write_synthetic_sequence(
     stereo_baseline_mm: float | None = None,
     name: str = "synthetic",
     overwrite: bool = True,
+    timestamps_s: np.ndarray | None = None,
 ) -> Path:
     """Write a floorvo sequence folder for the poses ``T_world_cam`` (N, 4, 4) mm; returns its path.
 
@@ -209,7 +210,9 @@ def write_synthetic_sequence(
     such file. ``attitude_noise_rad``: also an IMU's
     roll and pitch per frame (``attitude.csv``: :func:`floorvo.geometry.attitude_of_T` of the
     pose plus Gaussian noise of that size on each angle, seeded from ``seed``); None: no such
-    file. ``stereo_baseline_mm``: also a right camera ``cam1``.
+    file. ``stereo_baseline_mm``: also a right camera ``cam1``. ``timestamps_s``: the frames'
+    times (N,) s, written to ``timestamps.txt`` (a recording's clock: frames dropped, jitter) and
+    given to the ground truth; None: frame ``i`` at ``i / fps``, no such file.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
     gsd = camera.gsd_mm_per_px(height_mm)
@@ -267,7 +270,11 @@ def write_synthetic_sequence(
         w.write_calib("cam0_flatfield", flat)
         if T01 is not None:
             w.write_calib("cam1_flatfield", flat)
-        w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
+        if timestamps_s is None:
+            w.write_groundtruth(np.arange(len(T_world_cam)) / float(fps), T_world_cam)
+        else:
+            w.write_timestamps(timestamps_s)
+            w.write_groundtruth(np.asarray(timestamps_s, dtype=float), T_world_cam)
         if height_noise_mm is not None:
             h = T_world_cam[:, 2, 3] + np.random.default_rng(seed + 3).normal(0.0, height_noise_mm, len(T_world_cam))
             w.write_heights(h, "synthetic range sensor")
