@@ -475,7 +475,7 @@ def _attitude_problem(estimator: Any, res: StepResult, noise_rad: float, height_
         estimator,
         res,
         np.sqrt(2.0) * height_mm * noise_rad,
-        f"attitude signal too noisy for the step: {{sigmas:g}} x sqrt(2) x its noise {1e3 * noise_rad:.2f} mrad "
+        f"attitude signal too noisy for the step: {{sigmas:g}} x 1.414 x its noise {1e3 * noise_rad:.2f} mrad "
         f"x height {height_mm:.1f} mm",
     )
 
@@ -491,7 +491,7 @@ def _height_noise_problem(estimator: Any, res: StepResult, noise_mm: float) -> s
         estimator,
         res,
         np.sqrt(2.0) * noise_mm,
-        f"height signal too noisy for the step: {{sigmas:g}} x sqrt(2) x its stated noise {noise_mm:.3f} mm",
+        f"height signal too noisy for the step: {{sigmas:g}} x 1.414 x its stated noise {noise_mm:.3f} mm",
     )
 
 

@@ -4,6 +4,7 @@ bouncing run, against ground truth."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from floorvo.camera import CameraModel
 from floorvo.errors import SequenceError
 from floorvo.estimators import Frame, get_estimator, make_config
 from floorvo.geometry import T_world_cam_down, depth_floor_plane
+from floorvo.metrics import reason_kind
 from floorvo.run import run_estimator
 from floorvo.runfolder import read_timing_csv
 from floorvo.runner import sequence_frames
@@ -344,6 +346,9 @@ def test_the_papers_rigid_fit_loses_a_height_change_instead_of_reporting_it_wron
         if status == "ok" or "restarts" in str(why):
             ref = k  # the next step is measured from this frame
     assert lost_for_height >= 10 and ok >= 3
+    # counted by its cause (a "; " inside the reason had counted it by its last clause)
+    kinds = json.loads((Path(res.run_dir) / "result.json").read_text())["lost_reasons"]
+    assert sum(n for k, n in kinds.items() if k.startswith("height change not measured")) == lost_for_height, kinds
     checked = score_run(res.run_dir, seq).flat()["wrong_ok_steps"]
     unchecked = run_estimator(seq, name, tmp_path / "unchecked", {**rig, "check_height_change": "false"})
     assert score_run(unchecked.run_dir, seq).flat()["wrong_ok_steps"] > 10 * max(1.0, checked)
@@ -455,6 +460,7 @@ def test_phase_corr_loses_a_step_whose_height_reading_the_picture_contradicts(bo
     assert 10 in lost and set(range(21, len(h))) <= lost
     why = {int(i): r for i, r in zip(run.frame_index, run.reason)}
     assert why[10].startswith("height signal disagrees with the picture: it reads 300.000 mm")
+    assert reason_kind(why[10]).startswith("height signal disagrees with the picture: it reads # mm")
 
 
 def test_homography_6dof_holds_its_floor_plane_to_the_height_signal(bounce_seqs, tmp_path):
@@ -491,6 +497,7 @@ def test_homography_6dof_holds_its_floor_plane_to_the_height_signal(bounce_seqs,
         else:
             assert lost == [10]
             assert why[10].startswith("height signal disagrees with the floor plane: it reads 300.000 mm")
+            assert reason_kind(why[10]).startswith("height signal disagrees with the floor plane: it reads # mm")
 
 
 @pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
@@ -508,11 +515,13 @@ def test_a_height_signal_too_noisy_for_the_step_loses_it(tmp_path, name):
     stated = run_estimator(seq, name, tmp_path / "stated")
     s = score_run(stated.run_dir, seq).flat()
     assert s["wrong_ok_steps"] == 0
-    noisy = [
-        r for r in stated.reason if r.startswith("height signal too noisy for the step: 2.5 x sqrt(2) x its stated")
-    ]
+    noisy = [r for r in stated.reason if r.startswith("height signal too noisy for the step: 2.5 x 1.414 x its stated")]
     assert len(noisy) > 20
     assert "0.100 mm = 0.354 mm > bound 0.13" in noisy[0]
+    assert (
+        reason_kind(noisy[0])
+        == "height signal too noisy for the step: # x # x its stated noise # mm = # mm > bound # mm"
+    )
     meta = json.loads((seq / "sequence.json").read_text())
     del meta["rig"]["height_noise_mm"]
     (seq / "sequence.json").write_text(json.dumps(meta))

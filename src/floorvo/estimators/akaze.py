@@ -834,7 +834,7 @@ class _AkazeBase:
             return (
                 f"height change not measured: the pairs' floor homography reads {h_cur - h_prev:+.3f} mm of "
                 f"camera height (standard error {sig_mm:.3f}, tilt {1e3 * tilt:.1f} mrad), the rigid fit assumes "
-                f"{assumed:+.3f} mm; {off_mm:.3f} mm less {cfg.precision_sigmas:g} standard errors, over the "
+                f"{assumed:+.3f} mm: {off_mm:.3f} mm less {cfg.precision_sigmas:g} standard errors, over the "
                 f"{cfg.height_change_read_share:g} of a change the homography reads: {least_mm:.3f} mm > bound "
                 f"{bound_mm:.3f} + {allowance_mm:.3f} mm (fit_image_scale or a height signal measures it)"
             )

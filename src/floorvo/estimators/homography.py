@@ -199,7 +199,7 @@ class HomographySixDof(_AkazeBase):
         bound_mm = cfg.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
         if err_mm > bound_mm or err_deg > cfg.max_step_error_deg:
             return (
-                f"imprecise homography: {m} blocks of its pairs disagree; {k:g} standard errors are "
+                f"imprecise homography: {m} blocks of its pairs disagree, {k:g} standard errors are "
                 f"{err_mm:.3f} mm and {err_deg:.2f} deg (bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg)"
             )
         return ""
@@ -302,7 +302,7 @@ class HomographySixDof(_AkazeBase):
         if off_mm > bound_mm:
             return (
                 f"{HEIGHT_SIGNAL_DISAGREES}: it reads {h_meas_mm:.3f} mm, the carried plane "
-                f"is {d_cur_mm:.3f} mm below the camera; beyond what the plane may stray ({misread_mm:.3f} mm) "
+                f"is {d_cur_mm:.3f} mm below the camera, beyond what the plane may stray ({misread_mm:.3f} mm) "
                 f"{off_mm:.3f} mm > bound {bound_mm:.3f} mm"
             )
         return ""

@@ -1020,7 +1020,7 @@ class PhaseCorr:
         if off_mm > bound_mm:
             return (
                 f"height signal disagrees with the picture: it reads {h_meas:.3f} mm, the blocks' image scale "
-                f"{s:.5f} gives {h_img:.3f} +/- {sig_h_mm:.3f} mm; beyond what the blocks may misread "
+                f"{s:.5f} gives {h_img:.3f} +/- {sig_h_mm:.3f} mm, beyond what the blocks may misread "
                 f"({misread_mm:.3f} mm) {off_mm:.3f} mm > bound {bound_mm:.3f} mm"
             )
         return ""
