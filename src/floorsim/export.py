@@ -307,7 +307,7 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
             conns["/cam0/height"] = w.add_connection("/cam0/height", Range.__msgtype__, typestore=ts)
         if seq.height_mm is not None:
             w.set_custom_data(bag_reader.CAMERA_HEIGHT_KEY, repr(float(seq.height_mm)))
-        if heights is not None and seq.height_noise_mm:
+        if heights is not None and seq.height_noise_mm is not None:
             w.set_custom_data(bag_reader.HEIGHT_NOISE_KEY, repr(float(seq.height_noise_mm)))
         w.set_custom_data(bag_reader.FPS_KEY, repr(float(seq.fps)))
         if gt is not None:
@@ -488,7 +488,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
             "range",
             "floorbench: cam0's height above the floor (mm) at each cam0 frame; empty = no reading",
             seq.fps,
-            {HEIGHT_NOISE_KEY: seq.height_noise_mm} if seq.height_noise_mm else None,
+            None if seq.height_noise_mm is None else {HEIGHT_NOISE_KEY: seq.height_noise_mm},
         )
     attitude = seq.attitude_signal_rad
     if attitude is not None:

@@ -658,6 +658,7 @@ def run_sequence(
         raise FloorbenchError(
             f"{name}: frame {indices[back]} follows frame {indices[back - 1]}: the frames of a run must increase"
         )
+    _warn_height_signal_offset(seq, estimator)
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None
     if T_world_start is None:
         T_world_at = _groundtruth_pose_of(seq)
@@ -689,6 +690,36 @@ def run_sequence(
         height_noise_mm=seq.height_noise_mm or 0.0,
         T_world_at=T_world_at,
     )
+
+
+#: The share of the rig's height by which a height signal's median reading may differ from it
+#: before a run says so (:func:`_warn_height_signal_offset`): issue 14's 2 % of a step.
+HEIGHT_SIGNAL_OFFSET_WARN = 0.02
+
+
+def _warn_height_signal_offset(seq: Sequence, estimator: Any) -> None:
+    """A warning where ``seq``'s height readings (``height.csv``), which ``estimator`` converts its
+    steps at (``use_height_signal``), lie by their median further from ``rig.height_mm`` than
+    :data:`HEIGHT_SIGNAL_OFFSET_WARN` of it: a range sensor mounted 5 mm off (or the rig height
+    stated wrong) made every step 5 % long without a word, and the picture cannot tell an
+    absolute height (only its changes)."""
+    cfg = getattr(estimator, "config", None)
+    if not getattr(cfg, "use_height_signal", False) or seq.height_mm is None:
+        return
+    h = seq.height_signal_mm
+    h = None if h is None else h[np.isfinite(h)]
+    if h is None or not h.size:
+        return
+    median = float(np.median(h))
+    if abs(median - seq.height_mm) > HEIGHT_SIGNAL_OFFSET_WARN * seq.height_mm:
+        log.warning(
+            "%s: height.csv's readings (median %.2f mm) lie %.1f %% from rig.height_mm (%.2f mm): the steps are "
+            "converted at the readings; check the range sensor's mounting offset, or the rig height",
+            seq.root,
+            median,
+            100.0 * (median - seq.height_mm) / seq.height_mm,
+            seq.height_mm,
+        )
 
 
 def _groundtruth_pose_of(seq: Sequence) -> Callable[[Frame], np.ndarray | None] | None:

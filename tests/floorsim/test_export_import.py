@@ -322,7 +322,15 @@ def test_an_export_carries_the_flat_fields_heights_and_rig_height_back(tmp_path,
     noise.write_text(kept.replace("noise_mm: 0.2", "noise_mm: .nan"))
     assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
     err = capsys.readouterr().err.strip()
-    assert err.endswith("height0/sensor.yaml: noise_mm = nan: must be a finite number of mm > 0"), err
+    assert err.endswith("height0/sensor.yaml: noise_mm = nan: must be a finite number of mm >= 0 and at most 20000"), (
+        err
+    )
+    noise.write_text(kept.replace("noise_mm: 0.2", "noise_mm: 1.0e+9"))  # was blamed on the output's sequence.json
+    assert main(["import", str(exported), "-o", str(tmp_path / "bad")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(
+        "height0/sensor.yaml: noise_mm = 1000000000.0: must be a finite number of mm >= 0 and at most 20000"
+    ), err
     noise.write_text(kept)
     # a sidecar row at no frame's stamp is refused in one line, before anything is written
     csv_path = exported / "mav0" / "height0" / "data.csv"

@@ -302,7 +302,9 @@ class _State:
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # camera height of the reference frame, measured or fitted (None: the rig's)
+    height_read: bool = False  # height_mm is the reference frame's own reading (a height signal's)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of the reference (homography-6dof)
+    plane_var_mm2: float = 0.0  # variance of the plane's d_mm, from the height readings it rests on (homography-6dof)
     threshold: float | None = None  # adapt_threshold: the detector threshold of the next frame (None: the config's)
     attitude: tuple[float, float] | None = None  # the reference's attitude its keypoints were levelled with
     img8: np.ndarray | None = None  # (H, W) uint8 picture of the reference (refine_window_px)
@@ -700,16 +702,35 @@ class _AkazeBase:
 
     def _height_after(self, state: _State, fit: _Fit, frame: Frame) -> float | None:
         """The camera height (mm) of ``frame`` as the next step's reference: the measured one
-        when it has one; with ``fit_image_scale``, the reference's divided by the fitted image
-        scale (the picture scales by ``h_prev / h_cur`` about the principal point: eq. (1) of
-        paper 000 read backwards); else None (the rig's)."""
+        when it has one; with the image scale fitted (``fit_image_scale``), the reference's
+        divided by the fitted image scale (the picture scales by ``h_prev / h_cur`` about the
+        principal point: eq. (1) of paper 000 read backwards); else the reference's, kept (None:
+        the rig's; a frame without a reading in a run with a height signal had been converted at
+        the rig's height, a jump of the readings' difference from it)."""
         h = self._frame_height(frame)
         if h is None and fit.M is not None and fit.scale_fitted:
             h_prev = state.height_mm or self.height_mm
             h = h_prev / float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
-        elif h is None and self.config.fit_image_scale and not self.fits_own_scale:
-            h = state.height_mm  # the scale showed no change (:meth:`_scale_changed`): the height kept
+        elif h is None:
+            h = state.height_mm  # the scale showed no change (:meth:`_scale_changed`), or none fitted: kept
         return h
+
+    def _height_read_now(self, state: _State, frame: Frame) -> bool:
+        """Whether the step to ``frame`` takes its height change from two readings: the frame's
+        and its reference's (a height signal's; the first frame or a restart without one has none)."""
+        return state.height_read and self._frame_height(frame) is not None
+
+    def _height_from(self, state: _State, fit: _Fit, frame: Frame) -> float:
+        """The reference's height (mm) the step to ``frame`` is converted and its height change
+        taken from: the reference's (:attr:`_State.height_mm`, the rig's where None); where the
+        frame has a reading and its reference had none (the first frame, a restart), the reading
+        put back by the picture's change (the fitted image scale; none with a rigid fit): the
+        rig's height less a reading had been reported as the height change (0.77 mm off, ok)."""
+        h_read = self._frame_height(frame)
+        if h_read is None or state.height_read:
+            return state.height_mm or self.height_mm
+        k = float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2])))) if fit.M is not None and fit.scale_fitted else 1.0
+        return h_read * k
 
     def _scale_ratio(self, state: _State, frame: Frame) -> float | None:
         """The image scale of ``frame`` relative to the reference's, from their camera heights (1 without a height signal;
@@ -723,11 +744,12 @@ class _AkazeBase:
         a bounce with a height signal"). The heights are those :meth:`_motion` converts the pixels with (the rig's
         where a frame has no measured height)."""
         h_measured = self._frame_height(frame)
-        if h_measured is None and self.config.fit_image_scale and not self.fits_own_scale:
+        read_now = self._height_read_now(state, frame)
+        if not read_now and self.config.fit_image_scale and not self.fits_own_scale:
             return None
-        h_prev = state.height_mm or self.height_mm
-        h_cur = h_measured or self.height_mm
-        return h_prev / h_cur
+        if h_measured is None or not read_now:
+            return 1.0  # a height kept, or one read at the frame only: no change known (:meth:`_height_from`)
+        return (state.height_mm or self.height_mm) / h_measured
 
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
@@ -751,7 +773,7 @@ class _AkazeBase:
         (``Frame.height_mm``: a range sensor, or the depth image's floor plane) when it has
         one, else the rig's; the step then carries the height change along the optical axis.
         """
-        h_prev = state.height_mm or self.height_mm
+        h_prev = self._height_from(state, fit, frame)
         h_cur = self._height_after(state, fit, frame) or self.height_mm
         q_prev = pixels_to_floor_mm(fit.src, self.pinhole, h_prev)  # the pairs are the pinhole's (_levelled)
         q_cur = pixels_to_floor_mm(fit.dst, self.pinhole, h_cur)
@@ -797,8 +819,8 @@ class _AkazeBase:
         cfg = self.config
         if not cfg.check_height_change or cfg.fit_image_scale or self.fits_own_scale or fit.M is None:
             return ""
-        if self._frame_height(frame) is not None or len(fit.src) < 8:
-            return ""  # the height is measured (the fit used it), or too few pairs for a homography
+        if self._height_read_now(state, frame) or len(fit.src) < 8:
+            return ""  # the height change is measured (the fit used it), or too few pairs for a homography
         x_prev = self.pinhole.unproject(fit.src, 1.0)[:, :2]
         x_cur = self.pinhole.unproject(fit.dst, 1.0)[:, :2]
         spread = np.linalg.svd(x_prev - x_prev.mean(axis=0), compute_uv=False)
@@ -822,7 +844,7 @@ class _AkazeBase:
         tilt = float(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))
         if attitude is not None and state.attitude is not None:
             tilt = max(tilt, tilt_change_rad(state.attitude, attitude))
-        assumed = (self._height_after(state, fit, frame) or self.height_mm) - h_prev
+        assumed = (self._height_after(state, fit, frame) or self.height_mm) - self._height_from(state, fit, frame)
         off_mm = abs((h_cur - h_prev) - assumed)
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
         bound_mm = cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px)
@@ -1042,6 +1064,7 @@ class _AkazeBase:
                 )
             state.kps, state.desc, state.packed, state.attitude, state.img8 = kps, desc, packed, attitude, img8
             state.height_mm = self._frame_height(frame)
+            state.height_read = state.height_mm is not None
             self._start_reference(state, frame)
             return StepResult(
                 "init",
@@ -1087,6 +1110,7 @@ class _AkazeBase:
                 state.kps, state.desc, state.packed, state.n_lost = kps, desc, packed, 0
                 state.attitude, state.img8 = attitude, img8
                 state.height_mm = self._frame_height(frame)
+                state.height_read = state.height_mm is not None
                 self._start_reference(state, frame)
                 why += f"; {RESTART_NOTE}"
             return StepResult(
@@ -1102,6 +1126,7 @@ class _AkazeBase:
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
         state.attitude, state.img8 = attitude, img8
         state.height_mm = self._height_after(state, fit, frame)
+        state.height_read = self._frame_height(frame) is not None
         t3 = time.perf_counter()
         return StepResult(
             "ok",

@@ -126,9 +126,12 @@ class HomographySixDof(_AkazeBase):
         height_mm: float,
         flatfield: np.ndarray | None = None,
         led_positions_cam_mm: np.ndarray | None = None,
+        height_noise_mm: float | None = None,
         **rig,
     ):
         super().__init__(config, camera, height_mm=height_mm, flatfield=flatfield, **rig)
+        #: The standard deviation of each height reading, as the sequence states it (``rig.height_noise_mm``).
+        self.height_noise_mm = float(height_noise_mm or 0.0)
         #: Grazing lights ride with the camera: from the sequence's LEDs (``rig_lights = auto``) or as told.
         self.lights_ride = (
             led_positions_cam_mm is not None if config.rig_lights == "auto" else config.rig_lights == "yes"
@@ -231,9 +234,11 @@ class HomographySixDof(_AkazeBase):
     def _start_reference(self, state: _State, frame: Frame) -> None:
         """The first frame (or a restart) is level at the rig's or the measured height; a
         restart keeps the last plane's normal."""
-        h = self._frame_height(frame) or self.height_mm
+        h_read = self._frame_height(frame)
         n = np.array([0.0, 0.0, 1.0]) if state.plane is None else state.plane[0]
-        state.plane = (n, h)
+        state.plane = (n, h_read or self.height_mm)
+        # as uncertain as one reading (nothing known of the rig's height: none, as without a stated noise)
+        state.plane_var_mm2 = self.height_noise_mm**2 if h_read is not None else 0.0
 
     def _motion(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray | None, str]:
         cfg = self.config
@@ -273,30 +278,66 @@ class HomographySixDof(_AkazeBase):
             return None, f"floor plane tilted {tilt:.2f} rad from the optical axis > {cfg.max_tilt_rad:g}"
         if abs(d_cur - d_prev) > cfg.max_height_step_mm:
             return None, f"height change {d_cur - d_prev:+.2f} mm in one frame > {cfg.max_height_step_mm:g}"
-        problem = self._height_signal_problem(T, d_cur, self._frame_height(frame))
+        h_read = self._frame_height(frame)
+        problem = self._height_signal_problem(T, d_cur, h_read, state.plane_var_mm2) or self._plane_height_problem(
+            T, d_prev, state.plane_var_mm2
+        )
         if problem:
             return None, problem
+        if h_read is not None and self.height_noise_mm > 0.0:
+            # The readings of a stated noise refine the plane's height (a Kalman update of d, the
+            # homography carrying it exactly between frames): started from one reading it is as
+            # uncertain as one (1 mm: steps up to 2.5 % long), after n of them 1/sqrt(n) of that.
+            gain = state.plane_var_mm2 / (state.plane_var_mm2 + self.height_noise_mm**2)
+            d_cur += gain * (h_read - d_cur)
+            state.plane_var_mm2 *= 1.0 - gain
         state.plane = (n_cur, d_cur)
         return T, ""
+
+    def _plane_height_problem(self, T_prev_cur: np.ndarray, d_prev_mm: float, var_mm2: float) -> str:
+        """Why the step ``T_prev_cur`` (4, 4) mm, scaled by the plane's height ``d_prev_mm`` of the
+        variance ``var_mm2`` (the readings', :meth:`_motion`), is too uncertain to report ('' if it
+        is not): the step's length is uncertain by ``|t| sqrt(var) / d``, and ``precision_sigmas``
+        of that must stay within issue 14's bound for the step."""
+        if var_mm2 <= 0.0 or self.config.precision_sigmas <= 0.0:
+            return ""
+        t_mm = float(np.linalg.norm(T_prev_cur[:3, 3]))
+        err_mm = self.config.precision_sigmas * t_mm * float(np.sqrt(var_mm2)) / d_prev_mm
+        bound_mm = self.config.bound_mm(t_mm)
+        if err_mm > bound_mm:
+            return (
+                f"floor plane's height too uncertain for the step: {np.sqrt(var_mm2):.3f} mm from the height "
+                f"readings, {self.config.precision_sigmas:g} x that x the step over the height = {err_mm:.3f} mm "
+                f"> bound {bound_mm:.3f} mm"
+            )
+        return ""
 
     def _motion_problem_restarts(self, problem: str) -> bool:
         """A height reading that contradicts the carried plane restarts tracking at a reading
         (:meth:`_height_signal_problem`): measured from the older reference the plane stays wrong."""
         return problem.startswith(HEIGHT_SIGNAL_DISAGREES)
 
-    def _height_signal_problem(self, T_prev_cur: np.ndarray, d_cur_mm: float, h_meas_mm: float | None) -> str:
+    def _height_signal_problem(
+        self, T_prev_cur: np.ndarray, d_cur_mm: float, h_meas_mm: float | None, plane_var_mm2: float = 0.0
+    ) -> str:
         """Why the step ``T_prev_cur`` (4, 4) mm, which puts the camera ``d_cur_mm`` over the
         carried floor plane, contradicts the frame's measured height ``h_meas_mm`` (mm; None:
         none) ('' if it does not). The homography gives only the ratio of the heights (``t / d``,
         Result 13.1), so the carried plane's height scales every step: a plane started from a
         wrong reading (300 mm at 100 mm) made every step 3x long, reported ok. A reading further
         from the carried height than the plane may stray (:data:`HEIGHT_SIGNAL_MISREAD` of the
-        height) plus issue 14's bound for the step loses the step; after ``restart_after_lost``
+        height, and ``precision_sigmas`` x the standard deviation of the reading less the plane's
+        height, from the readings' stated noise and the plane's ``plane_var_mm2``) plus issue
+        14's bound for the step loses the step; after ``restart_after_lost``
         such frames tracking restarts at the reading (:meth:`_start_reference`), so a plane started
         wrong is lost, not chained, and a single wrong reading costs its own frame."""
         if h_meas_mm is None:
             return ""
-        misread_mm = HEIGHT_SIGNAL_MISREAD * h_meas_mm
+        # and the reading's own noise, where the sequence states it (a 0.3-1 mm sensor lost 3-14 of
+        # 40 steps on single readings, and restarted the plane at them)
+        misread_mm = HEIGHT_SIGNAL_MISREAD * h_meas_mm + self.config.precision_sigmas * float(
+            np.sqrt(self.height_noise_mm**2 + plane_var_mm2)
+        )
         off_mm = abs(h_meas_mm - d_cur_mm) - misread_mm
         bound_mm = self.config.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
         if off_mm > bound_mm:

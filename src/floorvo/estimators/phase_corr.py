@@ -552,7 +552,8 @@ class _State:
     # the rotation (rad) per frame of the last ok steps in a row, oldest first (predict_turn_rate)
     yaws_per_frame: deque[float] = field(default_factory=lambda: deque(maxlen=3))
     n_lost: int = 0  # frames lost in a row since the reference
-    height_mm: float | None = None  # measured camera height of the reference frame (None: the rig's)
+    height_mm: float | None = None  # camera height of the reference frame: measured or followed (None: the rig's)
+    height_read: bool = False  # height_mm is the reference frame's own reading (a height signal's)
     # (scale - 1)^2 and the scale's variance of the last image_scale_window measured frames (fit_image_scale)
     scale_window: deque[tuple[float, float]] = field(default_factory=deque)
 
@@ -810,6 +811,7 @@ class PhaseCorr:
             state.prev_blocks = self._blocks(crop)
             state.prev_crop = crop
             state.height_mm = self._frame_height(frame)
+            state.height_read = state.height_mm is not None
             state.t_ref_s = float(frame.timestamp_s)
             return StepResult("init", reason="first frame", timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()))
         M0 = self._prediction(state, float(frame.timestamp_s)) if self.config.predict else np.eye(3)
@@ -869,12 +871,22 @@ class PhaseCorr:
         h_signal = self._frame_height(frame)
         h_meas = h_signal
         height_sigma_mm = 0.0
-        if h_meas is None and self.config.fit_image_scale:
-            if self._height_changed(state, m, measured=not gross):
-                h_meas = h_prev / m.scale
+        # The height change is the picture's where the readings do not give it: a frame without
+        # a reading, or one whose reference had none (the first frame, a restart on a frame
+        # without one: the rig's height less a reading was reported as the height change, 0.77
+        # mm off, ok).
+        h_from = h_prev  # the reference's height the step's height change is taken from
+        if h_signal is None or not state.height_read:
+            h_pic = h_prev
+            if self.config.fit_image_scale and self._height_changed(state, m, measured=not gross):
+                h_pic = h_prev / m.scale
                 height_sigma_mm = h_prev * m.scale_sigma / m.scale**2
+            if h_signal is None:
+                # followed by the picture (fit_image_scale), else kept: a frame without a reading
+                # was converted at the rig's height, a jump of the reading's difference from it
+                h_meas = h_pic
             else:
-                h_meas = h_prev
+                h_from = h_signal * h_prev / h_pic  # the picture's change, at the reading's height
         problem = (
             gross
             or self._height_signal_problem(m, h_prev, h_signal)
@@ -897,6 +909,7 @@ class PhaseCorr:
             if state.n_lost >= self.config.restart_after_lost:
                 state.prev, state.prev_blocks, state.prev_crop, state.n_lost = cur, self._blocks(crop), crop, 0
                 state.height_mm = self._frame_height(frame)
+                state.height_read = state.height_mm is not None
                 state.M_pred = np.eye(3) if gross else per_frame
                 state.t_ref_s, state.pred_span_s = float(frame.timestamp_s), dt_s
                 why += f"; {RESTART_NOTE}"
@@ -912,7 +925,7 @@ class PhaseCorr:
         h_cur = h_meas or self.height_mm
         R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
-        T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
+        T[2, 3] = h_from - h_cur  # the camera rose by h_cur - h_from: its z axis points down
         # The next frame is predicted from the motion per frame: a step measured across lost
         # frames spans n_lost + 1 of them (as a prediction, twice the step left phase-corr-fast's
         # rounds 1.5 px short of it).
@@ -924,7 +937,7 @@ class PhaseCorr:
         state.yaws_per_frame.append(float(np.arctan2(state.M_pred[1, 0], state.M_pred[0, 0])))
         if self.config.predict_turn_rate:
             state.M_pred[:2, :2] = _rotation(_predicted_yaw(state.yaws_per_frame))[:2, :2]
-        state.n_lost, state.height_mm = 0, h_meas
+        state.n_lost, state.height_mm, state.height_read = 0, h_meas, h_signal is not None
         state.prev, state.prev_blocks, state.prev_crop = cur, new_blocks, crop
         t3 = time.perf_counter()
         return StepResult("ok", T, n_matches=n_blocks, n_inliers=n_kept, timing_ms=stage_timing_ms(t0, t1, t2_, t3))

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from floorvo.camera import CAMERA_HEIGHT_RANGE_MM
 from floorvo.errors import SequenceError, shown
 from floorvo.geometry import invert_T
 from floorvo.importers.camera_files import CameraCalibration, load_yaml, read_camera_file, transform_m_to_mm
@@ -134,17 +135,24 @@ def _unpaired_stamp(mav: Path, st0: np.ndarray, st1: np.ndarray) -> str:
 
 
 def _sensor_mm(sensor: Path, key: str = CAMERA_HEIGHT_KEY) -> float | None:
-    """The entry ``key`` of a ``sensor.yaml`` (mm: cam0's :data:`CAMERA_HEIGHT_KEY`, the range
-    sensor's :data:`HEIGHT_NOISE_KEY`), None when absent; a value that is not a number > 0 is a
-    one-line error."""
+    """The entry ``key`` of a ``sensor.yaml`` (mm: cam0's :data:`CAMERA_HEIGHT_KEY`, > 0; the range
+    sensor's :data:`HEIGHT_NOISE_KEY`, from 0 to the largest camera height,
+    :data:`floorvo.camera.CAMERA_HEIGHT_RANGE_MM`), None when absent; another value is a
+    one-line error naming this file."""
     if not sensor.is_file():
         return None
     d = load_yaml(sensor, "EuRoC sensor.yaml")
     if not isinstance(d, dict) or key not in d:
         return None
     v = d[key]
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0
-    if not ok:
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+    if key == HEIGHT_NOISE_KEY:
+        if not (ok and 0 <= v <= CAMERA_HEIGHT_RANGE_MM[1]):
+            raise SequenceError(
+                f"{sensor}: {key} = {shown(v)}: must be a finite number of mm >= 0 and at most "
+                f"{CAMERA_HEIGHT_RANGE_MM[1]:g}"
+            )
+    elif not (ok and v > 0):  # the camera height's range is checked where it is used (height_problem)
         raise SequenceError(f"{sensor}: {key} = {shown(v)}: must be a finite number of mm > 0")
     return float(v)
 

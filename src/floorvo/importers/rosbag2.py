@@ -585,11 +585,13 @@ def read(source: Path, options=None) -> Recording:
         else _custom_number(source, CAMERA_HEIGHT_KEY, "mm"),
         flatfields=flatfields,
         height_signal_mm=heights,
-        height_noise_mm=None if heights is None else _custom_number(source, HEIGHT_NOISE_KEY, "mm"),
+        height_noise_mm=None
+        if heights is None
+        else _custom_number(source, HEIGHT_NOISE_KEY, "mm", CAMERA_HEIGHT_RANGE_MM[1], zero_ok=True),
     )
 
 
-def _custom_number(source: Path, key: str, unit: str, most: float = np.inf) -> float | None:
+def _custom_number(source: Path, key: str, unit: str, most: float = np.inf, zero_ok: bool = False) -> float | None:
     """The bag's ``custom_data`` entry ``key`` (:data:`CAMERA_HEIGHT_KEY` and :data:`HEIGHT_NOISE_KEY`
     in mm, :data:`FPS_KEY` in Hz) from its ``metadata.yaml``; None when absent; a value that is not a number > 0 and at most
     ``most`` is a one-line error."""
@@ -606,7 +608,8 @@ def _custom_number(source: Path, key: str, unit: str, most: float = np.inf) -> f
         v = float(raw)
     except (TypeError, ValueError):
         v = float("nan")
-    if not (np.isfinite(v) and 0 < v <= most):
+    if not (np.isfinite(v) and (0 <= v if zero_ok else 0 < v) and v <= most):
         bound = "" if most == np.inf else f" and at most {most:g}"
-        raise SequenceError(f"{path}: custom_data {key} = {shown(raw)}: must be a number of {unit} > 0{bound}")
+        least = ">= 0" if zero_ok else "> 0"
+        raise SequenceError(f"{path}: custom_data {key} = {shown(raw)}: must be a number of {unit} {least}{bound}")
     return v
