@@ -420,7 +420,8 @@ def run_frames(
     if height_noisy:
         log.warning(
             "%s: %d step(s) lost: the height signal's stated noise (%.3g mm) leaves their height change uncertain "
-            "beyond the bound; with use_height_signal = false the estimator takes the height from the picture",
+            "beyond the bound; with use_height_signal = false (and fit_image_scale = true where it is off) the "
+            "estimator takes the height from the picture",
             name,
             height_noisy,
             height_noise_mm,

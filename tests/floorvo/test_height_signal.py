@@ -575,6 +575,15 @@ def test_homography_6dof_refines_its_plane_with_readings_of_a_stated_noise(tmp_p
     ).flat()
     assert with_signal["wrong_ok_steps"] == 0 and with_signal["lost_frames"] == 0
     assert with_signal["end_drift_pct"] <= without["end_drift_pct"] + 0.01
+    # 1.5 mm at 4 mm/frame: one reading leaves the plane too uncertain for a step; the steps so
+    # lost refine the reference's plane with their readings, and tracking goes on (every step
+    # had been lost, the plane never refined)
+    slow = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(20)])
+    seq = write_synthetic_sequence(tmp_path / "slow", CAM, slow, height_noise_mm=1.5, seed=5)
+    run = run_estimator(seq, "homography-6dof", tmp_path / "slow_run")
+    s = score_run(run.run_dir, seq).flat()
+    assert s["wrong_ok_steps"] == 0 and s["lost_frames"] <= 4, list(run.reason)
+    assert any(r.startswith("floor plane's height too uncertain for the step") for r in run.reason)
 
 
 def test_a_height_signal_far_from_the_rig_height_is_said(tmp_path, caplog):

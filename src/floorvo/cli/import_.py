@@ -61,6 +61,7 @@ def add_parser(sub) -> None:
         "--height-noise-mm",
         type=float,
         default=None,
+        metavar="MM",
         help="standard deviation of each reading of the height signal, mm (the range sensor's datasheet; "
         "rig.height_noise_mm): steps it leaves uncertain are lost",
     )

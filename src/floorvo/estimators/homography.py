@@ -279,18 +279,29 @@ class HomographySixDof(_AkazeBase):
         if abs(d_cur - d_prev) > cfg.max_height_step_mm:
             return None, f"height change {d_cur - d_prev:+.2f} mm in one frame > {cfg.max_height_step_mm:g}"
         h_read = self._frame_height(frame)
-        problem = self._height_signal_problem(T, d_cur, h_read, state.plane_var_mm2) or self._plane_height_problem(
-            T, d_prev, state.plane_var_mm2
-        )
+        problem = self._height_signal_problem(T, d_cur, h_read, state.plane_var_mm2)
         if problem:
             return None, problem
-        if h_read is not None and self.height_noise_mm > 0.0:
-            # The readings of a stated noise refine the plane's height (a Kalman update of d, the
-            # homography carrying it exactly between frames): started from one reading it is as
-            # uncertain as one (1 mm: steps up to 2.5 % long), after n of them 1/sqrt(n) of that.
+        problem = self._plane_height_problem(T, d_prev, state.plane_var_mm2)
+        if h_read is not None and self.height_noise_mm > 0.0 and state.plane_var_mm2 > 0.0:
+            # The readings of a stated noise refine the plane's height, a Kalman update of d (the
+            # homography carries it exactly from frame to frame): started from one reading the
+            # plane is as uncertain as one (1 mm: steps up to 2.5 % long); after n of them, 1/sqrt(n)
+            # of that. A step the plane is still too uncertain for is lost, and the reading, taken
+            # back to the reference by the homography's ratio of the heights, refines the
+            # reference's plane, from which the next frame is measured (at 1.5 mm of noise every
+            # step was lost, the plane never refined).
+            if problem:
+                ratio = d_prev / d_cur
+                gain = state.plane_var_mm2 / (state.plane_var_mm2 + (self.height_noise_mm * ratio) ** 2)
+                state.plane = (n_prev, d_prev + gain * (h_read * ratio - d_prev))
+                state.plane_var_mm2 *= 1.0 - gain
+                return None, problem
             gain = state.plane_var_mm2 / (state.plane_var_mm2 + self.height_noise_mm**2)
             d_cur += gain * (h_read - d_cur)
             state.plane_var_mm2 *= 1.0 - gain
+        elif problem:
+            return None, problem
         state.plane = (n_cur, d_cur)
         return T, ""
 
