@@ -26,7 +26,14 @@ import numpy as np
 from floorvo.camera import CameraModel
 from floorvo.config import param, parse_set_args
 from floorvo.errors import ConfigError
-from floorvo.estimators.base import RESTART_NOTE, Frame, StepResult, state_error, takes_height_change_from_signal
+from floorvo.estimators.base import (
+    RESTART_NOTE,
+    Frame,
+    StepResult,
+    frame_height_mm,
+    state_error,
+    takes_height_change_from_signal,
+)
 from floorvo.estimators.registry import get_estimator, make_config
 from floorvo.geometry import invert_T
 from floorvo.mapping.localize import LocalizeConfig, Localizer
@@ -127,7 +134,7 @@ class MapFused:
         t1 = time.perf_counter()
         fix = None
         if frame.index % self.config.fix_every == 0:
-            fix = self.localizer.localize(frame.image)
+            fix = self.localizer.localize(frame.image, height_mm=frame_height_mm(frame))
         t2 = time.perf_counter()
         timing = {"detect": 1e3 * (t1 - t0), "match": 0.0, "estimate": 1e3 * (t2 - t1), "total": 1e3 * (t2 - t0)}
         counts: dict[str, Any] = dict(

@@ -118,16 +118,25 @@ class Localizer:
             gmap.vote_index if self.config.retrieval == "vote" else gmap.index
         )  # built now, not on the first query
 
-    def localize(self, image: np.ndarray, rng: np.random.Generator | None = None) -> Localization:
+    def localize(
+        self, image: np.ndarray, rng: np.random.Generator | None = None, *, height_mm: float | None = None
+    ) -> Localization:
         """Global pose of one raw (H, W) frame, using nothing but the frame and the map; a frame
-        that is none of the camera's (:func:`floorvo.estimators.base.frame_problem`) is not localised."""
+        that is none of the camera's (:func:`floorvo.estimators.base.frame_problem`) is not localised.
+
+        ``height_mm``: the camera's measured height at the frame (a height signal,
+        ``Frame.height_mm``; None: the map's). The map converts its fits at its own height, so a
+        frame taken higher or lower is first scaled to look as from the map's height
+        (:class:`~floorvo.mapping.similarity.FramePreparer`), and the fix is placed at the
+        measured height. A frame 2 mm low was fitted rigidly against a picture 2 % larger: its
+        fix was that share of its offset from the keyframe off."""
         cfg, sc, m = self.config, self.sim_cfg, self.map
         rng = rng or np.random.default_rng(0)
         t0 = time.perf_counter()
         bad = frame_problem(image, self.camera)
         if bad:  # not localised, said: a frame of another size or a colour one had ended the whole run
             return Localization(False, reason=bad, timing_ms={"total": 1e3 * (time.perf_counter() - t0)})
-        p = self.prepare(image)
+        p = self.prepare(image, 1.0 if height_mm is None else float(height_mm) / m.height_mm)
         feats = detect_features(p, sc)
         small = downscale(p, sc.sim_scale)
         t1 = time.perf_counter()
@@ -180,6 +189,8 @@ class Localizer:
                 **common,
             )
         T_kf_live = fit_to_T_i_j(s.fit, m.pinhole, m.height_mm)
+        if height_mm is not None:  # the camera that far above (or below) the map's height
+            T_kf_live[2, 3] = m.height_mm - float(height_mm)  # its z axis points down
         T_world = m.T_world_kf[k] @ T_kf_live  # Eq. (24)
         return Localization(
             True, T_world, keyframe=k, similarity=s.value, block_fraction=s.block_fraction, corr=s.corr, **common

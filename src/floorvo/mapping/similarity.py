@@ -190,11 +190,18 @@ class FramePreparer:
         self.camera, self.pinhole, self.flatfield = camera, pinhole, flatfield
         self.maps = camera.rectify_maps(pinhole)
 
-    def __call__(self, image: np.ndarray) -> np.ndarray:
+    def __call__(self, image: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """The prepared frame; ``scale``: enlarged by it about the pinhole's principal point (a
+        frame taken at ``scale`` x the map's camera height, seen as at the map's: a floor point's
+        image lies ``f r / h`` px from the principal point)."""
         p = prepare_image(image, self.flatfield)
-        if self.maps is None:
-            return p
-        return cv2.remap(p, *self.maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if self.maps is not None:
+            p = cv2.remap(p, *self.maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if scale != 1.0:
+            cx, cy = self.pinhole.cx_px, self.pinhole.cy_px
+            A = np.array([[scale, 0.0, (1.0 - scale) * cx], [0.0, scale, (1.0 - scale) * cy]])
+            p = cv2.warpAffine(p, A, (p.shape[1], p.shape[0]), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return p
 
 
 def downscale(image_u8: np.ndarray, scale: float) -> np.ndarray:
