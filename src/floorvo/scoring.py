@@ -24,7 +24,7 @@ import numpy as np
 from floorvo import metric_defs as md
 from floorvo.errors import SequenceError, shown_number
 from floorvo.estimators.base import RESTART_NOTE
-from floorvo.geometry import T_world_cam_down, footprint_T, yaw_of_R
+from floorvo.geometry import T_world_cam_down, footprint_T, invert_T, yaw_of_R
 from floorvo.io import atomic_write_json, read_json, strict_json
 from floorvo.metrics import (
     ALIGNMENTS,
@@ -61,6 +61,7 @@ __all__ = [
     "levelled_restart_poses",
     "ok_step_poses_of_run",
     "ok_step_frames_of_run",
+    "ok_step_table",
     "write_score",
 ]
 
@@ -397,6 +398,42 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
     for w in score.warnings:
         log.warning("%s: %s", run_dir, w)
     return score
+
+
+def ok_step_table(
+    run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_diff_s: float = 0.01
+) -> list[dict[str, Any]]:
+    """Every step a run reported ok as :func:`score_run` holds it to the camera's 6-DoF step
+    (``wrong_ok_steps``): one dict per step with ``from_frame`` and ``to_frame`` (the frame it
+    was measured from and the one it placed), ``true`` and ``measured`` (4, 4) mm steps, and
+    :func:`floorvo.metrics.step_errors`' ``step_mm``, ``trans_mm``, ``rot_deg`` and ``wrong``
+    (:func:`floorvo.metrics.wrong_steps`). A run whose poses an attitude signal made 6-DoF is
+    measured by its own 6-DoF poses, as scored: a diagnostic that compared the estimator's
+    levelled steps with the camera's called nearly every step wrong. [] where the run places
+    fewer than two frames, or its frames lack ``timing.csv``."""
+    _, (t_ref, T_ref), run = read_run_and_groundtruth(run_dir, seq_dir, "score")
+    poses = ok_step_poses_of_run(run, seq_dir, t_ref, T_ref, max_diff_s)
+    frames = ok_step_frames_of_run(run)
+    if poses is None or frames is None:
+        return []
+    A, A_from, B = poses
+    B_from = _levelled_restart_poses_of_run(run, Path(seq_dir), run.result)
+    B_from = B[:-1] if B_from is None else B_from
+    e = step_errors(A, B, T_ref_from=A_from, T_est_from=B_from)
+    wrong = wrong_steps(e)
+    return [
+        {
+            "from_frame": int(frames[0][k]),
+            "to_frame": int(frames[1][k]),
+            "true": invert_T(A_from[k]) @ A[k + 1],
+            "measured": invert_T(B_from[k]) @ B[k + 1],
+            "step_mm": float(e["step_mm"][k]),
+            "trans_mm": float(e["trans_mm"][k]),
+            "rot_deg": float(e["rot_deg"][k]),
+            "wrong": bool(wrong[k]),
+        }
+        for k in range(len(A) - 1)
+    ]
 
 
 def _reasons(run: RunFolder) -> list[str] | None:

@@ -399,3 +399,22 @@ def test_akaze_reports_its_pairs_in_each_frames_own_pixels(tilt_seq):
         for pts, kps in ((m[:, :2], detected[k - 1]), (m[:, 2:], detected[k])):
             nearest = np.min(np.linalg.norm(pts[:, None, :] - kps[None, :, :], axis=2), axis=1)
             assert nearest.max() < 1e-6
+
+
+def test_the_step_table_holds_the_steps_as_the_score_does(tmp_path):
+    """``scoring.ok_step_table`` lists a run's ok steps as ``score_run`` scores them: for a run
+    levelled with an attitude signal, its 6-DoF steps against the camera's (a diagnostic that
+    compared the estimator's levelled steps with them had called nearly every step wrong): the
+    same count of steps and of wrong ones, each step from the frame it was measured from."""
+    from floorvo.scoring import ok_step_table
+
+    seq = write_synthetic_sequence(tmp_path / "seq", CAM, _tilt_poses(), attitude_noise_rad=0.3e-3, seed=4)
+    run = run_estimator(Sequence.open(seq), "phase-corr", tmp_path / "run")
+    table = ok_step_table(tmp_path / "run", seq)
+    flat = score_run(tmp_path / "run", seq).tracking
+    assert len(table) == flat["ok_steps_scored"] and sum(s["wrong"] for s in table) == flat["wrong_ok_steps"]
+    placed = [int(i) for i, st in zip(run.frame_index, run.status) if st in ("init", "ok")]
+    assert [s["to_frame"] for s in table] == placed[1:]
+    T = _tilt_poses()
+    for s in table:  # the truth of each step, from the ground truth by hand
+        np.testing.assert_allclose(s["true"], np.linalg.inv(T[s["from_frame"]]) @ T[s["to_frame"]], atol=1e-6)
