@@ -848,7 +848,12 @@ class _AkazeBase:
         off_mm = abs((h_cur - h_prev) - assumed)
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
         bound_mm = cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px)
-        allowance_mm = cfg.height_change_tilt_share * h_prev * max(0.0, tilt - cfg.height_change_light_tilt_rad)
+        # A tilt's shading may be read as a height change: allowed a planar run, whose steps are held
+        # to the footprint's. Not a run levelled with an attitude signal: its poses claim the camera's
+        # 6-DoF step, which a height change the rigid fit does not report makes wrong whatever the
+        # light does (a bouncing, tilting run with an IMU had 36 of 43 steps ok and wrong).
+        share = 0.0 if attitude is not None else cfg.height_change_tilt_share
+        allowance_mm = share * h_prev * max(0.0, tilt - cfg.height_change_light_tilt_rad)
         # The least change the read stands for: less its standard errors, over the share of a change the
         # homography reads (the shading of LEDs that rise and fall with the camera hides a part of it).
         least_mm = (off_mm - cfg.precision_sigmas * sig_mm) / cfg.height_change_read_share
