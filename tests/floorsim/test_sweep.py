@@ -29,14 +29,22 @@ def _sweep_file(tmp_path: Path) -> Path:
     return p
 
 
-def test_two_by_two_sweep_on_two_dask_workers_streams_and_restarts(tmp_path):
+def test_two_by_two_sweep_on_two_dask_workers_streams_and_restarts(tmp_path, monkeypatch):
     D.reset()
     sweep = _sweep_file(tmp_path)
     spec = load_sweep(sweep)
     assert len(sweep_jobs(spec)) == 4
     out = tmp_path / "out"
+    # the workers' scratch space is the sweep's own and goes with it (Dask's default,
+    # $TMPDIR/dask-scratch-space, outlived every sweep)
+    import tempfile
+
+    tmpdir = tmp_path / "tmpdir"
+    tmpdir.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmpdir))
     res = run_sweep(sweep, out, workers=2, processes=False)
     assert res.errors == [] and res.ran == 4
+    assert list(tmpdir.iterdir()) == []
     rows = read_results_csv(out / "results.csv")
     assert len(rows) == 4 * 2 and {r["job"] for r in rows} == {j["job"] for j in sweep_jobs(spec)}
     assert all(r["status"] == "ok" for r in rows)

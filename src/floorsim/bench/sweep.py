@@ -41,6 +41,8 @@ import contextlib
 import itertools
 import logging
 import os
+import shutil
+import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from collections.abc import Sequence as SequenceT
 from dataclasses import dataclass
@@ -312,7 +314,8 @@ def job_pool(
             parent_alive.close()
         return
 
-    from dask.distributed import Client, LocalCluster, as_completed  # heavy, and only for Dask runs
+    import dask  # heavy, and only for Dask runs
+    from dask.distributed import Client, LocalCluster, as_completed
 
     # Dask's own loggers (their level set by its configuration on import) pass every record to the
     # CLI's handler: 24 'INFO distributed.*' lines a sweep, under -q too, and on a Ctrl-C its nanny's
@@ -321,6 +324,7 @@ def job_pool(
     debug = logging.getLogger("floorsim").getEffectiveLevel() <= logging.DEBUG
     logging.getLogger("distributed").setLevel(logging.INFO if debug else logging.ERROR)
     cluster = None
+    scratch = None  # the local workers' scratch space: Dask's default, $TMPDIR/dask-scratch-space, outlived the sweep
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
@@ -329,8 +333,12 @@ def job_pool(
                 f"--scheduler {scheduler}: cannot connect to a Dask scheduler there ({exc})"
             ) from None
     else:
+        scratch = tempfile.mkdtemp(prefix="floorsim-dask-")
+        # its lock files too (dask-scratch-space/global.lock under $TMPDIR otherwise)
+        scratch_config = dask.config.set({"temporary-directory": scratch})
         cluster = LocalCluster(
             n_workers=workers,
+            local_directory=scratch,
             threads_per_worker=1,
             processes=processes,
             dashboard_address=None,
@@ -365,6 +373,9 @@ def job_pool(
         client.close()
         if cluster is not None:
             cluster.close()
+        if scratch is not None:
+            scratch_config.__exit__(None, None, None)
+            shutil.rmtree(scratch, ignore_errors=True)
 
 
 # ----------------------------------------------------------------------------- results
