@@ -50,6 +50,7 @@ from floorvo.camera import CameraModel
 __all__ = [
     "R_WORLD_CAM_DOWN",
     "make_T",
+    "per_interval_px",
     "invert_T",
     "rigid_problem",
     "RIGID_TOLERANCE",
@@ -207,6 +208,18 @@ def rot_z(yaw_rad: float) -> np.ndarray:
     """3x3 rotation about +z by ``yaw_rad`` (counter-clockwise seen from above)."""
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def per_interval_px(M: np.ndarray, n: float) -> np.ndarray:
+    """The rigid image motion ``M`` (3x3, centred px) measured over ``n`` frame intervals, over
+    one at constant velocity: ``1/n`` of its rotation and of its translation (a prediction; not
+    exactly ``M^(1/n)``; a similarity's scale is left out). ``n`` need not be whole: a frame
+    interval of another length than the one ``M`` was measured over (frames a camera dropped)."""
+    if n == 1:
+        return M
+    out = rot_z(float(np.arctan2(M[1, 0], M[0, 0])) / n)
+    out[:2, 2] = M[:2, 2] / n
+    return out
 
 
 def T_world_cam_down(

@@ -85,6 +85,7 @@ from floorvo.geometry import (
     block_homographies,
     consensus_problem,
     floor_rigid_to_T,
+    per_interval_px,
     pixels_to_floor_mm,
     plane_homography_motion,
     rigid_fit,
@@ -300,6 +301,8 @@ class _State:
     desc: np.ndarray | None = None  # (N, B) uint8
     packed: np.ndarray | None = None  # (N, W) uint64, the same descriptors packed
     M_last: np.ndarray | None = None  # 3x3 prev-centred px -> cur-centred px, None = no prediction
+    m_last_span_s: float = 0.0  # the time (s) the step M_last spans (0: none known)
+    t_ref_s: float = 0.0  # the reference frame's time (s)
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # camera height of the reference frame, measured or fitted (None: the rig's)
     height_read: bool = False  # height_mm is the reference frame's own reading (a height signal's)
@@ -758,6 +761,21 @@ class _AkazeBase:
     def _start_reference(self, state: _State, frame: Frame) -> None:
         """Hook: a frame becomes the reference without a measured step (the first, a restart)."""
 
+    def _prediction(self, state: _State, t_s: float) -> np.ndarray:
+        """Eq. (2)'s prediction (3x3, centred px) of the frame at time ``t_s`` (s): the last step's
+        image motion ``M_last``, at constant velocity over the time the frame is after the
+        reference (:func:`floorvo.geometry.per_interval_px`). Frames at a steady rate (paper
+        000's, a render's) take ``M_last`` as it is; after frames the camera dropped, the step
+        predicted one interval long had been doubted and matched by brute force. A homography
+        (homography-6dof's image motion) is taken as it is."""
+        M = state.M_last
+        assert M is not None
+        span_s = t_s - state.t_ref_s
+        last_s = state.m_last_span_s
+        if self.fits_own_scale or last_s <= 0.0 or not span_s > 0.0 or abs(span_s / last_s - 1.0) < 1e-6:
+            return M
+        return per_interval_px(M, last_s / span_s)
+
     def _motion_problem_restarts(self, problem: str) -> bool:
         """Whether a frame lost by its motion's ``problem`` (:meth:`_motion`; not by the pairs'
         fit) counts toward a restart after ``restart_after_lost`` lost frames: no by default, the
@@ -1070,6 +1088,7 @@ class _AkazeBase:
             state.kps, state.desc, state.packed, state.attitude, state.img8 = kps, desc, packed, attitude, img8
             state.height_mm = self._frame_height(frame)
             state.height_read = state.height_mm is not None
+            state.t_ref_s = float(frame.timestamp_s)
             self._start_reference(state, frame)
             return StepResult(
                 "init",
@@ -1082,8 +1101,9 @@ class _AkazeBase:
             fit = _Fit(None, kps, kps, 0, problem=f"too few keypoints ({len(kps)})")
         elif self.guided and state.M_last is not None:
             scale = self._scale_ratio(state, frame)
-            fit = self._fit(*self._guided(state, kps, packed), state.M_last, scale)
-            doubt = self._prediction_doubt(fit, state.M_last) or self._rematch_problem(state, kps, packed, fit, scale)
+            M_pred = self._prediction(state, float(frame.timestamp_s))
+            fit = self._fit(*self._guided(state, kps, packed, M_pred), M_pred, scale)
+            doubt = self._prediction_doubt(fit, M_pred) or self._rematch_problem(state, kps, packed, fit, scale)
             if doubt:
                 # The prediction is doubtful: match again without it (brute force, as at the start).
                 fit, how = self._bruteforce_fit(state, kps, desc, scale)
@@ -1116,6 +1136,7 @@ class _AkazeBase:
                 state.attitude, state.img8 = attitude, img8
                 state.height_mm = self._frame_height(frame)
                 state.height_read = state.height_mm is not None
+                state.t_ref_s = float(frame.timestamp_s)
                 self._start_reference(state, frame)
                 why += f"; {RESTART_NOTE}"
             return StepResult(
@@ -1129,6 +1150,8 @@ class _AkazeBase:
         # The pairs in each frame's own pixels (levelled keypoints moved back), for reports.
         matches_px = np.hstack([self._unlevelled(fit.src, state.attitude), self._unlevelled(fit.dst, attitude)])
         state.kps, state.desc, state.packed, state.M_last, state.n_lost = kps, desc, packed, fit.M, 0
+        state.m_last_span_s = float(frame.timestamp_s) - state.t_ref_s
+        state.t_ref_s = float(frame.timestamp_s)
         state.attitude, state.img8 = attitude, img8
         state.height_mm = self._height_after(state, fit, frame)
         state.height_read = self._frame_height(frame) is not None

@@ -84,6 +84,7 @@ from floorvo.geometry import (
     axis_scales_fit,
     f_sigmas,
     floor_rigid_to_T,
+    per_interval_px,
     pixel_rigid_to_floor,
     rigid_fit_2d_information,
     rigid_fit_precision,
@@ -900,7 +901,7 @@ class PhaseCorr:
             # precision was measured nonetheless (the blocks agree, the rounds converged): the
             # next frame is predicted from it, one frame on (a spin lost every later frame from
             # no prediction); after a gross failure, from no motion.
-            per_frame = _per_frame(M, state.n_lost + 1)
+            per_frame = per_interval_px(M, state.n_lost + 1)
             dt_s = self._interval_s(state, frame)
             state.n_lost += 1
             why = problem
@@ -929,7 +930,7 @@ class PhaseCorr:
         # The next frame is predicted from the motion per frame: a step measured across lost
         # frames spans n_lost + 1 of them (as a prediction, twice the step left phase-corr-fast's
         # rounds 1.5 px short of it).
-        state.M_pred = _per_frame(M, state.n_lost + 1)
+        state.M_pred = per_interval_px(M, state.n_lost + 1)
         state.pred_span_s = self._interval_s(state, frame)
         state.t_ref_s = float(frame.timestamp_s)
         if state.n_lost:
@@ -964,7 +965,7 @@ class PhaseCorr:
         span_s = t_s - state.t_ref_s
         if state.pred_span_s <= 0.0 or not span_s > 0.0 or abs(span_s / state.pred_span_s - 1.0) < 1e-6:
             return state.M_pred.copy()
-        return _per_frame(state.M_pred, state.pred_span_s / span_s)
+        return per_interval_px(state.M_pred, state.pred_span_s / span_s)
 
     def _height_changed(self, state: _State, m: _Measured, *, measured: bool = True) -> bool:
         """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height.
@@ -1575,17 +1576,6 @@ def _predicted_yaw(yaws_rad: Sequence[float]) -> float:
     if a1 * a2 > 0 and abs(a2 - a1) <= 0.5 * max(abs(a1), abs(a2)):
         return last + a2
     return last
-
-
-def _per_frame(M: np.ndarray, n: float) -> np.ndarray:
-    """The rigid motion ``M`` (3x3, centred px) measured over ``n`` frames, per frame at constant
-    velocity: ``1/n`` of its rotation and of its translation (a prediction; not exactly ``M^(1/n)``).
-    ``n`` need not be whole (a frame interval of another length: :meth:`PhaseCorr._prediction`)."""
-    if n == 1:
-        return M
-    out = _rotation(float(np.arctan2(M[1, 0], M[0, 0])) / n)
-    out[:2, 2] = M[:2, 2] / n
-    return out
 
 
 def _binned(camera: CameraModel, k: int) -> CameraModel:
