@@ -179,13 +179,28 @@ def test_null_baseline_values_are_counted_and_named_not_dropped():
 def test_worse_metric_fails_whatever_the_tolerance_written():
     """Property: for any valid tolerance, a value beyond baseline + max(abs, rel |b|) fails and
     the baseline value itself passes (hand computation of the rule in the module doc)."""
+    m = "ate_se2_rmse_mm"  # lower is better
     for abs_, rel, base in ((0.0, 0.0, 1.0), (0.5, 0.0, -2.0), (0.0, 1e6, 3.0), (1e-9, 0.25, 0.0)):
-        b = parse_baseline(_baseline({"m": {"abs": abs_, "rel": rel}}, {"s/e": {"m": base}}))
+        b = parse_baseline(_baseline({m: {"abs": abs_, "rel": rel}}, {"s/e": {m: base}}))
         allowed = base + max(abs_, rel * abs(base))
-        assert compare([{"scene": "s", "estimator": "e", "m": base}], b).ok
-        assert compare([{"scene": "s", "estimator": "e", "m": allowed}], b).ok
-        worse = compare([{"scene": "s", "estimator": "e", "m": allowed + 1e-6 * max(1.0, abs(allowed))}], b)
+        assert compare([{"scene": "s", "estimator": "e", m: base}], b).ok
+        assert compare([{"scene": "s", "estimator": "e", m: allowed}], b).ok
+        worse = compare([{"scene": "s", "estimator": "e", m: allowed + 1e-6 * max(1.0, abs(allowed))}], b)
         assert not worse.ok and worse.regressions[0].allowed == pytest.approx(allowed)
+
+
+@pytest.mark.parametrize("metric", ["lost_frame", "lost_reasons"])
+def test_a_tolerance_on_no_metric_is_refused(tmp_path, metric):
+    """A misspelt metric (``lost_frame``) or a text column (``lost_reasons``) as a tolerance was
+    stored, never checked, and the gate passed ("not checked, the baseline run had no value").
+    Now it is refused in one line, by --save-baseline and in a baseline file; a figure of the
+    run (wall_ms_per_frame) is a metric a gate may hold."""
+    with pytest.raises(ConfigError, match=rf"tolerances\.{metric}: metric '{metric}': unknown \(known: .*lost_frames"):
+        save_baseline(tmp_path / "b.json", [ROW], {metric: {"abs": 1.0}})
+    assert not (tmp_path / "b.json").exists()
+    with pytest.raises(ConfigError, match=rf"tolerances\.{metric}: metric '{metric}': unknown"):
+        parse_baseline(_baseline({metric: {"abs": 1.0}}, {"s/e": {"end_drift_pct": 1.0}}))
+    assert parse_baseline(_baseline({"wall_ms_per_frame": {"rel": 0.5}}, {"s/e": {"wall_ms_per_frame": 10.0}}))
 
 
 def test_save_baseline_refuses_rows_that_give_nothing_to_check(tmp_path):

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from floorsim.bench.estimators import RUN_FIGURES
 from floorvo import metric_defs as md
 from floorvo.errors import ConfigError, shorten, shown
 from floorvo.io import atomic_write_json, read_json
@@ -96,13 +97,17 @@ def _by_size(metric: str) -> bool:
 
 
 def _gate_problem(metric: str) -> str:
-    """Why ``metric`` cannot be gated ('' if it can): it is declared with no better direction and
-    is no signed error (a path's length, a measured distance, a turn: what the run was, not how
-    well it was measured)."""
+    """Why ``metric`` cannot be gated ('' if it can): it is no metric of the score or figure of
+    the run (:data:`floorsim.bench.estimators.RUN_FIGURES`; a misspelt ``lost_frame``, or the
+    text column ``lost_reasons``, was stored and never checked, and the gate passed), or it is
+    declared with no better direction and is no signed error (a path's length, a measured
+    distance, a turn: what the run was, not how well it was measured)."""
     try:
         d = md.metric(metric)
-    except ValueError:
-        return ""
+    except ValueError as exc:
+        if metric in RUN_FIGURES:
+            return ""
+        return f"{exc} or a figure of the run ({', '.join(RUN_FIGURES)})"
     if d.lower_is_better is None and d.low is not None:
         return f"{d.description} has no better direction: not a quality a gate can hold"
     return ""
