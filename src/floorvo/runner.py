@@ -696,6 +696,8 @@ def run_sequence(
 #: The share of the rig's height by which a height signal's median reading may differ from it
 #: before a run says so (:func:`_warn_height_signal_offset`): issue 14's 2 % of a step.
 HEIGHT_SIGNAL_OFFSET_WARN = 0.02
+#: The (sequence, median reading, rig height) whose offset a run has said (:func:`_warn_height_signal_offset`).
+_OFFSETS_SAID: set[tuple[str, float, float]] = set()
 
 
 def _warn_height_signal_offset(seq: Sequence, estimator: Any) -> None:
@@ -712,7 +714,9 @@ def _warn_height_signal_offset(seq: Sequence, estimator: Any) -> None:
     if h is None or not h.size:
         return
     median = float(np.median(h))
-    if abs(median - seq.height_mm) > HEIGHT_SIGNAL_OFFSET_WARN * seq.height_mm:
+    said = (str(seq.root), median, seq.height_mm)
+    if abs(median - seq.height_mm) > HEIGHT_SIGNAL_OFFSET_WARN * seq.height_mm and said not in _OFFSETS_SAID:
+        _OFFSETS_SAID.add(said)  # once a sequence: a bench said it for every run of every estimator
         log.warning(
             "%s: height.csv's readings (median %.2f mm) lie %.1f %% from rig.height_mm (%.2f mm): the steps are "
             "converted at the readings; check the range sensor's mounting offset, or the rig height",

@@ -37,7 +37,7 @@ import numpy as np
 
 from floorvo.camera import CameraModel
 from floorvo.geometry import T_world_cam_down, attitude_of_T, se2_from_T
-from floorvo.sequence import SequenceWriter
+from floorvo.sequence import SequenceWriter, check_timestamps
 
 __all__ = [
     "floor_texture",
@@ -215,6 +215,8 @@ def write_synthetic_sequence(
     given to the ground truth; None: frame ``i`` at ``i / fps``, no such file.
     """
     T_world_cam = np.asarray(T_world_cam, dtype=float)
+    if timestamps_s is not None:  # refused before anything is written (repeated times left a half-made folder)
+        timestamps_s = check_timestamps(np.asarray(timestamps_s, dtype=float), len(T_world_cam), "timestamps_s")
     gsd = camera.gsd_mm_per_px(height_mm)
     xy = T_world_cam[:, :2, 3]
     reach = np.hypot(camera.width_px, camera.height_px) * gsd * 0.6 + (stereo_baseline_mm or 0.0) + 2.0

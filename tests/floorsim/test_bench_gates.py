@@ -189,6 +189,14 @@ def test_worse_metric_fails_whatever_the_tolerance_written():
         assert not worse.ok and worse.regressions[0].allowed == pytest.approx(allowed)
 
 
+def test_a_baseline_that_is_a_folder_is_said_so(tmp_path):
+    """--baseline on a folder said "file does not exist"."""
+    from floorsim.bench.gates import load_baseline
+
+    with pytest.raises(ConfigError, match=r"is a folder, not a baseline file"):
+        load_baseline(tmp_path)
+
+
 @pytest.mark.parametrize("metric", ["lost_frame", "lost_reasons"])
 def test_a_tolerance_on_no_metric_is_refused(tmp_path, metric):
     """A misspelt metric (``lost_frame``) or a text column (``lost_reasons``) as a tolerance was

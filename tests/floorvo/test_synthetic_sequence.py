@@ -76,3 +76,15 @@ def test_lost_frame_leaves_a_gap_in_the_trajectory(tmp_path):
     assert len(ts) == 4 and not np.any(np.isclose(ts, 2 / 30.0))
     # Frame 3 is matched against frame 1 (8 mm): the chain continues and ends near the truth.
     assert np.linalg.norm(Te[-1][:3, 3] - T[-1][:3, 3]) < 0.1
+
+
+def test_frame_times_that_do_not_increase_are_refused_before_anything_is_written(tmp_path):
+    """Repeated times (``timestamps_s``) were refused after the frames and sequence.json were
+    written, and the half-made folder was benched as a sequence without ground truth."""
+    from floorvo.errors import SequenceError
+
+    cam = CameraModel.from_sensor(162, 124, pixel_pitch_um=29.6, focal_length_mm=6.0)
+    poses = np.stack([T_world_cam_down(float(i), 0.0, 100.0) for i in range(3)])
+    with pytest.raises(SequenceError, match="timestamps_s: timestamps must increase, frame 2"):
+        write_synthetic_sequence(tmp_path / "seq", cam, poses, timestamps_s=[0.0, 0.1, 0.1])
+    assert not (tmp_path / "seq").exists()

@@ -309,6 +309,8 @@ def load_baseline(path: str | os.PathLike) -> Baseline:
     """Read and check a baseline file (ConfigError naming the file and the problem)."""
     path = Path(path)
     label = f"--baseline {path}"
+    if path.is_dir():
+        raise ConfigError(f"{label}: is a folder, not a baseline file (write one with --save-baseline)")
     if not path.is_file():
         raise ConfigError(f"{label}: file does not exist (write one with --save-baseline)")
     return parse_baseline(read_json(path, ConfigError, label=label), label)
