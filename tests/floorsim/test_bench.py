@@ -470,3 +470,31 @@ def test_a_bench_of_a_one_frame_recording_is_refused_and_a_failed_run_is_not_dra
     assert rows["flaky_vo_for_tests:Flaky"]["status"].startswith("failed: ")
     assert {r.estimator for r in again.records} == {"phase-corr"}  # its folder still holds the run before
     assert (Path(rows["flaky_vo_for_tests:Flaky"]["run_dir"]) / "trajectory.txt").exists()
+
+
+def test_a_calibration_fitted_on_the_benched_sequence_is_noted_in_the_results_and_the_report(tmp_path):
+    """A scale calibration fitted on the very sequence a bench scores was said in result.json's
+    ``scale_calibration_problems`` and on standard error only: results.csv and the report showed
+    its calibrated drift, tuned on that sequence, without a word. The row's ``score_warnings``
+    holds it now, and the report lists it under "Notes"."""
+    import numpy as np
+
+    from floorvo.camera import CameraModel
+    from floorvo.cli import main as floorvo_main
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.synthetic import write_synthetic_sequence
+
+    cam = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
+    seq = write_synthetic_sequence(
+        tmp_path / "seq", cam, np.stack([T_world_cam_down(3.0 * i, 2.0 * i, 100.0) for i in range(8)])
+    )
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run"), "-q"]) == 0
+    cal = tmp_path / "cal.json"
+    assert floorvo_main(["calibrate", str(tmp_path / "run"), "--gt", str(seq), "-o", str(cal), "-q"]) == 0
+    out = tmp_path / "bench"
+    argv = ["bench", str(seq), "--estimators", "phase-corr", "-o", str(out), "--scale-calibration", f"phase-corr={cal}"]
+    assert real_main([*argv, "-q"]) == 0
+    row = read_results_csv(out / "results.csv")[0]
+    assert "the scale calibration was fitted on this sequence" in row["score_warnings"]
+    report = (out / "report.md").read_text()
+    assert "## Notes" in report and "fitted on this sequence" in report

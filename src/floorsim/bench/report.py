@@ -427,6 +427,17 @@ def _lost_reasons_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> No
     rep.table(lost, cols + [("lost_reasons", "lost frames by reason")])
 
 
+def _notes_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> None:
+    """What a run's score or its scale calibration warned of (results.csv's ``score_warnings``), when any did."""
+    noted = [r for r in rows if r.get("score_warnings")]
+    if not noted:
+        return
+    rep.heading("Notes")
+    rep.text("What a run's score or its scale calibration warned of: read its figures with it.")
+    cols = [("scene", "scene"), ("estimator", "estimator"), ("repetition", "rep"), ("score_warnings", "note")]
+    rep.table(noted, cols)
+
+
 def build_bench_report(
     out_dir: str | os.PathLike,
     rows: SequenceT[Mapping[str, Any]],
@@ -451,6 +462,7 @@ def build_bench_report(
     rep.table(display_rows(rows), SUMMARY_COLUMNS)
     _compare_section(rows, rep)
     _lost_reasons_section(rows, rep)
+    _notes_section(rows, rep)
     if gate_summary:
         rep.heading("Regression gate")
         rep.lines(gate_summary.splitlines())
