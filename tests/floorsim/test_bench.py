@@ -118,6 +118,17 @@ def test_a_gate_refuses_a_baseline_made_with_other_scenes_or_settings(tmp_path, 
     )
     gate = run_bench([scene], ["scaled"], tmp_path / "d", frames=4, repetitions=2, baseline=base).gate
     assert not gate.ok and "seeds [7], now [7, 8]" in gate.summary()
+    # a scale calibration added since the baseline is noted like an --est-set (it passed without a word)
+    from floorvo.calibration import ScaleCalibration, save_scale_calibration
+
+    cal = tmp_path / "scale.json"
+    save_scale_calibration(ScaleCalibration(scale_x=1.0, observed_x=True, travel_x_mm=100.0, steps=25), cal)
+    calibrated = run_bench(
+        [scene], ["scaled"], tmp_path / "k", frames=4, scale_calibrations={"scaled": cal}, baseline=base
+    ).gate
+    assert f"tiny/scaled: --scale-calibration {cal}, the baseline's none: the gate measures that change" in (
+        calibrated.summary()
+    )
     # a baseline saved before made_with: compared as before, and the summary says it was not checked
     del saved["made_with"]
     base.write_text(json.dumps(saved))

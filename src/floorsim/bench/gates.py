@@ -121,19 +121,23 @@ def made_with(rows: Iterable[Mapping[str, Any]]) -> dict[str, dict[str, list]]:
     """Per ``scene/estimator``, what its runs were made with: the sorted ``inputs`` of its rows
     (:func:`floorsim.bench.bench.run_inputs`: the scene as resolved with ``--set``, the seed and
     ``--frames/--scale/--spp``, or a sequence folder's content), its seeds (the repetitions) and its
-    ``--est-set`` configs (``est_config``: a change a gate may measure, noted but not refused).
+    ``--est-set`` configs (``est_config``: a change a gate may measure, noted but not refused), and
+    its ``--scale-calibration`` files (``scale_calibration``: likewise; added or dropped, it had
+    passed without a word).
     Rows without ``inputs`` (written before it was) give none."""
     out: dict[str, dict[str, list]] = {}
     for r in rows:
         if not r.get("inputs"):
             continue
-        m = out.setdefault(_key(r), {"inputs": [], "seeds": [], "est_config": []})
+        m = out.setdefault(_key(r), {"inputs": [], "seeds": [], "est_config": [], "scale_calibration": []})
         m["inputs"].append(str(r["inputs"]))
         m["seeds"].append(r.get("seed"))
         m["est_config"].append(str(r.get("est_config") or ""))
+        m["scale_calibration"].append(str(r.get("scale_calibration") or ""))
     for m in out.values():
         m["inputs"].sort()
         m["est_config"] = sorted(set(m["est_config"]))
+        m["scale_calibration"] = sorted(set(m["scale_calibration"]))
         m["seeds"].sort(key=lambda v: (v is None, v if v is not None else 0))
     return out
 
@@ -272,6 +276,11 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
             "inputs": [str(v) for v in m["inputs"]],
             "seeds": list(m["seeds"]),
             "est_config": [str(v) for v in m.get("est_config") or []],
+            **(
+                {"scale_calibration": [str(v) for v in m["scale_calibration"]]}
+                if isinstance(m.get("scale_calibration"), list)
+                else {}
+            ),
         }
     if "made_with" in obj and not isinstance(obj["made_with"], Mapping):
         raise ConfigError(f"{label}: made_with = {shown(obj['made_with'])}: must be a table of scene/estimator entries")
@@ -483,6 +492,12 @@ def compare(
                 res.config_changed.append(
                     f"{key}: --est-set {_configs(now[key]['est_config'])}, the baseline's "
                     f"{_configs(before.get('est_config', []))}: the gate measures that change"
+                )
+            # (a baseline saved before the key was kept is not known to differ)
+            if "scale_calibration" in before and before["scale_calibration"] != now[key]["scale_calibration"]:
+                res.config_changed.append(
+                    f"{key}: --scale-calibration {_configs(now[key]['scale_calibration'])}, the baseline's "
+                    f"{_configs(before['scale_calibration'])}: the gate measures that change"
                 )
         for metric, t in tol.items():
             base = entries[key][metric]
