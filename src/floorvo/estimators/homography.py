@@ -164,7 +164,7 @@ class HomographySixDof(_AkazeBase):
 
     def _blocks_problem(
         self, x_prev: np.ndarray, x_cur: np.ndarray, n_prev: np.ndarray, d_prev_mm: float, T_prev_cur: np.ndarray
-    ) -> str:
+    ) -> tuple[str, float]:
         """Why the step ``T_prev_cur`` (4, 4) mm of the inlier pairs ``x_prev -> x_cur`` (K, 2),
         normalised coordinates, is too imprecise to report ('' if it is not): the agreement of
         independent blocks (issue 14 item 2).
@@ -184,10 +184,10 @@ class HomographySixDof(_AkazeBase):
         """
         cfg = self.config
         if cfg.precision_sigmas <= 0.0 or len(x_prev) < 8:
-            return ""
+            return "", 0.0
         blocks = block_homographies(x_prev, x_cur)
         if blocks is None:
-            return "no floor homography on a block of the pairs (the agreement check)"
+            return "no floor homography on a block of the pairs (the agreement check)", 0.0
         m = len(blocks)
         t_mm, angle_rad = [], []
         for H_block in blocks:
@@ -199,13 +199,14 @@ class HomographySixDof(_AkazeBase):
         k = cfg.precision_sigmas
         err_mm = k * float(np.sqrt(np.sum((t - t.mean(axis=0)) ** 2) / (m - 1) / m))
         err_deg = k * float(np.degrees(np.sqrt(np.sum(np.square(angle_rad)) / (m - 1) / m)))
+        height_sd_mm = float(np.sqrt(np.sum((t[:, 2] - t[:, 2].mean()) ** 2) / (m - 1) / m))
         bound_mm = cfg.bound_mm(float(np.linalg.norm(T_prev_cur[:3, 3])))
         if err_mm > bound_mm or err_deg > cfg.max_step_error_deg:
             return (
                 f"imprecise homography: {m} blocks of its pairs disagree, {k:g} standard errors are "
                 f"{err_mm:.3f} mm and {err_deg:.2f} deg (bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg)"
-            )
-        return ""
+            ), height_sd_mm
+        return "", height_sd_mm
 
     def _light_problem(self, T_prev_cur: np.ndarray, height_mm: float) -> str:
         """Why the tilt of the step ``T_prev_cur`` (4, 4) mm, taken at ``height_mm`` over the floor,
@@ -270,7 +271,8 @@ class HomographySixDof(_AkazeBase):
         if self.lights_ride and not problem:
             # The tilt read is within what the light can make up: the step keeps the plane's tilt.
             T, n_cur, d_cur = plane_homography_motion(H, n_prev, d_prev, tilt=False)
-        problem = problem or self._blocks_problem(x_prev[inl], x_cur[inl], n_prev, d_prev, T)
+        blocks_problem, height_sd_mm = self._blocks_problem(x_prev[inl], x_cur[inl], n_prev, d_prev, T)
+        problem = problem or blocks_problem
         if problem:
             return None, problem
         tilt = float(np.arccos(min(1.0, abs(n_cur[2]))))
@@ -283,23 +285,28 @@ class HomographySixDof(_AkazeBase):
         if problem:
             return None, problem
         problem = self._plane_height_problem(T, d_prev, state.plane_var_mm2)
-        if h_read is not None and self.height_noise_mm > 0.0 and state.plane_var_mm2 > 0.0:
-            # The readings of a stated noise refine the plane's height, a Kalman update of d (the
-            # homography carries it exactly from frame to frame): started from one reading the
-            # plane is as uncertain as one (1 mm: steps up to 2.5 % long); after n of them, 1/sqrt(n)
-            # of that. A step the plane is still too uncertain for is lost, and the reading, taken
+        if self.height_noise_mm > 0.0 and state.plane_var_mm2 > 0.0:
+            # The readings of a stated noise refine the plane's height, a Kalman filter of d:
+            # started from one reading the plane is as uncertain as one (1 mm: steps up to 2.5 %
+            # long); carried to the next frame by the homography, with the variance of the step's
+            # own height change (its blocks', :meth:`_blocks_problem`), and updated with each
+            # reading. A step the plane is still too uncertain for is lost, and its reading, taken
             # back to the reference by the homography's ratio of the heights, refines the
             # reference's plane, from which the next frame is measured (at 1.5 mm of noise every
             # step was lost, the plane never refined).
-            if problem:
+            if problem and h_read is not None:
                 ratio = d_prev / d_cur
                 gain = state.plane_var_mm2 / (state.plane_var_mm2 + (self.height_noise_mm * ratio) ** 2)
                 state.plane = (n_prev, d_prev + gain * (h_read * ratio - d_prev))
                 state.plane_var_mm2 *= 1.0 - gain
+            if problem:
                 return None, problem
-            gain = state.plane_var_mm2 / (state.plane_var_mm2 + self.height_noise_mm**2)
-            d_cur += gain * (h_read - d_cur)
-            state.plane_var_mm2 *= 1.0 - gain
+            var_mm2 = state.plane_var_mm2 + height_sd_mm**2
+            if h_read is not None:
+                gain = var_mm2 / (var_mm2 + self.height_noise_mm**2)
+                d_cur += gain * (h_read - d_cur)
+                var_mm2 *= 1.0 - gain
+            state.plane_var_mm2 = var_mm2
         elif problem:
             return None, problem
         state.plane = (n_cur, d_cur)
