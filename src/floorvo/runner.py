@@ -240,6 +240,7 @@ def run_frames(
     height_noise_mm: float = 0.0,
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None,
     lose_repeated_pictures: bool = True,
+    summary_warnings: bool = True,
 ) -> RunResult:
     """Run ``estimator`` (an :class:`~floorvo.estimators.base.Estimator`) over ``frames`` from a fresh state.
 
@@ -257,7 +258,8 @@ def run_frames(
     ``lose_repeated_pictures``: a frame whose picture repeats the last frame's bit for bit is
     reported lost (:data:`REPEATED_FRAME`) and not handed to the estimator; False for frames
     that repeat a picture by design (paper 000's protocol, whose runs repeat a strip frame
-    where they stand still).
+    where they stand still). ``summary_warnings``: warn at the end what the run lost to its
+    signals (off for runs that re-run frames of a run already said: a bench's match samples).
     ``attitude_noise_rad``: the standard error of each reading of the frames' attitude signal
     (:func:`attitude_noise_rad`; :func:`run_sequence` estimates it from the sequence's): a step
     that the signal would leave uncertain beyond the estimator's bound is lost
@@ -417,7 +419,7 @@ def run_frames(
         if on_step is not None:
             on_step(k, frame, res)
     wall = time.perf_counter() - t0
-    if height_noisy:
+    if height_noisy and summary_warnings:
         log.warning(
             "%s: %d step(s) lost: the height signal's stated noise (%.3g mm) leaves their height change uncertain "
             "beyond the bound; with use_height_signal = false (and fit_image_scale = true where it is off) the "
@@ -637,8 +639,10 @@ def run_sequence(
     scale_calibration: ScaleCalibration | None = None,
     on_step: OnStep | None = None,
     name: str | None = None,
+    summary_warnings: bool = True,
 ) -> RunResult:
-    """:func:`run_frames` over the frames ``frames`` (default: all) of ``seq``.
+    """:func:`run_frames` over the frames ``frames`` (default: all) of ``seq``
+    (``summary_warnings``: as there, and the warning of a height signal far from the rig's height).
 
     ``T_world_start`` defaults to the ground-truth pose of the first frame run (the nearest
     in time, within :data:`~floorvo.sequence.GROUNDTRUTH_MAX_DIFF_S`: :meth:`Sequence.groundtruth_at`)
@@ -659,7 +663,8 @@ def run_sequence(
         raise FloorbenchError(
             f"{name}: frame {indices[back]} follows frame {indices[back - 1]}: the frames of a run must increase"
         )
-    _warn_height_signal_offset(seq, estimator)
+    if summary_warnings:
+        _warn_height_signal_offset(seq, estimator)
     T_world_at: Callable[[Frame], np.ndarray | None] | None = None
     if T_world_start is None:
         T_world_at = _groundtruth_pose_of(seq)
@@ -690,6 +695,7 @@ def run_sequence(
         attitude_noise_rad=attitude_noise_rad(seq.attitude_signal_rad) if uses_attitude_signal(estimator) else 0.0,
         height_noise_mm=seq.height_noise_mm or 0.0,
         T_world_at=T_world_at,
+        summary_warnings=summary_warnings,
     )
 
 

@@ -601,3 +601,23 @@ def test_a_height_signal_far_from_the_rig_height_is_said(tmp_path, caplog):
         run_estimator(seq, "phase-corr", tmp_path / "run2")
         run_estimator(seq, "akaze-guided", tmp_path / "run3")  # once a sequence, not once a run
     assert caplog.text.count("lie 5.0 % from rig.height_mm (100.00 mm)") == 1
+
+
+def test_runs_that_re_run_frames_of_a_run_already_said_do_not_warn_again(tmp_path, caplog):
+    """A bench's match samples re-run pairs of frames of a run already scored: after the run's
+    "19 step(s) lost" to a noisy height signal each pair warned "1 step(s) lost" again, which
+    contradicted it. Without its summary warnings (``summary_warnings=False``) such a run says
+    nothing; the run itself still does."""
+    from floorvo.run import build_estimator
+    from floorvo.runner import run_sequence
+
+    poses = np.stack([T_world_cam_down(4.0 * i, 0.0, 100.0) for i in range(4)])
+    seq = Sequence.open(write_synthetic_sequence(tmp_path / "seq", CAM, poses, height_noise_mm=0.1))
+    est, _ = build_estimator(seq, "phase-corr")
+    with caplog.at_level("WARNING", logger="floorvo"):
+        run_sequence(seq, est, frames=[1, 2], summary_warnings=False)
+    assert "step(s) lost" not in caplog.text
+    est, _ = build_estimator(seq, "phase-corr")
+    with caplog.at_level("WARNING", logger="floorvo"):
+        run_sequence(seq, est)
+    assert "3 step(s) lost: the height signal's stated noise" in caplog.text
