@@ -51,6 +51,7 @@ __all__ = [
     "R_WORLD_CAM_DOWN",
     "make_T",
     "per_interval_px",
+    "motion_over_time",
     "invert_T",
     "rigid_problem",
     "RIGID_TOLERANCE",
@@ -220,6 +221,17 @@ def per_interval_px(M: np.ndarray, n: float) -> np.ndarray:
     out = rot_z(float(np.arctan2(M[1, 0], M[0, 0])) / n)
     out[:2, 2] = M[:2, 2] / n
     return out
+
+
+def motion_over_time(M: np.ndarray, measured_span_s: float, span_s: float) -> np.ndarray:
+    """The rigid image motion ``M`` (3x3, centred px), measured over ``measured_span_s`` seconds,
+    at constant velocity over ``span_s`` seconds (:func:`per_interval_px`): a prediction for a frame
+    that follows its reference by another time than ``M``'s (frames a camera dropped). ``M`` as
+    it is where the spans agree within 1e-6 (frames at a steady rate, a render's ``i / fps``: its
+    runs bit for bit as with a prediction per frame) or either span is unknown (<= 0)."""
+    if measured_span_s <= 0.0 or not span_s > 0.0 or abs(span_s / measured_span_s - 1.0) < 1e-6:
+        return M
+    return per_interval_px(M, measured_span_s / span_s)
 
 
 def T_world_cam_down(

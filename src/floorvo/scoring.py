@@ -393,7 +393,9 @@ def score_run(run_dir: str | os.PathLike, seq_dir: str | os.PathLike, *, max_dif
             score.drift.update({k: v for k, v in turn.items() if math.isfinite(v)})
     if result:
         score.extra["result"] = {
-            k: result[k] for k in ("status_counts", "lost", "fps", "frames_per_second") if k in result
+            k: result[k]
+            for k in ("status_counts", "lost", "fps", "frames_per_second", "scale_calibration_problems")
+            if k in result
         }
     for w in score.warnings:
         log.warning("%s: %s", run_dir, w)

@@ -85,7 +85,7 @@ from floorvo.io import atomic_write_json, checked_output_file, checked_output_pa
 from floorvo.locking import lock_folder, locks_folder
 from floorvo.run import InitialPose, estimator_faults
 from floorvo.runfolder import BENCH_CACHE_MARKER as CACHE_MARKER
-from floorvo.runfolder import RunFolder, sequence_content_sha256, write_match_sample
+from floorvo.runfolder import sequence_content_sha256, write_match_sample
 from floorvo.runner import run_sequence
 from floorvo.scoring import score_run, write_score
 from floorvo.sequence import Sequence
@@ -373,7 +373,7 @@ def run_one(
     # What the run said of its scale calibration (result.json: fitted on this sequence, or on a run
     # of another config) goes with the score's warnings: it had stayed in result.json, and the table
     # showed a calibrated drift tuned on the very sequence it scored.
-    notes = list(score.warnings) + list((RunFolder.read(run_dir).result or {}).get("scale_calibration_problems") or [])
+    notes = list(score.warnings) + list(score.extra.get("result", {}).get("scale_calibration_problems") or [])
     if notes:
         row["score_warnings"] = "; ".join(str(n) for n in notes)
     return row

@@ -324,7 +324,8 @@ def job_pool(
     debug = logging.getLogger("floorsim").getEffectiveLevel() <= logging.DEBUG
     logging.getLogger("distributed").setLevel(logging.INFO if debug else logging.ERROR)
     cluster = None
-    scratch = None  # the local workers' scratch space: Dask's default, $TMPDIR/dask-scratch-space, outlived the sweep
+    # the local workers' scratch space and its config: Dask's default, $TMPDIR/dask-scratch-space, outlived the sweep
+    scratch_space = contextlib.ExitStack()
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
@@ -334,8 +335,9 @@ def job_pool(
             ) from None
     else:
         scratch = tempfile.mkdtemp(prefix="floorsim-dask-")
+        scratch_space.callback(shutil.rmtree, scratch, ignore_errors=True)
         # its lock files too (dask-scratch-space/global.lock under $TMPDIR otherwise)
-        scratch_config = dask.config.set({"temporary-directory": scratch})
+        scratch_space.enter_context(dask.config.set({"temporary-directory": scratch}))
         cluster = LocalCluster(
             n_workers=workers,
             local_directory=scratch,
@@ -373,9 +375,7 @@ def job_pool(
         client.close()
         if cluster is not None:
             cluster.close()
-        if scratch is not None:
-            scratch_config.__exit__(None, None, None)
-            shutil.rmtree(scratch, ignore_errors=True)
+        scratch_space.close()
 
 
 # ----------------------------------------------------------------------------- results

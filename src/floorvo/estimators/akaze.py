@@ -85,7 +85,7 @@ from floorvo.geometry import (
     block_homographies,
     consensus_problem,
     floor_rigid_to_T,
-    per_interval_px,
+    motion_over_time,
     pixels_to_floor_mm,
     plane_homography_motion,
     rigid_fit,
@@ -333,6 +333,11 @@ class _Fit:
     problem: str = ""
     scale_fitted: bool = False
     no_motion: bool = False  # the filter's pairs hold no motion (too few of them, too few matches agree)
+
+
+def _image_scale(M: np.ndarray) -> float:
+    """The image scale of a similarity ``M`` (3x3 px, ``M[:2, :2]`` = scale R): sqrt |det|."""
+    return float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
 
 
 class _AkazeBase:
@@ -654,7 +659,7 @@ class _AkazeBase:
         measured: following such a scale made the height a random walk on level runs
         (BENCHMARKS.md, "A fitted image scale"; phase-corr's blocks likewise: "phase-corr: the
         camera height only where the image scale shows it")."""
-        k = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
+        k = _image_scale(M)
         if len(s) < 4:
             return True
         _, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
@@ -669,7 +674,7 @@ class _AkazeBase:
         reports (``h sigma_scale`` along the optical axis), which adds to the displacement's."""
         if self.config.precision_sigmas <= 0.0 or len(s) < 4:
             return ""
-        k = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
+        k = _image_scale(M)
         sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
         sig_height_px = self.height_mm * sig_rad / self.camera.gsd_mm_per_px(self.height_mm)
         return self._bound_problem(M, float(np.hypot(sig_px, sig_height_px)), sig_rad)
@@ -713,7 +718,7 @@ class _AkazeBase:
         h = self._frame_height(frame)
         if h is None and fit.M is not None and fit.scale_fitted:
             h_prev = state.height_mm or self.height_mm
-            h = h_prev / float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
+            h = h_prev / _image_scale(fit.M)
         elif h is None:
             h = state.height_mm  # the scale showed no change (:meth:`_scale_changed`), or none fitted: kept
         return h
@@ -732,7 +737,7 @@ class _AkazeBase:
         h_read = self._frame_height(frame)
         if h_read is None or state.height_read:
             return state.height_mm or self.height_mm
-        k = float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2])))) if fit.M is not None and fit.scale_fitted else 1.0
+        k = _image_scale(fit.M) if fit.M is not None and fit.scale_fitted else 1.0
         return h_read * k
 
     def _scale_ratio(self, state: _State, frame: Frame) -> float | None:
@@ -770,11 +775,7 @@ class _AkazeBase:
         (homography-6dof's image motion) is taken as it is."""
         M = state.M_last
         assert M is not None
-        span_s = t_s - state.t_ref_s
-        last_s = state.m_last_span_s
-        if self.fits_own_scale or last_s <= 0.0 or not span_s > 0.0 or abs(span_s / last_s - 1.0) < 1e-6:
-            return M
-        return per_interval_px(M, last_s / span_s)
+        return M if self.fits_own_scale else motion_over_time(M, state.m_last_span_s, t_s - state.t_ref_s)
 
     def _motion_problem_restarts(self, problem: str) -> bool:
         """Whether a frame lost by its motion's ``problem`` (:meth:`_motion`; not by the pairs'
@@ -943,7 +944,7 @@ class _AkazeBase:
             return fit
         src = src[keep]
         dst = self._levelled(p1[keep], attitude)
-        scale = None if fit.scale_fitted else float(np.sqrt(abs(np.linalg.det(fit.M[:2, :2]))))
+        scale = None if fit.scale_fitted else _image_scale(fit.M)
         return replace(fit, M=self._rigid_px(src, dst, scale), src=src, dst=dst)
 
     def _turned_fit(

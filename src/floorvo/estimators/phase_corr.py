@@ -84,6 +84,7 @@ from floorvo.geometry import (
     axis_scales_fit,
     f_sigmas,
     floor_rigid_to_T,
+    motion_over_time,
     per_interval_px,
     pixel_rigid_to_floor,
     rigid_fit_2d_information,
@@ -962,10 +963,7 @@ class PhaseCorr:
         times (frames the camera dropped) is predicted as far as the robot went in that time: at
         240 mm/s, 3 and 5 intervals lost the track with the prediction of one interval (the blocks
         disagreed by 10-17 px). Frames at a steady rate (a render's, i / fps) take it as it is."""
-        span_s = t_s - state.t_ref_s
-        if state.pred_span_s <= 0.0 or not span_s > 0.0 or abs(span_s / state.pred_span_s - 1.0) < 1e-6:
-            return state.M_pred.copy()
-        return per_interval_px(state.M_pred, state.pred_span_s / span_s)
+        return motion_over_time(state.M_pred, state.pred_span_s, t_s - state.t_ref_s).copy()
 
     def _height_changed(self, state: _State, m: _Measured, *, measured: bool = True) -> bool:
         """The image scale ``m.scale`` (``fit_image_scale``) tells a change of the camera height.
