@@ -35,16 +35,14 @@ _LINE_BREAKS = {ord(c): repr(c)[1:-1] for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u
 
 def shown(value: Any, limit: int = MAX_SHOWN_CHARS) -> str:
     """``value`` as an error message quotes it: text in quotes (``'80mm'``), a tuple as a list,
-    anything else as ``str``; cut to ``limit`` characters with an ellipsis (a 100,000-character
-    value must not become a 100,000-character message line), newlines escaped (one line)."""
-    if isinstance(value, str):
-        text = repr(str(value))
-    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+    ``None`` and booleans as the files a user writes spell them (``null``, ``true``, ``false``:
+    JSON's and TOML's words, not Python's), anything else as ``str``; cut to ``limit`` characters
+    with an ellipsis (a 100,000-character value must not become a 100,000-character message
+    line), newlines escaped (one line)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
         text = shown_number(value)
-    elif isinstance(value, (tuple, list)):
-        text = repr(_as_lists(value))
     else:
-        text = str(value)
+        text = _spelled(value)
     return shorten(text, limit)
 
 
@@ -80,11 +78,23 @@ def shown_number(value: Any, spec: str = "") -> str:
     return format(x, ".6g") if abs(x) >= MAX_FIXED_POINT else format(value, spec)
 
 
-def _as_lists(value: Any) -> Any:
-    """Tuples (nested too) as lists, so a matrix read into tuples shows as it was written."""
+def _spelled(value: Any) -> str:
+    """``value`` written as :func:`shown` quotes it, lists and tables inside it too: text in
+    quotes, tuples as lists (a matrix read into tuples shows as it was written), ``None`` and
+    booleans in the words of JSON and TOML."""
+    if value is None:
+        return "null"
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return shown_number(value)
     if isinstance(value, (tuple, list)):
-        return [_as_lists(v) for v in value]
-    return value
+        return "[" + ", ".join(_spelled(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_spelled(k)}: {_spelled(v)}" for k, v in value.items()) + "}"
+    return str(value)
 
 
 def shorten(text: str, limit: int = MAX_SHOWN_CHARS) -> str:

@@ -143,7 +143,7 @@ def test_a_sweep_file_of_sequence_folders_needs_no_grid_and_refuses_a_grid_witho
     with pytest.raises(ConfigError, match=r"sequences: 'nowhere': not a sequence folder"):
         load_sweep(p)
     p.write_text("estimators = []\n")
-    with pytest.raises(ConfigError, match=r"base = None: must name the base scene file"):
+    with pytest.raises(ConfigError, match=r"base is missing: must name the base scene file"):
         load_sweep(p)
 
 

@@ -930,3 +930,25 @@ def test_a_run_summary_naming_things_with_no_text_is_refused(small_seq, tmp_path
     capsys.readouterr()
     assert floorvo_main(["score", str(run), "--gt", str(small_seq)]) == 1
     assert f"result.json: {key} = " in _one_line(capsys, "floorvo")
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "spelled"), [("fps", None, "null"), ("fps", True, "true"), ("frame_count", False, "false")]
+)
+def test_a_json_value_in_an_error_message_is_spelled_as_json_writes_it(
+    tmp_path, small_seq, capsys, key, value, spelled
+):
+    """A sequence.json value of null, true or false is named in the file's words: the message
+    read 'None' and 'True', which a user finds in no file."""
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for p in small_seq.iterdir():
+        if p.is_file():
+            (seq / p.name).write_bytes(p.read_bytes())
+    (seq / "cam0").symlink_to(small_seq / "cam0")
+    meta = json.loads((small_seq / "sequence.json").read_text())
+    (seq / "sequence.json").write_text(json.dumps({**meta, key: value}))
+    assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
+    line = _one_line(capsys, "floorvo")
+    assert spelled in line and key in line, line
+    assert "None" not in line and "True" not in line and "False" not in line, line

@@ -355,7 +355,8 @@ def load_sweep(path: str | os.PathLike) -> SweepSpec:
     base: Path | None = None
     if "base" in d or not sequences:  # a study of sequence folders alone has no grid
         if not isinstance(d.get("base"), str) or not d["base"]:
-            raise ConfigError(f"{path}: base = {shown(d.get('base'))}: must name the base scene file")
+            given = f"base = {shown(d['base'])}" if "base" in d else "base is missing"
+            raise ConfigError(f"{path}: {given}: must name the base scene file")
         base = _beside(path, d["base"], "base")
         if not base.is_file():
             raise ConfigError(f"{path}: base = {shown(d['base'])}: scene file {shorten(str(base))} does not exist")
