@@ -124,11 +124,12 @@ def test_malformed_baselines_are_refused_in_one_line(tmp_path):
     _refused(tmp_path, _baseline({"end_drift_pct": 0.1}, entries), "tolerances.end_drift_pct = 0.1")
     # nothing to check: no tolerances, no entries, entries as a list
     _refused(tmp_path, _baseline({}, entries), "tolerances: empty")
-    _refused(tmp_path, {k: v for k, v in _baseline(TOL, entries).items() if k != "tolerances"}, "tolerances = None")
+    _refused(tmp_path, {k: v for k, v in _baseline(TOL, entries).items() if k != "tolerances"}, "tolerances: missing")
+    _refused(tmp_path, {**_baseline(TOL, entries), "tolerances": None}, "tolerances = null")
     _refused(tmp_path, _baseline(TOL, {}), "entries: empty")
     _refused(tmp_path, _baseline(TOL, [["s/e", {"end_drift_pct": 1.0}]]), "entries = [[", "must be a table")
     # values that are text, lists, NaN, or an entry that is a number
-    for bad, shown_as in (("0.3", "'0.3'"), ([0.3], "[0.3]"), (float("nan"), "nan"), (True, "True")):
+    for bad, shown_as in (("0.3", "'0.3'"), ([0.3], "[0.3]"), (float("nan"), "nan"), (True, "true")):
         msg = _refused(tmp_path, _baseline(TOL, {"s/e": {"end_drift_pct": bad, "lost_frames": 0}}), "must be a finite")
         assert f"entries.s/e.end_drift_pct = {shown_as}" in msg
     _refused(tmp_path, _baseline(TOL, {"s/e": 1.5}), "entries.s/e = 1.5: must be a table")

@@ -840,6 +840,17 @@ def test_a_reader_that_closes_the_pipe_ends_the_command_quietly(tmp_path):
     assert p.wait(timeout=120) == 141 and "error" not in err and "Traceback" not in err, err
 
 
+def _editable_copy(small_seq, seq):
+    """A copy of the sequence folder ``small_seq`` at ``seq`` whose files may be edited (its
+    camera folder linked), and its ``sequence.json`` content."""
+    seq.mkdir()
+    for p in small_seq.iterdir():
+        if p.is_file():
+            (seq / p.name).write_bytes(p.read_bytes())
+    (seq / "cam0").symlink_to(small_seq / "cam0")
+    return seq, json.loads((small_seq / "sequence.json").read_text())
+
+
 def test_a_huge_number_in_an_error_message_is_shown_short(tmp_path, small_seq, capsys):
     """1e308 formatted with ':.0f' is 309 digits, and an integer read from a file (frame_count =
     1e308, made an int) as many: errors of every kind of input show such a number in exponent
@@ -852,13 +863,7 @@ def test_a_huge_number_in_an_error_message_is_shown_short(tmp_path, small_seq, c
     assert shown_number(0.2, ".6f") == "0.200000" and shown_number(float("inf"), ".0f") == "inf"
     lines = []
     # a sequence folder: sequence.json, a run of it
-    seq = tmp_path / "seq"
-    seq.mkdir()
-    for p in small_seq.iterdir():
-        if p.is_file():
-            (seq / p.name).write_bytes(p.read_bytes())
-    (seq / "cam0").symlink_to(small_seq / "cam0")
-    meta = json.loads((small_seq / "sequence.json").read_text())
+    seq, meta = _editable_copy(small_seq, tmp_path / "seq")
     for key, value in [("frame_count", 1e308), ("fps", 1e308), ("frame_count", 10**300)]:
         (seq / "sequence.json").write_text(json.dumps({**meta, key: value}))
         assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
@@ -940,13 +945,7 @@ def test_a_json_value_in_an_error_message_is_spelled_as_json_writes_it(
 ):
     """A sequence.json value of null, true or false is named in the file's words: the message
     read 'None' and 'True', which a user finds in no file."""
-    seq = tmp_path / "seq"
-    seq.mkdir()
-    for p in small_seq.iterdir():
-        if p.is_file():
-            (seq / p.name).write_bytes(p.read_bytes())
-    (seq / "cam0").symlink_to(small_seq / "cam0")
-    meta = json.loads((small_seq / "sequence.json").read_text())
+    seq, meta = _editable_copy(small_seq, tmp_path / "seq")
     (seq / "sequence.json").write_text(json.dumps({**meta, key: value}))
     assert floorvo_main(["run", str(seq), "-e", "phase-corr", "-o", str(tmp_path / "run")]) == 1
     line = _one_line(capsys, "floorvo")

@@ -128,6 +128,8 @@ def test_a_mono_estimator_corrects_its_scale_with_the_height_signal(bounce_seqs,
     rig = {"use_height_signal": "false", "fit_image_scale": "false"}
     if name == "akaze-guided":
         rig["check_height_change"] = "false"
+    else:
+        rig["precision_sigmas"] = "0"  # phase-corr's check of a kept height (below) off too
     without = score_run(run_estimator(seq, name, tmp_path / "without", rig).run_dir, seq).flat()
     assert with_h["wrong_ok_steps"] == 0
     assert without["wrong_ok_steps"] > 20
@@ -206,16 +208,22 @@ def test_fits_the_image_scale_and_follows_the_height_without_a_signal(full_size_
 
 def test_phase_corr_without_the_image_scale_reports_the_bounce_wrong(full_size_bounce, tmp_path):
     """The control of the test above: phase-corr at the rig's height (``fit_image_scale =
-    false``, its default until 2026-11-25) reports the bounce's steps ok with no height change,
-    each 0.8 mm off along z: wrong against the camera's step (a planar estimator's steps are
-    right only against the footprint). Its default follows the bounce: none wrong."""
+    false``, its default until 2026-11-25) reported 5 of the bounce's steps ok with no height
+    change, each 0.8 mm off along z: wrong against the camera's step (a planar estimator's steps
+    are right only against the footprint). It now loses them: its blocks' image scale shows the
+    change it keeps ("height change not measured"). Its default follows the bounce: none wrong,
+    none lost."""
     seq = full_size_bounce
     res = run_estimator(
         seq, "phase-corr", tmp_path / "rigid", {"use_height_signal": "false", "fit_image_scale": "false"}
     )
     flat = score_run(res.run_dir, seq).flat()
-    assert flat["lost_frames"] == 0
-    assert flat["wrong_ok_steps"] == 5
+    assert flat["wrong_ok_steps"] == 0
+    assert flat["lost_frames"] == 5
+    # each frame after a good one; the others, measured across the lost frame, see twice the
+    # change, which the rigid warp's blocks do not agree on
+    unmeasured = [r for r in res.reason if r.startswith("height change not measured: the blocks' image scale")]
+    assert len(unmeasured) == 3, list(res.reason)
     default = score_run(
         run_estimator(seq, "phase-corr", tmp_path / "default", {"use_height_signal": "false"}).run_dir, seq
     )
@@ -621,3 +629,68 @@ def test_runs_that_re_run_frames_of_a_run_already_said_do_not_warn_again(tmp_pat
     with caplog.at_level("WARNING", logger="floorvo"):
         run_sequence(seq, est)
     assert "3 step(s) lost: the height signal's stated noise" in caplog.text
+
+
+@pytest.mark.parametrize(
+    "name", ["phase-corr", "phase-corr-fast", "akaze-guided", "akaze-bruteforce", "homography-6dof"]
+)
+def test_a_height_signal_creeping_within_one_frames_check_is_lost(bounce_seqs, tmp_path, name):
+    """A range reading creeping 0.8 mm a frame (a sensor drifting) passes the one-frame check
+    against the picture, which allows 1 % of the height: every step after the creep began was
+    reported ok and wrong (its height change 0.8 mm off against a 0.13 mm bound). Two of the
+    last three steps disagreeing the same way now lose the step: at
+    most the first two steps of the creep stay ok (the picture cannot tell a creep's first step
+    from a misread frame), and the honest readings of the same bounce lose nothing so."""
+    import shutil
+
+    honest = run_estimator(bounce_seqs[0], name, tmp_path / "honest")
+    assert not any("drifts from the picture" in r for r in honest.reason)
+    seq = tmp_path / "seq"
+    shutil.copytree(bounce_seqs[0], seq)
+    h = read_height_csv(seq / "height.csv")
+    h[10:] += 0.8 * np.arange(1, len(h) - 9)
+    lines = ["frame,height_mm", *(f"{i},{v:.6f}" for i, v in enumerate(h))]
+    (seq / "height.csv").write_text("\n".join(lines) + "\n")
+    run = run_estimator(seq, name, tmp_path / "run")
+    s = score_run(run.run_dir, seq).flat()
+    assert s["wrong_ok_steps"] <= 2, s
+    lost = [int(i) for i, st in zip(run.frame_index, run.status) if st == "lost"]
+    drifted = [int(i) for i, r in zip(run.frame_index, run.reason) if "drifts from the picture" in r]
+    # from the creep's third step on every frame is lost: by this check, or (a step across a lost
+    # frame carries two frames' creep) by the one-frame check
+    assert set(range(13, len(h))) <= set(lost), lost
+    assert drifted and min(drifted) <= 13 and min(lost) >= 11, (lost, drifted)
+
+
+def test_the_drift_check_passes_a_misread_frame_a_wrong_reading_and_a_bounce_read_short():
+    """What a drifting height signal looks like, and what it does not (a unit check of
+    floorvo.estimators.base.height_signal_drift_problem; bound 0.13 mm, picture's standard error
+    0.02 mm, 2.5 of them, 0.2 mm that a picture may misread over several steps at 100 mm)."""
+    from collections import deque
+
+    from floorvo.estimators.base import HEIGHT_DRIFT_STEPS, height_signal_drift_problem
+
+    def verdicts(steps):
+        recent: deque = deque(maxlen=HEIGHT_DRIFT_STEPS)
+        return [
+            bool(height_signal_drift_problem(recent, sig, pic, 0.02, 0.13, 100.0, sigmas=2.5)) for sig, pic in steps
+        ]
+
+    level = [(0.0, 0.0)] * 3
+    # one frame the picture misread by 0.6 mm, then agreement: never two of three
+    assert not any(verdicts([*level, (0.0, 0.6), (0.0, 0.0), (0.0, 0.0)]))
+    # a single reading 200 mm off: the one-frame checks judge it, and it stands for no drift after it
+    assert not any(verdicts([*level, (200.0, 0.0), (-200.0, 0.0), (0.0, 0.0), (0.0, 0.6), (0.0, 0.0)]))
+    # misreads every other frame, of either sign
+    assert not any(verdicts([*level, (0.0, 0.6), (0.0, 0.0), (0.0, -0.6), (0.0, 0.0), (0.0, 0.6)]))
+    # a bounce the picture reads at 85 % of each rise (0.8 mm a frame): the share is allowed
+    assert not any(verdicts([(0.8, 0.68)] * 6))
+    # the readings creep 0.5 mm a frame over a level floor: lost from the second step of the creep on
+    assert verdicts([*level, (0.5, 0.0), (0.5, 0.0), (0.5, 0.0), (0.5, 0.0)]) == [False] * 4 + [True] * 3
+    # and on a bounce the picture reads short (0.68 of 0.8 mm a frame)
+    assert verdicts([*level, (1.3, 0.68), (1.3, 0.68), (1.3, 0.68)]) == [False] * 4 + [True] * 2
+    # within the bound, 2.5 standard errors and the misread (0.13 + 0.05 + 0.2 mm) and the share: kept
+    assert not any(verdicts([(0.4, 0.03)] * 6))
+    # precision_sigmas = 0: no check
+    recent: deque = deque(maxlen=HEIGHT_DRIFT_STEPS)
+    assert not any(height_signal_drift_problem(recent, 0.5, 0.0, 0.02, 0.13, 100.0, sigmas=0.0) for _ in range(5))

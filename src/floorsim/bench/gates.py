@@ -207,7 +207,13 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+#: What :func:`_table` is given for a key the file lacks (a JSON null is a value, None).
+_MISSING = object()
+
+
 def _table(d: Any, where: str, what: str) -> Mapping[str, Any]:
+    if d is _MISSING:
+        raise ConfigError(f"{where}: missing: must be a table of {what}")
     if not isinstance(d, Mapping):
         raise ConfigError(f"{where} = {shown(d)}: must be a table of {what}")
     if not d:
@@ -233,7 +239,7 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
             f"{label}: unknown key {shown(unknown[0])} (known: entries, format, made_with, tolerances, version)"
         )
     tolerances: dict[str, Tolerance] = {}
-    for metric, t in _table(obj.get("tolerances"), f"{label}: tolerances", "gated metrics").items():
+    for metric, t in _table(obj.get("tolerances", _MISSING), f"{label}: tolerances", "gated metrics").items():
         where = f"{label}: tolerances.{shorten(metric)}"
         if not isinstance(t, Mapping) or set(t) - {"abs", "rel"} or not t:
             raise ConfigError(f'{where} = {shown(t)}: must be {{"abs": >= 0, "rel": >= 0}}')
@@ -245,7 +251,7 @@ def parse_baseline(obj: Any, label: str = "baseline") -> Baseline:
             raise ConfigError(f"{where}: {problem}")
         tolerances[str(metric)] = Tolerance(float(t.get("abs", 0.0)), float(t.get("rel", 0.0)))
     entries: dict[str, dict[str, float | None]] = {}
-    for key, entry in _table(obj.get("entries"), f"{label}: entries", "scene/estimator entries").items():
+    for key, entry in _table(obj.get("entries", _MISSING), f"{label}: entries", "scene/estimator entries").items():
         where = f"{label}: entries.{shorten(key)}"
         if not isinstance(key, str) or "/" not in key:
             raise ConfigError(f"{where}: an entry is named SCENE/ESTIMATOR")

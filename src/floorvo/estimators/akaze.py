@@ -60,8 +60,9 @@ frame (the motion over the gap is unknown; the lost frames show it).
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -70,6 +71,8 @@ from floorvo.camera import CameraModel
 from floorvo.config import param, with_defaults
 from floorvo.errors import ConfigFieldError
 from floorvo.estimators.base import (
+    HEIGHT_DRIFT_STEPS,
+    PICTURE_HEIGHT_READ_SHARE,
     RESTART_NOTE,
     Frame,
     StepBoundConfig,
@@ -77,6 +80,7 @@ from floorvo.estimators.base import (
     frame_attitude_rad,
     frame_height_mm,
     frame_problem,
+    height_signal_drift_problem,
     stage_timing_ms,
     state_error,
 )
@@ -268,7 +272,7 @@ class AkazeConfig(StepBoundConfig):
         "that the rig's grazing shading may show as a false height change",
     )
     height_change_read_share: float = param(
-        0.85,
+        PICTURE_HEIGHT_READ_SHARE,
         gt=0.0,
         max=1.0,
         doc="check_height_change: the share of a true height change that a step's floor homography reads under "
@@ -311,6 +315,8 @@ class _State:
     threshold: float | None = None  # adapt_threshold: the detector threshold of the next frame (None: the config's)
     attitude: tuple[float, float] | None = None  # the reference's attitude its keypoints were levelled with
     img8: np.ndarray | None = None  # (H, W) uint8 picture of the reference (refine_window_px)
+    # the last steps' disagreement of the height signal with the picture (height_signal_drift_problem)
+    height_drift: deque[tuple[float, float]] = field(default_factory=lambda: deque(maxlen=HEIGHT_DRIFT_STEPS))
 
 
 @dataclass(frozen=True)
@@ -343,6 +349,9 @@ def _image_scale(M: np.ndarray) -> float:
 class _AkazeBase:
     Config = AkazeConfig
     requires: frozenset[str] = frozenset()
+    #: The standard deviation (mm) of a height reading, where the estimator is told it
+    #: (homography-6dof: ``rig.height_noise_mm``); 0: not known.
+    height_noise_mm: float = 0.0
     #: A planar mono estimator: it measures the motion of the camera's floor footprint
     #: (:func:`floorvo.geometry.footprint_T`), which an attitude signal makes 6-DoF
     #: (``use_attitude_signal``, :func:`floorvo.runner.uses_attitude_signal`).
@@ -886,6 +895,36 @@ class _AkazeBase:
             )
         return ""
 
+    def _height_drift_problem(self, state: _State, fit: _Fit, frame: Frame) -> str:
+        """Why the step's height change, the difference of the reference's reading and the
+        frame's, is not to be reported ('' where it may be): the height signal drifts from the
+        picture over the last steps (:func:`floorvo.estimators.base.height_signal_drift_problem`).
+        The fit holds the pairs to the image scale the readings give (:meth:`_scale_ratio`), so the
+        picture's scale is the least-squares similarity of the same pairs (Umeyama's closed form),
+        its standard error the rotation's (:func:`floorvo.geometry.rigid_fit_precision`); the
+        picture's rise is ``h_prev / k - h_prev``. Only a step whose height change the readings
+        give joins the record."""
+        if fit.M is None or len(fit.src) < 4 or not self._height_read_now(state, frame):
+            return ""
+        h_prev = state.height_mm or self.height_mm
+        h_read = self._frame_height(frame)
+        assert h_read is not None
+        src, dst = fit.src - self.centre, fit.dst - self.centre
+        R, t, k = umeyama(src, dst, with_scale=True)
+        _, sig_rad = rigid_fit_precision(src, dst, R, t, scale=k)
+        mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
+        return height_signal_drift_problem(
+            state.height_drift,
+            h_read - h_prev,
+            h_prev / k - h_prev,
+            h_prev * sig_rad / k,
+            self.config.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px),
+            h_prev,
+            sigmas=self.config.precision_sigmas,
+            read_share=self.config.height_change_read_share,
+            reading_sigma_mm=self.height_noise_mm,
+        )
+
     def _refined(self, state: _State, fit: _Fit, img8: np.ndarray, attitude: tuple[float, float] | None) -> _Fit:
         """The fit with its pairs' current-frame positions refined to a sub-pixel (``refine_window_px``, ours).
 
@@ -1120,7 +1159,9 @@ class _AkazeBase:
         if not fit.problem and self.config.refine_window_px:
             fit = self._refined(state, fit, img8, attitude)
         if not fit.problem:
-            fit = replace(fit, problem=self._height_change_problem(state, fit, frame, attitude))
+            problem = self._height_change_problem(state, fit, frame, attitude)
+            drift = self._height_drift_problem(state, fit, frame)
+            fit = replace(fit, problem=problem or drift)
         t2 = time.perf_counter()
         T, problem = (None, fit.problem) if fit.problem else self._motion(state, fit, frame)
         if T is None:
