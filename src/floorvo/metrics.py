@@ -571,7 +571,10 @@ def reason_kind(reason: str) -> str:
     clause says what was tried first, such as a brute-force fallback), without its
     parenthesised details, numbers replaced by ``#``: ``"weak correlation peak 0.012"``
     -> ``"weak correlation peak #"``; ``"guided prediction doubtful (...): matched by brute
-    force; too few matches (3 < 6)"`` -> ``"too few matches"``. Empty: ``"(no reason)"``.
+    force; too few matches (3 < 6)"`` -> ``"too few matches"``. A clause that names its cause
+    before a colon is counted by that name: ``"tilt not observable: the step tilts the camera
+    9.1 mrad, ..."`` -> ``"tilt not observable"`` (the kinds had kept the whole formula, numbers
+    as ``#``, 150 characters in a report's cell). Empty: ``"(no reason)"``.
     """
     text = str(reason)
     while True:  # innermost parentheses first, so nested ones go too
@@ -582,6 +585,9 @@ def reason_kind(reason: str) -> str:
     notes = ("tracking restarts", CHAINED_NOTE)
     clauses = [c.strip() for c in text.split("; ") if c.strip() and not c.strip().startswith(notes)]
     text = clauses[-1] if clauses else ""
+    label, colon, _ = text.partition(": ")
+    if colon and label.strip():
+        text = label
     text = re.sub(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?", "#", text)
     text = re.sub(r"\s+", " ", text).strip(" :;,")
     return text or NO_REASON

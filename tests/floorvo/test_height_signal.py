@@ -468,7 +468,7 @@ def test_phase_corr_loses_a_step_whose_height_reading_the_picture_contradicts(bo
     assert 10 in lost and set(range(21, len(h))) <= lost
     why = {int(i): r for i, r in zip(run.frame_index, run.reason)}
     assert why[10].startswith("height signal disagrees with the picture: it reads 300.000 mm")
-    assert reason_kind(why[10]).startswith("height signal disagrees with the picture: it reads # mm")
+    assert reason_kind(why[10]) == "height signal disagrees with the picture"
 
 
 def test_homography_6dof_holds_its_floor_plane_to_the_height_signal(bounce_seqs, tmp_path):
@@ -505,7 +505,7 @@ def test_homography_6dof_holds_its_floor_plane_to_the_height_signal(bounce_seqs,
         else:
             assert lost == [10]
             assert why[10].startswith("height signal disagrees with the floor plane: it reads 300.000 mm")
-            assert reason_kind(why[10]).startswith("height signal disagrees with the floor plane: it reads # mm")
+            assert reason_kind(why[10]) == "height signal disagrees with the floor plane"
 
 
 @pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
@@ -526,10 +526,7 @@ def test_a_height_signal_too_noisy_for_the_step_loses_it(tmp_path, name):
     noisy = [r for r in stated.reason if r.startswith("height signal too noisy for the step: 2.5 x 1.414 x its stated")]
     assert len(noisy) > 20
     assert "0.100 mm = 0.354 mm > bound 0.13" in noisy[0]
-    assert (
-        reason_kind(noisy[0])
-        == "height signal too noisy for the step: # x # x its stated noise # mm = # mm > bound # mm"
-    )
+    assert reason_kind(noisy[0]) == "height signal too noisy for the step"
     meta = json.loads((seq / "sequence.json").read_text())
     del meta["rig"]["height_noise_mm"]
     (seq / "sequence.json").write_text(json.dumps(meta))

@@ -267,9 +267,7 @@ def test_homography_6dof_reports_a_tilt_it_cannot_resolve_lost_not_wrong(tmp_pat
         assert all(r for s, r in zip(run.status[1:], run.reason[1:]) if s == "lost")
     assert list(runs[0.5].status[1:]) == ["ok"] * (len(poses) - 1), runs[0.5].reason
     assert any(r.startswith("imprecise homography: 4 blocks of its pairs disagree") for r in runs[0.25].reason)
-    assert any(
-        reason_kind(r).startswith("imprecise homography: # blocks of its pairs disagree") for r in runs[0.25].reason
-    )
+    assert any(reason_kind(r) == "imprecise homography" for r in runs[0.25].reason)
 
 
 def test_homography_6dof_refuses_a_tilt_under_the_rigs_own_lights(tmp_path):
