@@ -419,8 +419,8 @@ def _lost_reasons_section(rows: SequenceT[Mapping[str, Any]], rep: Report) -> No
     rep.heading("Lost frames by reason")
     rep.text(
         "Each estimator checks its own steps and reports a step lost, with the reason, instead of a wrong motion "
-        "(numbers in a reason are shown as #). Wrong ok: steps reported ok that are off by more than 0.05 mm + 2 % "
-        "of the true step or 0.3 degrees."
+        "(counted by the cause a reason names before a colon; numbers in a reason without one are shown as #). "
+        "Wrong ok: steps reported ok that are off by more than 0.05 mm + 2 % of the true step or 0.3 degrees."
     )
     cols = [("scene", "scene"), ("estimator", "estimator"), ("repetition", "rep")]
     cols += [(md.LOST_FRAMES.name, md.LOST_FRAMES.label), (md.WRONG_OK_STEPS.name, md.WRONG_OK_STEPS.label)]
