@@ -320,23 +320,24 @@ def height_signal_drift_problem(
     reported ('' where it may be): the signal drifts from the picture (ours, issue 14).
 
     A step of an estimator that takes its height change from the signal
-    (:func:`takes_height_change_from_signal`) carries that change and is converted at the reading.
-    A picture can check one step's reading only to about 1 % of the height
-    (:data:`HEIGHT_SIGNAL_MISREAD`: single frames misread it by up to 0.6 %), and a range sensor
-    creeping 0.5 mm a frame passed that check on every step: every step after the creep began was
-    reported ok and wrong (its height change 0.5 mm off against a bound of 0.13 mm), and the scale
-    with it (11 % end drift after 30 frames; 0.8 mm a frame, 17 %). A drift goes one way on every frame, a misread frame
-    does not: so the step is lost where the readings' change exceeds the picture's, the same way,
-    on at least two of the last :data:`HEIGHT_DRIFT_STEPS` steps (this one among them, the median
-    of their differences) by more than the bound ``bound_mm`` plus ``sigmas`` x the picture's
-    standard error (their median) plus what a picture may misread over several steps
-    (:data:`HEIGHT_DRIFT_MISREAD` of the height ``height_mm``), each difference less what the
-    picture may have read short of the change (it reads ``read_share`` of it,
-    :data:`PICTURE_HEIGHT_READ_SHARE`: on a bounce the same way for several frames). A creep
-    slower than about 0.4 mm a frame at 100 mm goes unseen. On the
-    12 renders with a range sensor of the motion suite (both sizes) and 20 more with dropouts,
-    tilt, rolling shutter or auto exposure, no honest run loses a step so (BENCHMARKS.md, "A
-    height signal that drifts").
+    (:func:`takes_height_change_from_signal`) carries that change and is converted at the reading;
+    homography-6dof refines its floor plane with the readings. A picture can check one step's
+    reading only to about 1 % of the height (:data:`HEIGHT_SIGNAL_MISREAD`: single frames misread
+    it by up to 0.6 %), and a range sensor creeping 0.5 mm a frame passed that check on every step:
+    every step after the creep began was reported ok and wrong (its height change 0.5 mm off against
+    a bound of 0.13 mm), and the scale with it (11 % end drift after 30 frames).
+
+    A drift goes one way on every frame, a misread frame does not. So the step is lost where the
+    readings' change exceeds the picture's, the same way, on at least two of the last
+    :data:`HEIGHT_DRIFT_STEPS` steps (this one among them: the median of their differences), by
+    more than the bound ``bound_mm`` plus ``sigmas`` x the standard error (their median) plus what
+    a picture may misread over several steps (:data:`HEIGHT_DRIFT_MISREAD` of the height
+    ``height_mm``). Each difference is first reduced by what the picture may have read short of
+    the change: it reads ``read_share`` of it (:data:`PICTURE_HEIGHT_READ_SHARE`), on a bounce the
+    same way for several frames. A creep slower than about 0.4 mm a frame at 100 mm goes unseen. On
+    the 12 renders with a range sensor of the motion suite (both sizes) and 20 more with dropouts,
+    tilt, rolling shutter or auto exposure, no honest run loses a step it had kept
+    (BENCHMARKS.md, "A height signal that drifts").
 
     A step whose readings lie further from the picture than one frame may misread
     (:data:`HEIGHT_SIGNAL_MISREAD` of the height plus the bound) is not recorded: the one-frame
