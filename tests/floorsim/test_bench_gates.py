@@ -126,6 +126,7 @@ def test_malformed_baselines_are_refused_in_one_line(tmp_path):
     _refused(tmp_path, _baseline({}, entries), "tolerances: empty")
     _refused(tmp_path, {k: v for k, v in _baseline(TOL, entries).items() if k != "tolerances"}, "tolerances: missing")
     _refused(tmp_path, {**_baseline(TOL, entries), "tolerances": None}, "tolerances = null")
+    _refused(tmp_path, {k: v for k, v in _baseline(TOL, entries).items() if k != "entries"}, "entries: missing")
     _refused(tmp_path, _baseline(TOL, {}), "entries: empty")
     _refused(tmp_path, _baseline(TOL, [["s/e", {"end_drift_pct": 1.0}]]), "entries = [[", "must be a table")
     # values that are text, lists, NaN, or an entry that is a number
