@@ -537,7 +537,9 @@ def calibration_use_problems(
                 continue
             differ = sorted(k for k in set(fitted) | set(config) if fitted.get(k) != config.get(k))
             if differ:
-                shown_keys = ", ".join(f"{k} = {fitted.get(k)!r} there, {config.get(k)!r} here" for k in differ[:3])
+                shown_keys = ", ".join(
+                    f"{k} = {shown(fitted.get(k))} there, {shown(config.get(k))} here" for k in differ[:3]
+                )
                 more = f" and {len(differ) - 3} more" if len(differ) > 3 else ""
                 problems.append(
                     f"the scale calibration was fitted on a run of another estimator config ({run}: {shown_keys}{more})"

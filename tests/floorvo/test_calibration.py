@@ -141,6 +141,9 @@ def test_a_run_on_the_calibrations_own_sequence_or_with_another_config_says_so(t
     assert problems(test_seq, "separate") == []
     other = problems(test_seq, "other-config", "--set", "iterations=3")
     assert len(other) == 1 and "another estimator config" in other[0] and "iterations = 2 there, 3 here" in other[0]
+    # a boolean named as the config files spell it, not True/False
+    other = problems(test_seq, "other-bool", "--set", "predict=false")
+    assert len(other) == 1 and "predict = true there, false here" in other[0], other
     # A copy of the sequence it was fitted on is that sequence (its path was all that was compared);
     # a copy whose frames have changed since is another.
     import shutil
