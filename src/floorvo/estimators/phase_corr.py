@@ -1068,9 +1068,10 @@ class PhaseCorr:
         (:meth:`_height_changed`: 9.2 for four blocks) and divided by the share of a change the
         picture reads under the rig's lights (:data:`floorvo.estimators.base.PICTURE_HEIGHT_READ_SHARE`),
         exceeds issue 14's bound. As the paper's rigid AKAZE checks its steps
-        (``check_height_change``); on the full-size vinyl bounce phase-corr so had reported 5 of
-        40 steps ok and wrong, each 0.8 mm off along the optical axis, and with the range sensor's
-        dropouts the frames without a reading likewise."""
+        (``check_height_change``); on the motion suite's full-size 2 mm bounces phase-corr so had
+        reported 35-37 of 40 steps ok and wrong, each up to 0.8 mm off along the optical axis, and
+        with a range sensor's dropouts the frames without a reading likewise (BENCHMARKS.md,
+        "phase-corr at the rig height")."""
         if self.config.fit_image_scale or self.config.precision_sigmas <= 0.0:
             return ""
         if h_signal is not None and state.height_read:
