@@ -112,3 +112,28 @@ def test_drift_sources_chains_each_step_in_the_frame_before():
     # a sideways step in the turned frame: (0, 5) after a 90-degree turn points along -x
     side = drift.chained_end_mm(np.array([np.pi / 2, 0.0]), np.array([[10.0, 0.0], [0.0, 5.0]]))
     assert np.allclose(side, [5.0, 0.0], atol=1e-12)
+
+
+def test_height_creep_copies_a_sequence_with_its_readings_creeping_from_a_frame(tmp_path):
+    """benchmarks/height_creep.py's copy: frame ``from_frame`` reads ``rate`` more, the next twice
+    that, the frames before and a missing reading as they were (hand computation); the copy is a
+    sequence of the same frames, its camera folder linked."""
+    from floorvo.camera import CameraModel
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.sequence import Sequence, SequenceWriter, read_height_csv
+    from floorvo.synthetic import write_synthetic_sequence
+
+    creep = _load("height_creep")
+    cam = CameraModel.from_sensor(64, 48, pixel_pitch_um=14.8, focal_length_mm=6.0)
+    poses = np.stack([T_world_cam_down(2.0 * i, 0.0, 100.0) for i in range(6)])
+    seq = write_synthetic_sequence(tmp_path / "seq", cam, poses, height_noise_mm=0.0)
+    h = read_height_csv(seq / "height.csv")
+    h[4] = np.nan
+    meta = {k: v for k, v in Sequence.open(seq).meta.items() if k not in ("schema_version", "format")}
+    with SequenceWriter(seq, meta) as w:
+        w.write_heights(h)
+    copy = creep.creeping_copy(seq, tmp_path / "copy", 0.5, 3)
+    got = read_height_csv(copy / "height.csv")
+    expected = h + np.array([0.0, 0.0, 0.0, 0.5, 1.0, 1.5])
+    assert np.allclose(got[:4], expected[:4]) and np.isnan(got[4]) and got[5] == pytest.approx(expected[5])
+    assert (copy / "cam0").is_symlink() and Sequence.open(copy).frame_count == 6
