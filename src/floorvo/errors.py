@@ -39,11 +39,7 @@ def shown(value: Any, limit: int = MAX_SHOWN_CHARS) -> str:
     JSON's and TOML's words, not Python's), anything else as ``str``; cut to ``limit`` characters
     with an ellipsis (a 100,000-character value must not become a 100,000-character message
     line), newlines escaped (one line)."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        text = shown_number(value)
-    else:
-        text = _spelled(value)
-    return shorten(text, limit)
+    return shorten(_spelled(value), limit)
 
 
 #: The largest magnitude :func:`shown_number` writes a float as its format asks; beyond it, in exponent form.

@@ -668,12 +668,20 @@ class _AkazeBase:
         measured: following such a scale made the height a random walk on level runs
         (BENCHMARKS.md, "A fitted image scale"; phase-corr's blocks likewise: "phase-corr: the
         camera height only where the image scale shows it")."""
-        k = _image_scale(M)
         if len(s) < 4:
             return True
-        _, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
+        k, _, sig_rad = self._similarity_precision(M, s, d)
         limit = t_sigmas(self.config.image_scale_min_sigmas, 2 * len(s) - 4)  # the similarity's 4 parameters
         return not abs(k - 1.0) <= limit * k * sig_rad
+
+    def _similarity_precision(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> tuple[float, float, float]:
+        """The image scale of the similarity ``M`` (``M[:2, :2]`` = scale R) fitted to the pairs
+        ``s -> d`` (K, 2) px, and the fit's standard errors from its residuals
+        (:func:`floorvo.geometry.rigid_fit_precision`): its displacement at the principal point
+        (px) and its rotation (rad), which is also the scale's relative error."""
+        k = _image_scale(M)
+        sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
+        return k, sig_px, sig_rad
 
     def _similarity_precision_problem(self, M: np.ndarray, s: np.ndarray, d: np.ndarray) -> str:
         """:meth:`_precision_problem` of a fit whose image scale was fitted too (``M[:2, :2]`` =
@@ -683,8 +691,7 @@ class _AkazeBase:
         reports (``h sigma_scale`` along the optical axis), which adds to the displacement's."""
         if self.config.precision_sigmas <= 0.0 or len(s) < 4:
             return ""
-        k = _image_scale(M)
-        sig_px, sig_rad = rigid_fit_precision(s - self.centre, d - self.centre, M[:2, :2] / k, M[:2, 2], scale=k)
+        _, sig_px, sig_rad = self._similarity_precision(M, s, d)
         sig_height_px = self.height_mm * sig_rad / self.camera.gsd_mm_per_px(self.height_mm)
         return self._bound_problem(M, float(np.hypot(sig_px, sig_height_px)), sig_rad)
 
@@ -900,8 +907,8 @@ class _AkazeBase:
         frame's, is not to be reported ('' where it may be): the height signal drifts from the
         picture over the last steps (:func:`floorvo.estimators.base.height_signal_drift_problem`).
         The fit holds the pairs to the image scale the readings give (:meth:`_scale_ratio`), so the
-        picture's scale is the least-squares similarity of the same pairs (Umeyama's closed form),
-        its standard error the rotation's (:func:`floorvo.geometry.rigid_fit_precision`); the
+        picture's scale is the least-squares similarity of the same pairs (:meth:`_rigid_px`,
+        Umeyama's closed form), its standard error the rotation's (:meth:`_similarity_precision`); the
         picture's rise is ``h_prev / k - h_prev``. Only a step whose height change the readings
         give joins the record."""
         if fit.M is None or len(fit.src) < 4 or not self._height_read_now(state, frame):
@@ -909,9 +916,9 @@ class _AkazeBase:
         h_prev = state.height_mm or self.height_mm
         h_read = self._frame_height(frame)
         assert h_read is not None
-        src, dst = fit.src - self.centre, fit.dst - self.centre
-        R, t, k = umeyama(src, dst, with_scale=True)
-        _, sig_rad = rigid_fit_precision(src, dst, R, t, scale=k)
+        # the similarity of the pairs: _AkazeBase's, also for homography-6dof, whose _rigid_px fits a homography
+        similarity = _AkazeBase._rigid_px(self, fit.src, fit.dst, scale=None)
+        k, _, sig_rad = self._similarity_precision(similarity, fit.src, fit.dst)
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
         return height_signal_drift_problem(
             state.height_drift,

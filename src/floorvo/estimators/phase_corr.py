@@ -412,6 +412,8 @@ class _Layout:
         self.image_scale_window_limits = [
             f_sigmas(config.image_scale_min_sigmas, n, n * dof) for n in range(1, max(config.image_scale_window, 1) + 1)
         ]
+        #: The one-frame limit in standard errors (9.2 for four blocks): what one frame's scale may misread.
+        self.one_frame_sigmas = float(np.sqrt(self.image_scale_window_limits[0]))
 
     def blocks(self, crop: np.ndarray, low_only: bool = False) -> np.ndarray:
         """The spectra (grid * grid, n, n // 2 + 1) of the blocks of ``crop`` (the estimator's whole
@@ -1033,9 +1035,7 @@ class PhaseCorr:
             return ""
         s, sig_h_mm = m.similarity_scale, rise[1]
         h_img = h_prev / s
-        misread_mm = max(
-            float(np.sqrt(m.layout.image_scale_window_limits[0])) * sig_h_mm, HEIGHT_SIGNAL_MISREAD * h_prev
-        )
+        misread_mm = max(m.layout.one_frame_sigmas * sig_h_mm, HEIGHT_SIGNAL_MISREAD * h_prev)
         off_mm = abs(h_meas - h_img) - misread_mm
         bound_mm = self.config.bound_mm(m.step_mm)
         if off_mm > bound_mm:
@@ -1081,7 +1081,7 @@ class PhaseCorr:
             return ""
         s = m.similarity_scale
         rise_mm, sig_mm = rise
-        k = float(np.sqrt(m.layout.image_scale_window_limits[0]))
+        k = m.layout.one_frame_sigmas
         least_mm = (abs(rise_mm) - k * sig_mm) / PICTURE_HEIGHT_READ_SHARE
         bound_mm = self.config.bound_mm(m.step_mm)
         if least_mm > bound_mm:
