@@ -42,6 +42,7 @@ from floorvo.geometry import attitude_of_T
 from floorvo.io import atomic_write_csv, atomic_write_json, checked_output_path, code_sha256, read_json, read_text
 from floorvo.locking import locks_folder
 from floorvo.sequence import SequenceWriter
+from floorvo.sequence_meta import ROW_TIME_CONVENTION
 
 __all__ = [
     "render_sequence",
@@ -615,7 +616,7 @@ def _sensor_meta(scene: Scene) -> dict | None:
     block = {
         "shutter": "rolling" if ss.readout_ms > 0 else "global",
         "readout_ms": ss.readout_ms,
-        "row_time": "t_frame + (r - (height_px - 1) / 2) * readout_ms / (height_px - 1)",
+        "row_time": ROW_TIME_CONVENTION,
         "groundtruth_row": (h - 1) / 2.0,
         "exposure_mode": ss.exposure_mode,
         "exposure_file": EXPOSURE_FILE if ss.exposure_mode == "auto" else None,

@@ -86,7 +86,13 @@ from floorvo.io import (
 )
 from floorvo.locking import LOCK_FILE, lock_folder
 from floorvo.metrics import associate
-from floorvo.sequence_meta import READABLE_SCHEMA_VERSIONS, SCHEMA_VERSION, check_sequence_meta, stable_meta
+from floorvo.sequence_meta import (
+    READABLE_SCHEMA_VERSIONS,
+    SCHEMA_VERSION,
+    check_sequence_meta,
+    rolling_row_offsets_s,
+    stable_meta,
+)
 from floorvo.tum import MAX_TIME_S, read_tum, time_problem, write_tum
 
 __all__ = [
@@ -686,6 +692,17 @@ class Sequence:
         rig = self.meta.get("rig") or {}
         P = rig.get("led_positions_cam_mm")
         return None if not P else np.asarray(P, dtype=float).reshape(-1, 3)
+
+    @property
+    def row_time_s(self) -> float:
+        """The time (s) between the exposures of two neighbouring rows of cam0 under a rolling
+        shutter (``sensor.readout_ms`` over the rows less one: ``sequence.json``'s
+        ``sensor.row_time``, :func:`floorvo.sequence_meta.rolling_row_offsets_s`); 0 for a
+        global shutter or a sequence that states none."""
+        sensor = self.meta.get("sensor") or {}  # validated on opening (SensorBlock)
+        readout_ms = float(sensor.get("readout_ms") or 0.0) if sensor.get("shutter") == "rolling" else 0.0
+        offsets_s = rolling_row_offsets_s(self.camera.height_px, readout_ms)
+        return float(offsets_s[1] - offsets_s[0]) if len(offsets_s) > 1 else 0.0
 
     @property
     def frame_count(self) -> int:

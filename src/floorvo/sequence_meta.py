@@ -174,6 +174,11 @@ class SensorBlock(Config):
         return rolling_row_offsets_s(height_px, self.readout_ms if self.shutter == "rolling" else 0.0)
 
 
+#: ``sensor.row_time`` of a sequence taken by a rolling shutter: when row r is exposed
+#: (:func:`rolling_row_offsets_s`).
+ROW_TIME_CONVENTION = "t_frame + (r - (height_px - 1) / 2) * readout_ms / (height_px - 1)"
+
+
 def rolling_row_offsets_s(height_px: int, readout_ms: float) -> np.ndarray:
     """(H,) exposure time of each image row relative to the frame time (s), for a rolling shutter.
 

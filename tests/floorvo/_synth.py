@@ -67,6 +67,44 @@ def frames_along(
     return out, flat
 
 
+def rolling_frames_along(
+    camera: CameraModel,
+    pose_at,
+    times_s: np.ndarray,
+    row_time_s: float,
+    height_mm: float = 100.0,
+    seed: int = 0,
+    noise_dn: float = 1.0,
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """(uint8 frames, flatfield uint16) as :func:`frames_along`, taken by a rolling shutter: row
+    ``r`` of the frame at ``t`` shows the floor from ``pose_at(t + (r - (H - 1) / 2) row_time_s)``
+    (``T_world_cam``, mm; ``sequence.json``'s ``sensor.row_time``). Each row is sampled through
+    its own pose's pixel motion, exactly (one map per frame, bicubic)."""
+    size = int(2.2 * max(camera.width_px, camera.height_px))
+    tex = floor_texture(size, seed)
+    fall = falloff(camera)
+    rng = np.random.default_rng(seed + 1)
+    c_tex = (size - 1) / 2
+    rows = np.arange(camera.height_px, dtype=float)
+    u = np.arange(camera.width_px, dtype=float) - camera.cx_px
+    T0_inv = invert_T(pose_at(float(times_s[0])))
+    out = []
+    for t in times_s:
+        mx = np.empty((camera.height_px, camera.width_px), np.float32)
+        my = np.empty_like(mx)
+        for r in rows.astype(int):
+            T = pose_at(float(t) + (r - (camera.height_px - 1) / 2) * row_time_s)
+            Minv = np.linalg.inv(pixel_motion(T0_inv @ T, camera, height_mm))
+            v = r - camera.cy_px
+            mx[r] = Minv[0, 0] * u + Minv[0, 1] * v + Minv[0, 2] + c_tex
+            my[r] = Minv[1, 0] * u + Minv[1, 1] * v + Minv[1, 2] + c_tex
+        img = cv2.remap(tex, mx, my, cv2.INTER_CUBIC) * fall
+        img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
+        out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
+    flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
+    return out, flat
+
+
 def frame_pair(
     camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
 ):

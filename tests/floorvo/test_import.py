@@ -1121,3 +1121,25 @@ def test_a_folder_holding_frames_of_another_format_is_refused_not_read_without_t
     err = _one_line_error(capsys, ["import", str(src), "-o", str(tmp_path / "s"), *FLAGS, "--fps", "10"])
     assert "holds 3 image file(s) of a format not read as frames ('f0.pgm', ...)" in err
     assert not (tmp_path / "s").exists()
+
+
+def test_import_states_a_rolling_shutters_readout(tmp_path, synth, capsys):
+    """--readout-ms becomes sequence.json's sensor block (a rolling shutter), whose row time the
+    estimators undo; a readout longer than a frame interval, or negative, is refused in one line
+    before anything is written."""
+    _, frames, _ = synth
+    src = tmp_path / "frames"
+    src.mkdir()
+    for i, img in enumerate(frames):
+        cv2.imwrite(str(src / f"f{i:02d}.png"), img)
+    argv = ["import", str(src), "-o", str(tmp_path / "imp"), *FLAGS, "--height-mm", "100", "--fps", "30"]
+    assert main([*argv, "--readout-ms", "15"]) == 0
+    seq = Sequence.open(tmp_path / "imp")
+    assert seq.meta["sensor"]["shutter"] == "rolling" and seq.meta["sensor"]["readout_ms"] == 15.0
+    assert seq.row_time_s == pytest.approx(0.015 / (seq.camera.height_px - 1))
+    assert main([*argv[:3], str(tmp_path / "global"), *argv[4:]]) == 0
+    assert Sequence.open(tmp_path / "global").row_time_s == 0.0
+    for bad in ("40", "-1"):
+        err = _one_line_error(capsys, [*argv[:3], str(tmp_path / "bad"), *argv[4:], "--readout-ms", bad])
+        assert f"--readout-ms = {float(bad)}: must be a rolling shutter's readout in ms, 0 to the shortest frame" in err
+    assert not (tmp_path / "bad").exists()

@@ -66,6 +66,14 @@ def add_parser(sub) -> None:
         "rig.height_noise_mm): steps it leaves uncertain are lost",
     )
     p.add_argument(
+        "--readout-ms",
+        type=float,
+        default=None,
+        metavar="MS",
+        help="a rolling shutter's readout, first row to last, ms (sequence.json's sensor.readout_ms; the frame "
+        "times are taken as the centre row's): the AKAZE estimators and phase-corr undo it in each step",
+    )
+    p.add_argument(
         "--attitude-file",
         metavar="FILE",
         default=None,
@@ -125,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         flatfield=None if args.flatfield is None else Path(args.flatfield),
         height_signal_mm=None if args.height_file is None else read_height_csv(args.height_file),
         height_noise_mm=args.height_noise_mm,
+        readout_ms=args.readout_ms,
         attitude_signal_rad=None if args.attitude_file is None else read_attitude_csv(args.attitude_file),
         topics=parse_topics(args.topic),
         left_only=args.left_only,

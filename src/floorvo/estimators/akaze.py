@@ -94,6 +94,7 @@ from floorvo.geometry import (
     plane_homography_motion,
     rigid_fit,
     rigid_fit_precision,
+    rolling_shutter_undone,
     rot_z,
     t_sigmas,
     tilt_change_rad,
@@ -246,6 +247,13 @@ class AkazeConfig(StepBoundConfig):
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
     )
+    undo_rolling_shutter: bool = param(
+        True,
+        doc="in a sequence taken by a rolling shutter (sequence.json's sensor.readout_ms), each pair of the step "
+        "is moved to where global shutters at the two frame times see it, at the pair's own image velocity "
+        "(floorvo.geometry.rolling_shutter_undone): a step along the rows reads long by its rows times the "
+        "row time over the frame interval",
+    )
     use_attitude_signal: bool = param(
         True,
         doc="in a sequence with attitude.csv (an IMU's roll and pitch), each frame's keypoints are levelled with its "
@@ -370,10 +378,20 @@ class _AkazeBase:
     fits_own_scale: bool = False
 
     def __init__(
-        self, config: AkazeConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
+        self,
+        config: AkazeConfig,
+        camera: CameraModel,
+        *,
+        height_mm: float,
+        flatfield: np.ndarray | None = None,
+        row_time_s: float = 0.0,
+        **rig,
     ):
         self.config = config
         self.camera = camera
+        # A rolling shutter's time between neighbouring rows (s; 0: a global shutter), undone in
+        # each step's pairs (:meth:`_shutter_undone`).
+        self.row_time_s = float(row_time_s) if config.undo_rolling_shutter else 0.0
         # The camera's ideal pinhole (the same K, no distortion): the keypoints are matched and
         # fitted in its pixels (:meth:`_levelled`), where the floor's motion is the rigid (or
         # similarity) image motion the fit and its checks assume. In a distorted lens's own
@@ -810,12 +828,29 @@ class _AkazeBase:
         """
         h_prev = self._height_from(state, fit, frame)
         h_cur = self._height_after(state, fit, frame) or self.height_mm
-        q_prev = pixels_to_floor_mm(fit.src, self.pinhole, h_prev)  # the pairs are the pinhole's (_levelled)
-        q_cur = pixels_to_floor_mm(fit.dst, self.pinhole, h_cur)
+        src, dst = self._shutter_undone(state, fit, frame)
+        q_prev = pixels_to_floor_mm(src, self.pinhole, h_prev)  # the pairs are the pinhole's (_levelled)
+        q_cur = pixels_to_floor_mm(dst, self.pinhole, h_cur)
         R2, t2_mm = rigid_fit(q_prev, q_cur)
         T = floor_rigid_to_T(R2, t2_mm)
         T[2, 3] = h_prev - h_cur  # the camera rose by h_cur - h_prev: its z axis points down
         return T, ""
+
+    def _shutter_undone(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        """The fit's pairs ``fit.src -> fit.dst`` (K, 2) px as global shutters at the reference's and
+        the frame's times see them (:func:`floorvo.geometry.rolling_shutter_undone`; as they are
+        under a global shutter). The rows are the ideal pinhole's, which the pairs are in
+        (:meth:`_levelled`): a distorted lens's or a levelled frame's rows differ from the
+        sensor's by a few px, a share of a per cent of a step's correction. The fit itself, and
+        the prediction the next frame is matched with, stay in the frames' own pixels, where
+        the readout's shear is the same from frame to frame."""
+        return rolling_shutter_undone(
+            fit.src,
+            fit.dst,
+            interval_s=float(frame.timestamp_s) - state.t_ref_s,
+            row_time_s=self.row_time_s,
+            mid_row_px=(self.camera.height_px - 1) / 2.0,
+        )
 
     def _height_change_problem(
         self, state: _State, fit: _Fit, frame: Frame, attitude: tuple[float, float] | None

@@ -244,8 +244,9 @@ class HomographySixDof(_AkazeBase):
     def _motion(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray | None, str]:
         cfg = self.config
         assert state.plane is not None  # set on the first frame
-        x_prev = self.pinhole.unproject(fit.src, 1.0)[:, :2]  # the pairs are the pinhole's (_levelled)
-        x_cur = self.pinhole.unproject(fit.dst, 1.0)[:, :2]
+        src, dst = self._shutter_undone(state, fit, frame)
+        x_prev = self.pinhole.unproject(src, 1.0)[:, :2]  # the pairs are the pinhole's (_levelled)
+        x_cur = self.pinhole.unproject(dst, 1.0)[:, :2]
         f = float(np.sqrt(self.camera.fx_px * self.camera.fy_px))
         if len(x_prev) < cfg.min_homography_inliers:
             return None, f"too few pairs for the floor homography ({len(x_prev)} < {cfg.min_homography_inliers})"

@@ -90,8 +90,10 @@ from floorvo.geometry import (
     motion_over_time,
     per_interval_px,
     pixel_rigid_to_floor,
+    rigid_fit,
     rigid_fit_2d_information,
     rigid_fit_precision,
+    rolling_shutter_undone,
     similarity_fit_2d,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, impulses_replaced
@@ -184,6 +186,13 @@ class PhaseCorrConfig(StepBoundConfig):
     )
     use_height_signal: bool = param(
         True, doc="convert pixels to mm at the frame's measured camera height when it has one (else the rig's)"
+    )
+    undo_rolling_shutter: bool = param(
+        True,
+        doc="in a sequence taken by a rolling shutter (sequence.json's sensor.readout_ms), the step is moved to "
+        "what global shutters at the two frame times see, at its own image velocity "
+        "(floorvo.geometry.rolling_shutter_undone): a step along the rows reads long by its rows times the row "
+        "time over the frame interval",
     )
     use_attitude_signal: bool = param(
         True,
@@ -596,6 +605,7 @@ class PhaseCorr:
         *,
         height_mm: float,
         flatfield: np.ndarray | None = None,
+        row_time_s: float = 0.0,
         **rig,
     ):
         self.config = config
@@ -685,6 +695,11 @@ class PhaseCorr:
         self.crop_corners_centred = (
             np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=float) * self.crop + self.crop_from_centre
         )
+        # A rolling shutter (:meth:`_shutter_undone`): the time between neighbouring rows of the
+        # grid (s; 0: a global shutter), and the centre row, exposed at the frame time, in the
+        # grid's centred px (a binned row k spans the frame's rows k r .. k r + k - 1).
+        self.row_time_grid_s = float(row_time_s) * k if config.undo_rolling_shutter else 0.0
+        self.mid_row_centred = ((camera.height_px - 1) / 2.0 + 0.5) / k - 0.5 - gc.cy_px
 
     @property
     def yaw_floor_deg(self) -> float:
@@ -936,7 +951,8 @@ class PhaseCorr:
         # when the frame has one, or the one its image scale gives, else the rig's); the step
         # carries the height change.
         h_cur = h_meas or self.height_mm
-        R2, t2_mm = pixel_rigid_to_floor(M[:2, :2], M[:2, 2], self.grid_cam, h_cur, centred=True)
+        M_floor = self._shutter_undone(M, float(frame.timestamp_s) - state.t_ref_s)
+        R2, t2_mm = pixel_rigid_to_floor(M_floor[:2, :2], M_floor[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         T[2, 3] = h_from - h_cur  # the camera rose by h_cur - h_from: its z axis points down
         # The next frame is predicted from the motion per frame: a step measured across lost
@@ -958,6 +974,30 @@ class PhaseCorr:
     def _frame_height(self, frame: Frame) -> float | None:
         """The frame's measured camera height (mm) when it has one and ``use_height_signal``, else None."""
         return frame_height_mm(frame, self.config.use_height_signal)
+
+    def _shutter_undone(self, M: np.ndarray, interval_s: float) -> np.ndarray:
+        """The step ``M`` (3x3, prev-centred grid px -> cur-centred grid px; ``M[:2, :2]`` = scale R)
+        measured over ``interval_s`` by a rolling shutter, as global shutters at the two frame
+        times see it (``M`` itself under a global shutter): the crop's corners carried by ``M``
+        are moved as :func:`floorvo.geometry.rolling_shutter_undone` moves a pair, and the
+        rigid motion at ``M``'s image scale fitted to them. The measurement, its checks and the
+        next frame's prediction stay in the frames' own pixels, where the readout's shear is the
+        same from frame to frame; only the step reported is the global shutter's."""
+        if self.row_time_grid_s == 0.0:
+            return M
+        corners = self.crop_corners_centred
+        src, dst = rolling_shutter_undone(
+            corners,
+            corners @ M[:2, :2].T + M[:2, 2],
+            interval_s=interval_s,
+            row_time_s=self.row_time_grid_s,
+            mid_row_px=self.mid_row_centred,
+        )
+        scale = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
+        R, t = rigid_fit(scale * src, dst)
+        out = np.eye(3)
+        out[:2, :2], out[:2, 2] = scale * R, t
+        return out
 
     @staticmethod
     def _interval_s(state: _State, frame: Frame) -> float:

@@ -35,7 +35,7 @@ from floorvo.sequence import (
     check_heights,
     check_timestamps,
 )
-from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ
+from floorvo.sequence_meta import MAX_FPS_HZ, MIN_FPS_HZ, ROW_TIME_CONVENTION
 
 __all__ = [
     "FrameImages",
@@ -156,6 +156,10 @@ class ImportOptions:
         written to ``height.csv`` (one per frame). ``height_noise_mm``: the standard deviation of
         each of its readings (a range sensor's datasheet figure), written as
         ``rig.height_noise_mm``; the runner loses the steps it leaves uncertain.
+    readout_ms:
+        A rolling shutter's readout time, first row to last (ms), written as ``sensor.readout_ms``
+        (:class:`floorvo.sequence_meta.SensorBlock`: the frame's time is its centre row's); at
+        most the shortest frame interval. None: a global shutter.
     attitude_signal_rad:
         Per-frame camera roll and pitch against gravity (rad, a row of NaN where none) from an
         IMU, (frame_count, 2), written to ``attitude.csv`` (:mod:`floorvo.sequence` defines the angles).
@@ -181,6 +185,7 @@ class ImportOptions:
     flatfield: Path | None = None
     height_signal_mm: np.ndarray | None = None
     height_noise_mm: float | None = None
+    readout_ms: float | None = None
     attitude_signal_rad: np.ndarray | None = None
     topics: dict[str, str] = field(default_factory=dict)
     left_only: bool = False
@@ -436,6 +441,19 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             )
     if heights is not None and height_noise is not None:
         meta["rig"]["height_noise_mm"] = float(height_noise)
+    if opts.readout_ms is not None:
+        shortest_ms = 1000.0 * float(np.min(np.diff(ts))) if n > 1 else float("inf")
+        if not 0.0 <= opts.readout_ms <= shortest_ms:
+            raise ConfigError(
+                f"--readout-ms = {shown_number(opts.readout_ms)}: must be a rolling shutter's readout in ms, 0 to "
+                f"the shortest frame interval ({shortest_ms:.3f} ms): a row is read once a frame"
+            )
+        if opts.readout_ms > 0.0:
+            meta["sensor"] = {
+                "shutter": "rolling",
+                "readout_ms": float(opts.readout_ms),
+                "row_time": ROW_TIME_CONVENTION,
+            }
     attitude = opts.attitude_signal_rad if opts.attitude_signal_rad is not None else rec.attitude_signal_rad
     if attitude is not None:
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"

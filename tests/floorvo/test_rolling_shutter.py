@@ -1,0 +1,161 @@
+"""A rolling shutter's readout, undone in the steps (floorvo.geometry.rolling_shutter_undone).
+
+Independent truth: points moved at a known image velocity and seen row by row (solved in
+closed form), and frames whose every row is drawn from the pose at that row's time
+(``_synth.rolling_frames_along``), scored against the poses at the frame times.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _synth import blank_meta, rolling_frames_along
+
+from floorvo.camera import CameraModel
+from floorvo.geometry import T_world_cam_down, invert_T, rolling_shutter_undone, yaw_of_R
+from floorvo.run import build_estimator
+from floorvo.runner import run_sequence
+from floorvo.sequence import Sequence, SequenceWriter
+
+CAM = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)  # GSD 0.1233 mm at 100 mm
+READOUT_MS = 15.0
+ROW_TIME_S = READOUT_MS / 1000.0 / (CAM.height_px - 1)
+FPS = 30.0
+
+
+def _seen_by_rows(q0: np.ndarray, v_px_s: np.ndarray, t_s: float, row_time_s: float, mid: float) -> np.ndarray:
+    """Where a rolling shutter at frame time ``t_s`` sees points at ``q0 + v t`` (px): the row ``y``
+    it sees a point on is exposed at ``t_s + (y - mid) row_time_s``, so
+    ``y = q0_y + v_y (t_s + (y - mid) row_time_s)``, solved for ``y``."""
+    y = (q0[:, 1] + v_px_s[1] * (t_s - mid * row_time_s)) / (1.0 - v_px_s[1] * row_time_s)
+    t_row = t_s + (y - mid) * row_time_s
+    return np.column_stack([q0[:, 0] + v_px_s[0] * t_row, y])
+
+
+def test_rolling_shutter_undone_is_exact_for_a_translation():
+    rng = np.random.default_rng(3)
+    q0 = rng.uniform([0, 0], [648, 494], (50, 2))
+    v = np.array([400.0, 975.0])  # px/s: 32.5 px a frame along the rows at 30 frames/s
+    mid = 246.5
+    src = _seen_by_rows(q0, v, 0.0, ROW_TIME_S, mid)
+    dst = _seen_by_rows(q0, v, 1 / FPS, ROW_TIME_S, mid)
+    # as seen, every pair moved by (1 + dy row_time / interval) of the step: 2.9 % long
+    assert np.allclose((dst - src) / (v / FPS), 1.0 + (dst - src)[:, 1:] * ROW_TIME_S * FPS)
+    assert np.mean(np.linalg.norm(dst - src, axis=1)) / np.linalg.norm(v / FPS) > 1.025
+    a, b = rolling_shutter_undone(src, dst, interval_s=1 / FPS, row_time_s=ROW_TIME_S, mid_row_px=mid)
+    np.testing.assert_allclose(a, q0, atol=1e-9)  # where global shutters at the frame times see them
+    np.testing.assert_allclose(b, q0 + v / FPS, atol=1e-9)
+    # a global shutter: the pairs as they are
+    a, b = rolling_shutter_undone(src, dst, interval_s=1 / FPS, row_time_s=0.0, mid_row_px=mid)
+    assert a is not None and np.array_equal(a, src) and np.array_equal(b, dst)
+
+
+def _turning(p0: np.ndarray, centre: np.ndarray, rate_rad_s: float):
+    """The picture of a floor under a camera at a constant planar twist (an arc): every point turns
+    about one fixed point of the image at a constant rate. (N, 2) px at time t."""
+
+    def at(t: float) -> np.ndarray:
+        c, s = np.cos(rate_rad_s * t), np.sin(rate_rad_s * t)
+        return (p0 - centre) @ np.array([[c, -s], [s, c]]).T + centre
+
+    return at
+
+
+def _seen_row_by_row(at, n: int, t_frame: float, mid: float) -> np.ndarray:
+    """Where a rolling shutter at ``t_frame`` sees the ``n`` points ``at(t)``: each on the row ``y`` with
+    ``y = at(t_frame + (y - mid) row_time)_y`` (a fixed point, iterated)."""
+    y = at(t_frame)[:, 1]
+    for _ in range(60):
+        p = np.array([at(t_frame + (y[i] - mid) * ROW_TIME_S)[i] for i in range(n)])
+        y = p[:, 1]
+    return p
+
+
+@pytest.mark.parametrize("rate_deg_frame", [3.0, -1.0, 1e-7])
+def test_rolling_shutter_undone_on_an_arc(rate_deg_frame):
+    """An arc whose floor moves about 32 px a frame along the rows: the pairs as global shutters see them."""
+    rng = np.random.default_rng(4)
+    p0 = rng.uniform([0, 0], [648, 494], (60, 2))
+    rate = np.radians(rate_deg_frame) * FPS
+    centre = np.array([324.0 + 32.5 / np.radians(rate_deg_frame), 247.0])  # 32.5 px a frame at the centre
+    at = _turning(p0, centre, rate)
+    src, dst = _seen_row_by_row(at, len(p0), 0.0, 246.5), _seen_row_by_row(at, len(p0), 1 / FPS, 246.5)
+    err_seen = np.abs(dst - src - (at(1 / FPS) - at(0.0))).max()
+    a, b = rolling_shutter_undone(src, dst, interval_s=1 / FPS, row_time_s=ROW_TIME_S, mid_row_px=246.5)
+    assert err_seen > 0.8  # px
+    np.testing.assert_allclose(a, at(0.0), atol=2e-3)
+    np.testing.assert_allclose(b, at(1 / FPS), atol=2e-3)
+
+
+def _rolling_sequence(tmp_path, direction_rad: float, yaw_rate_deg_frame: float = 0.0, n: int = 6):
+    """A rolling-shutter sequence at 4 mm a frame along ``direction_rad`` from the camera's x axis
+    (its rows run along its y axis, world -y at yaw 0), turning by ``yaw_rate_deg_frame`` a frame
+    at a constant twist (an arc: the direction turns with the camera); its ground truth is the
+    poses at the frame times."""
+    speed = 4.0 * FPS
+    w = np.radians(yaw_rate_deg_frame) * FPS
+    v_world0 = speed * np.array([np.cos(direction_rad), -np.sin(direction_rad)])  # the camera's (x, y) in the world
+
+    def pose_at(t):
+        if w == 0.0:
+            xy = v_world0 * t
+        else:  # the integral of the velocity turned by w t
+            c, s = np.cos(w * t), np.sin(w * t)
+            xy = np.array([[s, c - 1.0], [1.0 - c, s]]) @ v_world0 / w
+        return T_world_cam_down(xy[0], xy[1], 100.0, w * t)
+
+    times = np.arange(n) / FPS
+    frames, flat = rolling_frames_along(CAM, pose_at, times, ROW_TIME_S, seed=5)
+    meta = blank_meta(CAM, n)
+    meta["sensor"] = {"shutter": "rolling", "readout_ms": READOUT_MS}
+    root = tmp_path / f"rs_{direction_rad:.2f}_{yaw_rate_deg_frame:.2f}"
+    with SequenceWriter(root, meta) as w_:
+        for i, img in enumerate(frames):
+            w_.write_frame(i, img)
+        w_.write_calib("cam0_flatfield", flat)
+        w_.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
+    return Sequence.open(root), np.stack([pose_at(t) for t in times])
+
+
+def _end_error(seq: Sequence, truth: np.ndarray, name: str, undo: bool) -> tuple[float, float, int]:
+    """(the end's translation error over the distance travelled, its yaw error in degrees, steps ok)."""
+    est, _ = build_estimator(seq, name, {"undo_rolling_shutter": str(undo).lower()})
+    run = run_sequence(seq, est, summary_warnings=False)
+    d = invert_T(truth[-1]) @ run.T_world_cam[-1]
+    travelled = float(np.linalg.norm(truth[-1][:3, 3] - truth[0][:3, 3]))
+    return (
+        float(np.linalg.norm(d[:2, 3])) / travelled,
+        float(np.degrees(abs(yaw_of_R(d[:3, :3])))),
+        int(np.sum(run.status == "ok")),
+    )
+
+
+def test_a_sequence_states_its_row_time(tmp_path):
+    seq, _ = _rolling_sequence(tmp_path, 0.0, n=2)
+    assert seq.row_time_s == pytest.approx(0.015 / 493)
+
+
+@pytest.mark.parametrize(
+    "name", ["phase-corr", "phase-corr-fast", "akaze-guided", "akaze-bruteforce-fast", "homography-6dof"]
+)
+def test_a_step_along_the_rows_is_not_read_long(tmp_path, name):
+    """4 mm a frame at 0.7 rad from the camera's x axis (20 px a frame along the rows): a 15 ms
+    readout makes every step 1.9 % long, in both components, unless the estimator undoes it."""
+    seq, truth = _rolling_sequence(tmp_path, 0.7)
+    off, _, ok_off = _end_error(seq, truth, name, undo=False)
+    on, _, ok_on = _end_error(seq, truth, name, undo=True)
+    assert ok_on == ok_off == 5
+    assert off > 0.015
+    assert on < 0.003
+
+
+@pytest.mark.parametrize("name", ["phase-corr", "akaze-guided"])
+def test_a_turn_under_a_rolling_shutter(tmp_path, name):
+    """Along the rows while turning 3 degrees a frame: the step's length and turn as a global
+    shutter's."""
+    seq, truth = _rolling_sequence(tmp_path, np.pi / 2, yaw_rate_deg_frame=3.0)
+    off, _, _ = _end_error(seq, truth, name, undo=False)
+    on, yaw_on, ok_on = _end_error(seq, truth, name, undo=True)
+    assert ok_on == 5
+    assert off > 0.02
+    assert on < 0.004 and yaw_on < 0.05
