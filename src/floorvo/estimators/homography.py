@@ -244,7 +244,7 @@ class HomographySixDof(_AkazeBase):
     def _motion(self, state: _State, fit: _Fit, frame: Frame) -> tuple[np.ndarray | None, str]:
         cfg = self.config
         assert state.plane is not None  # set on the first frame
-        src, dst = self._shutter_undone(state, fit, frame)
+        src, dst = fit.pairs_gs
         x_prev = self.pinhole.unproject(src, 1.0)[:, :2]  # the pairs are the pinhole's (_levelled)
         x_cur = self.pinhole.unproject(dst, 1.0)[:, :2]
         f = float(np.sqrt(self.camera.fx_px * self.camera.fy_px))
