@@ -137,3 +137,42 @@ def test_height_creep_copies_a_sequence_with_its_readings_creeping_from_a_frame(
     expected = h + np.array([0.0, 0.0, 0.0, 0.5, 1.0, 1.5])
     assert np.allclose(got[:4], expected[:4]) and np.isnan(got[4]) and got[5] == pytest.approx(expected[5])
     assert (copy / "cam0").is_symlink() and Sequence.open(copy).frame_count == 6
+
+
+def test_rolling_shutter_table_runs_a_pair_three_ways(tmp_path, capsys):
+    """benchmarks/rolling_shutter.py on a synthetic pair (4 mm a frame along the rows, 15 ms
+    readout): the global shutter's and the undone run's end drift are small, the run with the
+    readout left in reads the steps 3 % long (both from the ground truth, not from the script)."""
+    from floorvo.camera import CameraModel
+    from floorvo.geometry import T_world_cam_down
+    from floorvo.sequence import SequenceWriter
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent / "floorvo"))
+    try:
+        from _synth import blank_meta, rolling_frames_along
+    finally:
+        sys.path.pop(0)
+    rs = _load("rolling_shutter")
+    cam = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
+
+    def pose_at(t):
+        return T_world_cam_down(0.0, -120.0 * t, 100.0)
+
+    times = np.arange(5) / 30.0
+    seqs = {}
+    for name, readout_ms in (("global", 0.0), ("rolling", 15.0)):
+        frames, flat = rolling_frames_along(cam, pose_at, times, readout_ms / 1000.0 / (cam.height_px - 1), seed=2)
+        meta = blank_meta(cam, len(times))
+        if readout_ms:
+            meta["sensor"] = {"shutter": "rolling", "readout_ms": readout_ms}
+        with SequenceWriter(tmp_path / name, meta) as w:
+            for i, img in enumerate(frames):
+                w.write_frame(i, img)
+            w.write_calib("cam0_flatfield", flat)
+            w.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
+        seqs[name] = tmp_path / name
+    assert rs.main(["--pair", f"y4={seqs['global']},{seqs['rolling']}", "-o", str(tmp_path / "out"),
+                    "--estimators", "phase-corr"]) == 0  # fmt: skip
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("| y4 | phase-corr |"))
+    drifts = [float(cell.split(" / ")[2]) for cell in row.strip("| ").split(" | ")[2:]]
+    assert drifts[0] < 0.5 and drifts[2] < 0.5 and drifts[1] > 2.5

@@ -79,7 +79,8 @@ def rolling_frames_along(
     """(uint8 frames, flatfield uint16) as :func:`frames_along`, taken by a rolling shutter: row
     ``r`` of the frame at ``t`` shows the floor from ``pose_at(t + (r - (H - 1) / 2) row_time_s)``
     (``T_world_cam``, mm; ``sequence.json``'s ``sensor.row_time``). Each row is sampled through
-    its own pose's pixel motion, exactly (one map per frame, bicubic)."""
+    its own pose's pixel motion, exactly (one map per frame, bicubic): level poses, whose height
+    (``T[2, 3]``; ``height_mm`` the texture's scale) scales the view about the principal point."""
     size = int(2.2 * max(camera.width_px, camera.height_px))
     tex = floor_texture(size, seed)
     fall = falloff(camera)
@@ -95,9 +96,10 @@ def rolling_frames_along(
         for r in rows.astype(int):
             T = pose_at(float(t) + (r - (camera.height_px - 1) / 2) * row_time_s)
             Minv = np.linalg.inv(pixel_motion(T0_inv @ T, camera, height_mm))
-            v = r - camera.cy_px
-            mx[r] = Minv[0, 0] * u + Minv[0, 1] * v + Minv[0, 2] + c_tex
-            my[r] = Minv[1, 0] * u + Minv[1, 1] * v + Minv[1, 2] + c_tex
+            k = float(T[2, 3]) / height_mm  # a camera at another height sees the floor scaled about the centre
+            v = (r - camera.cy_px) * k
+            mx[r] = Minv[0, 0] * u * k + Minv[0, 1] * v + Minv[0, 2] + c_tex
+            my[r] = Minv[1, 0] * u * k + Minv[1, 1] * v + Minv[1, 2] + c_tex
         img = cv2.remap(tex, mx, my, cv2.INTER_CUBIC) * fall
         img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
         out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))

@@ -991,8 +991,8 @@ class PhaseCorr:
         have a global shutter): :meth:`_shutter_undone` moves the blocks at one velocity (a
         constant planar twist), and a turn that starts or ends between a frame's first and last
         rows breaks that. The blocks' pairs (``m.centres -> m.moved``, the readout undone) above
-        and below their median row are fitted apart (a rigid fit of each half: two blocks of the
-        default grid); the two motions' yaws and displacements at the principal point may differ
+        and below their median row are fitted apart (a rigid fit of each half at the blocks' image
+        scale: two blocks of the default grid; without the scale a bounce's halves moved apart); the two motions' yaws and displacements at the principal point may differ
         by issue 14's bound (``max_step_error_*``) plus ``precision_sigmas`` of the step's own
         standard errors. (The halves' fits of two blocks each leave one degree of freedom apiece,
         too few for a standard error of their own; the step's, from all the blocks, grows with
@@ -1013,7 +1013,8 @@ class PhaseCorr:
         upper = m.centres[:, 1] < np.median(m.centres[:, 1])
         if min(int(upper.sum()), int((~upper).sum())) < 2:
             return ""
-        (R1, t1), (R2, t2) = (rigid_fit(src[rows], dst[rows]) for rows in (upper, ~upper))
+        scale = m.similarity_scale  # the blocks' image scale (a height change), whatever fit_image_scale
+        (R1, t1), (R2, t2) = (rigid_fit(scale * src[rows], dst[rows]) for rows in (upper, ~upper))
         mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
         apart_mm = float(np.linalg.norm(t1 - t2)) * mm_per_px
         apart_deg = abs(float(np.degrees(np.arctan2(R1[1, 0], R1[0, 0]) - np.arctan2(R2[1, 0], R2[0, 0]))))
