@@ -75,13 +75,19 @@ def rolling_frames_along(
     height_mm: float = 100.0,
     seed: int = 0,
     noise_dn: float = 1.0,
+    T_cam0_cam: np.ndarray | None = None,
+    reach_mm: float = 0.0,
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """(uint8 frames, flatfield uint16) as :func:`frames_along`, taken by a rolling shutter: row
     ``r`` of the frame at ``t`` shows the floor from ``pose_at(t + (r - (H - 1) / 2) row_time_s)``
     (``T_world_cam``, mm; ``sequence.json``'s ``sensor.row_time``). Each row is sampled through
     its own pose's pixel motion, exactly (one map per frame, bicubic): level poses, whose height
-    (``T[2, 3]``; ``height_mm`` the texture's scale) scales the view about the principal point."""
-    size = int(2.2 * max(camera.width_px, camera.height_px))
+    (``T[2, 3]``; ``height_mm`` the texture's scale) scales the view about the principal point.
+    ``T_cam0_cam``: the frames of a second camera of the rig at that pose from ``pose_at``'s (a
+    stereo rig's right camera, its rows read out with the left's), over the same floor: give both
+    cameras the same ``reach_mm`` (the baseline), which widens the floor drawn for them."""
+    T01 = np.eye(4) if T_cam0_cam is None else np.asarray(T_cam0_cam, dtype=float)
+    size = int(2.2 * max(camera.width_px, camera.height_px)) + int(reach_mm * camera.fx_px / height_mm)
     tex = floor_texture(size, seed)
     fall = falloff(camera)
     rng = np.random.default_rng(seed + 1)
@@ -94,7 +100,7 @@ def rolling_frames_along(
         mx = np.empty((camera.height_px, camera.width_px), np.float32)
         my = np.empty_like(mx)
         for r in rows.astype(int):
-            T = pose_at(float(t) + (r - (camera.height_px - 1) / 2) * row_time_s)
+            T = pose_at(float(t) + (r - (camera.height_px - 1) / 2) * row_time_s) @ T01
             Minv = np.linalg.inv(pixel_motion(T0_inv @ T, camera, height_mm))
             k = float(T[2, 3]) / height_mm  # a camera at another height sees the floor scaled about the centre
             v = (r - camera.cy_px) * k

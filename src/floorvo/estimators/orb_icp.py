@@ -74,6 +74,7 @@ from floorvo.geometry import (
     floor_plane_step,
     make_T,
     rigid_fit_robust,
+    rolling_shutter_undone,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, to_uint8_contrast
 from floorvo.matching import knn_from_dmatches, ratio_test
@@ -129,6 +130,13 @@ class OrbIcpConfig(StepBoundConfig):
     plane_step_px: int = param(
         4, unit="px", min=1, max=64, doc="grid spacing of the depth pixels the floor plane is fitted to"
     )
+    undo_rolling_shutter: bool = param(
+        True,
+        doc="in a sequence taken by a rolling shutter (sequence.json's sensor.readout_ms), the matched keypoints "
+        "are moved to where global shutters at the two frame times see them (floorvo.geometry."
+        "rolling_shutter_undone; their 3-D points with them, at their depth); the depth images and their floor "
+        "planes are taken as they are",
+    )
 
 
 def homogenise_keypoints(kps: list, shape: tuple[int, int], cols: int, rows: int, per_cell: int) -> list:
@@ -163,6 +171,7 @@ class _State:
     # floor plane (n, d_mm) of the previous frame, camera frame, and its standard errors (height mm, tilt rad)
     plane: tuple[np.ndarray, float, tuple[float, float]] | None = None
     n_lost: int = 0  # frames lost in a row since the reference
+    t_ref_s: float = 0.0  # the reference frame's time (s)
 
 
 class OrbIcp:
@@ -177,11 +186,20 @@ class OrbIcp:
     requires = frozenset({"depth"})
 
     def __init__(
-        self, config: OrbIcpConfig, camera: CameraModel, *, height_mm: float, flatfield: np.ndarray | None = None, **rig
+        self,
+        config: OrbIcpConfig,
+        camera: CameraModel,
+        *,
+        height_mm: float,
+        flatfield: np.ndarray | None = None,
+        row_time_s: float = 0.0,
+        **rig,
     ):
         self.config = config
         self.camera = camera
         self.height_mm = float(height_mm)
+        # A rolling shutter's time between neighbouring rows (s; 0: a global shutter).
+        self.row_time_s = float(row_time_s) if config.undo_rolling_shutter else 0.0
         self.flatfield = flatfield if config.use_flatfield else None
         self.flat_gain = None if self.flatfield is None else flatfield_gain(self.flatfield)  # once, not per frame
         n_max = config.grid_cols * config.grid_rows * config.per_cell
@@ -269,25 +287,26 @@ class OrbIcp:
         current = (uv, desc, xyz, img8, plane)
         if state.kps is None:
             state.kps, state.desc, state.xyz, state.img8, state.plane = current
+            state.t_ref_s = float(frame.timestamp_s)
             return StepResult(
                 "init",
                 reason="first frame",
                 n_keypoints=len(uv),
                 timing_ms=stage_timing_ms(t0, t1, t1, time.perf_counter()),
             )
-        res = self._measured(state, current, depth_mm, n_depth, t0, t1)
+        res = self._measured(state, current, depth_mm, n_depth, t0, t1, float(frame.timestamp_s) - state.t_ref_s)
         # The next frame is matched against the last good one; after restart_after_lost lost
         # frames in a row, against the current one, said (RESTART_NOTE: the motion over the gap is
         # unknown). Every frame with depth keypoints became the reference, lost or not, and the
         # next step was chained onto the last good frame's pose as if measured from it.
         if res.status == "ok":
             state.kps, state.desc, state.xyz, state.img8, state.plane = current
-            state.n_lost = 0
+            state.n_lost, state.t_ref_s = 0, float(frame.timestamp_s)
             return res
         state.n_lost += 1
         if state.n_lost >= self.config.restart_after_lost and usable:
             state.kps, state.desc, state.xyz, state.img8, state.plane = current
-            state.n_lost = 0
+            state.n_lost, state.t_ref_s = 0, float(frame.timestamp_s)
             res = dataclasses.replace(res, reason=f"{res.reason}; {RESTART_NOTE}")
         return res
 
@@ -299,9 +318,11 @@ class OrbIcp:
         n_depth: int,
         t0: float,
         t1: float,
+        interval_s: float = 0.0,
     ) -> StepResult:
         """The step from the reference frame of ``state`` to the ``current`` one (its keypoints (N, 2)
-        px, descriptors, 3-D points (N, 3) mm, normalised image and floor plane), ok or lost."""
+        px, descriptors, 3-D points (N, 3) mm, normalised image and floor plane), ``interval_s``
+        after it, ok or lost."""
         uv, desc, xyz, img8, plane = current
         prev = (state.kps, state.desc, state.xyz, state.img8)
         plane_prev = state.plane
@@ -392,12 +413,27 @@ class OrbIcp:
             P_cur = self._depth_xyz(depth_mm, uv_cur)
             if len(uv_prev) < self.config.min_matches:  # one pair left was a ValueError of the fit
                 return lost(f"too few matches after the sub-pixel refinement ({len(uv_prev)})", len(uv_prev))
+        # A rolling shutter's readout undone: the keypoints where global shutters at the two frame
+        # times see them, their 3-D points moved with them at their own depth (the reports keep the
+        # frames' own pixels).
+        uv_prev_gs, uv_cur_gs = rolling_shutter_undone(
+            uv_prev,
+            uv_cur,
+            interval_s=interval_s,
+            row_time_s=self.row_time_s,
+            mid_row_px=(self.camera.height_px - 1) / 2.0,
+        )
+        if self.row_time_s:
+            P_prev = (
+                P_prev + self.camera.unproject(uv_prev_gs, P_prev[:, 2]) - self.camera.unproject(uv_prev, P_prev[:, 2])
+            )
+            P_cur = P_cur + self.camera.unproject(uv_cur_gs, P_cur[:, 2]) - self.camera.unproject(uv_cur, P_cur[:, 2])
         if self.config.update == "plane":
             if plane is None or plane_prev is None:
                 return lost("too few depth pixels to fit the floor plane")
             # 6-DoF from the two floor planes and the in-plane rigid fit of the matched rays.
             T, keep, rms_mm = floor_plane_step(
-                uv_prev, uv_cur, self.camera, plane_prev[:2], plane[:2], iterations=self.config.icp_iterations
+                uv_prev_gs, uv_cur_gs, self.camera, plane_prev[:2], plane[:2], iterations=self.config.icp_iterations
             )
             if keep.sum() < self.config.min_matches:
                 return lost(f"too few matches behind the in-plane fit ({int(keep.sum())})", int(keep.sum()))
@@ -405,7 +441,7 @@ class OrbIcp:
                 return lost(
                     f"in-plane fit residual {rms_mm:.2f} mm RMS > {self.config.max_residual_mm:g}", int(keep.sum())
                 )
-            why = self._precision_problem(T, uv_prev[keep], uv_cur[keep], plane_prev, plane)
+            why = self._precision_problem(T, uv_prev_gs[keep], uv_cur_gs[keep], plane_prev, plane)
             if why:
                 return lost(why, int(keep.sum()))
             return ok(T, uv_prev[keep], uv_cur[keep])

@@ -60,6 +60,7 @@ Requires a stereo sequence (``requires = {"stereo"}``).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -87,6 +88,7 @@ from floorvo.geometry import (
     invert_T,
     plane_fit_precision,
     rigid_fit_robust,
+    rolling_shutter_undone,
 )
 from floorvo.imaging import flatfield_gain, illumination_corrected, local_contrast_uint8, to_uint8_contrast
 from floorvo.matching import match_ratio
@@ -147,6 +149,13 @@ class StereoSiftConfig(StepBoundConfig):
         "rigid: full 3D; mean: paper 002's DP_L",
     )
     use_flatfield: bool = param(True, doc="divide by the sequence's flat-field frame when it has one")
+    undo_rolling_shutter: bool = param(
+        True,
+        doc="in a sequence taken by rolling shutters read out together (sequence.json's sensor.readout_ms), the "
+        "left keypoints of the temporal matches are moved to where global shutters at the two frame times see "
+        "them (floorvo.geometry.rolling_shutter_undone; their 3-D points with them, at their depth); the stereo "
+        "points' floor planes are taken as they are",
+    )
     refine_win_px: int = param(
         21,
         unit="px",
@@ -185,6 +194,7 @@ class _Side:
     uv_pinhole: np.ndarray  # (N, 2) the keypoints in the left camera's ideal pinhole (uv without distortion)
     plane: tuple[np.ndarray, float] | None = None  # floor plane (n, d_mm) of all the xyz, left camera
     plane_sigma: tuple[float, float] = (float("inf"), float("inf"))  # its standard errors (height mm, tilt rad)
+    t_s: float = 0.0  # the frame's time (s)
 
 
 @dataclass
@@ -212,12 +222,15 @@ class StereoSift:
         camera_right: CameraModel | None = None,
         T_cam0_cam1: np.ndarray | None = None,
         flatfield_right: np.ndarray | None = None,
+        row_time_s: float = 0.0,
         **rig,
     ):
         if camera_right is None or T_cam0_cam1 is None:
             raise ConfigError("stereo-sift: needs camera_right and T_cam0_cam1 (a stereo rig); the sequence is mono")
         self.config = config
         self.camera = camera
+        # A rolling shutter's time between neighbouring rows (s; 0: a global shutter).
+        self.row_time_s = float(row_time_s) if config.undo_rolling_shutter else 0.0
         self.camera_right = camera_right
         self.height_mm = float(height_mm)
         self.flatfield = flatfield if config.use_flatfield else None
@@ -454,7 +467,10 @@ class StereoSift:
                     reason="empty frame (no texture)",
                     timing_ms=stage_timing_ms(t0, t0, t0, time.perf_counter()),
                 )
-        cur = self._stereo(frame.image, frame.image_right, state.prev.plane if state.prev is not None else None)
+        cur = dataclasses.replace(
+            self._stereo(frame.image, frame.image_right, state.prev.plane if state.prev is not None else None),
+            t_s=float(frame.timestamp_s),
+        )
         t1 = time.perf_counter()
         prev = state.prev
         if prev is None:
@@ -518,6 +534,20 @@ class StereoSift:
         P1, P2 = prev.xyz[qi[inl]], cur.xyz[ti[inl]]
         if len(P1) < self.config.min_matches:
             return lost(f"too few RANSAC inliers ({len(P1)})", len(P1))
+        # A rolling shutter's readout undone: the left keypoints where global shutters at the two frame
+        # times see them, their 3-D points moved with them at their own depth (the reports keep the
+        # frames' own pixels).
+        uv1, uv2 = prev.uv[qi[inl]], cur.uv[ti[inl]]
+        uv1_gs, uv2_gs = rolling_shutter_undone(
+            uv1,
+            uv2,
+            interval_s=cur.t_s - prev.t_s,
+            row_time_s=self.row_time_s,
+            mid_row_px=(self.camera.height_px - 1) / 2.0,
+        )
+        if self.row_time_s:
+            P1 = P1 + self.camera.unproject(uv1_gs, P1[:, 2]) - self.camera.unproject(uv1, P1[:, 2])
+            P2 = P2 + self.camera.unproject(uv2_gs, P2[:, 2]) - self.camera.unproject(uv2, P2[:, 2])
         T = np.eye(4)
         if self.config.update == "mean":
             # Algorithm 1: DP_L = P_3dL1 - P_3dL2 (the camera moved opposite to the points).
@@ -533,9 +563,9 @@ class StereoSift:
             if tilt > self.config.max_tilt_rad:
                 return lost(f"floor plane tilted {tilt:.2f} rad from the optical axis > {self.config.max_tilt_rad:g}")
             # 6-DoF from the two floor planes and the in-plane rigid fit of the matched left rays.
-            T, keep, _ = floor_plane_step(prev.uv[qi[inl]], cur.uv[ti[inl]], self.camera, prev.plane, cur.plane)
+            T, keep, _ = floor_plane_step(uv1_gs, uv2_gs, self.camera, prev.plane, cur.plane)
             n_in = int(keep.sum())
-            why = self._precision_problem(T, prev, cur, prev.uv[qi[inl]][keep], cur.uv[ti[inl]][keep])
+            why = self._precision_problem(T, prev, cur, uv1_gs[keep], uv2_gs[keep])
             if why:
                 return lost(why, n_in)
         elif self.config.update == "rigid":
