@@ -410,16 +410,34 @@ def _build_spin(p: SpinParams, fps: float, seed: int):
     return n, path, {}
 
 
+def _arc_length_table(k: float, amplitude_mm: float, x0: float, x1: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(xs, s)``: ``n`` points from ``x0`` to ``x1`` mm along y = A sin(k x) and the arc length
+    from ``x0`` to each (negative where ``x1 < x0``), by the trapezoid rule."""
+    xs = np.linspace(x0, x1, n)
+    ds = np.sqrt(1.0 + (amplitude_mm * k * np.cos(k * xs)) ** 2)
+    return xs, np.concatenate([[0.0], np.cumsum((ds[1:] + ds[:-1]) / 2 * np.diff(xs))])
+
+
 def _build_s_curve(p: SCurveParams, fps: float, seed: int):
     # Arc length of y = A sin(k x) by dense tabulation, so the ground speed is constant.
     k = 2 * np.pi / p.wavelength_mm
-    xs = np.linspace(0.0, p.length_mm, 20001)
-    ds = np.sqrt(1.0 + (p.amplitude_mm * k * np.cos(k * xs)) ** 2)
-    s = np.concatenate([[0.0], np.cumsum((ds[1:] + ds[:-1]) / 2 * np.diff(xs))])
+    xs, s = _arc_length_table(k, p.amplitude_mm, 0.0, p.length_mm, 20001)
     n = _n_frames(s[-1] / p.speed_mm_s, fps)
+    # Before its start and after its end the curve goes on (tables of their own, so that the
+    # frames' poses are those of the one table): an exposure or a rolling shutter's rows around
+    # the first and the last frame see the camera moving, not held where it starts (a readout's
+    # first frame had shown the camera at rest in its upper rows, and was lost).
+    reach_mm = p.wavelength_mm + p.speed_mm_s * 1.0  # beyond any exposure (1 s at most) and readout
+    xs_before, s_before = _arc_length_table(k, p.amplitude_mm, 0.0, -reach_mm, 2001)
+    xs_after, s_after = _arc_length_table(k, p.amplitude_mm, p.length_mm, p.length_mm + reach_mm, 2001)
 
     def path(t: np.ndarray) -> np.ndarray:
-        x = np.interp(p.speed_mm_s * t, s, xs)
+        d = p.speed_mm_s * t
+        x = np.where(
+            d < 0.0,
+            np.interp(d, s_before[::-1], xs_before[::-1]),
+            np.where(d > s[-1], np.interp(d - s[-1], s_after, xs_after), np.interp(d, s, xs)),
+        )
         y = p.amplitude_mm * np.sin(k * x)
         yaw = np.arctan(p.amplitude_mm * k * np.cos(k * x))
         return np.stack([x, y, yaw], axis=1)
@@ -447,10 +465,12 @@ def _build_turns(p: TurnsParams, fps: float, seed: int):
     r = p.turn_radius_mm
 
     def path(t: np.ndarray) -> np.ndarray:
-        d = np.clip(p.speed_mm_s * t, 0.0, total_mm)
+        # Before the start and after the end the first and the last leg go on (an exposure or a
+        # rolling shutter's rows around the first and the last frame see the camera moving).
+        d = p.speed_mm_s * t
         out = np.empty((len(d), 3))
-        for start, length, x0, y0, yaw0, turn in pieces:
-            sel = (d >= start) & (d <= start + length)
+        for i, (start, length, x0, y0, yaw0, turn) in enumerate(pieces):
+            sel = ((d >= start) | (i == 0)) & ((d <= start + length) | (i == len(pieces) - 1))
             u = d[sel] - start
             if turn:
                 h = yaw0 + sign * u / r
@@ -466,13 +486,19 @@ def _build_turns(p: TurnsParams, fps: float, seed: int):
 def _polyline_path(vertices: np.ndarray, yaws: np.ndarray, speed: float) -> tuple[float, PathFn]:
     seg = np.linalg.norm(np.diff(vertices, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
+    # the first and the last segment's directions: before the start and after the end the path goes
+    # on along them (an exposure or a rolling shutter's rows around the first and the last frame)
+    first = (vertices[1] - vertices[0]) / max(seg[0], 1e-12)
+    last = (vertices[-1] - vertices[-2]) / max(seg[-1], 1e-12)
 
     def path(t: np.ndarray) -> np.ndarray:
-        d = np.clip(speed * t, 0.0, s[-1])
+        d_all = speed * t
+        d = np.clip(d_all, 0.0, s[-1])
         x = np.interp(d, s, vertices[:, 0])
         y = np.interp(d, s, vertices[:, 1])
         yaw = np.interp(d, s, yaws)
-        return np.stack([x, y, yaw], axis=1)
+        beyond = (np.minimum(d_all, 0.0) * first[:, None] + np.maximum(d_all - s[-1], 0.0) * last[:, None]).T
+        return np.stack([x + beyond[:, 0], y + beyond[:, 1], yaw], axis=1)
 
     return float(s[-1]), path
 

@@ -213,3 +213,29 @@ def test_a_path_that_leaves_the_range_of_positions_is_refused(x_mm):
     ):
         build_trajectory("spin", {"x_mm": x_mm}, height_mm=100.0, fps=30.0)
     assert build_trajectory("spin", {"x_mm": 1e9}, height_mm=100.0, fps=30.0).frame_count > 1
+
+
+@pytest.mark.parametrize(
+    "kind, params",
+    [
+        ("s_curve", {"length_mm": 160.0, "amplitude_mm": 15.0, "wavelength_mm": 160.0, "speed_mm_s": 120.0}),
+        ("turns", {"legs": 2, "leg_mm": 40.0, "turn_radius_mm": 20.0, "speed_mm_s": 120.0}),
+        ("lawnmower", {"width_mm": 60.0, "depth_mm": 40.0, "lane_spacing_mm": 20.0, "speed_mm_s": 120.0}),
+    ],
+)
+def test_a_path_goes_on_before_its_start_and_after_its_end(kind, params):
+    """An exposure or a rolling shutter's rows reach half an exposure (or readout) before the first
+    frame and after the last: there the camera moves on along the path's tangent at its speed
+    (it had stood still where the path starts, so a readout's first frame showed it at rest)."""
+    tr = build_trajectory(kind, params, height_mm=100.0, fps=30.0)
+    dt = 0.0075  # half a 15 ms readout
+    for t_edge, sign in ((0.0, -1.0), (tr.duration_s, 1.0)):
+        at_edge = tr.se2_at(t_edge)[0]
+        inside = tr.se2_at(t_edge - sign * 1e-4)[0]
+        heading = (at_edge[:2] - inside[:2]) * sign
+        heading /= np.linalg.norm(heading)
+        beyond = tr.se2_at(t_edge + sign * dt)[0]
+        moved = (beyond[:2] - at_edge[:2]) * sign
+        speed = params["speed_mm_s"]
+        assert np.linalg.norm(moved) == pytest.approx(speed * dt, rel=0.02)  # moving, not held
+        assert float(np.dot(moved, heading)) == pytest.approx(speed * dt, rel=0.02)  # along the tangent
