@@ -145,11 +145,10 @@ def test_rolling_shutter_table_runs_a_pair_three_ways(tmp_path, capsys):
     readout left in reads the steps 3 % long (both from the ground truth, not from the script)."""
     from floorvo.camera import CameraModel
     from floorvo.geometry import T_world_cam_down
-    from floorvo.sequence import SequenceWriter
 
     sys.path.insert(0, str(Path(__file__).resolve().parent / "floorvo"))
     try:
-        from _synth import blank_meta, rolling_frames_along
+        from _synth import write_rolling_sequence
     finally:
         sys.path.pop(0)
     rs = _load("rolling_shutter")
@@ -158,18 +157,9 @@ def test_rolling_shutter_table_runs_a_pair_three_ways(tmp_path, capsys):
     def pose_at(t):
         return T_world_cam_down(0.0, -120.0 * t, 100.0)
 
-    times = np.arange(5) / 30.0
     seqs = {}
     for name, readout_ms in (("global", 0.0), ("rolling", 15.0)):
-        frames, flat = rolling_frames_along(cam, pose_at, times, readout_ms / 1000.0 / (cam.height_px - 1), seed=2)
-        meta = blank_meta(cam, len(times))
-        if readout_ms:
-            meta["sensor"] = {"shutter": "rolling", "readout_ms": readout_ms}
-        with SequenceWriter(tmp_path / name, meta) as w:
-            for i, img in enumerate(frames):
-                w.write_frame(i, img)
-            w.write_calib("cam0_flatfield", flat)
-            w.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
+        write_rolling_sequence(tmp_path / name, cam, pose_at, np.arange(5) / 30.0, readout_ms, seed=2)
         seqs[name] = tmp_path / name
     assert rs.main(["--pair", f"y4={seqs['global']},{seqs['rolling']}", "-o", str(tmp_path / "out"),
                     "--estimators", "phase-corr"]) == 0  # fmt: skip

@@ -113,6 +113,53 @@ def rolling_frames_along(
     return out, flat
 
 
+def write_rolling_sequence(
+    root: Path,
+    camera: CameraModel,
+    pose_at,
+    times_s: np.ndarray,
+    readout_ms: float,
+    seed: int = 0,
+    depth: bool = False,
+    T_cam0_cam1: np.ndarray | None = None,
+):
+    """``(Sequence, T_world_cam (N, 4, 4))``: a sequence folder at ``root`` of the frames
+    :func:`rolling_frames_along` draws at ``times_s`` with a readout of ``readout_ms`` (``sequence.json``'s
+    ``sensor`` block states it; 0: a global shutter, no block), its flat field and its ground truth
+    (the poses at the frame times). ``depth``: the flat floor's depth image per frame (level
+    poses); ``T_cam0_cam1``: a right camera too, read out with the left."""
+    from floorvo.sequence import Sequence, SequenceWriter
+
+    row_time_s = readout_ms / 1000.0 / (camera.height_px - 1)
+    reach_mm = 0.0 if T_cam0_cam1 is None else float(np.abs(T_cam0_cam1[:2, 3]).max())
+    frames, flat = rolling_frames_along(camera, pose_at, times_s, row_time_s, seed=seed, reach_mm=reach_mm)
+    meta = blank_meta(camera, len(times_s))
+    if readout_ms:
+        meta["sensor"] = {"shutter": "rolling", "readout_ms": float(readout_ms)}
+    if depth:
+        meta["depth"] = {"format": "npy_float32_mm"}
+    right = None
+    if T_cam0_cam1 is not None:
+        right, _ = rolling_frames_along(
+            camera, pose_at, times_s, row_time_s, seed=seed, T_cam0_cam=T_cam0_cam1, reach_mm=reach_mm
+        )
+        meta.update(stereo=True, cameras={"cam1": camera.to_dict()})
+        meta["rig"]["T_cam0_cam1"] = np.asarray(T_cam0_cam1, dtype=float).tolist()
+    truth = np.stack([pose_at(float(t)) for t in times_s])
+    with SequenceWriter(root, meta) as w:
+        for i, img in enumerate(frames):
+            w.write_frame(i, img)
+            if right is not None:
+                w.write_frame(i, right[i], "cam1")
+            if depth:
+                w.write_depth(i, flat_floor_depth(camera))
+        w.write_calib("cam0_flatfield", flat)
+        if right is not None:
+            w.write_calib("cam1_flatfield", flat)
+        w.write_groundtruth(np.asarray(times_s, dtype=float), truth)
+    return Sequence.open(root), truth
+
+
 def frame_pair(
     camera: CameraModel, T_prev_cur: np.ndarray, height_mm: float = 100.0, seed: int = 0, noise_dn: float = 1.0
 ):

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _synth import blank_meta, flat_floor_depth, rolling_frames_along
+from _synth import write_rolling_sequence
 
 from floorvo.camera import CameraModel
 from floorvo.geometry import T_world_cam_down, invert_T, rolling_shutter_undone, yaw_of_R
 from floorvo.run import build_estimator
 from floorvo.runner import run_sequence
-from floorvo.sequence import Sequence, SequenceWriter
+from floorvo.sequence import Sequence
 
 CAM = CameraModel.from_sensor(648, 494, pixel_pitch_um=7.4, focal_length_mm=6.0)  # GSD 0.1233 mm at 100 mm
 READOUT_MS = 15.0
@@ -105,21 +105,8 @@ def _rolling_sequence(tmp_path, direction_rad: float, yaw_rate_deg_frame: float 
             xy = np.array([[s, c - 1.0], [1.0 - c, s]]) @ v_world0 / w
         return T_world_cam_down(xy[0], xy[1], 100.0, w * t)
 
-    times = np.arange(n) / FPS
-    frames, flat = rolling_frames_along(CAM, pose_at, times, ROW_TIME_S, seed=5)
-    meta = blank_meta(CAM, n)
-    meta["sensor"] = {"shutter": "rolling", "readout_ms": READOUT_MS}
-    if depth:
-        meta["depth"] = {"format": "npy_float32_mm"}
     root = tmp_path / f"rs_{direction_rad:.2f}_{yaw_rate_deg_frame:.2f}"
-    with SequenceWriter(root, meta) as w_:
-        for i, img in enumerate(frames):
-            w_.write_frame(i, img)
-            if depth:
-                w_.write_depth(i, flat_floor_depth(CAM))
-        w_.write_calib("cam0_flatfield", flat)
-        w_.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
-    return Sequence.open(root), np.stack([pose_at(t) for t in times])
+    return write_rolling_sequence(root, CAM, pose_at, np.arange(n) / FPS, READOUT_MS, seed=5, depth=depth)
 
 
 def _end_error(seq: Sequence, truth: np.ndarray, name: str, undo: bool) -> tuple[float, float, int]:
@@ -202,17 +189,7 @@ def _corner_sequence(tmp_path, n: int = 7):
         r = speed / w
         return T_world_cam_down(speed * t0 + r * np.sin(w * u), r * (1.0 - np.cos(w * u)), 100.0, w * u)
 
-    times = np.arange(n) / FPS
-    frames, flat = rolling_frames_along(CAM, pose_at, times, ROW_TIME_S, seed=6)
-    meta = blank_meta(CAM, n)
-    meta["sensor"] = {"shutter": "rolling", "readout_ms": READOUT_MS}
-    root = tmp_path / "corner"
-    with SequenceWriter(root, meta) as w_:
-        for i, img in enumerate(frames):
-            w_.write_frame(i, img)
-        w_.write_calib("cam0_flatfield", flat)
-        w_.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
-    return Sequence.open(root), np.stack([pose_at(t) for t in times])
+    return write_rolling_sequence(tmp_path / "corner", CAM, pose_at, np.arange(n) / FPS, READOUT_MS, seed=6)
 
 
 @pytest.mark.parametrize("name", ["phase-corr", "phase-corr-fast"])
@@ -271,23 +248,12 @@ def test_a_height_change_under_a_rolling_shutter_is_one_motion(tmp_path, name):
     part): the picture grows 1 % a frame, which moves the upper and the lower blocks apart; at the
     step's image scale that is one motion, not a change during the readout, and every step is ok."""
     cam = CameraModel.from_sensor(324, 247, pixel_pitch_um=14.8, focal_length_mm=6.0)
-    row_time_s = READOUT_MS / 1000.0 / (cam.height_px - 1)
     speed, sink = 4.0 * FPS, 1.0 * FPS
 
     def pose_at(t):
         return T_world_cam_down(0.0, -speed * t, 100.0 - sink * t)
 
-    times = np.arange(6) / FPS
-    frames, flat = rolling_frames_along(cam, pose_at, times, row_time_s, seed=8)
-    meta = blank_meta(cam, len(times))
-    meta["sensor"] = {"shutter": "rolling", "readout_ms": READOUT_MS}
-    root = tmp_path / "sink"
-    with SequenceWriter(root, meta) as w_:
-        for i, img in enumerate(frames):
-            w_.write_frame(i, img)
-        w_.write_calib("cam0_flatfield", flat)
-        w_.write_groundtruth(times, np.stack([pose_at(t) for t in times]))
-    seq = Sequence.open(root)
+    seq, _ = write_rolling_sequence(tmp_path / "sink", cam, pose_at, np.arange(6) / FPS, READOUT_MS, seed=8)
     est, _ = build_estimator(seq, name)
     run = run_sequence(seq, est, summary_warnings=False)
     assert not any("motion changed during the readout" in str(r) for r in run.reason), list(run.reason)
@@ -321,23 +287,9 @@ def test_stereo_sift_undoes_a_readout(tmp_path, update):
 
     T01 = np.eye(4)
     T01[0, 3] = 20.0
-    times = np.arange(6) / FPS
-    left, flat = rolling_frames_along(CAM, pose_at, times, ROW_TIME_S, seed=9, reach_mm=20.0)
-    right, _ = rolling_frames_along(CAM, pose_at, times, ROW_TIME_S, seed=9, T_cam0_cam=T01, reach_mm=20.0)
-    meta = blank_meta(CAM, len(times))
-    meta["sensor"] = {"shutter": "rolling", "readout_ms": READOUT_MS}
-    meta.update(stereo=True, cameras={"cam1": CAM.to_dict()})
-    meta["rig"]["T_cam0_cam1"] = T01.tolist()
-    root = tmp_path / "stereo"
-    truth = np.stack([pose_at(t) for t in times])
-    with SequenceWriter(root, meta) as w_:
-        for i, (img_l, img_r) in enumerate(zip(left, right)):
-            w_.write_frame(i, img_l)
-            w_.write_frame(i, img_r, "cam1")
-        w_.write_calib("cam0_flatfield", flat)
-        w_.write_calib("cam1_flatfield", flat)
-        w_.write_groundtruth(times, truth)
-    seq = Sequence.open(root)
+    seq, truth = write_rolling_sequence(
+        tmp_path / "stereo", CAM, pose_at, np.arange(6) / FPS, READOUT_MS, seed=9, T_cam0_cam1=T01
+    )
     errs = {}
     for undo in (False, True):
         est, _ = build_estimator(seq, "stereo-sift", {"undo_rolling_shutter": str(undo).lower(), "update": update})
