@@ -61,10 +61,19 @@ def frames_along(
     out = []
     for T in T_world_cam:
         img = view(tex, camera, pixel_motion(invert_T(T_world_cam[0]) @ T, camera, height_mm)) * fall
-        img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
-        out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
-    flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
-    return out, flat
+        out.append(_exposed(img, rng, noise_dn))
+    return out, _flat(fall)
+
+
+def _exposed(img: np.ndarray, rng: np.random.Generator, noise_dn: float) -> np.ndarray:
+    """A view times the LED falloff as an 8-bit frame: its 99.5th percentile at 230 DN, plus noise."""
+    img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def _flat(fall: np.ndarray) -> np.ndarray:
+    """The flat-field frame (uint16) of the LED falloff ``fall``."""
+    return np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
 
 
 def rolling_frames_along(
@@ -106,11 +115,8 @@ def rolling_frames_along(
             v = (r - camera.cy_px) * k
             mx[r] = Minv[0, 0] * u * k + Minv[0, 1] * v + Minv[0, 2] + c_tex
             my[r] = Minv[1, 0] * u * k + Minv[1, 1] * v + Minv[1, 2] + c_tex
-        img = cv2.remap(tex, mx, my, cv2.INTER_CUBIC) * fall
-        img = img / np.percentile(img, 99.5) * 230.0 + rng.normal(0, noise_dn, img.shape)
-        out.append(np.clip(np.round(img), 0, 255).astype(np.uint8))
-    flat = np.clip(fall / fall.max() * 60000, 0, 65535).astype(np.uint16)
-    return out, flat
+        out.append(_exposed(cv2.remap(tex, mx, my, cv2.INTER_CUBIC) * fall, rng, noise_dn))
+    return out, _flat(fall)
 
 
 def write_rolling_sequence(
