@@ -242,6 +242,8 @@ def rolling_shutter_undone(
     row_time_s: float,
     mid_row_px: float,
     rounds: int = 2,
+    turn_before: tuple[float, float] | None = None,
+    centre_px: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pairs ``src_px -> dst_px`` (N, 2) px of two frames ``interval_s`` apart taken by a
     rolling shutter, moved to where global shutters at the two frame times see them.
@@ -262,7 +264,16 @@ def rolling_shutter_undone(
     translation), and each pixel seen is carried by that motion, at its constant rate, back over
     its row's time: a camera moving at a constant planar twist moves the floor's picture exactly
     so. At 3 degrees a frame the first guess alone leaves a quarter of the readout's error on a
-    turn (the velocity of a chord, not of the row's time). ``row_time_s = 0``: the pairs as given."""
+    turn (the velocity of a chord, not of the row's time).
+
+    ``turn_before``: ``(theta_rad, interval_s)``, the image's turn over the interval before this
+    one (the previous step's), where known. The turn rate then changes at a constant rate from
+    one interval's middle to the next: the reference frame's rows are carried at the rate of its
+    own time, the current frame's at theirs, each a turn about the principal point ``centre_px``
+    (in the pairs' units) at the fitted motion's displacement there. With one rate for both, a
+    turn whose rate changes (an S-curve) read its steps up to 0.5 % short or long with a 15 ms
+    readout: the two frames' rows turned by different amounts, and a turn that varies down the
+    rows shifts the picture along the motion. ``row_time_s = 0``: the pairs as given."""
     src = np.asarray(src_px, dtype=float)
     dst = np.asarray(dst_px, dtype=float)
     if row_time_s == 0.0 or len(src) == 0:
@@ -273,12 +284,27 @@ def rolling_shutter_undone(
     a, b = src - v_px_s * t_src_s[:, None], dst - v_px_s * t_dst_s[:, None]
     if len(src) < 2:
         return a, b
+    c = np.asarray(centre_px, dtype=float)
     for _ in range(rounds):
         R, t = rigid_fit(a, b)
         theta = float(np.arctan2(R[1, 0], R[0, 0]))
-        a = _carried(src, -t_src_s / interval_s, theta, t)
-        b = _carried(dst, -t_dst_s / interval_s, theta, t)
+        theta_src = theta_dst = theta
+        if turn_before is not None and turn_before[1] > 0.0:
+            # the rate at each frame's time: the intervals' mean rates at their middles, linearly
+            rate, rate_before = theta / interval_s, turn_before[0] / turn_before[1]
+            accel = (rate - rate_before) / (0.5 * (interval_s + turn_before[1]))
+            theta_src = (rate - 0.5 * accel * interval_s) * interval_s
+            theta_dst = (rate + 0.5 * accel * interval_s) * interval_s
+        moved_c = R @ c + t  # the displacement at the principal point is kept
+        a = _carried(src, -t_src_s / interval_s, theta_src, moved_c - _rot2(theta_src) @ c)
+        b = _carried(dst, -t_dst_s / interval_s, theta_dst, moved_c - _rot2(theta_dst) @ c)
     return a, b
+
+
+def _rot2(theta: float) -> np.ndarray:
+    """The 2x2 rotation by ``theta`` (rad)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
 
 
 def _carried(p_px: np.ndarray, share: np.ndarray, theta: float, t_px: np.ndarray) -> np.ndarray:

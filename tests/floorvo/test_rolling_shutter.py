@@ -298,3 +298,42 @@ def test_stereo_sift_undoes_a_readout(tmp_path, update):
         e = invert_T(truth[-1]) @ run.T_world_cam[-1]
         errs[undo] = float(np.linalg.norm(e[:2, 3])) / float(np.linalg.norm(truth[-1][:3, 3] - truth[0][:3, 3]))
     assert errs[False] > 0.015 and errs[True] < 0.003, errs
+
+
+@pytest.mark.parametrize("name", ["akaze-guided", "phase-corr"])
+def test_a_turn_rate_that_changes_is_undone(tmp_path, name):
+    """Along the camera's x axis with the yaw swinging 0.5 rad at 0.75 Hz (an S-curve's turn: the
+    rate changes 0.03 degrees a frame per frame at the swing's end). With one turn rate for both
+    frames the two frames' rows turn by different amounts, and the steps read up to 0.5 % short;
+    with the rate's change taken from the step before, as a global shutter's (from the second step
+    on: the first has none before it)."""
+    speed, swing, w = 4.0 * FPS, 0.5, 2 * np.pi * 0.75
+    t_fine = np.linspace(-0.5, 1.0, 15001)
+    yaw_fine = swing * np.sin(w * t_fine)
+    step = t_fine[1] - t_fine[0]
+    x_fine = np.cumsum(speed * np.cos(yaw_fine)) * step
+    y_fine = np.cumsum(speed * np.sin(yaw_fine)) * step
+    i0 = int(np.searchsorted(t_fine, 0.0))
+    x_fine, y_fine = x_fine - x_fine[i0], y_fine - y_fine[i0]
+
+    def pose_at(t):  # from 0.2 s on: around the swing's end (1/3 s), where the rate changes fastest
+        t = t + 0.2
+        return T_world_cam_down(
+            float(np.interp(t, t_fine, x_fine)), float(np.interp(t, t_fine, y_fine)), 100.0, swing * np.sin(w * t)
+        )
+
+    times = np.arange(9) / FPS
+    worst = {}
+    for readout_ms, undo in ((READOUT_MS, False), (READOUT_MS, True)):
+        seq, truth = write_rolling_sequence(tmp_path / f"s{undo}", CAM, pose_at, times, readout_ms, seed=3)
+        est, _ = build_estimator(seq, name, {"undo_rolling_shutter": str(undo).lower()})
+        run = run_sequence(seq, est, summary_warnings=False)
+        assert int(np.sum(run.status == "ok")) == len(times) - 1
+        errs = [
+            np.linalg.norm((invert_T(run.T_world_cam[i - 1]) @ run.T_world_cam[i])[:2, 3])
+            / np.linalg.norm((invert_T(truth[i - 1]) @ truth[i])[:2, 3])
+            - 1.0
+            for i in range(1, len(times))
+        ]
+        worst[undo] = float(np.max(np.abs(errs[1:])))  # the first step has no step before it
+    assert worst[False] > 0.003 and worst[True] < 0.001, worst

@@ -578,6 +578,9 @@ class _State:
     t_ref_s: float = 0.0  # the reference frame's time (s)
     # the rotation (rad) per frame of the last ok steps in a row, oldest first (predict_turn_rate)
     yaws_per_frame: deque[float] = field(default_factory=lambda: deque(maxlen=3))
+    # the last step's turn (rad) and the time it spanned (s), None after a lost frame: a rolling
+    # shutter's readout is undone with the turn rate changing from it (PhaseCorr._shutter_undone)
+    turn_before: tuple[float, float] | None = None
     n_lost: int = 0  # frames lost in a row since the reference
     height_mm: float | None = None  # camera height of the reference frame: measured or followed (None: the rig's)
     height_read: bool = False  # height_mm is the reference frame's own reading (a height signal's)
@@ -942,6 +945,7 @@ class PhaseCorr:
             per_frame = per_interval_px(M, state.n_lost + 1)
             dt_s = self._interval_s(state, frame)
             state.n_lost += 1
+            state.turn_before = None
             why = problem
             state.M_pred = np.eye(3) if gross else M @ per_frame
             state.pred_span_s = float(frame.timestamp_s) - state.t_ref_s + dt_s if dt_s else 0.0
@@ -962,7 +966,8 @@ class PhaseCorr:
         # when the frame has one, or the one its image scale gives, else the rig's); the step
         # carries the height change.
         h_cur = h_meas or self.height_mm
-        M_floor = self._shutter_undone(M, m.centres, float(frame.timestamp_s) - state.t_ref_s)
+        M_floor = self._shutter_undone(M, m.centres, float(frame.timestamp_s) - state.t_ref_s, state.turn_before)
+        state.turn_before = (float(np.arctan2(M[1, 0], M[0, 0])), float(frame.timestamp_s) - state.t_ref_s)
         R2, t2_mm = pixel_rigid_to_floor(M_floor[:2, :2], M_floor[:2, 2], self.grid_cam, h_cur, centred=True)
         T = floor_rigid_to_T(R2, t2_mm)  # eq. (1) of paper 000 via the camera model
         T[2, 3] = h_from - h_cur  # the camera rose by h_cur - h_from: its z axis points down
@@ -1030,7 +1035,9 @@ class PhaseCorr:
             )
         return ""
 
-    def _shutter_undone(self, M: np.ndarray, points: np.ndarray, interval_s: float) -> np.ndarray:
+    def _shutter_undone(
+        self, M: np.ndarray, points: np.ndarray, interval_s: float, turn_before: tuple[float, float] | None = None
+    ) -> np.ndarray:
         """The step ``M`` (3x3, prev-centred grid px -> cur-centred grid px; ``M[:2, :2]`` = scale R)
         measured over ``interval_s`` by a rolling shutter, as global shutters at the two frame
         times see it (``M`` itself under a global shutter): the blocks' centres ``points`` (B, 2,
@@ -1038,9 +1045,11 @@ class PhaseCorr:
         :func:`floorvo.geometry.rolling_shutter_undone` moves a pair, and the rigid motion at
         ``M``'s image scale fitted to them. (The crop's corners, where ``M`` only extrapolates the
         readout's non-rigid distortion, left a turn's steps 0.2 % off on a synthetic arc: the
-        centres 0.004 %.) The measurement, its checks and the next frame's prediction stay in the
-        frames' own pixels, where the readout's shear is the same from frame to frame; only the
-        step reported is the global shutter's."""
+        centres 0.004 %.) ``turn_before``: the last step's turn and the time it spanned, where the
+        frame before was measured (the turn rate changing from it: an S-curve's). The
+        measurement, its checks and the next frame's prediction stay in the frames' own pixels,
+        where the readout's shear is the same from frame to frame; only the step reported is the
+        global shutter's."""
         if self.row_time_grid_s == 0.0:
             return M
         src, dst = rolling_shutter_undone(
@@ -1049,6 +1058,7 @@ class PhaseCorr:
             interval_s=interval_s,
             row_time_s=self.row_time_grid_s,
             mid_row_px=self.mid_row_centred,
+            turn_before=turn_before,
         )
         scale = float(np.sqrt(abs(np.linalg.det(M[:2, :2]))))
         R, t = rigid_fit(scale * src, dst)
