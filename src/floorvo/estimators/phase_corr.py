@@ -996,10 +996,10 @@ class PhaseCorr:
         have a global shutter): :meth:`_shutter_undone` moves the blocks at one velocity (a
         constant planar twist), and a turn that starts or ends between a frame's first and last
         rows breaks that. The blocks' pairs (``m.centres -> m.moved``, the readout undone) above
-        and below their median row are fitted apart (a rigid fit of each half at the blocks' image
-        scale: two blocks of the default grid; without the scale a bounce's halves moved apart); the two motions' yaws and displacements at the principal point may differ
-        by issue 14's bound (``max_step_error_*``) plus ``precision_sigmas`` of the step's own
-        standard errors. (The halves' fits of two blocks each leave one degree of freedom apiece,
+        and below their median row are fitted apart: a rigid fit of each half (two blocks of the
+        default grid) at the blocks' image scale, without which a bounce's halves moved apart.
+        The two motions' yaws and displacements at the principal point may differ by issue 14's
+        bound (``max_step_error_*``) plus ``precision_sigmas`` of the step's own standard errors. (The halves' fits of two blocks each leave one degree of freedom apiece,
         too few for a standard error of their own; the step's, from all the blocks, grows with
         their disagreement, so that a twice larger allowance let the change through.) On the
         vinyl corner with a 15 ms readout, the frame where the 90-degree turn starts had been
