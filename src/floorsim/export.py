@@ -18,9 +18,10 @@ axes as in ROS's ``*_optical_frame`` convention; metres):
   stamp): the flat-field frames, when the sequence has them
 * ``/cam0/height`` (sensor_msgs/Range, metres, float32) at each frame with a measured height
   (``height.csv``)
-* the rig height, the height readings' noise (``rig.height_noise_mm``) and the frame rate in the
-  bag's ``custom_data`` (``metadata.yaml``), keys :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY`
-  (mm), ``HEIGHT_NOISE_KEY`` (mm) and ``FPS_KEY`` (Hz; a bag has no field for them)
+* the rig height, the height readings' noise (``rig.height_noise_mm``), the frame rate and a
+  rolling shutter's readout (``sensor.readout_ms``) in the bag's ``custom_data``
+  (``metadata.yaml``), keys :data:`floorvo.importers.rosbag2.CAMERA_HEIGHT_KEY` (mm),
+  ``HEIGHT_NOISE_KEY`` (mm), ``FPS_KEY`` (Hz) and ``READOUT_KEY`` (ms; a bag has no field for them)
 
 EuRoC layout: ``mav0/cam0/data/<t_ns>.png`` + ``data.csv`` + ``sensor.yaml`` (and
 ``cam1``), ``mav0/state_groundtruth_estimate0/data.csv`` (body = cam0; velocities by
@@ -35,7 +36,8 @@ another lens.
 
 The EuRoC export carries what the layout has no file of its own for in sidecars that
 ``floorvo import`` reads back (other readers ignore them): each camera's flat-field frame as
-``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` in ``mav0/cam0/sensor.yaml``
+``mav0/camN/flatfield.png``, the rig height as ``camera_height_mm`` and a rolling shutter's
+readout as ``readout_ms`` in ``mav0/cam0/sensor.yaml``
 and a range sensor's ``height.csv`` as a sensor folder of its own, ``mav0/height0/data.csv``
 (``#timestamp [ns],height [mm]``, a row per cam0 frame, empty where there was no reading; its
 ``sensor.yaml`` states the readings' noise, ``noise_mm``, where the sequence does), an
@@ -66,7 +68,14 @@ import numpy as np
 from floorvo.errors import FloorbenchError, FolderLockedError
 from floorvo.geometry import xyz_quat_from_T
 from floorvo.importers import rosbag2 as bag_reader
-from floorvo.importers.euroc import ATTITUDE_SENSOR, CAMERA_HEIGHT_KEY, FLATFIELD_FILE, HEIGHT_NOISE_KEY, HEIGHT_SENSOR
+from floorvo.importers.euroc import (
+    ATTITUDE_SENSOR,
+    CAMERA_HEIGHT_KEY,
+    FLATFIELD_FILE,
+    HEIGHT_NOISE_KEY,
+    HEIGHT_SENSOR,
+    READOUT_KEY,
+)
 from floorvo.io import (
     TEMP_SUFFIX,
     atomic_write_bytes,
@@ -310,6 +319,8 @@ def _write_rosbag2(seq: Sequence, out: Path) -> None:
         if heights is not None and seq.height_noise_mm is not None:
             w.set_custom_data(bag_reader.HEIGHT_NOISE_KEY, repr(float(seq.height_noise_mm)))
         w.set_custom_data(bag_reader.FPS_KEY, repr(float(seq.fps)))
+        if seq.readout_ms > 0.0:
+            w.set_custom_data(bag_reader.READOUT_KEY, repr(float(seq.readout_ms)))
         if gt is not None:
             conns["/groundtruth/pose"] = w.add_connection("/groundtruth/pose", PoseStamped.__msgtype__, typestore=ts)
             conns["/tf"] = w.add_connection("/tf", TFMessage.__msgtype__, typestore=ts)
@@ -475,6 +486,7 @@ def _write_euroc(seq: Sequence, out: Path) -> None:
                 "distortion_model": "radial-tangential",
                 "distortion_coefficients": distortion,
                 **({CAMERA_HEIGHT_KEY: float(seq.height_mm)} if c == "cam0" and seq.height_mm is not None else {}),
+                **({READOUT_KEY: float(seq.readout_ms)} if c == "cam0" and seq.readout_ms > 0.0 else {}),
             },
         )
     # Per-frame sidecars, as EuRoC's other sensors: a stamp, then values (empty = no reading).

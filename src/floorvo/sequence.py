@@ -694,14 +694,19 @@ class Sequence:
         return None if not P else np.asarray(P, dtype=float).reshape(-1, 3)
 
     @property
+    def readout_ms(self) -> float:
+        """A rolling shutter's readout, first row to last (ms, ``sensor.readout_ms``); 0 for a global
+        shutter or a sequence that states none."""
+        sensor = self.meta.get("sensor") or {}  # validated on opening (SensorBlock)
+        return float(sensor.get("readout_ms") or 0.0) if sensor.get("shutter") == "rolling" else 0.0
+
+    @property
     def row_time_s(self) -> float:
         """The time (s) between the exposures of two neighbouring rows of cam0 under a rolling
-        shutter (``sensor.readout_ms`` over the rows less one: ``sequence.json``'s
+        shutter (:attr:`readout_ms` over the rows less one: ``sequence.json``'s
         ``sensor.row_time``, :func:`floorvo.sequence_meta.rolling_row_offsets_s`); 0 for a
         global shutter or a sequence that states none."""
-        sensor = self.meta.get("sensor") or {}  # validated on opening (SensorBlock)
-        readout_ms = float(sensor.get("readout_ms") or 0.0) if sensor.get("shutter") == "rolling" else 0.0
-        offsets_s = rolling_row_offsets_s(self.camera.height_px, readout_ms)
+        offsets_s = rolling_row_offsets_s(self.camera.height_px, self.readout_ms)
         return float(offsets_s[1] - offsets_s[0]) if len(offsets_s) > 1 else 0.0
 
     @property

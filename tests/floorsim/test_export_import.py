@@ -536,3 +536,49 @@ def test_a_bag_reading_goes_to_its_own_frame_when_frames_are_under_a_millisecond
     # readings a little off their frames' stamps still pair, each with its own frame
     shifted = {int(r) + 50_000: int(r) for r in readings}
     assert _pair(frames, readings + 50_000) == shifted
+
+
+@pytest.mark.parametrize("fmt", ["euroc", "rosbag2"])
+def test_an_export_carries_a_rolling_shutters_readout_back(tmp_path, capsys, fmt):
+    """A sequence taken by a rolling shutter states its readout (``sensor.readout_ms``), which the
+    estimators undo; an export that dropped it came back as a global shutter's, and every step
+    along the rows read long. EuRoC carries it in cam0's sensor.yaml, the bag in its custom data;
+    ``--readout-ms`` still wins, and a global shutter's export states none."""
+    import json
+
+    root = write_synthetic_sequence(tmp_path / "seq", CAM, line_poses(12.0, 4.0, 100.0), seed=2)
+    assert Sequence.open(root).readout_ms == 0.0
+    exported = export_sequence(root, fmt, tmp_path / "exported_global")
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported_global")]) == 0
+    assert Sequence.open(tmp_path / "imported_global").readout_ms == 0.0
+    meta = json.loads((root / "sequence.json").read_text(encoding="utf-8"))
+    meta["sensor"] = {"shutter": "rolling", "readout_ms": 12.5}
+    (root / "sequence.json").write_text(json.dumps(meta), encoding="utf-8")
+    assert Sequence.open(root).readout_ms == 12.5
+    exported = export_sequence(root, fmt, tmp_path / "exported")
+    capsys.readouterr()
+    assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 0
+    imp = Sequence.open(tmp_path / "imported")
+    assert imp.readout_ms == 12.5 and imp.row_time_s == pytest.approx(Sequence.open(root).row_time_s)
+    assert main(["import", str(exported), "-o", str(tmp_path / "given"), "--readout-ms", "5"]) == 0
+    assert Sequence.open(tmp_path / "given").readout_ms == 5.0
+
+
+def test_a_euroc_readout_that_cannot_be_is_refused_in_one_line(tmp_path, capsys):
+    """cam0's sensor.yaml ``readout_ms``: a negative one, or one longer than a frame interval, is
+    refused in one line naming the file or the source, exit 1, and nothing is written."""
+    root = write_synthetic_sequence(tmp_path / "seq", CAM, line_poses(12.0, 4.0, 100.0), seed=2)
+    exported = export_sequence(root, "euroc", tmp_path / "exported")
+    sensor = exported / "mav0" / "cam0" / "sensor.yaml"
+    text = sensor.read_text(encoding="utf-8")
+    assert "readout_ms" not in text  # a global shutter's export states none
+    for value, says in (
+        ("-3.0", "readout_ms = -3.0: must be a finite number of ms >= 0"),
+        ("40.0", "readout_ms = 40.0: must be a rolling shutter's readout in ms, 0 to the shortest frame interval"),
+    ):
+        sensor.write_text(text.rstrip("\n") + f"\nreadout_ms: {value}\n", encoding="utf-8")
+        capsys.readouterr()
+        assert main(["import", str(exported), "-o", str(tmp_path / "imported")]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and says in err, err
+        assert not (tmp_path / "imported").exists()

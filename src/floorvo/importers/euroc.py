@@ -42,7 +42,16 @@ from floorvo.importers.recording import FrameImages, Recording, read_image_file,
 from floorvo.importers.times import read_euroc_groundtruth
 from floorvo.io import read_text
 
-__all__ = ["CAMERA_HEIGHT_KEY", "FLATFIELD_FILE", "HEIGHT_NOISE_KEY", "HEIGHT_SENSOR", "detect", "read", "mav0_of"]
+__all__ = [
+    "CAMERA_HEIGHT_KEY",
+    "FLATFIELD_FILE",
+    "HEIGHT_NOISE_KEY",
+    "HEIGHT_SENSOR",
+    "READOUT_KEY",
+    "detect",
+    "read",
+    "mav0_of",
+]
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +59,9 @@ log = logging.getLogger(__name__)
 FLATFIELD_FILE = "flatfield.png"
 #: The key of cam0's ``sensor.yaml`` holding the camera height above the floor, mm.
 CAMERA_HEIGHT_KEY = "camera_height_mm"
+#: cam0's ``sensor.yaml`` entry of a rolling shutter's readout, first row to last, ms (a sidecar of
+#: ``floorsim export``; the sequence's ``sensor.readout_ms``).
+READOUT_KEY = "readout_ms"
 #: The sensor folder of a range sensor's camera heights (mm) at cam0's frames.
 HEIGHT_SENSOR = "height0"
 #: The key of the range sensor's ``sensor.yaml`` holding the standard deviation of its readings, mm
@@ -146,7 +158,10 @@ def _sensor_mm(sensor: Path, key: str = CAMERA_HEIGHT_KEY) -> float | None:
         return None
     v = d[key]
     ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-    if key == HEIGHT_NOISE_KEY:
+    if key == READOUT_KEY:
+        if not (ok and v >= 0):
+            raise SequenceError(f"{sensor}: {key} = {shown(v)}: must be a finite number of ms >= 0")
+    elif key == HEIGHT_NOISE_KEY:
         if not (ok and 0 <= v <= CAMERA_HEIGHT_RANGE_MM[1]):
             raise SequenceError(
                 f"{sensor}: {key} = {shown(v)}: must be a finite number of mm >= 0 and at most "
@@ -274,4 +289,5 @@ def read(source: Path, options=None) -> Recording:
         height_signal_mm=heights,
         height_noise_mm=None if heights is None else _sensor_mm(mav / HEIGHT_SENSOR / "sensor.yaml", HEIGHT_NOISE_KEY),
         attitude_signal_rad=attitude,
+        readout_ms=_sensor_mm(mav / "cam0" / "sensor.yaml", READOUT_KEY),
     )

@@ -106,6 +106,8 @@ class Recording:
     attitude_signal_rad:
         (frame_count, 2) measured camera roll and pitch (rad, NaN where none) the source
         carries, or None.
+    readout_ms:
+        A rolling shutter's readout (ms) the source states (a ``floorsim export``'s sidecar), or None.
     """
 
     format: str
@@ -127,6 +129,7 @@ class Recording:
     height_signal_mm: np.ndarray | None = None
     height_noise_mm: float | None = None
     attitude_signal_rad: np.ndarray | None = None
+    readout_ms: float | None = None
 
 
 @dataclass(frozen=True)
@@ -441,19 +444,19 @@ def write_recording(rec: Recording, out: str | os.PathLike, options: ImportOptio
             )
     if heights is not None and height_noise is not None:
         meta["rig"]["height_noise_mm"] = float(height_noise)
-    if opts.readout_ms is not None:
+    # a rolling shutter's readout: the user's, else the source's (a floorsim export's sidecar)
+    readout_ms, readout_what = (
+        (opts.readout_ms, "--readout-ms") if opts.readout_ms is not None else (rec.readout_ms, f"{what}: readout_ms")
+    )
+    if readout_ms is not None:
         shortest_ms = 1000.0 * float(np.min(np.diff(ts))) if n > 1 else float("inf")
-        if not 0.0 <= opts.readout_ms <= shortest_ms:
+        if not 0.0 <= readout_ms <= shortest_ms:
             raise ConfigError(
-                f"--readout-ms = {shown_number(opts.readout_ms)}: must be a rolling shutter's readout in ms, 0 to "
+                f"{readout_what} = {shown_number(readout_ms)}: must be a rolling shutter's readout in ms, 0 to "
                 f"the shortest frame interval ({shortest_ms:.3f} ms): a row is read once a frame"
             )
-        if opts.readout_ms > 0.0:
-            meta["sensor"] = {
-                "shutter": "rolling",
-                "readout_ms": float(opts.readout_ms),
-                "row_time": ROW_TIME_CONVENTION,
-            }
+        if readout_ms > 0.0:
+            meta["sensor"] = {"shutter": "rolling", "readout_ms": float(readout_ms), "row_time": ROW_TIME_CONVENTION}
     attitude = opts.attitude_signal_rad if opts.attitude_signal_rad is not None else rec.attitude_signal_rad
     if attitude is not None:
         attitude_what = "--attitude-file" if opts.attitude_signal_rad is not None else f"{what}: measured attitude"

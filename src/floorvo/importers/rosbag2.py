@@ -64,6 +64,7 @@ __all__ = [
     "CAMERA_HEIGHT_KEY",
     "HEIGHT_NOISE_KEY",
     "FPS_KEY",
+    "READOUT_KEY",
     "FLATFIELD_TOPIC_NAME",
     "ROLES",
     "detect",
@@ -98,6 +99,9 @@ HEIGHT_NOISE_KEY = "floorbench.height_noise_mm"
 #: The ``custom_data`` key of a bag's ``metadata.yaml`` holding the sequence's nominal frame rate, Hz
 #: (a bag has no field for it: 29.97 Hz frames came back at the 29.985 Hz of their median spacing).
 FPS_KEY = "floorbench.fps"
+#: The ``custom_data`` key of a bag's ``metadata.yaml`` holding a rolling shutter's readout, first row
+#: to last, ms (the sequence's ``sensor.readout_ms``).
+READOUT_KEY = "floorbench.readout_ms"
 POSE_TYPES = (
     "geometry_msgs/msg/PoseStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -588,6 +592,7 @@ def read(source: Path, options=None) -> Recording:
         height_noise_mm=None
         if heights is None
         else _custom_number(source, HEIGHT_NOISE_KEY, "mm", CAMERA_HEIGHT_RANGE_MM[1], zero_ok=True),
+        readout_ms=_custom_number(source, READOUT_KEY, "ms", zero_ok=True),
     )
 
 
