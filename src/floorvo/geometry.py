@@ -296,15 +296,9 @@ def rolling_shutter_undone(
             theta_src = (rate - 0.5 * accel * interval_s) * interval_s
             theta_dst = (rate + 0.5 * accel * interval_s) * interval_s
         moved_c = R @ c + t  # the displacement at the principal point is kept
-        a = _carried(src, -t_src_s / interval_s, theta_src, moved_c - _rot2(theta_src) @ c)
-        b = _carried(dst, -t_dst_s / interval_s, theta_dst, moved_c - _rot2(theta_dst) @ c)
+        a = _carried(src, -t_src_s / interval_s, theta_src, moved_c - rot_z(theta_src)[:2, :2] @ c)
+        b = _carried(dst, -t_dst_s / interval_s, theta_dst, moved_c - rot_z(theta_dst)[:2, :2] @ c)
     return a, b
-
-
-def _rot2(theta: float) -> np.ndarray:
-    """The 2x2 rotation by ``theta`` (rad)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s], [s, c]])
 
 
 def _carried(p_px: np.ndarray, share: np.ndarray, theta: float, t_px: np.ndarray) -> np.ndarray:

@@ -113,7 +113,7 @@ def build_estimator(seq: Sequence, name: str, overrides: Mapping[str, str] | Non
         }
     if seq.led_positions_cam_mm is not None:  # the rig's own lights (homography-6dof's tilt check)
         rig["led_positions_cam_mm"] = seq.led_positions_cam_mm
-    if seq.row_time_s > 0.0:  # a rolling shutter: the AKAZE estimators and phase-corr undo its readout
+    if seq.row_time_s > 0.0:  # a rolling shutter: the estimators undo its readout (undo_rolling_shutter)
         rig["row_time_s"] = seq.row_time_s
     if seq.height_noise_mm is not None and seq.height_signal_mm is not None:  # homography-6dof's reading check
         rig["height_noise_mm"] = seq.height_noise_mm

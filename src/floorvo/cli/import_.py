@@ -71,7 +71,7 @@ def add_parser(sub) -> None:
         default=None,
         metavar="MS",
         help="a rolling shutter's readout, first row to last, ms (sequence.json's sensor.readout_ms; the frame "
-        "times are taken as the centre row's): the AKAZE estimators and phase-corr undo it in each step",
+        "times are taken as the centre row's): the estimators undo it in each step",
     )
     p.add_argument(
         "--attitude-file",

@@ -81,6 +81,7 @@ from floorvo.estimators.base import (
     frame_height_mm,
     frame_problem,
     height_signal_drift_problem,
+    readout_change_problem,
     stage_timing_ms,
     state_error,
 )
@@ -359,6 +360,8 @@ class _Fit:
     # undone: _AkazeBase._shutter_undone); None: src and dst are (a global shutter)
     src_gs: np.ndarray | None = None
     dst_gs: np.ndarray | None = None
+    # with the scale fitted: the image scale of the undone pairs the height follows (_AkazeBase._shutter_undone)
+    scale_gs: float | None = None
 
     @property
     def pairs_gs(self) -> tuple[np.ndarray, np.ndarray]:
@@ -880,7 +883,11 @@ class _AkazeBase:
             turn_before=turn_before,
             centre_px=(float(self.centre[0]), float(self.centre[1])),
         )
-        return replace(fit, src_gs=src, dst_gs=dst)
+        scale_gs = None
+        if fit.scale_fitted:  # the height follows the undone pairs' scale, 1 where it shows no change
+            similarity = _AkazeBase._rigid_px(self, src, dst, scale=None)
+            scale_gs = _image_scale(similarity) if self._scale_changed(similarity, src, dst) else 1.0
+        return replace(fit, src_gs=src, dst_gs=dst, scale_gs=scale_gs)
 
     def _readout_problem(self, fit: _Fit) -> str:
         """Why the step's motion is not one over the readout ('' where it is, or the frames have a
@@ -916,31 +923,25 @@ class _AkazeBase:
             halves.append((M, sig_px, sig_rad))
         (M1, sp1, sr1), (M2, sp2, sr2) = halves
         mm_per_px = self.camera.gsd_mm_per_px(self.height_mm)
-        apart_mm = float(np.linalg.norm(M1[:2, 2] - M2[:2, 2])) * mm_per_px
-        apart_deg = abs(float(np.degrees(np.arctan2(M1[1, 0], M1[0, 0]) - np.arctan2(M2[1, 0], M2[0, 0]))))
-        k_sig = cfg.precision_sigmas
-        least_mm = apart_mm - k_sig * float(np.hypot(sp1, sp2)) * mm_per_px
-        least_deg = apart_deg - k_sig * float(np.degrees(np.hypot(sr1, sr2)))
-        bound_mm = cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px)
-        if least_mm > bound_mm or least_deg > cfg.max_step_error_deg:
-            return (
-                f"motion changed during the readout: the rows read first and last move {apart_mm:.3f} mm and "
-                f"{apart_deg:.2f} deg apart, less {k_sig:g} standard errors {max(least_mm, 0.0):.3f} mm and "
-                f"{max(least_deg, 0.0):.2f} deg (bound {bound_mm:.3f} mm, {cfg.max_step_error_deg:g} deg)"
-            )
-        return ""
+        return readout_change_problem(
+            "the pairs",
+            float(np.linalg.norm(M1[:2, 2] - M2[:2, 2])) * mm_per_px,
+            abs(float(np.degrees(np.arctan2(M1[1, 0], M1[0, 0]) - np.arctan2(M2[1, 0], M2[0, 0])))),
+            float(np.hypot(sp1, sp2)) * mm_per_px,
+            float(np.degrees(np.hypot(sr1, sr2))),
+            cfg,
+            cfg.bound_mm(float(np.linalg.norm(fit.M[:2, 2])) * mm_per_px),
+        )
 
-    def _picture_scale(self, fit: _Fit) -> float:
+    @staticmethod
+    def _picture_scale(fit: _Fit) -> float:
         """The image scale (current over reference) the camera height follows from a fit whose
         scale was fitted (``fit_image_scale``): ``M``'s, or under a rolling shutter that of the
-        least-squares similarity of the undone pairs (:attr:`_Fit.pairs_gs`), 1 where it shows no
-        change of height (:meth:`_scale_changed`, the test the fit itself made in the frames' pixels)."""
+        least-squares similarity of the undone pairs, 1 where it shows no change of height
+        (:meth:`_scale_changed`, the test the fit itself made in the frames' pixels), computed
+        once by :meth:`_shutter_undone` (``_Fit.scale_gs``)."""
         assert fit.M is not None
-        if fit.src_gs is None or fit.dst_gs is None:
-            return _image_scale(fit.M)
-        src, dst = fit.pairs_gs
-        similarity = _AkazeBase._rigid_px(self, src, dst, scale=None)
-        return _image_scale(similarity) if self._scale_changed(similarity, src, dst) else 1.0
+        return _image_scale(fit.M) if fit.scale_gs is None else fit.scale_gs
 
     def _height_change_problem(
         self, state: _State, fit: _Fit, frame: Frame, attitude: tuple[float, float] | None

@@ -405,3 +405,31 @@ def frame_attitude_rad(frame: Frame, enabled: bool = True) -> tuple[float, float
     if not np.isfinite(att).all():
         return NO_ATTITUDE_READING
     return float(att[0]), float(att[1])
+
+
+def readout_change_problem(
+    what: str,
+    apart_mm: float,
+    apart_deg: float,
+    sigma_mm: float,
+    sigma_deg: float,
+    config: StepBoundConfig,
+    bound_mm: float,
+) -> str:
+    """Why a step under a rolling shutter is not one motion over the readout ('' where it is): the
+    motions fitted apart to ``what`` of the rows read first and of those read last lie
+    ``apart_mm`` (their displacements at the principal point) and ``apart_deg`` (their yaws)
+    apart; less ``config.precision_sigmas`` of the standard errors ``sigma_mm`` and ``sigma_deg``
+    of that difference, beyond issue 14's bound (``bound_mm`` for the step,
+    ``config.max_step_error_deg``), the motion changed during the readout (a turn that starts or
+    ends within a frame), which undoing the readout at one motion cannot follow. The one rule of
+    the AKAZE estimators' and phase-corr's ``check_readout_motion``."""
+    k = config.precision_sigmas
+    least_mm, least_deg = apart_mm - k * sigma_mm, apart_deg - k * sigma_deg
+    if least_mm > bound_mm or least_deg > config.max_step_error_deg:
+        return (
+            f"motion changed during the readout: {what} of the rows read first and last move {apart_mm:.3f} mm and "
+            f"{apart_deg:.2f} deg apart, less {k:g} standard errors {max(least_mm, 0.0):.3f} mm and "
+            f"{max(least_deg, 0.0):.2f} deg (bound {bound_mm:.3f} mm, {config.max_step_error_deg:g} deg)"
+        )
+    return ""

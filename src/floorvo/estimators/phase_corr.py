@@ -78,6 +78,7 @@ from floorvo.estimators.base import (
     frame_is_blank,
     frame_problem,
     height_signal_drift_problem,
+    readout_change_problem,
     stage_timing_ms,
     state_error,
 )
@@ -1021,19 +1022,15 @@ class PhaseCorr:
         scale = m.similarity_scale  # the blocks' image scale (a height change), whatever fit_image_scale
         (R1, t1), (R2, t2) = (rigid_fit(scale * src[rows], dst[rows]) for rows in (upper, ~upper))
         mm_per_px = self.grid_cam.gsd_mm_per_px(self.height_mm)
-        apart_mm = float(np.linalg.norm(t1 - t2)) * mm_per_px
-        apart_deg = abs(float(np.degrees(np.arctan2(R1[1, 0], R1[0, 0]) - np.arctan2(R2[1, 0], R2[0, 0]))))
-        least_mm = apart_mm - cfg.precision_sigmas * m.shift_sigma_mm
-        least_deg = apart_deg - cfg.precision_sigmas * m.yaw_sigma_deg
-        bound_mm = cfg.bound_mm(m.step_mm)
-        if least_mm > bound_mm or least_deg > cfg.max_step_error_deg:
-            return (
-                f"motion changed during the readout: the blocks of the rows read first and last move "
-                f"{apart_mm:.3f} mm and {apart_deg:.2f} deg apart, less {cfg.precision_sigmas:g} standard errors "
-                f"{max(least_mm, 0.0):.3f} mm and {max(least_deg, 0.0):.2f} deg (bound {bound_mm:.3f} mm, "
-                f"{cfg.max_step_error_deg:g} deg)"
-            )
-        return ""
+        return readout_change_problem(
+            "the blocks",
+            float(np.linalg.norm(t1 - t2)) * mm_per_px,
+            abs(float(np.degrees(np.arctan2(R1[1, 0], R1[0, 0]) - np.arctan2(R2[1, 0], R2[0, 0])))),
+            m.shift_sigma_mm,
+            m.yaw_sigma_deg,
+            cfg,
+            cfg.bound_mm(m.step_mm),
+        )
 
     def _shutter_undone(
         self, M: np.ndarray, points: np.ndarray, interval_s: float, turn_before: tuple[float, float] | None = None
